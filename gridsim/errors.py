@@ -1,0 +1,19 @@
+"""Exceptions raised by gridsim for bad input.
+
+Every error that reaches a user names what is wrong (file, key path, value, expected
+range). Catch :class:`GridSimError` to handle any of them.
+"""
+
+from __future__ import annotations
+
+
+class GridSimError(Exception):
+    """Base class of all errors raised by gridsim for bad input or bad state."""
+
+
+class ScenarioError(GridSimError, ValueError):
+    """A scenario (YAML file, name or override) is invalid."""
+
+
+class DataError(GridSimError, ValueError):
+    """A data file (trajectory CSV, CommonRoad XML) is missing, malformed or inconsistent."""

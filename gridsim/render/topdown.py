@@ -1,0 +1,102 @@
+"""Top-down RGB rendering with OpenCV: road, lane markings, vehicles, ego, grid inset.
+
+The view is centred on the ego, north up, ``pixels_per_metre`` pixels per metre. Nothing is
+ever shown in a window; frames are numpy arrays ``(height, width, 3)`` uint8 RGB.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from gridsim.sensors.occupancy import colourise
+from gridsim.vehicle.kinematics import box_corners
+
+_BG = (34, 120, 34)  # grass
+_ROAD = (90, 90, 90)
+_MARK = (235, 235, 235)
+_TRAFFIC = (40, 90, 220)
+_IDM = (250, 160, 40)
+_EGO = (230, 30, 30)
+
+
+@dataclass(frozen=True)
+class ViewSpec:
+    width: int = 640
+    height: int = 480
+    pixels_per_metre: float = 5.0
+    inset_size: int = 160
+
+
+class TopDownRenderer:
+    """Draws :class:`~gridsim.world.World` states as RGB frames."""
+
+    def __init__(self, view: ViewSpec | None = None) -> None:
+        self.view = view or ViewSpec()
+
+    def _affine(self, center: np.ndarray) -> np.ndarray:
+        v = self.view
+        k = v.pixels_per_metre
+        return np.array(
+            [[k, 0.0, v.width / 2 - k * center[0]], [0.0, -k, v.height / 2 + k * center[1]]]
+        )
+
+    def _px(self, a: np.ndarray, pts: np.ndarray) -> np.ndarray:
+        return np.rint((pts @ a[:, :2].T + a[:, 2]) * 16).astype(np.int32)
+
+    def render(
+        self,
+        world,
+        grid: np.ndarray | None = None,
+        overlay: np.ndarray | None = None,
+        rays: np.ndarray | None = None,
+    ) -> np.ndarray:
+        """One frame. ``grid`` adds an occupancy-grid inset (top right); ``overlay`` ``(K, 2)``
+        world points (e.g. trajectory set-points) are drawn as dots; ``rays`` ``(R, 2)``
+        world end points are drawn as lines from the ego."""
+        v = self.view
+        ego_xy = world.ego[:2]
+        a = self._affine(ego_xy)
+        img = np.empty((v.height, v.width, 3), np.uint8)
+        img[:] = _BG
+        radius = 0.5 * np.hypot(v.width, v.height) / v.pixels_per_metre
+        for poly in world.road.drivable_polygons(ego_xy, radius):
+            cv2.fillPoly(img, [self._px(a, poly)], _ROAD, cv2.LINE_AA, shift=4)
+        for line in world.road.lane_markings(ego_xy, radius):
+            cv2.polylines(img, [self._px(a, line)], False, _MARK, 1, cv2.LINE_AA, shift=4)
+        f = world.traffic.fleet
+        act = np.flatnonzero(f.active)
+        boxes = box_corners(f.x[act], f.y[act], f.psi[act], f.length[act], f.width[act])
+        for j, quad in zip(act, boxes, strict=True):
+            colour = _IDM if f.mode[j] else _TRAFFIC
+            cv2.fillConvexPoly(img, self._px(a, quad), colour, cv2.LINE_AA, shift=4)
+        if rays is not None:
+            origin = self._px(a, ego_xy[None])[0]
+            for end in self._px(a, rays):
+                cv2.line(img, tuple(origin), tuple(end), (255, 255, 0), 1, cv2.LINE_AA, shift=4)
+        c = world.ego_center()
+        p = world.ego_params
+        ego_box = box_corners(c[0], c[1], world.ego[2], p.length, p.width)
+        cv2.fillConvexPoly(img, self._px(a, ego_box), _EGO, cv2.LINE_AA, shift=4)
+        if overlay is not None and len(overlay):
+            for q in self._px(a, np.asarray(overlay, float)):
+                cv2.circle(img, tuple(q), 3 * 16, (255, 255, 255), -1, cv2.LINE_AA, shift=4)
+        if grid is not None:
+            self._inset(img, grid)
+        return img
+
+    def _inset(self, img: np.ndarray, grid: np.ndarray) -> None:
+        s = self.view.inset_size
+        h, w = grid.shape
+        scale = s / max(h, w)
+        tile = cv2.resize(
+            colourise(grid),
+            (max(1, int(w * scale)), max(1, int(h * scale))),
+            interpolation=cv2.INTER_NEAREST,
+        )
+        th, tw = tile.shape[:2]
+        x0 = img.shape[1] - tw - 8
+        img[8 : 8 + th, x0 : x0 + tw] = tile
+        cv2.rectangle(img, (x0 - 1, 7), (x0 + tw, 8 + th), (255, 255, 255), 1)

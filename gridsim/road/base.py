@@ -1,0 +1,154 @@
+"""The road interface shared by generated and recorded maps.
+
+A road is a set of lanes (centre polylines with a width), a drivable area (polygons, used by
+the sensor and renderer), boundary segments (used for off-road collisions) and lane markings.
+All coordinates are metres in the world frame (x east, y north).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from gridsim.road.polyline import Polyline
+
+
+@dataclass
+class Lane:
+    """One lane: its centre line (direction of travel along increasing s) and width [m]."""
+
+    centre: Polyline
+    width: float
+
+
+def bbox_of(polys: list[np.ndarray]) -> np.ndarray:
+    """Axis-aligned boxes ``(K, 4)`` = ``[xmin, ymin, xmax, ymax]`` of a list of point arrays."""
+    if not polys:
+        return np.zeros((0, 4))
+    return np.array([[*p.min(axis=0), *p.max(axis=0)] for p in polys])
+
+
+def near(boxes: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:
+    """Indices of the boxes that intersect the square of half-size ``radius`` around ``center``."""
+    cx, cy = float(center[0]), float(center[1])
+    hit = (
+        (boxes[:, 0] <= cx + radius)
+        & (boxes[:, 2] >= cx - radius)
+        & (boxes[:, 1] <= cy + radius)
+        & (boxes[:, 3] >= cy - radius)
+    )
+    return np.flatnonzero(hit)
+
+
+class Road(ABC):
+    """Abstract road. Generated roads may change as the ego drives (see :meth:`update`)."""
+
+    #: Incremented whenever boundary segments change (collision shapes must be rebuilt).
+    version: int = 0
+
+    @property
+    @abstractmethod
+    def lanes(self) -> list[Lane]:
+        """Lanes of the road (for a generated road, the currently generated stretch)."""
+
+    def update(self, ego_xy: np.ndarray) -> None:  # noqa: B027 - optional hook
+        """Let a generated road extend ahead of / trim behind the ego. Static roads do nothing."""
+
+    @abstractmethod
+    def drivable_polygons(self, center: np.ndarray, radius: float) -> list[np.ndarray]:
+        """Polygons ``(K, 2)`` whose union is the drivable area within ``radius`` of ``center``."""
+
+    @abstractmethod
+    def boundary_segments(self) -> np.ndarray:
+        """Road edges as segments ``(M, 4)`` = ``[x0, y0, x1, y1]``."""
+
+    @abstractmethod
+    def lane_markings(self, center: np.ndarray, radius: float) -> list[np.ndarray]:
+        """Polylines of painted lane dividers near ``center`` (for rendering)."""
+
+    @abstractmethod
+    def is_drivable(self, xy: np.ndarray) -> np.ndarray:
+        """Boolean array: which of the points ``(N, 2)`` lie on the drivable area."""
+
+
+class StaticRoad(Road):
+    """A road whose geometry never changes: a city network or a recorded map.
+
+    The drivable area is the union of ``polygons``; it is rasterised once at ``resolution``
+    metres to answer :meth:`is_drivable` in O(1) and to extract the boundary of the union.
+    """
+
+    def __init__(
+        self,
+        lanes: list[Lane],
+        polygons: list[np.ndarray],
+        markings: list[np.ndarray] | None = None,
+        resolution: float = 0.2,
+    ) -> None:
+        if not polygons:
+            raise ValueError("a road needs at least one drivable polygon")
+        self._lanes = lanes
+        self._polygons = [np.asarray(p, dtype=np.float64) for p in polygons]
+        self._poly_boxes = bbox_of(self._polygons)
+        self._markings = markings or []
+        self._marking_boxes = bbox_of(self._markings)
+        self._res = resolution
+        margin = 2.0
+        self._origin = self._poly_boxes[:, :2].min(axis=0) - margin
+        extent = self._poly_boxes[:, 2:].max(axis=0) + margin - self._origin
+        w, h = (np.ceil(extent / resolution)).astype(int) + 1
+        self._raster = np.zeros((h, w), np.uint8)
+        for poly in self._polygons:  # one call per polygon: a multi-polygon call XORs overlaps
+            cv2.fillPoly(self._raster, [self._to_px(poly)], 1, lineType=cv2.LINE_8, shift=4)
+        self._segments = self._extract_boundaries()
+
+    @property
+    def lanes(self) -> list[Lane]:
+        return self._lanes
+
+    @property
+    def bounds(self) -> np.ndarray:
+        """``[xmin, ymin, xmax, ymax]`` of the drivable area [m]."""
+        return np.array(
+            [*self._poly_boxes[:, :2].min(axis=0), *self._poly_boxes[:, 2:].max(axis=0)]
+        )
+
+    def _to_px(self, pts: np.ndarray) -> np.ndarray:
+        # Raster row r covers y in origin_y + [r, r+1) * res (row index grows with y).
+        px = (pts - self._origin) / self._res - 0.5
+        return np.round(px * 16).astype(np.int32)
+
+    def _extract_boundaries(self) -> np.ndarray:
+        contours, _ = cv2.findContours(self._raster, cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
+        segs = []
+        for c in contours:
+            c = cv2.approxPolyDP(c, 1.0, closed=True)[:, 0, :].astype(np.float64)
+            if len(c) < 2:
+                continue
+            world = (c + 0.5) * self._res + self._origin
+            nxt = np.roll(world, -1, axis=0)
+            segs.append(np.hstack([world, nxt]))
+        return np.vstack(segs) if segs else np.zeros((0, 4))
+
+    def drivable_polygons(self, center, radius):
+        return [self._polygons[i] for i in near(self._poly_boxes, center, radius)]
+
+    def boundary_segments(self):
+        return self._segments
+
+    def lane_markings(self, center, radius):
+        if not self._markings:
+            return []
+        return [self._markings[i] for i in near(self._marking_boxes, center, radius)]
+
+    def is_drivable(self, xy):
+        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
+        ij = np.floor((xy - self._origin) / self._res).astype(np.int64)
+        h, w = self._raster.shape
+        inside = (ij[:, 0] >= 0) & (ij[:, 0] < w) & (ij[:, 1] >= 0) & (ij[:, 1] < h)
+        out = np.zeros(len(xy), dtype=bool)
+        out[inside] = self._raster[ij[inside, 1], ij[inside, 0]] > 0
+        return out

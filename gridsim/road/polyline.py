@@ -1,0 +1,99 @@
+"""Polylines with arc length: point/heading at s, projection to (s, d), offsets.
+
+All coordinates are metres in the world frame; ``d`` is the signed lateral offset, positive to
+the left of the direction of travel.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+class Polyline:
+    """A piecewise-linear curve through ``points`` ``(M, 2)`` with cumulative arc length ``s``.
+
+    ``s`` starts at ``s_start`` so that a curve trimmed at its back keeps its coordinates.
+    """
+
+    __slots__ = ("points", "s", "_seg", "_seg_len", "_heading")
+
+    def __init__(self, points: np.ndarray, s_start: float = 0.0) -> None:
+        pts = np.asarray(points, dtype=np.float64)
+        if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
+            raise ValueError(f"a polyline needs at least 2 points of shape (M, 2), got {pts.shape}")
+        if not np.all(np.isfinite(pts)):
+            raise ValueError("polyline points must be finite")
+        seg = np.diff(pts, axis=0)
+        seg_len = np.hypot(seg[:, 0], seg[:, 1])
+        keep = np.concatenate([[True], seg_len > 1e-9])
+        if not keep.all():
+            pts = pts[keep]
+            if len(pts) < 2:
+                raise ValueError("a polyline needs at least 2 distinct points")
+            seg = np.diff(pts, axis=0)
+            seg_len = np.hypot(seg[:, 0], seg[:, 1])
+        self.points = pts
+        self._seg = seg
+        self._seg_len = seg_len
+        self._heading = np.arctan2(seg[:, 1], seg[:, 0])
+        self.s = s_start + np.concatenate([[0.0], np.cumsum(seg_len)])
+
+    @property
+    def length(self) -> float:
+        """Arc length [m] from the first to the last point."""
+        return float(self.s[-1] - self.s[0])
+
+    def _segment_index(self, s: np.ndarray) -> np.ndarray:
+        idx = np.searchsorted(self.s, s, side="right") - 1
+        return np.clip(idx, 0, len(self._seg) - 1)
+
+    def point_at(self, s: np.ndarray | float) -> tuple[np.ndarray, np.ndarray]:
+        """World points ``(..., 2)`` and headings [rad] at arc length ``s`` (extrapolated linearly
+        beyond the ends)."""
+        s = np.asarray(s, dtype=np.float64)
+        i = self._segment_index(s)
+        t = (s - self.s[i]) / self._seg_len[i]
+        p = self.points[i] + t[..., None] * self._seg[i]
+        return p, self._heading[i]
+
+    def frenet_to_world(self, s, d) -> tuple[np.ndarray, np.ndarray]:
+        """World points and path headings for lane coordinates ``(s, d)``."""
+        p, h = self.point_at(s)
+        d = np.asarray(d, dtype=np.float64)
+        normal = np.stack([-np.sin(h), np.cos(h)], axis=-1)
+        return p + d[..., None] * normal, h
+
+    def project(self, xy: np.ndarray, hint: int | None = None, window: int = 64):
+        """Nearest point on the curve for each of ``xy`` ``(N, 2)``.
+
+        Returns ``(s, d, segment_index)``; ``d`` is positive to the left. ``hint`` limits the
+        search to ``window`` segments around a previous segment index (fast tracking).
+        """
+        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
+        lo, hi = 0, len(self._seg)
+        if hint is not None:
+            lo, hi = max(0, hint - window), min(len(self._seg), hint + window)
+        a = self.points[lo:hi]
+        seg = self._seg[lo:hi]
+        seg_len2 = self._seg_len[lo:hi] ** 2
+        rel = xy[:, None, :] - a[None, :, :]
+        t = np.clip(np.einsum("nmk,mk->nm", rel, seg) / seg_len2, 0.0, 1.0)
+        closest = a[None] + t[..., None] * seg[None]
+        dist2 = np.sum((xy[:, None, :] - closest) ** 2, axis=-1)
+        j = np.argmin(dist2, axis=1)
+        rows = np.arange(len(xy))
+        tj = t[rows, j]
+        gi = j + lo
+        s = self.s[gi] + tj * self._seg_len[gi]
+        cross = seg[j, 0] * rel[rows, j, 1] - seg[j, 1] * rel[rows, j, 0]
+        d = np.sign(cross) * np.sqrt(dist2[rows, j])
+        return s, d, gi
+
+    def offset(self, d: float) -> np.ndarray:
+        """Points of the curve offset by ``d`` to the left (vertex normals averaged)."""
+        h = self._heading
+        hv = np.concatenate([[h[0]], np.angle(np.exp(1j * h[:-1]) + np.exp(1j * h[1:])), [h[-1]]])
+        half_turn = np.concatenate([[0.0], 0.5 * np.angle(np.exp(1j * (h[1:] - h[:-1]))), [0.0]])
+        scale = 1.0 / np.maximum(np.cos(half_turn), 0.2)
+        normal = np.stack([-np.sin(hv), np.cos(hv)], axis=-1)
+        return self.points + (d * scale)[:, None] * normal

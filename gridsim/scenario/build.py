@@ -1,0 +1,241 @@
+"""Turn a validated :class:`Scenario` into a :class:`World` and an occupancy-grid sensor.
+
+Dispatch is by the road config's type through :data:`WORLD_BUILDERS`; static maps and
+libraries are cached so that resets are cheap. One reset seed is split into independent
+streams for the road, the traffic and the ego.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from gridsim.errors import ScenarioError
+from gridsim.road.city import CityParams, CityRoad
+from gridsim.road.lanelet import load_lanelet_road
+from gridsim.road.polyline import Polyline
+from gridsim.road.seamless import SeamlessParams, SeamlessRoad
+from gridsim.scenario.loader import Scenario
+from gridsim.scenario.schema import (
+    CityRoadConfig,
+    RecordedRoadConfig,
+    SeamlessRoadConfig,
+    VehicleConfig,
+)
+from gridsim.sensors.occupancy import GridSpec, OccupancyGridSensor, SensorMount
+from gridsim.traffic.library import TrajectoryLibrary
+from gridsim.traffic.sources import (
+    CityTraffic,
+    RecordedSceneTraffic,
+    SeamlessTraffic,
+    SpeedBounds,
+    track_path,
+)
+from gridsim.vehicle.kinematics import BicycleParams
+from gridsim.world.world import World
+
+
+def vehicle_params(
+    cfg: VehicleConfig, length: float | None = None, width: float | None = None
+) -> BicycleParams:
+    """Bicycle parameters from the YAML vehicle block (angles converted to radians)."""
+    length = cfg.length if length is None else length
+    width = cfg.width if width is None else width
+    wheelbase = min(cfg.wheelbase, 0.7 * length)
+    return BicycleParams(
+        wheelbase=wheelbase,
+        length=length,
+        width=width,
+        center_offset=0.5 * wheelbase,
+        v_min=cfg.v_min,
+        v_max=cfg.v_max,
+        a_max=cfg.a_max,
+        b_max=cfg.b_max,
+        delta_max=np.deg2rad(cfg.max_steer_deg),
+        v_delta_max=np.deg2rad(cfg.max_steer_rate_deg),
+    )
+
+
+def build_sensor(scenario: Scenario) -> OccupancyGridSensor:
+    s = scenario.config.sensor
+    mounts = tuple(
+        SensorMount(m.x, m.y, np.deg2rad(m.yaw_deg), np.deg2rad(m.fov_deg)) for m in s.mounts
+    )
+    return OccupancyGridSensor(
+        GridSpec(
+            s.rows, s.cols, s.cell_size, s.orientation, s.max_range, s.rays, s.hit_depth, mounts
+        )
+    )
+
+
+def _resolve(scenario: Scenario, ref: str, builtin_dir: tuple[str, ...], suffix: str) -> Path:
+    from importlib import resources
+
+    if ref.startswith("builtin:"):
+        name = ref.split(":", 1)[1]
+        entry = resources.files("gridsim").joinpath(*builtin_dir, name + suffix)
+        if not entry.is_file():
+            raise ScenarioError(f"{scenario.source}: no built-in file {ref!r}")
+        return Path(str(entry))
+    path = Path(ref)
+    if not path.is_absolute() and scenario.base_dir is not None:
+        path = scenario.base_dir / path
+    if not path.is_file():
+        raise ScenarioError(f"{scenario.source}: file not found: {ref!r} (resolved to {path})")
+    return path
+
+
+def library_for(scenario: Scenario) -> TrajectoryLibrary:
+    paths = []
+    for ref in scenario.config.traffic.library:
+        if ref == "builtin":
+            paths.append("builtin")
+        else:
+            paths.append(str(_resolve(scenario, ref, ("data", "ngsim"), ".csv")))
+    return _library(tuple(paths))
+
+
+@lru_cache(maxsize=8)
+def _library(paths: tuple[str, ...]) -> TrajectoryLibrary:
+    tracks = []
+    for p in paths:
+        lib = TrajectoryLibrary.builtin() if p == "builtin" else TrajectoryLibrary.from_csv(p)
+        tracks += lib.tracks
+    return TrajectoryLibrary(tracks)
+
+
+@lru_cache(maxsize=8)
+def _lanelet_road(path: str):
+    return load_lanelet_road(path)
+
+
+@lru_cache(maxsize=4)
+def _city_road(params: CityParams, seed: int) -> CityRoad:
+    return CityRoad(params, seed)
+
+
+def _seeds(seed: int) -> tuple[int, np.random.Generator, np.random.Generator]:
+    road_ss, traffic_ss, ego_ss = np.random.SeedSequence(seed).spawn(3)
+    return (
+        int(road_ss.generate_state(1)[0]),
+        np.random.default_rng(traffic_ss),
+        np.random.default_rng(ego_ss),
+    )
+
+
+def _synthetic_tracks(scenario: Scenario):
+    t = scenario.config.traffic
+    tracks = library_for(scenario).select(min_duration=2.0, max_length=t.max_vehicle_length)
+    if not tracks:
+        raise ScenarioError(
+            f"{scenario.source}: traffic.library has no track of >= 2 s and <= "
+            f"{t.max_vehicle_length} m (traffic.max_vehicle_length)"
+        )
+    return tracks
+
+
+def _bounds(scenario: Scenario) -> SpeedBounds:
+    t = scenario.config.traffic
+    return SpeedBounds(t.v_min, t.v_max, t.a_max)
+
+
+def _build_seamless(scenario: Scenario, seed: int) -> World:
+    cfg = scenario.config
+    rc: SeamlessRoadConfig = cfg.road
+    road_seed, traffic_rng, _ = _seeds(seed)
+    params = SeamlessParams(
+        rc.lanes,
+        rc.lane_width,
+        rc.straight_fraction,
+        rc.mean_curve_angle_deg,
+        tuple(rc.curve_radius),
+    )
+    road = SeamlessRoad(params, rc.seed if rc.seed is not None else road_seed)
+    ego = vehicle_params(cfg.ego.vehicle)
+    lane = cfg.ego.lane
+    start, heading = road.lanes[lane].centre.point_at(0.0)
+    state = np.array([start[0], start[1], heading, cfg.ego.speed, 0.0])
+    traffic = SeamlessTraffic(
+        road, _synthetic_tracks(scenario), cfg.traffic.participants, _bounds(scenario)
+    )
+    return World(
+        road, traffic, ego, state, cfg.simulation.dt, lambda: road.lanes[lane].centre, traffic_rng
+    )
+
+
+def _build_city(scenario: Scenario, seed: int) -> World:
+    cfg = scenario.config
+    rc: CityRoadConfig = cfg.road
+    road_seed, traffic_rng, ego_rng = _seeds(seed)
+    params = CityParams(
+        rc.blocks_x,
+        rc.blocks_y,
+        rc.block_size,
+        rc.jitter,
+        rc.lanes_per_direction,
+        rc.lane_width,
+        rc.turn_radius,
+        rc.turn_probability,
+    )
+    road = _city_road(params, rc.seed if rc.seed is not None else road_seed)
+    ego = vehicle_params(cfg.ego.vehicle)
+    length = max(cfg.ego.speed, 5.0) * cfg.simulation.duration + 200.0
+    route = road.random_route(ego_rng, length)
+    start, heading = route.point_at(5.0)
+    state = np.array([start[0], start[1], heading, cfg.ego.speed, 0.0])
+    traffic = CityTraffic(
+        road, _synthetic_tracks(scenario), cfg.traffic.participants, _bounds(scenario)
+    )
+    return World(road, traffic, ego, state, cfg.simulation.dt, lambda: route, traffic_rng)
+
+
+def _build_recorded(scenario: Scenario, seed: int) -> World:
+    cfg = scenario.config
+    rc: RecordedRoadConfig = cfg.road
+    _, traffic_rng, ego_rng = _seeds(seed)
+    road = _lanelet_road(
+        str(_resolve(scenario, rc.map, ("data", "ngsim", "commonroad-xml"), ".xml"))
+    )
+    tracks = library_for(scenario).scene(rc.scene)
+    if cfg.ego.track == "random":
+        fit = [
+            t for t in tracks if t.duration >= 2.0 and t.length <= cfg.traffic.max_vehicle_length
+        ]
+        if not fit:
+            raise ScenarioError(
+                f"{scenario.source}: scene {rc.scene!r} has no track >= 2 s to use as ego"
+            )
+        ego_track = fit[int(ego_rng.integers(len(fit)))]
+    else:
+        match = [t for t in tracks if t.track_id == cfg.ego.track]
+        if not match:
+            ids = ", ".join(t.track_id for t in tracks)
+            raise ScenarioError(
+                f"{scenario.source}: ego.track {cfg.ego.track!r} is not in scene "
+                f"{rc.scene!r}; tracks: {ids}"
+            )
+        ego_track = match[0]
+    ego = vehicle_params(cfg.ego.vehicle, ego_track.length, ego_track.width)
+    u = np.array([np.cos(ego_track.heading[0]), np.sin(ego_track.heading[0])])
+    rear = np.array([ego_track.x[0], ego_track.y[0]]) - ego.center_offset * u
+    state = np.array([rear[0], rear[1], ego_track.heading[0], ego_track.speed[0], 0.0])
+    route = Polyline(track_path(ego_track)[0])
+    traffic = RecordedSceneTraffic(tracks, exclude=ego_track.track_id)
+    return World(
+        road, traffic, ego, state, cfg.simulation.dt, lambda: route, traffic_rng, ego_track
+    )
+
+
+WORLD_BUILDERS: dict[type, Callable[[Scenario, int], World]] = {
+    SeamlessRoadConfig: _build_seamless,
+    CityRoadConfig: _build_city,
+    RecordedRoadConfig: _build_recorded,
+}
+
+
+def build_world(scenario: Scenario, seed: int = 0) -> World:
+    """A fresh world for ``scenario``; the same seed always gives the same world."""
+    return WORLD_BUILDERS[type(scenario.config.road)](scenario, int(seed))

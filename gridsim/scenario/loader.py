@@ -1,0 +1,126 @@
+"""Load scenarios by built-in name or by YAML path, with validated overrides."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import ValidationError
+
+from gridsim.errors import ScenarioError
+from gridsim.scenario.schema import ScenarioConfig
+
+_BUILTIN_DIR = ("data", "scenarios")
+_ROAD_TAGS = ("seamless", "inner_city", "recorded")
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario and the folder relative paths in it resolve against."""
+
+    config: ScenarioConfig
+    source: str
+    base_dir: Path | None
+
+    @property
+    def name(self) -> str:
+        return self.config.name
+
+
+def builtin_scenarios() -> dict[str, str]:
+    """Built-in scenario names and their one-line descriptions."""
+    folder = resources.files("gridsim").joinpath(*_BUILTIN_DIR)
+    out = {}
+    for entry in sorted(folder.iterdir(), key=lambda e: e.name):
+        if entry.name.endswith(".yaml"):
+            doc = yaml.safe_load(entry.read_text())
+            out[entry.name[:-5]] = str(doc.get("description", "")).strip().splitlines()[0:1]
+    return {k: (v[0] if v else "") for k, v in out.items()}
+
+
+def _format_validation(source: str, err: ValidationError) -> str:
+    lines = [f"{source}: invalid scenario ({err.error_count()} problem(s)):"]
+    for e in err.errors():
+        parts = list(e["loc"])
+        if len(parts) > 1 and parts[0] == "road" and parts[1] in _ROAD_TAGS:
+            del parts[1]  # pydantic's union tag is not part of the user's key path
+        loc = ".".join(str(p) for p in parts) or "(top level)"
+        msg = e["msg"]
+        if e["type"] == "extra_forbidden":
+            msg = "unknown key"
+        got = e.get("input")
+        shown = repr(got) if not isinstance(got, Mapping) else "{...}"
+        if len(shown) > 60:
+            shown = shown[:57] + "..."
+        lines.append(f"  - {loc}: {msg} (got {shown})")
+    return "\n".join(lines)
+
+
+def deep_merge(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
+    """Recursively merge ``overrides`` into ``base`` (mappings merge, other values replace)."""
+    out = dict(base)
+    for k, v in overrides.items():
+        if isinstance(v, Mapping) and isinstance(out.get(k), Mapping):
+            out[k] = deep_merge(out[k], v)
+        else:
+            out[k] = v
+    return out
+
+
+def parse_scenario(
+    doc: Any,
+    source: str = "<scenario>",
+    base_dir: Path | None = None,
+    overrides: Mapping[str, Any] | None = None,
+) -> Scenario:
+    """Validate a parsed YAML document (plus ``overrides``) into a :class:`Scenario`."""
+    if not isinstance(doc, Mapping):
+        raise ScenarioError(
+            f"{source}: a scenario must be a mapping of keys, got {type(doc).__name__}"
+        )
+    if any(not isinstance(k, str) for k in doc):
+        raise ScenarioError(f"{source}: all top-level keys must be strings")
+    if overrides:
+        doc = deep_merge(doc, overrides)
+    try:
+        cfg = ScenarioConfig.model_validate(doc)
+    except ValidationError as exc:
+        raise ScenarioError(_format_validation(source, exc)) from None
+    return Scenario(cfg, source, base_dir)
+
+
+def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """Load a built-in scenario by name (``"seamless"``) or a YAML file by path."""
+    text, source, base = _read(name_or_path)
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ScenarioError(f"{source}: malformed YAML{where}: {problem}") from None
+    return parse_scenario(doc, source, base, overrides)
+
+
+def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
+    p = Path(name_or_path)
+    looks_like_path = p.suffix in (".yaml", ".yml") or len(p.parts) > 1
+    if looks_like_path:
+        if not p.is_file():
+            raise ScenarioError(f"scenario file not found: {p}")
+        try:
+            return p.read_text(encoding="utf-8"), str(p), p.resolve().parent
+        except (OSError, UnicodeDecodeError) as exc:
+            raise ScenarioError(f"{p}: cannot read scenario file ({exc})") from None
+    entry = resources.files("gridsim").joinpath(*_BUILTIN_DIR, f"{name_or_path}.yaml")
+    if not entry.is_file():
+        known = ", ".join(builtin_scenarios())
+        raise ScenarioError(
+            f"unknown scenario {str(name_or_path)!r}; built-in scenarios: {known} "
+            "(or give a path to a .yaml file)"
+        )
+    return entry.read_text(encoding="utf-8"), f"builtin:{name_or_path}", None

@@ -1,0 +1,161 @@
+"""The typed schema of scenario YAML files (pydantic). Unknown keys are errors.
+
+Units: metres, seconds, m/s, m/s^2, degrees where a key ends in ``_deg`` or is an angle
+given to users (``fov``, ``yaw``, ``max_steer``...), radians nowhere in YAML.
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
+Seed = Annotated[int, Field(ge=0, le=2**63 - 1)]
+
+
+class Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+
+class SimulationConfig(Strict):
+    dt: Annotated[float, Field(gt=0, le=1.0, description="simulation time step [s]")] = 0.1
+    duration: Annotated[float, Field(gt=0, le=3600, description="episode time limit [s]")] = 60.0
+
+
+class VehicleConfig(Strict):
+    """The ego vehicle's geometry and limits."""
+
+    length: Annotated[float, Field(gt=0, le=25)] = 4.5
+    width: Annotated[float, Field(gt=0, le=4)] = 1.8
+    wheelbase: Annotated[float, Field(gt=0, le=10)] = 2.7
+    v_min: Annotated[float, Field(ge=0, le=100)] = 0.0
+    v_max: Annotated[float, Field(gt=0, le=100)] = 20.0
+    a_max: Annotated[float, Field(gt=0, le=20)] = 2.0
+    b_max: Annotated[float, Field(gt=0, le=20)] = 6.0
+    max_steer_deg: Annotated[float, Field(gt=0, lt=90)] = 35.0
+    max_steer_rate_deg: Annotated[float, Field(gt=0, le=360)] = 45.0
+
+    @model_validator(mode="after")
+    def _order(self) -> VehicleConfig:
+        if self.v_max < self.v_min:
+            raise ValueError(f"v_max ({self.v_max}) must be >= v_min ({self.v_min})")
+        if self.wheelbase > self.length:
+            raise ValueError(f"wheelbase ({self.wheelbase}) must not exceed length ({self.length})")
+        return self
+
+
+class MountConfig(Strict):
+    x: Annotated[float, Field(ge=-20, le=20, allow_inf_nan=False)] = 0.0
+    y: Annotated[float, Field(ge=-10, le=10, allow_inf_nan=False)] = 0.0
+    yaw_deg: Annotated[float, Field(ge=-180, le=180)] = 0.0
+    fov_deg: Annotated[float, Field(gt=0, le=360)] = 360.0
+
+
+class SensorConfig(Strict):
+    rows: Annotated[int, Field(ge=8, le=1024)] = 128
+    cols: Annotated[int, Field(ge=8, le=1024)] = 128
+    cell_size: Annotated[float, Field(gt=0, le=5)] = 0.5
+    orientation: Literal["north_up", "heading_up"] = "north_up"
+    max_range: Annotated[float, Field(gt=0, le=500)] = 50.0
+    rays: Annotated[int, Field(ge=8, le=8192)] = 720
+    hit_depth: Annotated[float, Field(ge=0, le=10)] = 0.5
+    mounts: Annotated[list[MountConfig], Field(min_length=1, max_length=8)] = [MountConfig()]
+
+
+class TrafficConfig(Strict):
+    participants: Annotated[int, Field(ge=0, le=5000)] = 10
+    v_min: NonNegFloat = 4.16
+    v_max: PositiveFloat = 13.88
+    a_max: PositiveFloat = 2.0
+    max_vehicle_length: Annotated[float, Field(gt=2, le=25)] = 6.0
+    library: Annotated[list[str], Field(min_length=1)] = ["builtin"]
+
+    @model_validator(mode="after")
+    def _order(self) -> TrafficConfig:
+        if self.v_max < self.v_min:
+            raise ValueError(f"v_max ({self.v_max}) must be >= v_min ({self.v_min})")
+        return self
+
+
+class SeamlessRoadConfig(Strict):
+    type: Literal["seamless"]
+    seed: Seed | None = None
+    lanes: Annotated[int, Field(ge=1, le=8)] = 3
+    lane_width: Annotated[float, Field(ge=2, le=6)] = 3.5
+    straight_fraction: Annotated[float, Field(ge=0, lt=1)] = 0.6
+    mean_curve_angle_deg: Annotated[float, Field(gt=0, le=120)] = 55.0
+    curve_radius: tuple[PositiveFloat, PositiveFloat] = (60.0, 150.0)
+
+    @model_validator(mode="after")
+    def _radius(self) -> SeamlessRoadConfig:
+        lo, hi = self.curve_radius
+        if lo > hi:
+            raise ValueError(
+                f"curve_radius must be [min, max] with min <= max, got {list(self.curve_radius)}"
+            )
+        half = 0.5 * self.lanes * self.lane_width
+        if lo <= half + 1.0:
+            raise ValueError(
+                f"curve_radius min {lo} m must exceed the road half-width {half} m + 1 m"
+            )
+        return self
+
+
+class CityRoadConfig(Strict):
+    type: Literal["inner_city"]
+    seed: Seed | None = 0
+    blocks_x: Annotated[int, Field(ge=1, le=40)] = 6
+    blocks_y: Annotated[int, Field(ge=1, le=40)] = 6
+    block_size: Annotated[float, Field(ge=20, le=500)] = 45.0
+    jitter: Annotated[float, Field(ge=0, le=50)] = 6.0
+    lanes_per_direction: Annotated[int, Field(ge=1, le=4)] = 1
+    lane_width: Annotated[float, Field(ge=2, le=6)] = 3.5
+    turn_radius: Annotated[float, Field(ge=3, le=50)] = 18.0
+    turn_probability: Annotated[float, Field(ge=0, le=1)] = 0.85
+
+    @model_validator(mode="after")
+    def _jitter(self) -> CityRoadConfig:
+        if self.jitter >= 0.25 * self.block_size:
+            raise ValueError(
+                f"jitter ({self.jitter}) must be < block_size / 4 ({self.block_size / 4})"
+            )
+        return self
+
+
+class RecordedRoadConfig(Strict):
+    type: Literal["recorded"]
+    map: Annotated[str, Field(min_length=1, description="CommonRoad XML: builtin:NAME or a path")]
+    scene: Annotated[str, Field(min_length=1, description="scenario_id of the tracks to replay")]
+
+
+RoadConfig = Annotated[
+    SeamlessRoadConfig | CityRoadConfig | RecordedRoadConfig, Field(discriminator="type")
+]
+
+
+class EgoConfig(Strict):
+    lane: Annotated[int, Field(ge=0, le=7)] = 1
+    speed: NonNegFloat = 8.0
+    track: str = "random"
+    vehicle: VehicleConfig = VehicleConfig()
+
+
+class ScenarioConfig(Strict):
+    """A whole scenario file."""
+
+    name: Annotated[str, Field(min_length=1, max_length=80)]
+    description: str = ""
+    simulation: SimulationConfig = SimulationConfig()
+    road: RoadConfig
+    traffic: TrafficConfig = TrafficConfig()
+    ego: EgoConfig = EgoConfig()
+    sensor: SensorConfig = SensorConfig()
+
+    @model_validator(mode="after")
+    def _ego_lane(self) -> ScenarioConfig:
+        lanes = getattr(self.road, "lanes", None)
+        if lanes is not None and self.ego.lane >= lanes:
+            raise ValueError(f"ego.lane ({self.ego.lane}) must be < road.lanes ({lanes})")
+        return self

@@ -1,0 +1,23 @@
+"""Simulated sensors: the ego-centred occupancy grid."""
+
+from gridsim.sensors.occupancy import (
+    FREE,
+    OCCUPIED,
+    UNKNOWN,
+    GridSpec,
+    OccupancyGridSensor,
+    SensorMount,
+    colourise,
+    observe,
+)
+
+__all__ = [
+    "FREE",
+    "OCCUPIED",
+    "UNKNOWN",
+    "GridSpec",
+    "OccupancyGridSensor",
+    "SensorMount",
+    "colourise",
+    "observe",
+]

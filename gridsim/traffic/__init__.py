@@ -1,0 +1,17 @@
+"""Traffic: recorded trajectories, the structure-of-arrays fleet and traffic sources."""
+
+from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
+from gridsim.traffic.library import Track, TrajectoryLibrary
+from gridsim.traffic.sources import CityTraffic, RecordedSceneTraffic, SeamlessTraffic, SpeedBounds
+
+__all__ = [
+    "CityTraffic",
+    "EgoPose",
+    "Fleet",
+    "FleetParams",
+    "RecordedSceneTraffic",
+    "SeamlessTraffic",
+    "SpeedBounds",
+    "Track",
+    "TrajectoryLibrary",
+]

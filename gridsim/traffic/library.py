@@ -1,0 +1,197 @@
+"""A library of recorded vehicle trajectories loaded from CSV.
+
+The CSV format is that of the shipped NGSIM file (see ``gridsim/data/ngsim/README.md``): one
+row per state, columns ``scenario_id, track_id, time_s, x_m, y_m, heading_rad, speed_mps,
+length_m, width_m`` (others ignored). Positions are rectangle centres in metres, headings
+counter-clockwise from +x. Tracks are keyed by ``(scenario_id, track_id)``.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from gridsim.errors import DataError
+
+REQUIRED_COLUMNS = (
+    "scenario_id",
+    "track_id",
+    "time_s",
+    "x_m",
+    "y_m",
+    "heading_rad",
+    "speed_mps",
+    "length_m",
+    "width_m",
+)
+_NUMERIC = REQUIRED_COLUMNS[2:]
+
+
+@dataclass(frozen=True)
+class Track:
+    """One recorded vehicle: arrays of equal length sampled at increasing ``t`` [s]."""
+
+    scenario_id: str
+    track_id: str
+    t: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    heading: np.ndarray
+    speed: np.ndarray
+    length: float
+    width: float
+
+    @property
+    def duration(self) -> float:
+        return float(self.t[-1] - self.t[0])
+
+    def lateral_offset(self) -> np.ndarray:
+        """Human lateral wander [m]: signed offset of each position from a smooth fit.
+
+        A polynomial in time (degree 1 to 3 by track length) stands for the lane the driver
+        follows; the residual perpendicular to the fit's direction, positive to the left, is
+        the offset replayed on synthetic roads.
+        """
+        n = len(self.t)
+        if n < 5:
+            return np.zeros(n)
+        deg = 1 if n < 15 else (2 if n < 40 else 3)
+        tt = self.t - self.t[0]
+        fx = np.polynomial.Polynomial.fit(tt, self.x, deg)
+        fy = np.polynomial.Polynomial.fit(tt, self.y, deg)
+        dx, dy = fx.deriv()(tt), fy.deriv()(tt)
+        norm = np.hypot(dx, dy)
+        norm[norm < 1e-6] = 1.0
+        rx, ry = self.x - fx(tt), self.y - fy(tt)
+        return (dx * ry - dy * rx) / norm
+
+    def smoothed_speed(self) -> np.ndarray:
+        """Speed [m/s] smoothed with a Savitzky-Golay filter (recorded speeds are noisy)."""
+        n = len(self.speed)
+        win = min(11, n if n % 2 else n - 1)
+        if win < 5:
+            return self.speed.copy()
+        return np.maximum(savgol_filter(self.speed, win, 2), 0.0)
+
+
+class TrajectoryLibrary:
+    """Recorded tracks, from one or more CSV files."""
+
+    def __init__(self, tracks: list[Track]) -> None:
+        if not tracks:
+            raise DataError("the trajectory library is empty")
+        self.tracks = tracks
+        self._by_key = {(t.scenario_id, t.track_id): t for t in tracks}
+
+    def __len__(self) -> int:
+        return len(self.tracks)
+
+    @classmethod
+    def builtin(cls) -> TrajectoryLibrary:
+        """The NGSIM tracks shipped with gridsim."""
+        return _builtin()
+
+    @classmethod
+    def from_csv(cls, *paths: str | Path) -> TrajectoryLibrary:
+        tracks: list[Track] = []
+        for p in paths:
+            tracks += read_tracks_csv(p)
+        return cls(tracks)
+
+    def scene(self, scenario_id: str) -> list[Track]:
+        """All tracks of one recorded scene, in file order."""
+        out = [t for t in self.tracks if t.scenario_id == scenario_id]
+        if not out:
+            known = sorted({t.scenario_id for t in self.tracks})
+            raise DataError(f"no tracks for scene {scenario_id!r}; known scenes: {known}")
+        return out
+
+    def get(self, scenario_id: str, track_id: str) -> Track:
+        try:
+            return self._by_key[(scenario_id, str(track_id))]
+        except KeyError:
+            raise DataError(f"no track {track_id!r} in scene {scenario_id!r}") from None
+
+    def select(self, min_duration: float = 0.0, max_length: float = np.inf) -> list[Track]:
+        """Tracks at least ``min_duration`` seconds long and at most ``max_length`` metres."""
+        return [t for t in self.tracks if t.duration >= min_duration and t.length <= max_length]
+
+
+_BUILTIN: TrajectoryLibrary | None = None
+
+
+def _builtin() -> TrajectoryLibrary:
+    global _BUILTIN
+    if _BUILTIN is None:
+        ref = resources.files("gridsim") / "data" / "ngsim" / "ngsim_trajectories.csv"
+        with resources.as_file(ref) as path:
+            _BUILTIN = TrajectoryLibrary.from_csv(path)
+    return _BUILTIN
+
+
+def read_tracks_csv(path: str | Path) -> list[Track]:
+    """Parse a trajectory CSV; raise :class:`DataError` naming the file, row and column."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"trajectory file not found: {path}")
+    with path.open(newline="") as fh:
+        reader = csv.DictReader(fh)
+        header = reader.fieldnames or []
+        missing = [c for c in REQUIRED_COLUMNS if c not in header]
+        if missing:
+            raise DataError(
+                f"{path}: missing column(s) {missing}; required: {list(REQUIRED_COLUMNS)}"
+            )
+        groups: dict[tuple[str, str], list[list[float]]] = {}
+        for lineno, row in enumerate(reader, start=2):
+            vals = []
+            for c in _NUMERIC:
+                raw = row[c]
+                try:
+                    v = float(raw)
+                except (TypeError, ValueError):
+                    raise DataError(
+                        f"{path}:{lineno}: column {c!r} is not a number: {raw!r}"
+                    ) from None
+                if not np.isfinite(v):
+                    raise DataError(
+                        f"{path}:{lineno}: column {c!r} is {raw!r}; expected a finite number"
+                    )
+                vals.append(v)
+            speed, length, width = vals[4:7]
+            if speed < 0 or length <= 0 or width <= 0:
+                raise DataError(
+                    f"{path}:{lineno}: speed_mps must be >= 0 and length_m, width_m > 0, got "
+                    f"{speed}, {length}, {width}"
+                )
+            groups.setdefault((row["scenario_id"], row["track_id"]), []).append(vals)
+    if not groups:
+        raise DataError(f"{path}: no data rows")
+    tracks = []
+    for (sid, tid), rows in groups.items():
+        a = np.array(rows)
+        order = np.argsort(a[:, 0], kind="stable")
+        a = a[order]
+        if np.any(np.diff(a[:, 0]) <= 0):
+            raise DataError(f"{path}: track ({sid}, {tid}) has repeated time stamps")
+        if len(a) < 2:
+            raise DataError(f"{path}: track ({sid}, {tid}) has a single state; need at least 2")
+        tracks.append(
+            Track(
+                sid,
+                tid,
+                a[:, 0],
+                a[:, 1],
+                a[:, 2],
+                np.unwrap(a[:, 3]),
+                a[:, 4],
+                float(a[0, 5]),
+                float(a[0, 6]),
+            )
+        )
+    return tracks

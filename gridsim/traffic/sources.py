@@ -1,0 +1,327 @@
+"""Where traffic comes from: recorded scenes, or recorded behaviour replayed on generated roads.
+
+A traffic source owns a :class:`Fleet`, fills it at :meth:`reset` and keeps it populated at
+every :meth:`tick` (recycling participants that fall out of range on endless roads).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from gridsim.road.city import CityRoad
+from gridsim.road.seamless import SeamlessRoad
+from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
+from gridsim.traffic.library import Track
+
+_SPAWN_CLEARANCE = 6.0  # free distance [m] kept around a new participant, beyond the footprints
+
+
+@dataclass(frozen=True)
+class SpeedBounds:
+    """Scenario bounds for synthetic participants."""
+
+    v_min: float
+    v_max: float
+    a_max: float
+
+
+def track_path(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Path points, their arc lengths and the arc length ``S`` at every sample of ``track``."""
+    pts = np.stack([track.x, track.y], axis=1)
+    seg = np.hypot(*np.diff(pts, axis=0).T)
+    s_samples = np.concatenate([[0.0], np.cumsum(seg)])
+    keep = np.concatenate([[True], seg > 1e-6])
+    path_pts, path_s = pts[keep], s_samples[keep]
+    if len(path_pts) < 2:  # a parked vehicle: a short stub along its heading
+        u = np.array([np.cos(track.heading[0]), np.sin(track.heading[0])])
+        path_pts, path_s = np.vstack([pts[0], pts[0] + 0.1 * u]), np.array([0.0, 0.1])
+    return path_pts, path_s, s_samples
+
+
+class TrafficSource(ABC):
+    """Populates and maintains a :class:`Fleet`."""
+
+    fleet: Fleet
+
+    @abstractmethod
+    def reset(self, rng: np.random.Generator, ego: EgoPose) -> None:
+        """Place the initial participants around the ego."""
+
+    @abstractmethod
+    def tick(self, dt: float, ego: EgoPose) -> None:
+        """Advance the fleet by ``dt`` seconds and refill it."""
+
+
+class RecordedSceneTraffic(TrafficSource):
+    """Replays the tracks of a recorded scene in their own geometry (exact poses, 10 Hz data
+    interpolated at the simulation rate). ``exclude`` removes one track (the expert ego)."""
+
+    def __init__(
+        self,
+        tracks: list[Track],
+        exclude: str | None = None,
+        start_time: float = 0.0,
+        params: FleetParams | None = None,
+    ) -> None:
+        self.tracks = [t for t in tracks if t.track_id != exclude]
+        self.start_time = start_time
+        self.fleet = Fleet(max(1, len(self.tracks)), params)
+        for tr in self.tracks:
+            path_pts, path_s, s_samples = track_path(tr)
+            self.fleet.paths.add_path(path_pts, path_s)
+            prof = np.stack([s_samples, tr.speed, np.zeros_like(tr.t), tr.heading], axis=1)
+            self.fleet.profiles.add(tr.t - tr.t[0], prof)
+        self.time = start_time
+        self._done = np.zeros(len(self.tracks), bool)
+
+    def reset(self, rng: np.random.Generator, ego: EgoPose) -> None:
+        self.fleet.deactivate(np.arange(self.fleet.capacity))
+        self.time = self.start_time
+        self._done[:] = False
+        self._activate_due()
+
+    def _activate_due(self) -> None:
+        for i, tr in enumerate(self.tracks):
+            tau = self.time - tr.t[0]
+            if self.fleet.active[i] or self._done[i] or tau < 0 or tau > tr.duration:
+                continue
+            vals, _ = self.fleet.profiles.lookup(np.array([i]), np.array([tau]))
+            self.fleet.place(
+                i,
+                path=i,
+                s=float(vals[0, 0]),
+                profile=i,
+                tau=tau,
+                geometric=True,
+                length=tr.length,
+                width=tr.width,
+            )
+
+    def tick(self, dt: float, ego: EgoPose) -> None:
+        ended = self.fleet.tick(dt, ego)
+        self.time += dt
+        self._done[ended] = True
+        self._activate_due()
+
+
+class SyntheticTraffic(TrafficSource):
+    """Recorded human speed and lateral-offset profiles replayed along the lanes of a
+    generated road. Each participant gets a random library track; its speed profile is
+    scaled by ``k`` into ``[v_min, v_max]`` (the fleet also rate-limits it to ``a_max``) and
+    its lateral wander is clipped to stay in the lane. When a profile runs out, the
+    participant continues with another one, scaled to keep its speed continuous.
+    """
+
+    def __init__(
+        self,
+        tracks: list[Track],
+        count: int,
+        bounds: SpeedBounds,
+        lane_width: float,
+        params: FleetParams | None = None,
+    ) -> None:
+        if not tracks:
+            raise ValueError("synthetic traffic needs at least one library track")
+        self.count = count
+        self.bounds = bounds
+        fp = params or FleetParams()
+        limits = {
+            "v_min": bounds.v_min,
+            "v_max": bounds.v_max,
+            "a_max": bounds.a_max,
+            "b_max": max(bounds.a_max, fp.idm.b),
+        }
+        self.fleet = Fleet(max(1, count), FleetParams(**{**fp.__dict__, **limits}))
+        self._profile_stats = []
+        for tr in tracks:
+            v = tr.smoothed_speed()
+            t = tr.t - tr.t[0]
+            dist = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+            d_max = max(0.0, 0.5 * (lane_width - tr.width) - 0.2)
+            d = np.clip(tr.lateral_offset(), -d_max, d_max)
+            self.fleet.profiles.add(t, np.stack([dist, v, d, np.zeros_like(t)], axis=1))
+            self._profile_stats.append((max(v.min(), 0.1), max(v.max(), 0.1)))
+        self._sizes = np.array([(t.length, t.width) for t in tracks])
+        self.rng = np.random.default_rng(0)
+
+    # -- helpers shared by the road-specific sources ------------------------------------------
+    def _scale_range(self, profile: int) -> tuple[float, float]:
+        """Speed scales that keep ``profile`` inside ``[v_min, v_max]`` (when both cannot hold,
+        the upper bound wins; the fleet clips the rest)."""
+        vmin, vmax = self._profile_stats[profile]
+        b = self.bounds
+        hi = b.v_max / vmax
+        return min(b.v_min / vmin, hi), hi
+
+    def _scale(self, profile: int, v_target: float) -> float:
+        """Feasible speed scale for ``profile`` whose mean speed would be ``v_target``."""
+        vmin, vmax = self._profile_stats[profile]
+        return float(np.clip(v_target / (0.5 * (vmin + vmax)), *self._scale_range(profile)))
+
+    def _new_profile(self) -> tuple[int, float]:
+        prof = int(self.rng.integers(len(self._profile_stats)))
+        return prof, self._scale(prof, self.rng.uniform(self.bounds.v_min, self.bounds.v_max))
+
+    def _clear(self, x: float, y: float, length: float, ego: EgoPose) -> bool:
+        f = self.fleet
+        a = f.active
+        need = 0.5 * (f.length[a] + length) + _SPAWN_CLEARANCE
+        if np.any(np.hypot(f.x[a] - x, f.y[a] - y) < need):
+            return False
+        return bool(
+            np.hypot(ego.x - x, ego.y - y) >= 0.5 * (ego.length + length) + _SPAWN_CLEARANCE
+        )
+
+    def _draw(self) -> tuple[int, float, float]:
+        """A fresh profile, its speed scale and a start time in its first half."""
+        prof, k = self._new_profile()
+        return prof, k, float(self.rng.uniform(*self.fleet.profiles.x_range(prof)) * 0.5)
+
+    def _spawn(
+        self,
+        i: int,
+        path: int,
+        s: float,
+        ego: EgoPose,
+        drawn: tuple[int, float, float] | None = None,
+    ) -> bool:
+        """Place participant ``i`` at ``(path, s)`` with a fresh profile if the spot is free."""
+        prof, k, tau = drawn or self._draw()
+        length, width = self._sizes[prof]
+        (p,), _ = self.fleet.paths.frenet_to_world(np.array([path]), np.array([s]), np.zeros(1))
+        if not self._clear(p[0], p[1], length, ego):
+            return False
+        self.fleet.place(i, path=path, s=s, profile=prof, tau=tau, k=k, length=length, width=width)
+        return True
+
+    def _chain_profiles(self, ended: np.ndarray) -> None:
+        """Give participants whose profile ran out a new one, keeping speed and offset."""
+        f = self.fleet
+        for i in ended:
+            prof = int(self.rng.integers(len(self._profile_stats)))
+            vals, _ = f.profiles.lookup(np.array([prof]), np.zeros(1))
+            v0 = max(vals[0, 1], 0.1)
+            k = float(np.clip(f.v[i] / v0, *self._scale_range(prof)))
+            f.profile[i], f.tau[i], f.k[i] = prof, 0.0, k
+            f.d_bias[i] = f.d[i] - vals[0, 2]
+
+
+class SeamlessTraffic(SyntheticTraffic):
+    """Synthetic traffic on a :class:`SeamlessRoad`: ``count`` participants kept within
+    ``[-behind, ahead]`` metres of the ego along the road, recycled to the far end."""
+
+    def __init__(
+        self,
+        road: SeamlessRoad,
+        tracks: list[Track],
+        count: int,
+        bounds: SpeedBounds,
+        behind: float = 80.0,
+        ahead: float = 160.0,
+        params: FleetParams | None = None,
+    ):
+        super().__init__(tracks, count, bounds, road.p.lane_width, params)
+        self.road = road
+        self.behind, self.ahead = behind, ahead
+        self._lane_slots = [
+            self.fleet.paths.add_path(ln.centre.points, ln.centre.s) for ln in road.lanes
+        ]
+        self._version = road.version
+
+    def _sync_lanes(self) -> None:
+        if self.road.version != self._version:
+            for slot, ln in zip(self._lane_slots, self.road.lanes, strict=True):
+                self.fleet.paths.set(slot, ln.centre.s, ln.centre.points)
+            self._version = self.road.version
+
+    def reset(self, rng: np.random.Generator, ego: EgoPose) -> None:
+        self.rng = rng
+        self._sync_lanes()
+        f = self.fleet
+        f.deactivate(np.arange(f.capacity))
+        n_lanes = len(self._lane_slots)
+        for i in range(self.count):
+            for _ in range(20):
+                lane = int(rng.integers(n_lanes))
+                s = self.road.lane_s_near_ego(lane) + rng.uniform(-self.behind, self.ahead)
+                if self._spawn(i, self._lane_slots[lane], s, ego):
+                    break
+
+    def tick(self, dt: float, ego: EgoPose) -> None:
+        self._sync_lanes()
+        f = self.fleet
+        self._chain_profiles(f.tick(dt, ego))
+        # Recycle participants out of the window (measured along the ego's heading).
+        ux, uy = np.cos(ego.psi), np.sin(ego.psi)
+        lon = (f.x - ego.x) * ux + (f.y - ego.y) * uy
+        out = np.flatnonzero(f.active & ((lon < -self.behind) | (lon > self.ahead)))
+        f.deactivate(out)
+        idle = np.flatnonzero(~f.active[: self.count])
+        if len(idle) == 0:
+            return
+        # One attempt per tick, out of the sensor's sight: ahead if it
+        # starts slower than the ego (the ego will catch up), behind if faster. A blocked spot
+        # is retried on a later tick.
+        n_lanes = len(self._lane_slots)
+        for i in idle[:1]:
+            drawn = self._draw()
+            prof, k, tau = drawn
+            v0 = k * self.fleet.profiles.lookup(np.array([prof]), np.array([tau]))[0][0, 1]
+            band = self.rng.uniform(5.0, 40.0)
+            edge = self.ahead - band if v0 <= ego.v else -self.behind + band
+            lane = int(self.rng.integers(n_lanes))
+            s = self.road.lane_s_near_ego(lane) + edge
+            self._spawn(int(i), self._lane_slots[lane], s, ego, drawn)
+
+
+class CityTraffic(SyntheticTraffic):
+    """Synthetic traffic on a :class:`CityRoad`: each participant drives its own random route;
+    participants farther than ``radius`` from the ego or near their route end are respawned."""
+
+    def __init__(
+        self,
+        road: CityRoad,
+        tracks: list[Track],
+        count: int,
+        bounds: SpeedBounds,
+        radius: float = 150.0,
+        params: FleetParams | None = None,
+    ):
+        super().__init__(tracks, count, bounds, road.params.lane_width, params)
+        self.road = road
+        self.radius = radius
+        self._route_len = 4 * radius
+        self._slots = [-1] * max(1, count)
+
+    def _spawn_near(self, i: int, ego: EgoPose) -> None:
+        d = np.hypot(*(self.road.nodes - np.array([ego.x, ego.y])).T)
+        candidates = np.flatnonzero(d < self.radius)
+        if len(candidates) == 0:
+            candidates = np.argsort(d)[:4]
+        node = int(candidates[self.rng.integers(len(candidates))])
+        lane = int(self.rng.integers(self.road.params.lanes_per_direction))
+        route = self.road.random_route(self.rng, self._route_len, start_node=node, lane=lane)
+        if self._slots[i] < 0:
+            self._slots[i] = self.fleet.paths.add_path(route.points, route.s)
+        else:
+            self.fleet.paths.set(self._slots[i], route.s, route.points)
+        self._spawn(i, self._slots[i], float(self.rng.uniform(0.0, 40.0)), ego)
+
+    def reset(self, rng: np.random.Generator, ego: EgoPose) -> None:
+        self.rng = rng
+        self.fleet.deactivate(np.arange(self.fleet.capacity))
+        for i in range(self.count):
+            self._spawn_near(i, ego)
+
+    def tick(self, dt: float, ego: EgoPose) -> None:
+        f = self.fleet
+        self._chain_profiles(f.tick(dt, ego))
+        far = np.hypot(f.x - ego.x, f.y - ego.y) > self.radius * 1.5
+        _, ends = f.paths.ranges(f.path)
+        near_end = f.s > ends - 30.0
+        f.deactivate(np.flatnonzero(f.active & (far | near_end)))
+        for i in np.flatnonzero(~f.active[: self.count]):
+            self._spawn_near(int(i), ego)

@@ -1,0 +1,162 @@
+"""Kinematic single-track (bicycle) model, rear-axle reference, batched over vehicles.
+
+State rows are ``[x, y, psi, v, delta]`` (column indices :data:`X`, :data:`Y`, :data:`PSI`,
+:data:`V`, :data:`DELTA`):
+
+- ``x, y`` [m]: rear-axle centre in the right-handed world frame (x east, y north);
+- ``psi`` [rad]: heading, counter-clockwise from +x;
+- ``v`` [m/s]: longitudinal speed of the rear axle;
+- ``delta`` [rad]: front-wheel steering angle, positive to the left.
+
+Inputs are ``[a, v_delta]``: longitudinal acceleration [m/s^2] and steering rate [rad/s].
+The dynamics are those of CommonRoad's ``vehicle_dynamics_ks``::
+
+    x' = v cos(psi)   y' = v sin(psi)   psi' = v tan(delta) / l_wb   v' = a   delta' = v_delta
+
+Within one step the (clipped) inputs are constant, so ``delta(t)`` is linear and ``v(t)`` is
+linear, or ``sqrt(v0^2 + 2 a_max v_switch t)`` while the power limit is active. The yaw rate
+is then a known function of time; heading and position are integrated with Simpson's rule on
+the exact speed and steering profiles (fourth order, like RK4, at three evaluations).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+
+X, Y, PSI, V, DELTA = range(5)
+STATE_SIZE = 5
+
+
+@dataclass(frozen=True)
+class BicycleParams:
+    """Geometry and limits of a vehicle (SI units). Fields may be floats or per-vehicle arrays.
+
+    ``center_offset`` is the distance [m] from the rear axle forward to the centre of the
+    ``length`` x ``width`` footprint rectangle.
+    """
+
+    wheelbase: float = 2.7
+    length: float = 4.5
+    width: float = 1.8
+    center_offset: float = 1.35
+    v_min: float = 0.0
+    v_max: float = 40.0
+    a_max: float = 2.0
+    b_max: float = 6.0
+    delta_max: float = 0.6
+    v_delta_max: float = 0.8
+    v_switch: float = np.inf
+
+    def __post_init__(self) -> None:
+        checks = {
+            "wheelbase": self.wheelbase > 0,
+            "length": self.length > 0,
+            "width": self.width > 0,
+            "a_max": self.a_max > 0,
+            "b_max": self.b_max > 0,
+            "delta_max": 0 < self.delta_max < np.pi / 2,
+            "v_delta_max": self.v_delta_max > 0,
+            "v_switch": self.v_switch > 0,
+            "v_max": self.v_max >= self.v_min,
+        }
+        bad = [name for name, ok in checks.items() if not np.all(ok)]
+        if bad:
+            from gridsim.errors import GridSimError
+
+            values = ", ".join(f"{n}={getattr(self, n)!r}" for n in bad)
+            raise GridSimError(
+                f"invalid vehicle parameters: {values} (need positive sizes and limits, "
+                "0 < delta_max < pi/2, v_max >= v_min)"
+            )
+
+
+class StepResult(NamedTuple):
+    """New state ``(N, 5)`` and the inputs actually applied after clipping, ``(N,)`` each."""
+
+    state: np.ndarray
+    accel: np.ndarray
+    steer_rate: np.ndarray
+
+
+def _clipped_inputs(state, accel, steer_rate, p: BicycleParams, dt: float):
+    """Clip inputs to the rate limits and so that speed and steering stay inside their limits."""
+    v0 = state[..., V]
+    d0 = state[..., DELTA]
+    vd = np.clip(steer_rate, -p.v_delta_max, p.v_delta_max)
+    vd = np.clip(vd, (-p.delta_max - d0) / dt, (p.delta_max - d0) / dt)
+    a = np.clip(accel, -p.b_max, p.a_max)
+    # Power limit above v_switch: a <= a_max * v_switch / v (CommonRoad's acceleration constraint).
+    power_c = p.a_max * p.v_switch
+    with np.errstate(divide="ignore", invalid="ignore"):
+        power_limit = np.where(v0 > p.v_switch, power_c / np.where(v0 > 0, v0, 1.0), np.inf)
+    power = a >= power_limit
+    a = np.minimum(a, power_limit)
+    return a, vd, power, power_c
+
+
+def step_bicycle(
+    state: np.ndarray,
+    accel: np.ndarray | float,
+    steer_rate: np.ndarray | float,
+    params: BicycleParams,
+    dt: float,
+) -> StepResult:
+    """Advance every vehicle by ``dt`` seconds with inputs held constant over the step.
+
+    ``state`` has shape ``(N, 5)`` (or ``(5,)``); inputs broadcast against ``N``. Inputs are
+    clipped to ``[-b_max, a_max]`` (and the power limit) and ``[-v_delta_max, v_delta_max]``,
+    and further so that ``v`` stays in ``[v_min, v_max]`` and ``|delta| <= delta_max`` at the
+    end of the step. Returns a new array; ``state`` is not modified.
+    """
+    state = np.asarray(state, dtype=np.float64)
+    a, vd, power, power_c = _clipped_inputs(state, accel, steer_rate, params, dt)
+    x0, y0, psi0, v0, d0 = (state[..., i] for i in range(STATE_SIZE))
+
+    v1_power = np.sqrt(np.maximum(v0 * v0 + 2.0 * power_c * dt, 0.0)) if np.any(power) else v0
+    v1_free = v0 + a * dt
+    v1_raw = np.where(power, v1_power, v1_free)
+    v1 = np.clip(v1_raw, params.v_min, params.v_max)
+    clipped = v1 != v1_raw
+    power &= ~clipped
+    vh = np.where(power, np.sqrt(0.5 * (v0 * v0 + v1 * v1)), 0.5 * (v0 + v1))
+    a_applied = (v1 - v0) / dt
+
+    d1 = d0 + vd * dt
+    dh = d0 + 0.5 * vd * dt
+    inv_l = 1.0 / params.wheelbase
+    w0 = v0 * np.tan(d0) * inv_l
+    wh = vh * np.tan(dh) * inv_l
+    w1 = v1 * np.tan(d1) * inv_l
+    psih = psi0 + dt / 24.0 * (5.0 * w0 + 8.0 * wh - w1)
+    psi1 = psi0 + dt / 6.0 * (w0 + 4.0 * wh + w1)
+    x1 = x0 + dt / 6.0 * (v0 * np.cos(psi0) + 4.0 * vh * np.cos(psih) + v1 * np.cos(psi1))
+    y1 = y0 + dt / 6.0 * (v0 * np.sin(psi0) + 4.0 * vh * np.sin(psih) + v1 * np.sin(psi1))
+
+    out = np.stack(np.broadcast_arrays(x1, y1, psi1, v1, d1), axis=-1)
+    return StepResult(
+        out, np.broadcast_to(a_applied, v1.shape).copy(), np.broadcast_to(vd, v1.shape).copy()
+    )
+
+
+def box_corners(
+    x: np.ndarray, y: np.ndarray, psi: np.ndarray, length: np.ndarray, width: np.ndarray
+) -> np.ndarray:
+    """Corners ``(N, 4, 2)`` [m] of oriented rectangles centred at ``(x, y)`` with heading ``psi``.
+
+    Order: rear-right, front-right, front-left, rear-left (counter-clockwise).
+    """
+    c, s = np.cos(psi), np.sin(psi)
+    hl, hw = 0.5 * np.asarray(length, float), 0.5 * np.asarray(width, float)
+    lx = np.array([-1.0, 1.0, 1.0, -1.0])
+    ly = np.array([-1.0, -1.0, 1.0, 1.0])
+    dx = np.multiply.outer(hl, lx) if np.ndim(hl) else hl * lx
+    dy = np.multiply.outer(hw, ly) if np.ndim(hw) else hw * ly
+    dx = np.broadcast_to(dx, np.shape(x) + (4,))
+    dy = np.broadcast_to(dy, np.shape(x) + (4,))
+    c, s = np.asarray(c)[..., None], np.asarray(s)[..., None]
+    cx = np.asarray(x)[..., None] + c * dx - s * dy
+    cy = np.asarray(y)[..., None] + s * dx + c * dy
+    return np.stack([cx, cy], axis=-1)

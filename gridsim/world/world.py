@@ -1,0 +1,101 @@
+"""The world: road, traffic and the ego vehicle, advanced together at a fixed time step."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from gridsim.road.base import Road
+from gridsim.road.polyline import Polyline
+from gridsim.traffic.fleet import EgoPose
+from gridsim.traffic.library import Track
+from gridsim.traffic.sources import TrafficSource
+from gridsim.vehicle.kinematics import PSI, STATE_SIZE, BicycleParams, V, X, Y, step_bicycle
+from gridsim.world.collision import CollisionChecker, Contact
+
+
+@dataclass(frozen=True)
+class TickResult:
+    """Outcome of one tick: inputs actually applied, contacts, and whether the ego left the road."""
+
+    accel: float
+    steer_rate: float
+    contact: Contact
+    off_road: bool
+
+    @property
+    def collided(self) -> bool:
+        return bool(self.contact.vehicles)
+
+
+class World:
+    """Road + traffic + ego. The ego state is ``[x, y, psi, v, delta]`` (rear axle, SI units).
+
+    ``route`` returns the ego's nominal path (its lane or route) for controllers and rewards.
+    """
+
+    def __init__(
+        self,
+        road: Road,
+        traffic: TrafficSource,
+        ego_params: BicycleParams,
+        ego_state: np.ndarray,
+        dt: float,
+        route: Callable[[], Polyline],
+        rng: np.random.Generator,
+        ego_track: Track | None = None,
+    ) -> None:
+        if not dt > 0:
+            raise ValueError(f"time step dt must be > 0, got {dt}")
+        self.road = road
+        self.traffic = traffic
+        self.ego_params = ego_params
+        self.dt = float(dt)
+        self._route = route
+        #: On recorded scenes, the human track the ego replaces (its future is the reference).
+        self.ego_track = ego_track
+        self.ego = np.asarray(ego_state, dtype=np.float64).reshape(STATE_SIZE).copy()
+        self.time = 0.0
+        self.collision = CollisionChecker(ego_params.length, ego_params.width)
+        road.update(self.ego[:2])
+        traffic.reset(rng, self.ego_pose())
+        self.last = TickResult(0.0, 0.0, Contact(), False)
+
+    @property
+    def route(self) -> Polyline:
+        return self._route()
+
+    def ego_center(self) -> np.ndarray:
+        """Centre of the ego footprint [m] in the world frame."""
+        c = self.ego_params.center_offset
+        return self.ego[[X, Y]] + c * np.array([np.cos(self.ego[PSI]), np.sin(self.ego[PSI])])
+
+    def ego_pose(self) -> EgoPose:
+        cx, cy = self.ego_center()
+        p = self.ego_params
+        return EgoPose(
+            float(cx), float(cy), float(self.ego[PSI]), float(self.ego[V]), p.length, p.width
+        )
+
+    def tick(self, accel: float, steer_rate: float) -> TickResult:
+        """Advance the world by ``dt``: ego kinematics, road generation, traffic, collisions."""
+        step = step_bicycle(self.ego, accel, steer_rate, self.ego_params, self.dt)
+        self.ego = step.state
+        self.road.update(self.ego[:2])
+        pose = self.ego_pose()
+        self.traffic.tick(self.dt, pose)
+        self.time += self.dt
+        contact = self.check_contacts()
+        on_road = bool(self.road.is_drivable(self.ego_center()[None])[0])
+        off_road = bool(contact.boundaries) or not on_road
+        self.last = TickResult(float(step.accel), float(step.steer_rate), contact, off_road)
+        return self.last
+
+    def check_contacts(self) -> Contact:
+        center = self.ego_center()
+        self.collision.set_boundaries(self.road.boundary_segments(), self.road.version, center)
+        f = self.traffic.fleet
+        idx = np.flatnonzero(f.active)
+        return self.collision.check(center, float(self.ego[PSI]), f.footprints(), idx)

@@ -1,0 +1,74 @@
+"""Ego collisions with pymunk: vehicles and road edges, and off-road in the world."""
+
+import numpy as np
+import pytest
+
+from gridsim.scenario.build import build_world
+from gridsim.scenario.loader import load_scenario
+from gridsim.world.collision import CollisionChecker
+from gridsim.world.driver import LaneFollower
+
+
+def traffic(*poses, length=4.0, width=2.0):
+    arr = np.array(poses, float).reshape(-1, 3)
+    n = len(arr)
+    return (arr[:, 0], arr[:, 1], arr[:, 2], np.full(n, length), np.full(n, width))
+
+
+def test_overlapping_vehicle_is_reported_by_index():
+    cc = CollisionChecker(4.0, 2.0)
+    cc.set_boundaries(np.zeros((0, 4)), 0, np.zeros(2))
+    hit = cc.check(np.zeros(2), 0.0, traffic((3.9, 0.0, 0.0), (30.0, 0.0, 0.0)), np.array([7, 9]))
+    assert hit.vehicles == (7,) and hit.boundaries == ()
+
+
+@pytest.mark.parametrize("gap", [0.05, 0.5])
+def test_near_misses_are_not_collisions(gap):
+    cc = CollisionChecker(4.0, 2.0)
+    cc.set_boundaries(np.zeros((0, 4)), 0, np.zeros(2))
+    # Nose to tail, `gap` metres apart.
+    assert not cc.check(np.zeros(2), 0.0, traffic((4.0 + gap, 0.0, 0.0)), np.array([0])).any
+    # A box turned 45 degrees whose corner stops `gap` short of the ego's side: their
+    # bounding boxes overlap, the shapes do not.
+    corner = np.hypot(2.0, 1.0)
+    far = 1.0 + gap + corner * np.sin(np.pi / 4 + np.arctan2(1.0, 2.0))
+    assert not cc.check(np.zeros(2), 0.0, traffic((0.0, far, np.pi / 4)), np.array([0])).any
+    assert cc.check(
+        np.zeros(2), 0.0, traffic((0.0, far - 2 * gap, np.pi / 4)), np.array([0])
+    ).vehicles == (0,)
+
+
+def test_moving_between_checks_updates_shapes():
+    cc = CollisionChecker(4.0, 2.0)
+    cc.set_boundaries(np.zeros((0, 4)), 0, np.zeros(2))
+    assert cc.check(np.zeros(2), 0.0, traffic((3.0, 0.0, 0.0)), np.array([4])).vehicles == (4,)
+    assert not cc.check(np.zeros(2), 0.0, traffic((10.0, 0.0, 0.0)), np.array([4])).any
+    assert not cc.check(np.array([50.0, 0.0]), 0.0, traffic((3.0, 0.0, 0.0)), np.array([4])).any
+
+
+def test_road_edges_are_reported():
+    cc = CollisionChecker(4.0, 2.0)
+    edges = np.array([[-50.0, 1.5, 50.0, 1.5], [-50.0, -5.0, 50.0, -5.0]])
+    cc.set_boundaries(edges, 1, np.zeros(2))
+    empty = traffic()
+    assert cc.check(np.zeros(2), 0.0, empty, np.array([], int)).boundaries == ()
+    assert cc.check(np.array([0.0, 0.6]), 0.0, empty, np.array([], int)).boundaries == (0,)
+    assert cc.check(np.array([0.0, -4.5]), 0.3, empty, np.array([], int)).boundaries == (1,)
+
+
+def test_lane_follower_stays_on_road_and_steering_away_goes_off_road():
+    sc = load_scenario("seamless")
+    world = build_world(sc, seed=4)
+    driver = LaneFollower(speed=10.0)
+    for _ in range(300):
+        r = world.tick(*driver(world))
+        assert not r.off_road and not r.contact.boundaries
+    world = build_world(sc, seed=4)
+    events = []
+    for k in range(150):  # turn left, straighten out, and drive away from the road
+        r = world.tick(1.0, 0.5 if k < 8 else (-0.5 if k < 16 else 0.0))
+        events.append(r.off_road)
+    assert any(events)
+    first = events.index(True)
+    assert all(events[first:])  # once off the road it stays off
+    assert not world.road.is_drivable(world.ego_center()[None])[0]

@@ -1,0 +1,154 @@
+"""Roads: polylines, the seamless generator, the city network and CommonRoad lanelet maps."""
+
+from importlib import resources
+
+import numpy as np
+import pytest
+
+from gridsim.errors import DataError
+from gridsim.road.city import CityParams, CityRoad, route_statistics
+from gridsim.road.lanelet import load_lanelet_road
+from gridsim.road.polyline import Polyline
+from gridsim.road.seamless import SeamlessParams, SeamlessRoad
+from gridsim.traffic.library import TrajectoryLibrary
+
+XML = resources.files("gridsim") / "data" / "ngsim" / "commonroad-xml"
+SCENES = ["USA_Lanker-1_1_T-1", "USA_Peach-4_8_T-1", "USA_US101-3_3_T-1", "USA_US101-4_1_T-1"]
+
+
+def test_polyline_frenet_round_trip():
+    t = np.linspace(0, np.pi, 200)
+    line = Polyline(np.stack([50 * np.cos(t), 50 * np.sin(t)], axis=1))
+    rng = np.random.default_rng(0)
+    s = rng.uniform(1, line.length - 1, 100)
+    d = rng.uniform(-3, 3, 100)
+    xy, _ = line.frenet_to_world(s, d)
+    s2, d2, _ = line.project(xy)
+    np.testing.assert_allclose(s2, s, atol=0.05)
+    np.testing.assert_allclose(d2, d, atol=0.01)
+    assert line.length == pytest.approx(np.pi * 50, rel=1e-3)
+
+
+def test_polyline_rejects_bad_points():
+    with pytest.raises(ValueError, match="at least 2"):
+        Polyline(np.zeros((1, 2)))
+    with pytest.raises(ValueError, match="finite"):
+        Polyline(np.array([[0, 0], [np.nan, 1]]))
+
+
+def drive_along(road: SeamlessRoad, distance: float, step: float = 5.0):
+    s = 0.0
+    while s < distance:
+        s += step
+        p, _ = road.reference_line.point_at(s)
+        road.update(p)
+
+
+def test_seamless_is_deterministic_and_seed_dependent():
+    a, b, c = (SeamlessRoad(SeamlessParams(), seed) for seed in (7, 7, 8))
+    for r in (a, b, c):
+        drive_along(r, 600)
+    np.testing.assert_array_equal(a.lanes[0].centre.points, b.lanes[0].centre.points)
+    assert not np.array_equal(a.lanes[0].centre.points[:100], c.lanes[0].centre.points[:100])
+
+
+def test_seamless_memory_is_bounded():
+    road = SeamlessRoad(SeamlessParams(), seed=3)
+    sizes = []
+    for _ in range(10):
+        drive_along_from = road._ego_s
+        s = drive_along_from
+        while s < drive_along_from + 2000:
+            s += 5.0
+            road.update(road.reference_line.point_at(s)[0])
+        sizes.append(road.memory_points)
+    assert max(sizes) < 1000  # 20 km driven, never more than ~keep_behind + keep_ahead + slack
+    assert road._ego_s > 19_000
+
+
+def test_seamless_geometry_statistics_match_parameters():
+    p = SeamlessParams()
+    road = SeamlessRoad(p, seed=11)
+    gen = road._gen
+    pieces = [gen.next_piece() for _ in range(400)]
+    lengths, angles = [], []
+    for pts, hs in pieces:
+        if len(pts) == 0:
+            continue
+        turn = abs(hs[-1] - hs[0])
+        lengths.append((turn < 1e-9, len(pts) * p.sample_spacing))
+        if turn > 1e-9:
+            angles.append(np.rad2deg(turn))
+    total = sum(n for _, n in lengths)
+    straight = sum(n for is_straight, n in lengths if is_straight)
+    assert straight / total == pytest.approx(0.6, abs=0.05)
+    assert np.mean(angles) == pytest.approx(55, abs=5)
+
+
+def test_seamless_lanes_are_parallel_and_on_the_road():
+    p = SeamlessParams(lanes=3, lane_width=3.5)
+    road = SeamlessRoad(p, seed=5)
+    drive_along(road, 800)
+    left = road.lanes[2].centre
+    s, d, _ = left.project(road.lanes[0].centre.points[::10])
+    np.testing.assert_allclose(np.abs(d), 7.0, atol=0.05)
+    assert np.all(road.is_drivable(road.lanes[0].centre.points))
+    normal_off = road.lanes[1].centre.points[::10] + np.array([0.0, 30.0])
+    assert not np.any(
+        road.is_drivable(normal_off[np.abs(road.reference_line.project(normal_off)[1]) > 6])
+    )
+
+
+def test_seamless_rejects_tight_curves():
+    with pytest.raises(ValueError, match="curve_radius"):
+        SeamlessRoad(SeamlessParams(lanes=4, lane_width=3.5, curve_radius=(7.0, 20.0)))
+
+
+def test_city_routes_match_table_one_and_stay_on_road():
+    road = CityRoad(CityParams(), seed=0)
+    rng = np.random.default_rng(0)
+    routes = [road.random_route(rng, 2000) for _ in range(15)]
+    stats = np.array([route_statistics(r) for r in routes])
+    straight, curve = stats.mean(axis=0)
+    assert straight == pytest.approx(0.45, abs=0.05)
+    assert curve == pytest.approx(81, abs=5)
+    for r in routes:
+        assert r.length >= 2000
+        assert np.all(road.is_drivable(r.points))
+
+
+def test_city_has_boundaries_around_blocks():
+    road = CityRoad(CityParams(blocks_x=2, blocks_y=2, jitter=0.0), seed=0)
+    # Block centres are not drivable; street midpoints are.
+    assert not road.is_drivable(np.array([[22.5, 22.5]]))[0]
+    assert road.is_drivable(np.array([[22.5, 0.0]]))[0]
+    seg = road.boundary_segments()
+    assert seg.shape[1] == 4 and len(seg) >= 4 * 4  # at least the four block outlines
+
+
+@pytest.mark.parametrize("scene", SCENES)
+def test_lanelet_maps_cover_the_recorded_trajectories(scene):
+    road = load_lanelet_road(XML / f"{scene}.xml")
+    tracks = TrajectoryLibrary.builtin().scene(scene)
+    xy = np.concatenate([np.stack([t.x, t.y], axis=1) for t in tracks])
+    assert road.is_drivable(xy).all()
+    assert len(road.lanes) > 5
+    assert len(road.boundary_segments()) > 10
+
+
+def test_lanelet_errors_name_the_file(tmp_path):
+    with pytest.raises(DataError, match="not found"):
+        load_lanelet_road(tmp_path / "missing.xml")
+    bad = tmp_path / "bad.xml"
+    bad.write_text("<commonRoad><lanelet id='1'><leftBound></leftBound></lanelet>")
+    with pytest.raises(DataError, match="bad.xml: not well-formed"):
+        load_lanelet_road(bad)
+    bad.write_text(
+        "<commonRoad><lanelet id='4'><leftBound><point><x>0</x><y>a</y></point>"
+        "</leftBound><rightBound/></lanelet></commonRoad>"
+    )
+    with pytest.raises(DataError, match="lanelet 4"):
+        load_lanelet_road(bad)
+    bad.write_text("<commonRoad></commonRoad>")
+    with pytest.raises(DataError, match="no <lanelet>"):
+        load_lanelet_road(bad)

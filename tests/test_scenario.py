@@ -1,0 +1,247 @@
+"""Scenario YAML: loading by name and path, precise errors, overrides, fuzzing."""
+
+import string
+
+import pytest
+import yaml
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from gridsim.cli import main
+from gridsim.errors import ScenarioError
+from gridsim.scenario.build import build_world
+from gridsim.scenario.loader import builtin_scenarios, load_scenario, parse_scenario
+from gridsim.scenario.schema import CityRoadConfig, SeamlessRoadConfig
+
+
+def test_builtins_are_listed_with_descriptions():
+    names = builtin_scenarios()
+    assert {
+        "seamless",
+        "inner_city",
+        "us101_3_3",
+        "us101_4_1",
+        "lankershim_1_1",
+        "peachtree_4_8",
+    } <= set(names)
+    assert all(desc for desc in names.values())
+
+
+def test_table_one_parameters():
+    seamless = load_scenario("seamless").config
+    city = load_scenario("inner_city").config
+    assert isinstance(seamless.road, SeamlessRoadConfig) and isinstance(city.road, CityRoadConfig)
+    assert (seamless.traffic.participants, city.traffic.participants) == (10, 20)
+    assert (seamless.traffic.v_max, city.traffic.v_max) == (13.88, 8.33)
+    assert (seamless.traffic.v_min, city.traffic.v_min) == (4.16, 2.77)
+    assert seamless.traffic.a_max == city.traffic.a_max == 2.0
+    assert seamless.road.straight_fraction == 0.6 and seamless.road.mean_curve_angle_deg == 55
+
+
+def test_load_by_path_and_relative_files(tmp_path):
+    csv = tmp_path / "my_tracks.csv"
+    csv.write_text(
+        "scenario_id,track_id,time_s,x_m,y_m,heading_rad,speed_mps,length_m,width_m\n"
+        + "\n".join(f"a,1,{k * 0.1:.1f},{k:.1f},0,0,10,4.5,1.8" for k in range(40))
+        + "\n"
+    )
+    doc = yaml.safe_load(open_builtin("seamless"))
+    doc["traffic"]["library"] = ["my_tracks.csv"]
+    path = tmp_path / "mine.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    sc = load_scenario(path)
+    world = build_world(sc, seed=0)
+    assert world.traffic.fleet.active.sum() > 0
+    assert sc.source == str(path)
+
+
+def open_builtin(name):
+    from importlib import resources
+
+    return (resources.files("gridsim") / "data" / "scenarios" / f"{name}.yaml").read_text()
+
+
+def test_unknown_name_lists_the_builtins():
+    with pytest.raises(ScenarioError, match=r"unknown scenario 'sea'.*seamless"):
+        load_scenario("sea")
+
+
+def test_missing_file():
+    with pytest.raises(ScenarioError, match="scenario file not found: nowhere/x.yaml"):
+        load_scenario("nowhere/x.yaml")
+
+
+def test_malformed_yaml_names_file_and_line(tmp_path):
+    p = tmp_path / "bad.yaml"
+    p.write_text("name: x\nroad:\n  type: seamless\n  lanes: [3\n")
+    with pytest.raises(ScenarioError, match=r"bad.yaml: malformed YAML at line \d+, column \d+"):
+        load_scenario(p)
+
+
+@pytest.mark.parametrize(
+    ("patch", "message"),
+    [
+        ({"road": {"type": "seamless", "lanez": 3}}, r"road\.lanez: unknown key"),
+        (
+            {"road": {"type": "seamless", "lanes": "three"}},
+            r"road\.lanes: Input should be a valid integer",
+        ),
+        (
+            {"road": {"type": "seamless", "lanes": 12}},
+            r"road\.lanes: Input should be less than or equal to 8 \(got 12\)",
+        ),
+        (
+            {"road": {"type": "motorway"}},
+            r"road: Input tag 'motorway' found using 'type' does not match",
+        ),
+        ({"sensor": {"rows": -128}}, r"sensor\.rows: Input should be greater than or equal to 8"),
+        ({"sensor": {"cell_size": 0}}, r"sensor\.cell_size: Input should be greater than 0"),
+        (
+            {"traffic": {"v_min": 20, "v_max": 10}},
+            r"traffic: Value error, v_max \(10\.0\) must be >= v_min",
+        ),
+        ({"simulation": {"dt": float("nan")}}, r"simulation\.dt"),
+        ({"ego": {"lane": 5}}, r"ego\.lane \(5\) must be < road\.lanes \(3\)"),
+        ({"extra": 1}, r"extra: unknown key"),
+    ],
+)
+def test_validation_errors_name_the_key_path(patch, message):
+    doc = yaml.safe_load(open_builtin("seamless"))
+    with pytest.raises(ScenarioError, match=message) as err:
+        parse_scenario(doc, "mine.yaml", overrides=patch)
+    assert str(err.value).startswith("mine.yaml: invalid scenario")
+
+
+def test_overrides_are_merged_and_validated():
+    sc = load_scenario("seamless", {"traffic": {"participants": 3}, "sensor": {"rows": 64}})
+    assert sc.config.traffic.participants == 3 and sc.config.sensor.rows == 64
+    assert sc.config.sensor.cols == 128  # untouched keys keep their values
+    with pytest.raises(ScenarioError, match="traffic.participant: unknown key"):
+        load_scenario("seamless", {"traffic": {"participant": 3}})
+
+
+def test_bad_references_are_reported(tmp_path):
+    doc = yaml.safe_load(open_builtin("us101_3_3"))
+    doc["road"]["map"] = "builtin:USA_nowhere"
+    with pytest.raises(ScenarioError, match="no built-in file 'builtin:USA_nowhere'"):
+        build_world(parse_scenario(doc, "x.yaml"), 0)
+    doc = yaml.safe_load(open_builtin("us101_3_3"))
+    doc["ego"]["track"] = "999999"
+    with pytest.raises(ScenarioError, match="ego.track '999999' is not in scene"):
+        build_world(parse_scenario(doc, "x.yaml"), 0)
+    doc = yaml.safe_load(open_builtin("seamless"))
+    doc["traffic"]["library"] = ["missing.csv"]
+    with pytest.raises(ScenarioError, match="file not found: 'missing.csv'"):
+        build_world(parse_scenario(doc, "x.yaml", base_dir=tmp_path), 0)
+
+
+def test_validate_command(tmp_path, capsys):
+    assert main(["validate", "scenarios/seamless.yaml"]) == 0
+    assert "OK" in capsys.readouterr().out
+    p = tmp_path / "bad.yaml"
+    p.write_text("name: bad\nroad: {type: seamless, lanes: 0}\n")
+    assert main(["validate", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert "road.lanes: Input should be greater than or equal to 1 (got 0)" in err
+
+
+def test_scenarios_command(capsys):
+    assert main(["scenarios"]) == 0
+    out = capsys.readouterr().out
+    assert out.count("\n") == len(builtin_scenarios()) and "inner_city" in out
+
+
+# -- property-based: random and malformed documents only ever raise ScenarioError ------------
+
+scalars = st.one_of(
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**6), 10**6),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=12),
+)
+keys = st.sampled_from(
+    [
+        "name",
+        "road",
+        "type",
+        "lanes",
+        "traffic",
+        "sensor",
+        "rows",
+        "cols",
+        "ego",
+        "simulation",
+        "dt",
+        "mounts",
+        "seamless",
+        "inner_city",
+        "recorded",
+        "map",
+        "scene",
+        "library",
+        "participants",
+        "curve_radius",
+        "zzz",
+    ]
+)
+documents = st.recursive(
+    scalars,
+    lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(keys, inner, max_size=5)),
+    max_leaves=25,
+)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(documents)
+def test_random_documents_only_raise_scenario_errors(doc):
+    try:
+        parse_scenario(doc, "fuzz.yaml")
+    except ScenarioError as exc:
+        assert str(exc).startswith("fuzz.yaml:")
+
+
+def mutate(doc, path, value):
+    node = doc
+    for k in path[:-1]:
+        node = node[k]
+    node[path[-1]] = value
+    return doc
+
+
+PATHS = [
+    ("road", "lanes"),
+    ("road", "curve_radius"),
+    ("road", "type"),
+    ("traffic", "participants"),
+    ("traffic", "v_max"),
+    ("sensor", "rows"),
+    ("sensor", "cell_size"),
+    ("simulation", "dt"),
+    ("ego", "speed"),
+    ("ego", "vehicle"),
+    ("name",),
+    ("sensor", "mounts"),
+]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.sampled_from(PATHS), scalars | st.lists(scalars, max_size=3))
+def test_mutated_builtin_documents_only_raise_scenario_errors(path, value):
+    doc = mutate(yaml.safe_load(open_builtin("seamless")), path, value)
+    try:
+        sc = parse_scenario(doc, "fuzz.yaml")
+    except ScenarioError:
+        return
+    assert sc.config.name
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.text(alphabet=string.printable, max_size=200))
+def test_random_yaml_text_only_raises_scenario_errors(tmp_path_factory, text):
+    p = tmp_path_factory.mktemp("y") / "doc.yaml"
+    p.write_text(text)
+    try:
+        load_scenario(p)
+    except ScenarioError as exc:
+        assert str(p) in str(exc)

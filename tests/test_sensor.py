@@ -1,0 +1,153 @@
+"""Occupancy grids: geometry conventions, occlusion, footprints, orientation, mounts."""
+
+import numpy as np
+import pytest
+
+from gridsim.sensors import (
+    FREE,
+    OCCUPIED,
+    UNKNOWN,
+    GridSpec,
+    OccupancyGridSensor,
+    SensorMount,
+    colourise,
+)
+from gridsim.vehicle.kinematics import box_corners
+
+OPEN = [np.array([[-500.0, -500.0], [500.0, -500.0], [500.0, 500.0], [-500.0, 500.0]])]
+NO_BOXES = np.zeros((0, 4, 2))
+
+
+def rect(x0, y0, x1, y1):
+    return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], float)
+
+
+def cell_right_up(spec: GridSpec):
+    """Offsets [m] of the cell centres: right (columns) and up (rows), per the documented frame."""
+    right = (np.arange(spec.cols) + 0.5 - spec.cols / 2) * spec.cell_size
+    up = (spec.rows / 2 - np.arange(spec.rows) - 0.5) * spec.cell_size
+    return right, up
+
+
+def test_wall_appears_at_the_right_cells():
+    spec = GridSpec(max_range=50.0)
+    sensor = OccupancyGridSensor(spec)
+    # The road ends at x = 10.2 m: the cell [10.0, 10.5] is partly road (drivable), the cell
+    # [10.5, 11.0] is the first obstacle, and everything behind the wall is unknown.
+    grid = sensor.render(np.zeros(2), 0.0, [rect(-100, -100, 10.2, 100)], NO_BOXES)
+    right, up = cell_right_up(spec)
+    row = int(np.argmin(np.abs(up - 0.25)))
+    line = grid[row]
+    assert np.all(line[right < 10.5] == FREE)
+    assert line[np.argmin(np.abs(right - 10.75))] == OCCUPIED
+    assert np.all(line[right > 11.6] == UNKNOWN)
+    near = np.abs(up) < 8
+    col = int(np.argmin(np.abs(right - 10.75)))
+    assert np.all(grid[near, col] == OCCUPIED)  # the whole wall face in sight
+    assert np.all(grid[:, right > 11.6] == UNKNOWN)
+
+
+def test_out_of_range_is_unknown():
+    spec = GridSpec(max_range=20.0)
+    grid = OccupancyGridSensor(spec).render(np.zeros(2), 0.0, OPEN, NO_BOXES)
+    right, up = cell_right_up(spec)
+    r = np.hypot(right[None, :], up[:, None])
+    assert np.all(grid[r < 19.5] == FREE)
+    assert np.all(grid[r > 20.5] == UNKNOWN)
+
+
+def test_cells_behind_a_vehicle_are_unknown():
+    spec = GridSpec()
+    box = box_corners(np.array([12.0]), np.array([0.0]), np.array([0.0]), 4.0, 2.0)
+    grid = OccupancyGridSensor(spec).render(np.zeros(2), 0.0, OPEN, box)
+    right, up = cell_right_up(spec)
+    rows = np.abs(up) < 0.6
+    assert np.all(grid[np.ix_(rows, (right > 0) & (right < 9.8))] == FREE)
+    assert np.all(grid[np.ix_(rows, (right > 10.0) & (right < 10.4))] == OCCUPIED)  # front face
+    assert np.all(grid[np.ix_(rows, (right > 11.0) & (right < 30))] == UNKNOWN)  # behind it
+    assert np.all(grid[np.ix_(rows, right < -1)] == FREE)  # the other side is open
+
+
+@pytest.mark.parametrize("angle_deg", [0, 45, 90])
+def test_vehicle_footprint_covers_the_right_cells(angle_deg):
+    spec = GridSpec()
+    sensor = OccupancyGridSensor(spec)
+    psi = np.deg2rad(angle_deg)
+    cx, cy, length, width = 6.3, -4.1, 4.6, 1.9
+    box = box_corners(np.array([cx]), np.array([cy]), np.array([psi]), length, width)
+    mask = sensor.obstacle_mask(np.zeros(2), 0.0, OPEN, box)
+    right, up = cell_right_up(spec)
+    xx, yy = np.meshgrid(right, up)
+    lon = (xx - cx) * np.cos(psi) + (yy - cy) * np.sin(psi)
+    lat = -(xx - cx) * np.sin(psi) + (yy - cy) * np.cos(psi)
+    half_diag = spec.cell_size * np.sqrt(0.5)
+    inside = (np.abs(lon) < length / 2 - half_diag) & (np.abs(lat) < width / 2 - half_diag)
+    outside = (np.abs(lon) > length / 2 + half_diag) | (np.abs(lat) > width / 2 + half_diag)
+    assert np.all(mask[inside] == 1)
+    assert np.all(mask[outside] == 0)
+    assert mask.sum() * spec.cell_size**2 == pytest.approx(length * width, rel=0.2)
+
+
+def test_non_square_grid_geometry():
+    spec = GridSpec(rows=40, cols=160, cell_size=0.25)
+    road = [rect(0, 0, 115.1, 100)]
+    grid = OccupancyGridSensor(spec).render(np.array([100.0, 50.0]), 0.3, road, NO_BOXES)
+    assert grid.shape == (40, 160)
+    right, up = cell_right_up(spec)
+    row = int(np.argmin(np.abs(up - 0.125)))
+    col = int(np.argmin(np.abs(right - 15.375)))  # first cell wholly past x = 115.1
+    assert (
+        grid[row, col] == OCCUPIED and grid[row, col - 1] == FREE and grid[row, col + 4] == UNKNOWN
+    )
+    assert np.all(grid[:, right < 15.0] == FREE)
+
+
+def test_heading_up_is_north_up_rotated():
+    box = box_corners(np.array([9.0, -5.0]), np.array([3.0, -7.0]), np.array([0.3, 1.2]), 4.5, 1.8)
+    road = [rect(-12.1, -20.1, 25.1, 6.1)]  # edges off the cell boundaries
+    north = OccupancyGridSensor(GridSpec(orientation="north_up")).render(
+        np.zeros(2), 0.0, road, box
+    )
+    # Heading east (up = east, right = south) is the north-up image turned a quarter turn
+    # counter-clockwise; heading north is the north-up grid itself.
+    head_e = OccupancyGridSensor(GridSpec(orientation="heading_up")).render(
+        np.zeros(2), 0.0, road, box
+    )
+    head_n = OccupancyGridSensor(GridSpec(orientation="heading_up")).render(
+        np.zeros(2), np.pi / 2, road, box
+    )
+    assert np.mean(np.rot90(north, 1) == head_e) > 0.995
+    assert np.mean(north == head_n) > 0.995
+
+
+def test_forward_fov_mount_sees_nothing_behind():
+    spec = GridSpec(mounts=(SensorMount(x=2.0, fov=np.pi),))
+    grid = OccupancyGridSensor(spec).render(np.zeros(2), 0.0, OPEN, NO_BOXES)
+    right, _ = cell_right_up(spec)
+    assert np.all(grid[:, right < -1.5] == UNKNOWN)
+    assert np.all(grid[54:74, right > 4] == FREE)
+    # Front and rear fans together see all around, as in the original GridSim.
+    both = GridSpec(
+        mounts=(SensorMount(x=1.0, fov=np.pi), SensorMount(x=1.0, yaw=np.pi, fov=np.pi))
+    )
+    g2 = OccupancyGridSensor(both).render(np.zeros(2), 0.0, OPEN, NO_BOXES)
+    assert np.mean(g2 == FREE) > 0.99
+
+
+def test_colourise_matches_the_paper_colours():
+    g = np.array([[FREE, OCCUPIED, UNKNOWN]], np.uint8)
+    rgb = colourise(g)
+    assert rgb.shape == (1, 3, 3)
+    assert (
+        tuple(rgb[0, 0]) == (0, 200, 0)
+        and tuple(rgb[0, 1]) == (220, 0, 0)
+        and tuple(rgb[0, 2]) == (0, 0, 0)
+    )
+
+
+@pytest.mark.parametrize(
+    "kwargs", [{"rows": 0}, {"cell_size": -0.5}, {"orientation": "east"}, {"rays": 2}]
+)
+def test_bad_grid_spec_is_rejected(kwargs):
+    with pytest.raises(ValueError):
+        GridSpec(**kwargs)

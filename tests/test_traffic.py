@@ -1,0 +1,216 @@
+"""Traffic: the trajectory library, recorded replay, IDM hand-over, synthetic traffic."""
+
+import numpy as np
+import pytest
+
+from gridsim.errors import DataError
+from gridsim.road.seamless import SeamlessParams, SeamlessRoad
+from gridsim.traffic.fleet import IDM, REPLAY, EgoPose, Fleet
+from gridsim.traffic.library import REQUIRED_COLUMNS, TrajectoryLibrary, read_tracks_csv
+from gridsim.traffic.sources import RecordedSceneTraffic, SeamlessTraffic, SpeedBounds
+from gridsim.vehicle.kinematics import box_corners
+
+FAR = EgoPose(1e6, 1e6, 0.0, 0.0, 4.5, 1.8)
+HEADER = ",".join(REQUIRED_COLUMNS)
+
+
+def write_csv(tmp_path, rows, header=HEADER):
+    p = tmp_path / "tracks.csv"
+    p.write_text(header + "\n" + "\n".join(rows) + "\n")
+    return p
+
+
+def test_builtin_library_has_all_scenes():
+    lib = TrajectoryLibrary.builtin()
+    assert len(lib) == 67
+    assert {t.scenario_id for t in lib.tracks} == {
+        "USA_Lanker-1_1_T-1",
+        "USA_Peach-4_8_T-1",
+        "USA_US101-3_3_T-1",
+        "USA_US101-4_1_T-1",
+    }
+    t = lib.get("USA_Lanker-1_1_T-1", "1213")
+    assert t.x[0] == pytest.approx(6.6928) and t.speed[1] == pytest.approx(9.6774)
+
+
+def test_user_csv_loads(tmp_path):
+    rows = [f"s,{tid},{k * 0.1},{k * 1.0},0,0,10,4.5,1.8" for tid in (1, 2) for k in range(5)]
+    tracks = read_tracks_csv(write_csv(tmp_path, rows))
+    assert [t.track_id for t in tracks] == ["1", "2"]
+    assert tracks[0].duration == pytest.approx(0.4)
+
+
+@pytest.mark.parametrize(
+    ("rows", "header", "message"),
+    [
+        (["s,1,0,0,0,0,10,4.5,1.8"], "scenario_id,track_id,time_s,x_m,y_m", "missing column"),
+        (
+            ["s,1,0,0,0,0,10,4.5,1.8", "s,1,0.1,nan,0,0,10,4.5,1.8"],
+            HEADER,
+            r"tracks.csv:3: column 'x_m' is 'nan'",
+        ),
+        (["s,1,0,0,zero,0,10,4.5,1.8"], HEADER, "column 'y_m' is not a number"),
+        (["s,1,0,0,0,0,-1,4.5,1.8"], HEADER, "speed_mps must be >= 0"),
+        (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0,1,0,0,1,4.5,1.8"], HEADER, "repeated time stamps"),
+        (["s,1,0,0,0,0,1,4.5,1.8"], HEADER, "single state"),
+        ([], HEADER, "no data rows"),
+    ],
+)
+def test_bad_csv_names_the_problem(tmp_path, rows, header, message):
+    with pytest.raises(DataError, match=message):
+        read_tracks_csv(write_csv(tmp_path, rows, header))
+
+
+def test_missing_csv_file(tmp_path):
+    with pytest.raises(DataError, match="not found"):
+        TrajectoryLibrary.from_csv(tmp_path / "nope.csv")
+
+
+def scene(name="USA_US101-4_1_T-1"):
+    return TrajectoryLibrary.builtin().scene(name)
+
+
+def test_recorded_replay_is_exact_at_any_rate():
+    tracks = scene()
+    src = RecordedSceneTraffic(tracks)
+    src.reset(np.random.default_rng(0), FAR)
+    dt = 0.05
+    for k in range(1, 61):
+        src.tick(dt, FAR)
+        t = k * dt
+        f = src.fleet
+        for i, tr in enumerate(tracks):
+            end = tr.t[-1] - tr.t[0]
+            if t > end + 1e-6:
+                assert not f.active[i]
+            if t > end - 1e-6:
+                continue
+            assert f.active[i] and f.mode[i] == REPLAY
+            x = np.interp(t, tr.t - tr.t[0], tr.x)
+            y = np.interp(t, tr.t - tr.t[0], tr.y)
+            assert np.hypot(f.x[i] - x, f.y[i] - y) < 1e-6
+            assert f.psi[i] == pytest.approx(np.interp(t, tr.t - tr.t[0], tr.heading), abs=1e-9)
+
+
+def overlap(a, b) -> bool:
+    """Separating-axis test for two convex quads (4, 2)."""
+    for quad in (a, b):
+        for k in range(4):
+            edge = quad[(k + 1) % 4] - quad[k]
+            axis = np.array([-edge[1], edge[0]])
+            pa, pb = a @ axis, b @ axis
+            if pa.max() < pb.min() or pb.max() < pa.min():
+                return False
+    return True
+
+
+def test_recorded_vehicle_hands_over_to_idm_behind_a_stopped_ego_and_back():
+    tracks = scene()
+    tr = max(tracks, key=lambda t: t.duration * t.speed.mean())  # a long, fast track
+    src = RecordedSceneTraffic([tr])
+    src.reset(np.random.default_rng(0), FAR)
+    # Park the ego on the track 40 m ahead of the vehicle's start.
+    s = np.concatenate([[0], np.cumsum(np.hypot(np.diff(tr.x), np.diff(tr.y)))])
+    k = int(np.searchsorted(s, 40.0))
+    ego = EgoPose(tr.x[k], tr.y[k], tr.heading[k], 0.0, 4.5, 1.8)
+    ego_box = box_corners(ego.x, ego.y, ego.psi, ego.length, ego.width)
+    modes = []
+    for _ in range(90):
+        src.tick(0.1, ego)
+        f = src.fleet
+        modes.append(int(f.mode[0]))
+        box = box_corners(f.x[0], f.y[0], f.psi[0], f.length[0], f.width[0])
+        assert not overlap(box, ego_box)
+    assert IDM in modes
+    f = src.fleet
+    assert f.v[0] < 0.05 and 1.5 < f.gap[0] < 2.5  # stopped about s0 = 2 m behind the ego
+    for _ in range(300):  # the ego drives away: the vehicle recovers and resumes the replay
+        src.tick(0.1, FAR)
+        if src.fleet.mode[0] == REPLAY or not src.fleet.active[0]:
+            break
+    assert src.fleet.mode[0] == REPLAY or not src.fleet.active[0]
+
+
+def brute_force_leaders(f: Fleet, ego: EgoPose):
+    """O(N^2) reference for Fleet.find_leaders on straight parallel lanes."""
+    idx = np.flatnonzero(f.active)
+    xs = np.append(f.x[idx], ego.x)
+    ys = np.append(f.y[idx], ego.y)
+    lens = np.append(f.length[idx], ego.length)
+    wids = np.append(f.width[idx], ego.width)
+    out = {}
+    for a, i in enumerate(idx):
+        best = np.inf
+        for b in range(len(xs)):
+            if b == a:
+                continue
+            dx, dy = xs[b] - xs[a], ys[b] - ys[a]
+            dist = np.hypot(dx, dy)
+            if dx <= 0 or dist > f.p.lookahead:
+                continue
+            if abs(dy) < 0.5 * (wids[a] + wids[b]) + f.p.lateral_margin:
+                best = min(best, dist - 0.5 * (lens[a] + lens[b]))
+        out[i] = best
+    return out
+
+
+def test_leader_search_matches_brute_force():
+    rng = np.random.default_rng(3)
+    f = Fleet(200)
+    lanes = [
+        f.paths.add_path(np.array([[-2000.0, y], [2000.0, y]]), np.array([0.0, 4000.0]))
+        for y in (0.0, 3.5, 7.0)
+    ]
+    prof = f.profiles.add(np.array([0.0, 100.0]), np.array([[0, 10, 0, 0], [1000, 10, 0, 0]]))
+    for i in range(200):
+        f.place(
+            i,
+            path=lanes[rng.integers(3)],
+            s=rng.uniform(1500, 2500),
+            profile=prof,
+            tau=0.0,
+            d_bias=rng.uniform(-1.0, 1.0),
+            length=rng.uniform(3.5, 6),
+            width=rng.uniform(1.6, 2.2),
+        )
+    ego = EgoPose(0.0, 0.2, 0.0, 5.0, 4.5, 1.8)
+    f.find_leaders(ego)
+    ref = brute_force_leaders(f, ego)
+    for i, gap in ref.items():
+        assert f.gap[i] == pytest.approx(gap, abs=1e-9)
+
+
+def test_synthetic_traffic_respects_bounds_and_never_overlaps():
+    road = SeamlessRoad(SeamlessParams(), seed=2)
+    lib = TrajectoryLibrary.builtin().select(2.0, 6.0)
+    bounds = SpeedBounds(4.16, 13.88, 2.0)
+    src = SeamlessTraffic(road, lib, 12, bounds)
+    ego = EgoPose(0.0, 0.0, 0.0, 9.0, 4.5, 1.8)
+    src.reset(np.random.default_rng(5), ego)
+    f = src.fleet
+    line = road.lanes[1].centre
+    s_ego, counts = 0.0, []
+    for k in range(600):
+        s_ego += 0.9
+        p, h = line.point_at(s_ego)
+        road.update(p)
+        ego = EgoPose(p[0], p[1], float(h), 9.0, 4.5, 1.8)
+        v_before, x_before, y_before = f.v.copy(), f.x.copy(), f.y.copy()
+        src.tick(0.1, ego)
+        a = np.flatnonzero(f.active)
+        counts.append(len(a))
+        replay = a[f.mode[a] == REPLAY]
+        assert np.all(f.v[replay] <= 13.88 + 1e-9)
+        # Same vehicle as before the tick (not respawned): accelerations within a_max, and
+        # speeds at or above v_min unless still recovering from IDM braking.
+        stayed = replay[
+            np.hypot(f.x[replay] - x_before[replay], f.y[replay] - y_before[replay]) < 3
+        ]
+        assert np.all(f.v[stayed] - v_before[stayed] <= 2.0 * 0.1 + 1e-9)
+        assert np.all(f.v[stayed] >= np.minimum(4.16, v_before[stayed]) - 1e-9)
+        boxes = box_corners(f.x[a], f.y[a], f.psi[a], f.length[a], f.width[a])
+        for i in range(len(a)):
+            for j in range(i + 1, len(a)):
+                if np.hypot(f.x[a[i]] - f.x[a[j]], f.y[a[i]] - f.y[a[j]]) < 12:
+                    assert not overlap(boxes[i], boxes[j]), (k, a[i], a[j])
+    assert np.mean(counts[100:]) >= 11
