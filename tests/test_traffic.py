@@ -149,32 +149,35 @@ def brute_force_leaders(f: Fleet, ego: EgoPose):
             if dx <= 0 or dist > f.p.lookahead:
                 continue
             if abs(dy) < 0.5 * (wids[a] + wids[b]) + f.p.lateral_margin:
-                best = min(best, dist - 0.5 * (lens[a] + lens[b]))
+                best = min(best, dx - 0.5 * (lens[a] + lens[b]))
         out[i] = best
     return out
 
 
-def test_leader_search_matches_brute_force():
-    rng = np.random.default_rng(3)
-    f = Fleet(200)
+@pytest.mark.parametrize("count", [12, 200])  # all-pairs and k-d tree paths
+def test_leader_search_matches_brute_force(count):
+    rng = np.random.default_rng(count)
+    f = Fleet(count)
     lanes = [
         f.paths.add_path(np.array([[-2000.0, y], [2000.0, y]]), np.array([0.0, 4000.0]))
-        for y in (0.0, 3.5, 7.0)
+        for y in (0.0, 1.5, 3.0)  # overlapping paths: leaders on other paths count too
     ]
     prof = f.profiles.add(np.array([0.0, 100.0]), np.array([[0, 10, 0, 0], [1000, 10, 0, 0]]))
-    for i in range(200):
+    spread = 5.0 * count
+    for i in range(count):
         f.place(
             i,
             path=lanes[rng.integers(3)],
-            s=rng.uniform(1500, 2500),
+            s=rng.uniform(2000 - spread, 2000 + spread),
             profile=prof,
             tau=0.0,
-            d_bias=rng.uniform(-1.0, 1.0),
+            d_bias=rng.uniform(-0.3, 0.3),  # vehicles keep to their path
             length=rng.uniform(3.5, 6),
             width=rng.uniform(1.6, 2.2),
         )
     ego = EgoPose(0.0, 0.2, 0.0, 5.0, 4.5, 1.8)
     f.find_leaders(ego)
+    assert np.isfinite(f.gap).sum() > count // 3
     ref = brute_force_leaders(f, ego)
     for i, gap in ref.items():
         assert f.gap[i] == pytest.approx(gap, abs=1e-9)

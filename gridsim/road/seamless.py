@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 
 from gridsim.road.base import Lane, Road, bbox_of, near
@@ -93,6 +94,14 @@ class _PieceGenerator:
         return self._arc(radius, sign * angle)
 
 
+def _simplified_segments(edge: np.ndarray, tolerance: float = 0.02) -> np.ndarray:
+    """Segments ``(M, 4)`` of an edge polyline, simplified (Douglas-Peucker) to ``tolerance`` m."""
+    origin = edge[0]
+    pts = cv2.approxPolyDP((edge - origin).astype(np.float32)[:, None, :], tolerance, False)
+    pts = pts[:, 0, :].astype(np.float64) + origin
+    return np.hstack([pts[:-1], pts[1:]])
+
+
 class SeamlessRoad(Road):
     """A never-ending one-way road with ``lanes`` parallel lanes, generated around the ego.
 
@@ -122,6 +131,9 @@ class SeamlessRoad(Road):
         self._lane_s = np.repeat(xs[None, :], n, axis=0)
         self._ego_s = 0.0
         self._hint = None
+        # Extend and trim in chunks of a quarter of the kept length (at least 100 m), so that
+        # geometry (and everything derived from it) is rebuilt only every so often.
+        self._chunk = max(100.0, 0.25 * (params.keep_behind + params.keep_ahead))
         self._extend_to(params.keep_ahead)
         self._rebuild()
 
@@ -171,7 +183,7 @@ class SeamlessRoad(Road):
             for a in starts
         ]
         self._chunk_boxes = bbox_of(self._chunks)
-        self._segments = np.vstack([np.hstack([e[:-1], e[1:]]) for e in (self._left, self._right)])
+        self._segments = np.vstack([_simplified_segments(e) for e in (self._left, self._right)])
         marks = [self._ref + (o + 0.5 * self.p.lane_width) * normal for o in self._offsets[:-1]]
         self._marking_chunks = [mk[a : a + _CHUNK + 1] for mk in marks for a in starts]
         self._marking_boxes = bbox_of(self._marking_chunks)
@@ -184,10 +196,10 @@ class SeamlessRoad(Road):
         p = self.p
         changed = False
         if self._ref_s[-1] < self._ego_s + p.keep_ahead:
-            self._extend_to(self._ego_s + p.keep_ahead + 100.0)
+            self._extend_to(self._ego_s + p.keep_ahead + self._chunk)
             changed = True
         cut = np.searchsorted(self._ref_s, self._ego_s - p.keep_behind)
-        if cut > 100:
+        if cut > self._chunk / p.sample_spacing:
             self._ref, self._ref_h, self._ref_s = (
                 self._ref[cut:],
                 self._ref_h[cut:],
@@ -252,5 +264,5 @@ class SeamlessRoad(Road):
     def is_drivable(self, xy):
         xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
         s, d, _ = self._project(xy)
-        inside_s = (s > self._ref_s[0]) & (s < self._ref_s[-1])
+        inside_s = (s >= self._ref_s[0] - 1e-6) & (s <= self._ref_s[-1] + 1e-6)
         return inside_s & (np.abs(d) <= self.half_width)

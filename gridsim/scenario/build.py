@@ -64,11 +64,18 @@ def build_sensor(scenario: Scenario) -> OccupancyGridSensor:
     mounts = tuple(
         SensorMount(m.x, m.y, np.deg2rad(m.yaw_deg), np.deg2rad(m.fov_deg)) for m in s.mounts
     )
-    return OccupancyGridSensor(
-        GridSpec(
-            s.rows, s.cols, s.cell_size, s.orientation, s.max_range, s.rays, s.hit_depth, mounts
-        )
+    spec = GridSpec(
+        rows=s.rows,
+        cols=s.cols,
+        cell_size=s.cell_size,
+        orientation=s.orientation,
+        max_range=s.max_range,
+        rays=s.rays,
+        hit_depth=s.hit_depth,
+        ray_step=s.ray_step,
+        mounts=mounts,
     )
+    return OccupancyGridSensor(spec)
 
 
 def _resolve(scenario: Scenario, ref: str, builtin_dir: tuple[str, ...], suffix: str) -> Path:
@@ -146,21 +153,24 @@ def _build_seamless(scenario: Scenario, seed: int) -> World:
     cfg = scenario.config
     rc: SeamlessRoadConfig = cfg.road
     road_seed, traffic_rng, _ = _seeds(seed)
+    behind, ahead = cfg.traffic.window
     params = SeamlessParams(
         rc.lanes,
         rc.lane_width,
         rc.straight_fraction,
         rc.mean_curve_angle_deg,
         tuple(rc.curve_radius),
+        keep_behind=behind + 70.0,
+        keep_ahead=ahead + 240.0,
     )
     road = SeamlessRoad(params, rc.seed if rc.seed is not None else road_seed)
     ego = vehicle_params(cfg.ego.vehicle)
     lane = cfg.ego.lane
     start, heading = road.lanes[lane].centre.point_at(0.0)
     state = np.array([start[0], start[1], heading, cfg.ego.speed, 0.0])
-    traffic = SeamlessTraffic(
-        road, _synthetic_tracks(scenario), cfg.traffic.participants, _bounds(scenario)
-    )
+    tracks = _synthetic_tracks(scenario)
+    count = cfg.traffic.participants
+    traffic = SeamlessTraffic(road, tracks, count, _bounds(scenario), behind, ahead)
     return World(
         road, traffic, ego, state, cfg.simulation.dt, lambda: road.lanes[lane].centre, traffic_rng
     )
@@ -186,9 +196,9 @@ def _build_city(scenario: Scenario, seed: int) -> World:
     route = road.random_route(ego_rng, length)
     start, heading = route.point_at(5.0)
     state = np.array([start[0], start[1], heading, cfg.ego.speed, 0.0])
-    traffic = CityTraffic(
-        road, _synthetic_tracks(scenario), cfg.traffic.participants, _bounds(scenario)
-    )
+    tracks = _synthetic_tracks(scenario)
+    radius = max(cfg.traffic.window)
+    traffic = CityTraffic(road, tracks, cfg.traffic.participants, _bounds(scenario), radius)
     return World(road, traffic, ego, state, cfg.simulation.dt, lambda: route, traffic_rng)
 
 

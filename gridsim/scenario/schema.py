@@ -61,6 +61,9 @@ class SensorConfig(Strict):
     max_range: Annotated[float, Field(gt=0, le=500)] = 50.0
     rays: Annotated[int, Field(ge=8, le=8192)] = 720
     hit_depth: Annotated[float, Field(ge=0, le=10)] = 0.5
+    ray_step: Annotated[float, Field(ge=0.1, le=2.0, description="ray sample spacing [cells]")] = (
+        0.5
+    )
     mounts: Annotated[list[MountConfig], Field(min_length=1, max_length=8)] = [MountConfig()]
 
 
@@ -71,11 +74,17 @@ class TrafficConfig(Strict):
     a_max: PositiveFloat = 2.0
     max_vehicle_length: Annotated[float, Field(gt=2, le=25)] = 6.0
     library: Annotated[list[str], Field(min_length=1)] = ["builtin"]
+    window: Annotated[
+        tuple[PositiveFloat, PositiveFloat],
+        Field(description="[behind, ahead] metres of road around the ego kept populated"),
+    ] = (80.0, 160.0)
 
     @model_validator(mode="after")
     def _order(self) -> TrafficConfig:
         if self.v_max < self.v_min:
             raise ValueError(f"v_max ({self.v_max}) must be >= v_min ({self.v_min})")
+        if min(self.window) < 50:
+            raise ValueError(f"window {list(self.window)} must keep >= 50 m on each side")
         return self
 
 

@@ -15,8 +15,9 @@ occluded behind the first hit, out of range, outside every mount's field of view
 **Sensing.** Each mount casts ``rays`` rays over 360 degrees (limited to its ``fov``) out to
 ``max_range`` metres. Along a ray, cells before the first obstacle are free; obstacle cells up
 to ``hit_depth`` metres beyond the first hit are occupied; everything farther is unknown. The
-union over mounts is returned. Rays are sampled on the grid by a polar remap (OpenCV), so the
-cost does not depend on the number of vehicles. Mount positions are snapped to whole cells.
+union over mounts is returned. Rays are sampled every ``ray_step`` cells by a polar remap
+(OpenCV), so the cost does not depend on the number of vehicles. Mount positions are snapped
+to whole cells.
 """
 
 from __future__ import annotations
@@ -31,6 +32,8 @@ _COLOURS = np.zeros((256, 3), np.uint8)
 _COLOURS[FREE] = (0, 200, 0)
 _COLOURS[OCCUPIED] = (220, 0, 0)
 _COLOURS[UNKNOWN] = (0, 0, 0)
+# obstacle + 2 * visible -> cell state
+_STATE_LUT = np.array([UNKNOWN, UNKNOWN, FREE, OCCUPIED], np.uint8)
 
 
 @dataclass(frozen=True)
@@ -55,6 +58,7 @@ class GridSpec:
     max_range: float = 50.0
     rays: int = 720
     hit_depth: float = 0.5
+    ray_step: float = 0.5
     mounts: tuple[SensorMount, ...] = field(default_factory=lambda: (SensorMount(),))
 
     def __post_init__(self) -> None:
@@ -68,6 +72,8 @@ class GridSpec:
             )
         if self.max_range <= 0 or self.rays < 8 or self.hit_depth < 0 or not self.mounts:
             raise ValueError("need max_range > 0, rays >= 8, hit_depth >= 0 and at least one mount")
+        if not 0.1 <= self.ray_step <= 2.0:
+            raise ValueError(f"ray_step must be in [0.1, 2] cells, got {self.ray_step}")
 
 
 _SIGN_L = np.array([-1.0, 1.0, 1.0, -1.0])[:, None]
@@ -101,25 +107,44 @@ class OccupancyGridSensor:
     def __init__(self, spec: GridSpec | None = None) -> None:
         self.spec = spec = spec or GridSpec()
         rows, cols = spec.rows, spec.cols
-        self._dr = 0.5  # radial sample spacing in cells
-        self._n_r = int(np.ceil(spec.max_range / spec.cell_size / self._dr)) + 2
-        theta = np.arange(spec.rays) * (2 * np.pi / spec.rays)
-        self._theta = theta
+        # Rays need not reach past the farthest cell of the grid.
+        reach = min(spec.max_range / spec.cell_size, 0.5 * np.hypot(rows, cols) + 1.0)
+        self._dr = spec.ray_step
+        self._n_r = int(np.ceil(reach / self._dr)) + 2
+        self._theta = np.arange(spec.rays) * (2 * np.pi / spec.rays)
         r = np.arange(self._n_r) * self._dr
-        # Sample offsets in pixel units (u right, v down) for a ray at angle theta from "right"
+        # Sample offsets in pixels (u right, v down) along rays at angle theta from "right",
         # counter-clockwise towards "up".
-        self._du = (np.cos(theta)[:, None] * r[None]).astype(np.float32)
-        self._dv = (-np.sin(theta)[:, None] * r[None]).astype(np.float32)
-        # Per-cell polar tables on a canvas twice the grid size, centred on the grid centre.
-        v, u = np.mgrid[0 : 2 * rows, 0 : 2 * cols].astype(np.float64)
-        du, dv = u - (cols - 0.5), v - (rows - 0.5)
-        ang = np.mod(np.arctan2(-dv, du), 2 * np.pi)
-        self._ray_of = (np.rint(ang / (2 * np.pi) * spec.rays).astype(np.int64)) % spec.rays
-        self._rad_of = np.hypot(du, dv) / self._dr
+        self._du = (np.cos(self._theta)[:, None] * r[None]).astype(np.float32)
+        self._dv = (-np.sin(self._theta)[:, None] * r[None]).astype(np.float32)
         self._depth = spec.hit_depth / spec.cell_size / self._dr
         self._range = spec.max_range / spec.cell_size / self._dr
+        self._tables: dict[tuple[int, int], tuple] = {}
         self._obstacles = np.empty((rows, cols), np.uint8)
         self._polar = np.empty((spec.rays, self._n_r), np.uint8)
+
+    def _tables_for(self, ou: int, ov: int):
+        """Remap maps and per-cell (ray, radius) tables for a mount ``(ou, ov)`` cells off the
+        grid centre; cached, as mounts snap to whole cells."""
+        key = (ou, ov)
+        hit = self._tables.get(key)
+        if hit is not None:
+            return hit
+        s = self.spec
+        u0, v0 = s.cols / 2 - 0.5 + ou, s.rows / 2 - 0.5 + ov
+        maps, _ = cv2.convertMaps(
+            self._du + np.float32(u0), self._dv + np.float32(v0), cv2.CV_16SC2, nninterpolation=True
+        )
+        v, u = np.mgrid[0 : s.rows, 0 : s.cols].astype(np.float64)
+        du, dv = u - u0, v - v0
+        ang = np.mod(np.arctan2(-dv, du), 2 * np.pi)
+        ray = np.rint(ang / (2 * np.pi) * s.rays).astype(np.intp) % s.rays
+        rad = (np.hypot(du, dv) / self._dr).astype(np.float32)
+        rad[rad > self._range] = np.inf  # out of range: never visible
+        if len(self._tables) > 256:
+            self._tables.clear()
+        self._tables[key] = hit = (maps, ray, rad)
+        return hit
 
     # -- geometry ----------------------------------------------------------------------------
     def world_to_pixel(self, ego_xy: np.ndarray, ego_psi: float) -> np.ndarray:
@@ -137,13 +162,11 @@ class OccupancyGridSensor:
 
     def cell_centers(self, ego_xy: np.ndarray, ego_psi: float) -> np.ndarray:
         """World coordinates ``(rows, cols, 2)`` [m] of every cell centre."""
-        a = self.world_to_pixel(ego_xy, ego_psi)
-        inv = cv2.invertAffineTransform(a)
+        inv = cv2.invertAffineTransform(self.world_to_pixel(ego_xy, ego_psi))
         v, u = np.mgrid[0 : self.spec.rows, 0 : self.spec.cols].astype(np.float64)
-        return np.stack(
-            [inv[0, 0] * u + inv[0, 1] * v + inv[0, 2], inv[1, 0] * u + inv[1, 1] * v + inv[1, 2]],
-            axis=-1,
-        )
+        x = inv[0, 0] * u + inv[0, 1] * v + inv[0, 2]
+        y = inv[1, 0] * u + inv[1, 1] * v + inv[1, 2]
+        return np.stack([x, y], axis=-1)
 
     # -- rendering ----------------------------------------------------------------------------
     def obstacle_mask(
@@ -153,13 +176,17 @@ class OccupancyGridSensor:
 
         A cell is a vehicle obstacle if its centre lies inside a footprint of ``boxes``
         ``(N, 4, 2)``; it is drivable if any part of it lies on a ``drivable`` polygon (road
-        edges are rounded outwards by up to half a cell)."""
+        edges are rounded outwards by up to half a cell).
+        """
         a = self.world_to_pixel(ego_xy, ego_psi)
         m = self._obstacles
         m.fill(1)
-        for poly in drivable:  # one call per polygon: a multi-polygon call XORs overlaps
-            px = poly @ a[:, :2].T + a[:, 2]
-            cv2.fillPoly(m, [np.rint(px * 16).astype(np.int32)], 0, cv2.LINE_8, shift=4)
+        if drivable:
+            px = np.rint((np.concatenate(drivable) @ a[:, :2].T + a[:, 2]) * 16).astype(np.int32)
+            start = 0
+            for poly in drivable:  # one call per polygon: a multi-polygon call XORs overlaps
+                cv2.fillPoly(m, [px[start : start + len(poly)]], 0, cv2.LINE_8, shift=4)
+                start += len(poly)
         if len(boxes):
             px = _inset_half_pixel(boxes @ a[:, :2].T + a[:, 2])
             for quad in np.rint(px * 16).astype(np.int32):
@@ -168,46 +195,34 @@ class OccupancyGridSensor:
 
     def render(self, ego_xy, ego_psi, drivable: list[np.ndarray], boxes: np.ndarray) -> np.ndarray:
         """The occupancy grid (values :data:`FREE`, :data:`UNKNOWN`, :data:`OCCUPIED`)."""
-        s = self.spec
         obstacles = self.obstacle_mask(ego_xy, ego_psi, drivable, boxes)
-        visible = np.zeros((s.rows, s.cols), bool)
-        for mount in s.mounts:
+        mounts = self.spec.mounts
+        visible = self._visible_from(mounts[0], obstacles, ego_psi)
+        for mount in mounts[1:]:
             visible |= self._visible_from(mount, obstacles, ego_psi)
-        grid = np.where(obstacles.astype(bool), np.uint8(OCCUPIED), np.uint8(FREE))
-        grid[~visible] = UNKNOWN
-        return grid
+        return _STATE_LUT[obstacles + 2 * visible.view(np.uint8)]
 
     def _visible_from(
         self, mount: SensorMount, obstacles: np.ndarray, ego_psi: float
     ) -> np.ndarray:
         s = self.spec
-        up_dir = ego_psi if s.orientation == "north_up" else np.pi / 2
-        # Mount offset in pixels (u right, v down), snapped to whole cells.
-        ang = up_dir if s.orientation == "north_up" else np.pi / 2
-        c, sn = np.cos(ang), np.sin(ang)
+        north_up = s.orientation == "north_up"
+        up_dir = ego_psi if north_up else np.pi / 2  # direction of the heading in the grid
+        c, sn = np.cos(up_dir), np.sin(up_dir)
         mx, my = mount.x * c - mount.y * sn, mount.x * sn + mount.y * c
-        ou = int(np.clip(np.rint(mx / s.cell_size), -s.cols // 2, s.cols // 2))
-        ov = int(np.clip(np.rint(-my / s.cell_size), -s.rows // 2, s.rows // 2))
-        u0, v0 = s.cols / 2 - 0.5 + ou, s.rows / 2 - 0.5 + ov
-        cv2.remap(
-            obstacles,
-            self._du + np.float32(u0),
-            self._dv + np.float32(v0),
-            cv2.INTER_NEAREST,
-            dst=self._polar,
-            borderMode=cv2.BORDER_CONSTANT,
-            borderValue=1,
-        )
+        ou = int(np.clip(np.rint(mx / s.cell_size), -(s.cols // 2), s.cols // 2))
+        ov = int(np.clip(np.rint(-my / s.cell_size), -(s.rows // 2), s.rows // 2))
+        maps, ray, rad = self._tables_for(ou, ov)
+        cv2.remap(obstacles, maps, None, cv2.INTER_NEAREST, dst=self._polar,
+                  borderMode=cv2.BORDER_CONSTANT, borderValue=1)  # fmt: skip
         self._polar[:, -1] = 1  # sentinel: every ray ends
-        first_hit = np.argmax(self._polar, axis=1).astype(np.float64)
+        reach = np.argmax(self._polar.view(bool), axis=1).astype(np.float32) + np.float32(
+            self._depth
+        )
         if mount.fov < 2 * np.pi:
-            centre = (up_dir if s.orientation == "north_up" else np.pi / 2) + mount.yaw
-            off = np.angle(np.exp(1j * (self._theta - centre)))
-            first_hit[np.abs(off) > 0.5 * mount.fov] = -np.inf
-        r0, c0 = s.rows // 2 - ov, s.cols // 2 - ou
-        ray = self._ray_of[r0 : r0 + s.rows, c0 : c0 + s.cols]
-        rad = self._rad_of[r0 : r0 + s.rows, c0 : c0 + s.cols]
-        return (rad <= first_hit[ray] + self._depth) & (rad <= self._range)
+            off = np.angle(np.exp(1j * (self._theta - (up_dir + mount.yaw))))
+            reach[np.abs(off) > 0.5 * mount.fov] = -np.inf
+        return rad <= reach[ray]
 
 
 def observe(sensor: OccupancyGridSensor, world) -> np.ndarray:

@@ -13,17 +13,17 @@ cumulative distance ``S``, speed ``V``, lateral offset ``D`` and heading ``H``):
   time advances in proportion to its progress. It hands back to replay once the gap exceeds
   ``resume_factor * s*`` and its speed has caught up with the profile.
 
-Leaders are found without O(N^2) work: a k-d tree gives the pairs within ``lookahead``
-metres, and a pair counts if the other vehicle lies ahead on the follower's own path: within
-half the sum of both widths (plus a margin) of the path point as far ahead as the other
-vehicle is along the follower's heading.
-On recorded scenes, a replaying vehicle ignores replaying leaders: the recording is
-collision-free among itself; only the ego and vehicles in IDM mode can be in its way.
+Leaders are found without O(N^2) work (see :meth:`Fleet.find_leaders`): the next vehicle on
+the same path, the ego, and for vehicles outside lane corridors, k-d tree pairs whose other
+vehicle lies ahead on the follower's own path. On recorded scenes, a replaying vehicle ignores
+replaying leaders: the recording is collision-free among itself; only the ego and vehicles in
+IDM mode can be in its way.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -33,6 +33,12 @@ from gridsim.vehicle.idm import IDMParams, desired_gap, idm_acceleration
 
 REPLAY, IDM = 0, 1
 _S, _V, _D, _H = range(4)
+_ALL_PAIRS_MAX = 48  # up to this many vehicles, testing all pairs beats building a tree
+
+
+@lru_cache(maxsize=64)
+def _upper_pairs(m: int) -> tuple[np.ndarray, np.ndarray]:
+    return np.triu_indices(m, k=1)
 
 
 @dataclass(frozen=True)
@@ -40,7 +46,7 @@ class FleetParams:
     """Car-following and look-up settings."""
 
     idm: IDMParams = IDMParams()
-    lookahead: float = 60.0
+    lookahead: float = 50.0
     resume_factor: float = 1.3
     resume_speed_tol: float = 0.5
     lateral_margin: float = 0.2
@@ -111,7 +117,7 @@ class Fleet:
     ) -> None:
         """Put participant ``i`` on ``path`` at arc length ``s``, replaying ``profile`` from
         ``tau``; its speed and offset come from the profile."""
-        vals, _ = self.profiles.lookup(np.array([profile]), np.array([tau]))
+        vals = self.profiles.lookup(np.array([profile]), np.array([tau]))
         self.active[i] = True
         self.geometric[i] = geometric
         self.mode[i] = REPLAY
@@ -132,7 +138,7 @@ class Fleet:
         self.x[idx], self.y[idx] = p[:, 0], p[:, 1]
         geo = self.geometric[idx] & (self.mode[idx] == REPLAY)
         if np.any(geo):
-            vals, _ = self.profiles.lookup(self.profile[idx[geo]], self.tau[idx[geo]])
+            vals = self.profiles.lookup(self.profile[idx[geo]], self.tau[idx[geo]])
             h = h.copy()
             h[geo] = vals[:, _H]
         self.psi[idx] = h
@@ -140,58 +146,109 @@ class Fleet:
     # -- leaders ----------------------------------------------------------------------------------
     def find_leaders(self, ego: EgoPose | None) -> None:
         """Set :attr:`gap` (bumper to bumper [m], inf if none), :attr:`leader` (index, ``-2``
-        for the ego, ``-1`` for none) and the leader speed along the follower's heading."""
-        idx = np.flatnonzero(self.active)
-        n = len(idx)
-        self.gap[:] = np.inf
-        self.leader[:] = -1
+        for the ego, ``-1`` for none) and the leader speed along the follower's heading.
+
+        Candidates come from three sources, none of them O(N^2): the next vehicle on the same
+        path (a sort by arc length); the ego (one vectorised test); and, for vehicles outside
+        a lane corridor (city routes, recorded tracks), pairs from a k-d tree. Vehicles in a
+        corridor keep their lane, so their leader is the next vehicle on their own lane.
+        """
+        self.gap.fill(np.inf)
+        self.leader.fill(-1)
         self._lead_v = np.zeros(self.capacity)
-        if n == 0:
+        idx = np.flatnonzero(self.active)
+        if len(idx) == 0:
             return
-        px = np.append(self.x[idx], ego.x if ego else np.inf)
-        py = np.append(self.y[idx], ego.y if ego else np.inf)
-        psi = np.append(self.psi[idx], ego.psi if ego else 0.0)
-        vel = np.append(self.v[idx], ego.v if ego else 0.0)
-        length = np.append(self.length[idx], ego.length if ego else 0.0)
-        width = np.append(self.width[idx], ego.width if ego else 0.0)
-        m = n + 1 if ego else n
-        tree = cKDTree(np.stack([px[:m], py[:m]], axis=1))
-        pairs = tree.query_pairs(self.p.lookahead, output_type="ndarray")
-        if len(pairs) == 0:
-            return
-        a = np.concatenate([pairs[:, 0], pairs[:, 1]])
-        b = np.concatenate([pairs[:, 1], pairs[:, 0]])
-        follower = a < n  # the ego is never a follower
-        a, b = a[follower], b[follower]
-        dx, dy = px[b] - px[a], py[b] - py[a]
-        ahead = dx * np.cos(psi[a]) + dy * np.sin(psi[a]) > 0
-        same_dir = np.cos(psi[b] - psi[a]) > 0.0
-        keep = ahead & same_dir
-        # On recorded scenes, replaying vehicles trust replaying recorded leaders.
-        ga = self.geometric[idx[a]] & (self.mode[idx[a]] == REPLAY)
-        bb = np.minimum(b, n - 1)
-        gb = (b < n) & self.geometric[idx[bb]] & (self.mode[idx[bb]] == REPLAY)
-        keep &= ~(ga & gb)
-        a, b, dx, dy = a[keep], b[keep], dx[keep], dy[keep]
+        corridor, offset = self.paths.corridors(self.path[idx])
+        lateral = offset + self.d[idx]
+        c, sn = np.cos(self.psi[idx]), np.sin(self.psi[idx])
+        found = [self._same_path(idx), self._cross_path(idx, corridor, lateral, c, sn)]
+        if ego is not None:
+            found.append(self._ego_ahead(idx, ego, c, sn))
+        a = np.concatenate([f[0] for f in found])  # follower (index into idx)
+        b = np.concatenate([f[1] for f in found])  # leader index into idx, or -2 for the ego
+        gap = np.concatenate([f[2] for f in found])
+        lead_v = np.concatenate([f[3] for f in found])  # leader speed along a's heading
         if len(a) == 0:
             return
-        dist = np.hypot(dx, dy)
-        lon = dx * np.cos(psi[a]) + dy * np.sin(psi[a])
-        ia = idx[a]
-        q, _ = self.paths.frenet_to_world(self.path[ia], self.s[ia] + lon, self.d[ia])
-        lat = np.hypot(px[b] - q[:, 0], py[b] - q[:, 1])
-        on_path = lat < 0.5 * (width[a] + width[b]) + self.p.lateral_margin
-        a, b, dist = a[on_path], b[on_path], dist[on_path]
-        if len(a) == 0:
-            return
-        gap = dist - 0.5 * (length[a] + length[b])
         order = np.lexsort((gap, a))
-        first = np.r_[True, a[order][1:] != a[order][:-1]]
-        sel = order[first]
-        fa, fb = idx[a[sel]], b[sel]
+        sel = order[np.r_[True, a[order][1:] != a[order][:-1]]]
+        fa = idx[a[sel]]
         self.gap[fa] = gap[sel]
-        self.leader[fa] = np.where(fb < n, idx[np.minimum(fb, n - 1)], -2)
-        self._lead_v[fa] = vel[fb] * np.cos(psi[fb] - psi[a[sel]])
+        self.leader[fa] = np.where(b[sel] >= 0, idx[np.maximum(b[sel], 0)], -2)
+        self._lead_v[fa] = lead_v[sel]
+
+    def _same_path(self, idx: np.ndarray):
+        """Each vehicle and the next one ahead on the same path, within the look-ahead."""
+        path, s = self.path[idx], self.s[idx]
+        order = np.lexsort((s, path))
+        same = path[order[1:]] == path[order[:-1]]
+        a, b = order[:-1][same], order[1:][same]
+        gap = s[b] - s[a] - 0.5 * (self.length[idx[a]] + self.length[idx[b]])
+        near = gap + 0.5 * (self.length[idx[a]] + self.length[idx[b]]) <= self.p.lookahead
+        a, b, gap = a[near], b[near], gap[near]
+        lead_v = self.v[idx[b]] * np.cos(self.psi[idx[b]] - self.psi[idx[a]])
+        return a, b, gap, lead_v
+
+    def _cross_path(self, idx, corridor, lateral, c, sn):
+        """Leaders on another path: pairs from a k-d tree (or all pairs when few), kept if
+        the other vehicle lies on the follower's path as far ahead as it is. Pairs inside
+        one corridor are left to :meth:`_same_path`."""
+        empty = (np.zeros(0, np.int64),) * 2 + (np.zeros(0),) * 2
+        if np.all(corridor >= 0):
+            return empty
+        px, py = self.x[idx], self.y[idx]
+        i, j = self._pairs(px, py)
+        dx, dy = px[j] - px[i], py[j] - py[i]
+        lon_ij = dx * c[i] + dy * sn[i]
+        lon_ji = -(dx * c[j] + dy * sn[j])
+        a = np.concatenate([i[lon_ij > 0], j[lon_ji > 0]])
+        b = np.concatenate([j[lon_ij > 0], i[lon_ji > 0]])
+        lon = np.concatenate([lon_ij[lon_ij > 0], lon_ji[lon_ji > 0]])
+        path = self.path[idx]
+        trusted = self.geometric[idx] & (self.mode[idx] == REPLAY)  # replaying recorded
+        keep = (
+            (c[a] * c[b] + sn[a] * sn[b] > 0.0)
+            & ~(trusted[a] & trusted[b])
+            & (path[a] != path[b])
+            & ((corridor[a] < 0) | (corridor[a] != corridor[b]))
+        )
+        a, b, lon = a[keep], b[keep], lon[keep]
+        ia, ib = idx[a], idx[b]
+        q, _ = self.paths.frenet_to_world(self.path[ia], self.s[ia] + lon, self.d[ia])
+        lat = np.hypot(self.x[ib] - q[:, 0], self.y[ib] - q[:, 1])
+        on = lat < 0.5 * (self.width[ia] + self.width[ib]) + self.p.lateral_margin
+        a, b, lon = a[on], b[on], lon[on]
+        gap = lon - 0.5 * (self.length[idx[a]] + self.length[idx[b]])
+        return a, b, gap, self.v[idx[b]] * (c[a] * c[b] + sn[a] * sn[b])
+
+    def _ego_ahead(self, idx, ego: EgoPose, c, sn):
+        """Vehicles that have the ego ahead on their path."""
+        dx, dy = ego.x - self.x[idx], ego.y - self.y[idx]
+        lon = dx * c + dy * sn
+        cos_rel = c * np.cos(ego.psi) + sn * np.sin(ego.psi)
+        a = np.flatnonzero((lon > 0) & (np.hypot(dx, dy) <= self.p.lookahead) & (cos_rel > 0))
+        ia = idx[a]
+        q, _ = self.paths.frenet_to_world(self.path[ia], self.s[ia] + lon[a], self.d[ia])
+        lat = np.hypot(ego.x - q[:, 0], ego.y - q[:, 1])
+        on = lat < 0.5 * (self.width[ia] + ego.width) + self.p.lateral_margin
+        a = a[on]
+        gap = lon[a] - 0.5 * (self.length[idx[a]] + ego.length)
+        return a, np.full(len(a), -2), gap, ego.v * cos_rel[a]
+
+    def _pairs(self, px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Unordered pairs ``(i, j)``, ``i < j``, of points closer than the look-ahead.
+
+        A k-d tree keeps this O(N log N); for a handful of points all pairs are cheaper."""
+        m = len(px)
+        if m <= _ALL_PAIRS_MAX:
+            i, j = _upper_pairs(m)
+            close = np.hypot(px[i] - px[j], py[i] - py[j]) <= self.p.lookahead
+            return i[close], j[close]
+        pairs = cKDTree(np.stack([px, py], axis=1)).query_pairs(
+            self.p.lookahead, output_type="ndarray"
+        )
+        return pairs[:, 0], pairs[:, 1]
 
     # -- the tick --------------------------------------------------------------------------------
     def tick(self, dt: float, ego: EgoPose | None) -> np.ndarray:
@@ -200,25 +257,27 @@ class Fleet:
         given a new profile by the caller)."""
         self.find_leaders(ego)
         idx = np.flatnonzero(self.active)
-        if len(idx) == 0:
+        n = len(idx)
+        if n == 0:
             return idx
         p = self.p
         prof, tau, k = self.profile[idx], self.tau[idx], self.k[idx]
-        now, _ = self.profiles.lookup(prof, tau)
-        nxt, _ = self.profiles.lookup(prof, tau + dt)
+        both = self.profiles.lookup(np.concatenate([prof, prof]), np.concatenate([tau, tau + dt]))
+        now, nxt = both[:n], both[n:]
         v = self.v[idx]
+        lead_v = self._lead_v[idx]
         v_rep = np.minimum(k * nxt[:, _V], p.v_max)
         gap = self.gap[idx]
-        dv = v - self._lead_v[idx]
-        s_star = desired_gap(v, dv, p.idm)
+        dv = v - lead_v
         mode = self.mode[idx]
-        to_idm = (mode == REPLAY) & (gap < s_star)
-        s_star_rep = desired_gap(v_rep, v_rep - self._lead_v[idx], p.idm)
+        to_idm = (mode == REPLAY) & (gap < desired_gap(v, dv, p.idm))
         to_replay = (
-            (mode == IDM) & (gap > p.resume_factor * s_star_rep) & (v >= v_rep - p.resume_speed_tol)
+            (mode == IDM)
+            & (gap > p.resume_factor * desired_gap(v_rep, v_rep - lead_v, p.idm))
+            & (v >= v_rep - p.resume_speed_tol)
         )
         mode = np.where(to_idm, IDM, np.where(to_replay, REPLAY, mode)).astype(np.int8)
-        follow = mode == IDM
+        follow = np.flatnonzero(mode == IDM)
 
         # Replay: recorded scenes move by the recorded distance (exact poses); synthetic
         # participants integrate the scaled speed, rate-limited to the scenario's bounds.
@@ -227,25 +286,25 @@ class Fleet:
         new_v = np.where(geo, v_rep, v_syn)
         new_s = self.s[idx] + np.where(geo, nxt[:, _S] - now[:, _S], 0.5 * (v + new_v) * dt)
         new_tau = tau + dt
-        # IDM: desired speed = the profile's speed now.
-        if np.any(follow):
-            f = np.flatnonzero(follow)
-            a = idm_acceleration(v[f], k[f] * now[f, _V], gap[f], dv[f], p.idm)
-            vf = np.clip(v[f] + a * dt, 0.0, p.v_max)
+        new_d = nxt[:, _D]
+        self.d_bias[idx] *= np.exp(-dt / 2.0)
+        if len(follow):  # IDM, with the profile's current speed as desired speed
+            f = follow
+            v_des = k[f] * now[f, _V]
+            vf = np.clip(
+                v[f] + idm_acceleration(v[f], v_des, gap[f], dv[f], p.idm) * dt, 0.0, p.v_max
+            )
             ds = 0.5 * (v[f] + vf) * dt
             new_s[f] = self.s[idx[f]] + ds
             new_v[f] = vf
-            rate = np.clip(ds / np.maximum(k[f] * now[f, _V] * dt, 1e-3), 0.0, 1.0)
-            new_tau[f] = tau[f] + rate * dt
-        self.d_bias[idx] *= np.exp(-dt / 2.0)
-        after, _ = self.profiles.lookup(prof, new_tau)
+            new_tau[f] = tau[f] + np.clip(ds / np.maximum(v_des * dt, 1e-3), 0.0, 1.0) * dt
+            new_d[f] = self.d[idx[f]] - self.d_bias[idx[f]]  # hold the lateral position
         self.s[idx], self.v[idx], self.tau[idx], self.mode[idx] = new_s, new_v, new_tau, mode
-        self.d[idx] = np.where(follow, self.d[idx], after[:, _D] + self.d_bias[idx])
+        self.d[idx] = new_d + self.d_bias[idx]
         self._update_pose(idx)
         _, hi = self.profiles.ranges(prof)
         ended = idx[new_tau > hi + 1e-9]
-        geo_end = ended[self.geometric[ended]]
-        self.deactivate(geo_end)
+        self.deactivate(ended[self.geometric[ended]])
         return ended
 
     def footprints(self) -> tuple[np.ndarray, ...]:

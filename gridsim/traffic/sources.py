@@ -88,7 +88,7 @@ class RecordedSceneTraffic(TrafficSource):
             tau = self.time - tr.t[0]
             if self.fleet.active[i] or self._done[i] or tau < 0 or tau > tr.duration:
                 continue
-            vals, _ = self.fleet.profiles.lookup(np.array([i]), np.array([tau]))
+            vals = self.fleet.profiles.lookup(np.array([i]), np.array([tau]))
             self.fleet.place(
                 i,
                 path=i,
@@ -165,15 +165,24 @@ class SyntheticTraffic(TrafficSource):
         prof = int(self.rng.integers(len(self._profile_stats)))
         return prof, self._scale(prof, self.rng.uniform(self.bounds.v_min, self.bounds.v_max))
 
-    def _clear(self, x: float, y: float, length: float, ego: EgoPose) -> bool:
+    def _clear(
+        self, x: float, y: float, heading: float, length: float, width: float, ego: EgoPose
+    ) -> bool:
+        """Whether a ``length`` x ``width`` vehicle at ``(x, y, heading)`` keeps
+        :data:`_SPAWN_CLEARANCE` metres ahead and behind from everyone in its lane."""
         f = self.fleet
         a = f.active
-        need = 0.5 * (f.length[a] + length) + _SPAWN_CLEARANCE
-        if np.any(np.hypot(f.x[a] - x, f.y[a] - y) < need):
-            return False
-        return bool(
-            np.hypot(ego.x - x, ego.y - y) >= 0.5 * (ego.length + length) + _SPAWN_CLEARANCE
+        xs = np.append(f.x[a], ego.x)
+        ys = np.append(f.y[a], ego.y)
+        lengths = np.append(f.length[a], ego.length)
+        widths = np.append(f.width[a], ego.width)
+        c, s = np.cos(heading), np.sin(heading)
+        lon = (xs - x) * c + (ys - y) * s
+        lat = -(xs - x) * s + (ys - y) * c
+        blocked = (np.abs(lon) < 0.5 * (lengths + length) + _SPAWN_CLEARANCE) & (
+            np.abs(lat) < 0.5 * (widths + width) + 0.5
         )
+        return not bool(np.any(blocked))
 
     def _draw(self) -> tuple[int, float, float]:
         """A fresh profile, its speed scale and a start time in its first half."""
@@ -191,8 +200,8 @@ class SyntheticTraffic(TrafficSource):
         """Place participant ``i`` at ``(path, s)`` with a fresh profile if the spot is free."""
         prof, k, tau = drawn or self._draw()
         length, width = self._sizes[prof]
-        (p,), _ = self.fleet.paths.frenet_to_world(np.array([path]), np.array([s]), np.zeros(1))
-        if not self._clear(p[0], p[1], length, ego):
+        (p,), (h,) = self.fleet.paths.frenet_to_world(np.array([path]), np.array([s]), np.zeros(1))
+        if not self._clear(p[0], p[1], h, length, width, ego):
             return False
         self.fleet.place(i, path=path, s=s, profile=prof, tau=tau, k=k, length=length, width=width)
         return True
@@ -202,7 +211,7 @@ class SyntheticTraffic(TrafficSource):
         f = self.fleet
         for i in ended:
             prof = int(self.rng.integers(len(self._profile_stats)))
-            vals, _ = f.profiles.lookup(np.array([prof]), np.zeros(1))
+            vals = f.profiles.lookup(np.array([prof]), np.zeros(1))
             v0 = max(vals[0, 1], 0.1)
             k = float(np.clip(f.v[i] / v0, *self._scale_range(prof)))
             f.profile[i], f.tau[i], f.k[i] = prof, 0.0, k
@@ -227,7 +236,8 @@ class SeamlessTraffic(SyntheticTraffic):
         self.road = road
         self.behind, self.ahead = behind, ahead
         self._lane_slots = [
-            self.fleet.paths.add_path(ln.centre.points, ln.centre.s) for ln in road.lanes
+            self.fleet.paths.add_path(ln.centre.points, ln.centre.s, corridor=0, offset=off)
+            for ln, off in zip(road.lanes, road.lane_offsets, strict=True)
         ]
         self._version = road.version
 
@@ -242,13 +252,21 @@ class SeamlessTraffic(SyntheticTraffic):
         self._sync_lanes()
         f = self.fleet
         f.deactivate(np.arange(f.capacity))
+        # Shuffle evenly spaced slots over all lanes of the window, so that even a dense
+        # fleet fills without overlaps; each slot is jittered within its free margin.
+        spacing = float(self._sizes[:, 0].max()) + _SPAWN_CLEARANCE + 2.0
+        per_lane = int((self.behind + self.ahead) // spacing)
         n_lanes = len(self._lane_slots)
-        for i in range(self.count):
-            for _ in range(20):
-                lane = int(rng.integers(n_lanes))
-                s = self.road.lane_s_near_ego(lane) + rng.uniform(-self.behind, self.ahead)
-                if self._spawn(i, self._lane_slots[lane], s, ego):
-                    break
+        slots = rng.permutation(per_lane * n_lanes)
+        i = 0
+        for slot in slots:
+            if i == self.count:
+                break
+            lane, k = divmod(int(slot), per_lane)
+            s = self.road.lane_s_near_ego(lane) - self.behind + (k + 0.5) * spacing
+            s += rng.uniform(-1.0, 1.0)
+            if self._spawn(i, self._lane_slots[lane], s, ego):
+                i += 1
 
     def tick(self, dt: float, ego: EgoPose) -> None:
         self._sync_lanes()
@@ -269,7 +287,7 @@ class SeamlessTraffic(SyntheticTraffic):
         for i in idle[:1]:
             drawn = self._draw()
             prof, k, tau = drawn
-            v0 = k * self.fleet.profiles.lookup(np.array([prof]), np.array([tau]))[0][0, 1]
+            v0 = k * self.fleet.profiles.lookup(np.array([prof]), np.array([tau]))[0, 1]
             band = self.rng.uniform(5.0, 40.0)
             edge = self.ahead - band if v0 <= ego.v else -self.behind + band
             lane = int(self.rng.integers(n_lanes))

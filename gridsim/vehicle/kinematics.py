@@ -81,22 +81,6 @@ class StepResult(NamedTuple):
     steer_rate: np.ndarray
 
 
-def _clipped_inputs(state, accel, steer_rate, p: BicycleParams, dt: float):
-    """Clip inputs to the rate limits and so that speed and steering stay inside their limits."""
-    v0 = state[..., V]
-    d0 = state[..., DELTA]
-    vd = np.clip(steer_rate, -p.v_delta_max, p.v_delta_max)
-    vd = np.clip(vd, (-p.delta_max - d0) / dt, (p.delta_max - d0) / dt)
-    a = np.clip(accel, -p.b_max, p.a_max)
-    # Power limit above v_switch: a <= a_max * v_switch / v (CommonRoad's acceleration constraint).
-    power_c = p.a_max * p.v_switch
-    with np.errstate(divide="ignore", invalid="ignore"):
-        power_limit = np.where(v0 > p.v_switch, power_c / np.where(v0 > 0, v0, 1.0), np.inf)
-    power = a >= power_limit
-    a = np.minimum(a, power_limit)
-    return a, vd, power, power_c
-
-
 def step_bicycle(
     state: np.ndarray,
     accel: np.ndarray | float,
@@ -111,34 +95,55 @@ def step_bicycle(
     and further so that ``v`` stays in ``[v_min, v_max]`` and ``|delta| <= delta_max`` at the
     end of the step. Returns a new array; ``state`` is not modified.
     """
+    p = params
     state = np.asarray(state, dtype=np.float64)
-    a, vd, power, power_c = _clipped_inputs(state, accel, steer_rate, params, dt)
-    x0, y0, psi0, v0, d0 = (state[..., i] for i in range(STATE_SIZE))
-
-    v1_power = np.sqrt(np.maximum(v0 * v0 + 2.0 * power_c * dt, 0.0)) if np.any(power) else v0
-    v1_free = v0 + a * dt
-    v1_raw = np.where(power, v1_power, v1_free)
-    v1 = np.clip(v1_raw, params.v_min, params.v_max)
-    clipped = v1 != v1_raw
-    power &= ~clipped
-    vh = np.where(power, np.sqrt(0.5 * (v0 * v0 + v1 * v1)), 0.5 * (v0 + v1))
-    a_applied = (v1 - v0) / dt
-
-    d1 = d0 + vd * dt
-    dh = d0 + 0.5 * vd * dt
-    inv_l = 1.0 / params.wheelbase
+    x0, y0, psi0, v0, d0 = (
+        state[..., X],
+        state[..., Y],
+        state[..., PSI],
+        state[..., V],
+        state[..., DELTA],
+    )
+    # Steering rate: rate limit, and no farther than the steering limit by the end of the step.
+    vd_lo = np.maximum(-p.v_delta_max, (-p.delta_max - d0) / dt)
+    vd_hi = np.minimum(p.v_delta_max, (p.delta_max - d0) / dt)
+    vd = np.minimum(np.maximum(steer_rate, vd_lo), vd_hi)
+    a = np.minimum(np.maximum(accel, -p.b_max), p.a_max)
+    v1 = v0 + a * dt
+    vh = v0 + (0.5 * dt) * a
+    if np.any(np.isfinite(p.v_switch)):
+        # Power limit above v_switch: a <= a_max v_switch / v (CommonRoad). While it binds,
+        # v(t) = sqrt(v0^2 + 2 a_max v_switch t) exactly.
+        c = p.a_max * p.v_switch
+        with np.errstate(divide="ignore", invalid="ignore"):
+            power = (v0 > p.v_switch) & (a * v0 >= c)
+        v1 = np.where(power, np.sqrt(v0 * v0 + 2.0 * c * dt), v1)
+        vh = np.where(power, np.sqrt(v0 * v0 + c * dt), vh)
+    v1_clipped = np.minimum(np.maximum(v1, p.v_min), p.v_max)
+    if np.any(v1_clipped != v1):  # a speed limit is reached: speed linear to the limit
+        vh = np.where(v1_clipped != v1, 0.5 * (v0 + v1_clipped), vh)
+        v1 = v1_clipped
+    # Yaw rate at t = 0, dt/2, dt; Simpson's rule for the heading and the position.
+    ddt = vd * dt
+    inv_l = 1.0 / p.wheelbase
     w0 = v0 * np.tan(d0) * inv_l
-    wh = vh * np.tan(dh) * inv_l
-    w1 = v1 * np.tan(d1) * inv_l
+    wh = vh * np.tan(d0 + 0.5 * ddt) * inv_l
+    w1 = v1 * np.tan(d0 + ddt) * inv_l
     psih = psi0 + dt / 24.0 * (5.0 * w0 + 8.0 * wh - w1)
     psi1 = psi0 + dt / 6.0 * (w0 + 4.0 * wh + w1)
     x1 = x0 + dt / 6.0 * (v0 * np.cos(psi0) + 4.0 * vh * np.cos(psih) + v1 * np.cos(psi1))
     y1 = y0 + dt / 6.0 * (v0 * np.sin(psi0) + 4.0 * vh * np.sin(psih) + v1 * np.sin(psi1))
-
-    out = np.stack(np.broadcast_arrays(x1, y1, psi1, v1, d1), axis=-1)
-    return StepResult(
-        out, np.broadcast_to(a_applied, v1.shape).copy(), np.broadcast_to(vd, v1.shape).copy()
+    shape = np.broadcast_shapes(state.shape[:-1], np.shape(v1), np.shape(vd))
+    out = np.empty(shape + (STATE_SIZE,))
+    out[..., X], out[..., Y], out[..., PSI], out[..., V], out[..., DELTA] = (
+        x1,
+        y1,
+        psi1,
+        v1,
+        d0 + ddt,
     )
+    accel_applied = np.broadcast_to((v1 - v0) / dt, shape).copy()
+    return StepResult(out, accel_applied, np.broadcast_to(vd, shape).copy())
 
 
 def box_corners(

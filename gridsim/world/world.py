@@ -61,7 +61,8 @@ class World:
         self.collision = CollisionChecker(ego_params.length, ego_params.width)
         road.update(self.ego[:2])
         traffic.reset(rng, self.ego_pose())
-        self.last = TickResult(0.0, 0.0, Contact(), False)
+        on_road = bool(road.is_drivable(self.ego_center()[None])[0])
+        self.last = TickResult(0.0, 0.0, self.check_contacts(), not on_road)
 
     @property
     def route(self) -> Polyline:
@@ -82,14 +83,20 @@ class World:
     def tick(self, accel: float, steer_rate: float) -> TickResult:
         """Advance the world by ``dt``: ego kinematics, road generation, traffic, collisions."""
         step = step_bicycle(self.ego, accel, steer_rate, self.ego_params, self.dt)
+        moved = float(np.hypot(*(step.state[:2] - self.ego[:2])))
         self.ego = step.state
         self.road.update(self.ego[:2])
         pose = self.ego_pose()
         self.traffic.tick(self.dt, pose)
         self.time += self.dt
         contact = self.check_contacts()
-        on_road = bool(self.road.is_drivable(self.ego_center()[None])[0])
-        off_road = bool(contact.boundaries) or not on_road
+        if contact.boundaries:
+            off_road = True
+        elif not self.last.off_road and moved < 0.5 * self.ego_params.width:
+            # Still on the road: the footprint cannot have crossed an edge without touching it.
+            off_road = False
+        else:
+            off_road = not bool(self.road.is_drivable(self.ego_center()[None])[0])
         self.last = TickResult(float(step.accel), float(step.steer_rate), contact, off_road)
         return self.last
 
