@@ -152,3 +152,17 @@ def test_lanelet_errors_name_the_file(tmp_path):
     bad.write_text("<commonRoad></commonRoad>")
     with pytest.raises(DataError, match="no <lanelet>"):
         load_lanelet_road(bad)
+
+
+def test_tracking_projection_equals_full_projection():
+    t = np.linspace(0, np.pi, 200)
+    line = Polyline(np.stack([50 * np.cos(t), 50 * np.sin(t)], axis=1))
+    rng = np.random.default_rng(0)
+    hint = 0
+    for s in np.linspace(1, line.length - 1, 2000):
+        p, _ = line.frenet_to_world(np.array([s]), np.array([rng.uniform(-3, 3)]))
+        got = line.track(p[0, 0], p[0, 1], hint)
+        s_ref, d_ref, _ = line.project(p)
+        assert got[0] == pytest.approx(s_ref[0], abs=1e-9)
+        assert got[1] == pytest.approx(d_ref[0], abs=1e-9)
+        hint = got[2]

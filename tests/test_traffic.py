@@ -217,3 +217,23 @@ def test_synthetic_traffic_respects_bounds_and_never_overlaps():
                 if np.hypot(f.x[a[i]] - f.x[a[j]], f.y[a[i]] - f.y[a[j]]) < 12:
                     assert not overlap(boxes[i], boxes[j]), (k, a[i], a[j])
     assert np.mean(counts[100:]) >= 11
+
+
+def test_table_bank_lookup_matches_numpy_interp():
+    from gridsim.traffic.tables import TableBank
+
+    rng = np.random.default_rng(0)
+    bank = TableBank(1)
+    tables = []
+    for _ in range(40):
+        x = np.cumsum(rng.uniform(0.001, 3.0, rng.integers(2, 400))) + rng.uniform(-50, 50)
+        y = rng.normal(size=len(x))
+        tables.append((bank.add(x, y), x, y))
+    for n in (10, 5000):  # the binary-search and the bucket paths
+        slot = rng.integers(len(tables), size=n)
+        q = np.array([rng.uniform(tables[k][1][0] - 1, tables[k][1][-1] + 1) for k in slot])
+        got = bank.lookup(slot, q)[:, 0]
+        ref = np.array(
+            [np.interp(v, tables[k][1], tables[k][2]) for k, v in zip(slot, q, strict=True)]
+        )
+        np.testing.assert_allclose(got, ref, atol=1e-9)

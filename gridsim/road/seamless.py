@@ -190,9 +190,12 @@ class SeamlessRoad(Road):
         self.version += 1
 
     def update(self, ego_xy: np.ndarray) -> None:
-        s, _, seg = self._project(np.asarray(ego_xy, dtype=np.float64)[None])
-        self._hint = int(seg[0])
-        self._ego_s = float(s[0])
+        x, y = float(ego_xy[0]), float(ego_xy[1])
+        if self._hint is None:
+            s, _, seg = self._project(np.array([[x, y]]))
+            self._ego_s, self._hint = float(s[0]), int(seg[0])
+        else:
+            self._ego_s, _, self._hint = self._ref_line.track(x, y, self._hint)
         p = self.p
         changed = False
         if self._ref_s[-1] < self._ego_s + p.keep_ahead:

@@ -36,6 +36,11 @@ _S, _V, _D, _H = range(4)
 _ALL_PAIRS_MAX = 48  # up to this many vehicles, testing all pairs beats building a tree
 
 
+def _clamp(x, lo, hi):
+    """``np.clip`` without its Python-level overhead (it dominates on small arrays)."""
+    return np.minimum(np.maximum(x, lo), hi)
+
+
 @lru_cache(maxsize=64)
 def _upper_pairs(m: int) -> tuple[np.ndarray, np.ndarray]:
     return np.triu_indices(m, k=1)
@@ -228,6 +233,8 @@ class Fleet:
         lon = dx * c + dy * sn
         cos_rel = c * np.cos(ego.psi) + sn * np.sin(ego.psi)
         a = np.flatnonzero((lon > 0) & (np.hypot(dx, dy) <= self.p.lookahead) & (cos_rel > 0))
+        if len(a) == 0:
+            return a, a, np.zeros(0), np.zeros(0)
         ia = idx[a]
         q, _ = self.paths.frenet_to_world(self.path[ia], self.s[ia] + lon[a], self.d[ia])
         lat = np.hypot(ego.x - q[:, 0], ego.y - q[:, 1])
@@ -282,7 +289,7 @@ class Fleet:
         # Replay: recorded scenes move by the recorded distance (exact poses); synthetic
         # participants integrate the scaled speed, rate-limited to the scenario's bounds.
         geo = self.geometric[idx]
-        v_syn = np.clip(np.clip(v_rep, p.v_min, p.v_max), v - p.b_max * dt, v + p.a_max * dt)
+        v_syn = _clamp(_clamp(v_rep, p.v_min, p.v_max), v - p.b_max * dt, v + p.a_max * dt)
         new_v = np.where(geo, v_rep, v_syn)
         new_s = self.s[idx] + np.where(geo, nxt[:, _S] - now[:, _S], 0.5 * (v + new_v) * dt)
         new_tau = tau + dt
@@ -291,13 +298,12 @@ class Fleet:
         if len(follow):  # IDM, with the profile's current speed as desired speed
             f = follow
             v_des = k[f] * now[f, _V]
-            vf = np.clip(
-                v[f] + idm_acceleration(v[f], v_des, gap[f], dv[f], p.idm) * dt, 0.0, p.v_max
-            )
+            a_f = idm_acceleration(v[f], v_des, gap[f], dv[f], p.idm)
+            vf = _clamp(v[f] + a_f * dt, 0.0, p.v_max)
             ds = 0.5 * (v[f] + vf) * dt
             new_s[f] = self.s[idx[f]] + ds
             new_v[f] = vf
-            new_tau[f] = tau[f] + np.clip(ds / np.maximum(v_des * dt, 1e-3), 0.0, 1.0) * dt
+            new_tau[f] = tau[f] + _clamp(ds / np.maximum(v_des * dt, 1e-3), 0.0, 1.0) * dt
             new_d[f] = self.d[idx[f]] - self.d_bias[idx[f]]  # hold the lateral position
         self.s[idx], self.v[idx], self.tau[idx], self.mode[idx] = new_s, new_v, new_tau, mode
         self.d[idx] = new_d + self.d_bias[idx]

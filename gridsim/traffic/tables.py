@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 _GAP = 1.0  # separation of tables on the shared key axis
+_SMALL_QUERY = 128  # below this many queries, plain binary search is cheaper
 
 
 class TableBank:
@@ -117,6 +118,8 @@ class TableBank:
     def _find(self, k: np.ndarray) -> np.ndarray:
         """``searchsorted(keys, k, side="right") - 1`` through the bucket index."""
         keys, counts = self._keys, self._bucket_count
+        if len(k) <= _SMALL_QUERY:  # a few binary searches beat the bucket arithmetic
+            return np.searchsorted(keys, k, side="right") - 1
         b = np.clip(((k - keys[0]) / self._bucket_width).astype(np.int64), 0, len(counts) - 2)
         lo, hi = counts[b], counts[b + 1]
         # At most one key inside the bucket: one comparison decides.

@@ -41,4 +41,4 @@ def idm_acceleration(
     free = 1.0 - (np.maximum(v, 0.0) / v_des) ** p.delta
     s_star = desired_gap(v, dv, p)
     interaction = (s_star / np.maximum(gap, 0.1)) ** 2
-    return np.clip(p.a * (free - interaction), -p.b_emergency, p.a)
+    return np.minimum(np.maximum(p.a * (free - interaction), -p.b_emergency), p.a)
