@@ -1,10 +1,14 @@
 """GridSim: a headless driving simulator with occupancy-grid sensors.
 
 Pipeline: :mod:`gridsim.road` -> :mod:`gridsim.traffic` -> :mod:`gridsim.world` ->
-:mod:`gridsim.sensors`; scenarios (:mod:`gridsim.scenario`) wire them together.
+:mod:`gridsim.sensors` -> :mod:`gridsim.envs`; scenarios (:mod:`gridsim.scenario`) wire
+them together. Importing gridsim registers the gymnasium environment ``GridSim-v0``.
 """
 
+from gridsim.envs import ENV_ID, register_envs
 from gridsim.errors import DataError, GridSimError, ScenarioError
 
+register_envs()
+
 __version__ = "0.1.0"
-__all__ = ["DataError", "GridSimError", "ScenarioError", "__version__"]
+__all__ = ["ENV_ID", "DataError", "GridSimError", "ScenarioError", "__version__"]

@@ -51,9 +51,15 @@ def test_road_edges_are_reported():
     edges = np.array([[-50.0, 1.5, 50.0, 1.5], [-50.0, -5.0, 50.0, -5.0]])
     cc.set_boundaries(edges, 1, np.zeros(2))
     empty = traffic()
-    assert cc.check(np.zeros(2), 0.0, empty, np.array([], int)).boundaries == ()
-    assert cc.check(np.array([0.0, 0.6]), 0.0, empty, np.array([], int)).boundaries == (0,)
-    assert cc.check(np.array([0.0, -4.5]), 0.3, empty, np.array([], int)).boundaries == (1,)
+    none = np.array([], int)
+    assert cc.check(np.zeros(2), 0.0, empty, none).boundaries == ()
+    # The box may reach EDGE_TOLERANCE (0.3 m) over an edge: a wheel on the line.
+    assert cc.check(np.array([0.0, 0.7]), 0.0, empty, none).boundaries == ()  # 0.2 m over
+    assert cc.check(np.array([0.0, 0.9]), 0.0, empty, none).boundaries == (0,)  # 0.4 m over
+    assert cc.check(np.array([0.0, -4.5]), 0.3, empty, none).boundaries == (1,)
+    # Vehicles count from the first touch.
+    assert cc.check(np.zeros(2), 0.0, traffic((0.0, 2.05, 0.0)), np.array([3])).vehicles == ()
+    assert cc.check(np.zeros(2), 0.0, traffic((0.0, 1.95, 0.0)), np.array([3])).vehicles == (3,)
 
 
 def test_lane_follower_stays_on_road_and_steering_away_goes_off_road():

@@ -24,6 +24,10 @@ class Lane:
     width: float
 
 
+#: Gaps between drivable polygons narrower than this [m] are closed (treated as drivable).
+CLOSE_GAP = 1.0
+
+
 def bbox_of(polys: list[np.ndarray]) -> np.ndarray:
     """Axis-aligned boxes ``(K, 4)`` = ``[xmin, ymin, xmax, ymax]`` of a list of point arrays."""
     if not polys:
@@ -74,11 +78,33 @@ class Road(ABC):
         """Boolean array: which of the points ``(N, 2)`` lie on the drivable area."""
 
 
+def _drop_open_ends(segments: np.ndarray, open_ends: np.ndarray | None, tol: float) -> np.ndarray:
+    """Remove boundary segments lying along ``open_ends`` ``(E, 4)``: where a map's lanes are
+    cut off at its border there is no curb, so driving out there is not a collision."""
+    if open_ends is None or len(open_ends) == 0 or len(segments) == 0:
+        return segments
+    mid = 0.5 * (segments[:, :2] + segments[:, 2:])
+    a, b = open_ends[:, :2], open_ends[:, 2:]
+    ab = b - a
+    t = np.einsum("mek,ek->me", mid[:, None, :] - a[None], ab) / np.maximum(
+        np.sum(ab * ab, 1), 1e-12
+    )
+    foot = a[None] + np.clip(t, 0.0, 1.0)[..., None] * ab[None]
+    dist = np.hypot(*(mid[:, None, :] - foot).transpose(2, 0, 1))
+    seg_dir = segments[:, 2:] - segments[:, :2]
+    cos = np.abs(seg_dir @ ab.T) / np.maximum(
+        np.linalg.norm(seg_dir, axis=1)[:, None] * np.linalg.norm(ab, axis=1)[None], 1e-12
+    )
+    on_open_end = np.any((dist < 4 * tol) & (cos > 0.9), axis=1)
+    return segments[~on_open_end]
+
+
 class StaticRoad(Road):
     """A road whose geometry never changes: a city network or a recorded map.
 
     The drivable area is the union of ``polygons``; it is rasterised once at ``resolution``
     metres to answer :meth:`is_drivable` in O(1) and to extract the boundary of the union.
+    ``open_ends`` are segments where lanes are cut off at the map's border: no boundary there.
     """
 
     def __init__(
@@ -87,6 +113,7 @@ class StaticRoad(Road):
         polygons: list[np.ndarray],
         markings: list[np.ndarray] | None = None,
         resolution: float = 0.2,
+        open_ends: np.ndarray | None = None,
     ) -> None:
         if not polygons:
             raise ValueError("a road needs at least one drivable polygon")
@@ -103,7 +130,11 @@ class StaticRoad(Road):
         self._raster = np.zeros((h, w), np.uint8)
         for poly in self._polygons:  # one call per polygon: a multi-polygon call XORs overlaps
             cv2.fillPoly(self._raster, [self._to_px(poly)], 1, lineType=cv2.LINE_8, shift=4)
-        self._segments = self._extract_boundaries()
+        # Close slivers between adjacent polygons (digitising gaps in recorded maps, narrower
+        # than CLOSE_GAP metres): they are painted areas, not curbs.
+        k = 2 * int(np.ceil(CLOSE_GAP / resolution / 2)) + 1
+        self._raster = cv2.morphologyEx(self._raster, cv2.MORPH_CLOSE, np.ones((k, k), np.uint8))
+        self._segments = _drop_open_ends(self._extract_boundaries(), open_ends, resolution)
 
     @property
     def lanes(self) -> list[Lane]:
@@ -125,7 +156,7 @@ class StaticRoad(Road):
         contours, _ = cv2.findContours(self._raster, cv2.RETR_LIST, cv2.CHAIN_APPROX_SIMPLE)
         segs = []
         for c in contours:
-            c = cv2.approxPolyDP(c, 1.0, closed=True)[:, 0, :].astype(np.float64)
+            c = cv2.approxPolyDP(c, 0.5, closed=True)[:, 0, :].astype(np.float64)
             if len(c) < 2:
                 continue
             world = (c + 0.5) * self._res + self._origin

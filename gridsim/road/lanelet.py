@@ -2,7 +2,8 @@
 
 Each ``<lanelet>`` has ``<leftBound>`` and ``<rightBound>`` point lists in metres; its drivable
 polygon is the left bound followed by the reversed right bound, and its centre line the
-mean of both bounds resampled to a common arc-length parameter.
+mean of both bounds resampled to a common arc-length parameter. Lanelets without a
+predecessor (successor) start (end) at the map's border: no road edge is placed across them.
 """
 
 from __future__ import annotations
@@ -46,7 +47,9 @@ def load_lanelet_road(path: str | Path) -> StaticRoad:
         root = ET.parse(path).getroot()
     except ET.ParseError as exc:
         raise DataError(f"{path}: not well-formed XML ({exc})") from exc
-    lanes, polygons, markings = [], [], []
+    lanes, polygons, markings, ends = [], [], [], []
+    has_pred = {r.get("ref") for ll in root.findall("lanelet") for r in ll.findall("successor")}
+    has_succ = {r.get("ref") for ll in root.findall("lanelet") for r in ll.findall("predecessor")}
     for ll in root.findall("lanelet"):
         where = f"{path.name}: lanelet {ll.get('id')}"
         left_el, right_el = ll.find("leftBound"), ll.find("rightBound")
@@ -55,6 +58,11 @@ def load_lanelet_road(path: str | Path) -> StaticRoad:
         left = _points(left_el, where + " leftBound")
         right = _points(right_el, where + " rightBound")
         polygons.append(np.vstack([left, right[::-1]]))
+        lid = ll.get("id")
+        if ll.find("predecessor") is None and lid not in has_pred:
+            ends.append([*left[0], *right[0]])
+        if ll.find("successor") is None and lid not in has_succ:
+            ends.append([*left[-1], *right[-1]])
         markings += [left, right]
         n = max(len(left), len(right), int(Polyline(left).length) + 2)
         left_r, right_r = _resample(left, n), _resample(right, n)
@@ -63,4 +71,4 @@ def load_lanelet_road(path: str | Path) -> StaticRoad:
         lanes.append(Lane(Polyline(centre), width))
     if not polygons:
         raise DataError(f"{path}: no <lanelet> elements")
-    return StaticRoad(lanes, polygons, markings)
+    return StaticRoad(lanes, polygons, markings, open_ends=np.array(ends).reshape(-1, 4))

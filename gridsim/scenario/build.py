@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.errors import ScenarioError
+from gridsim.road.base import StaticRoad
 from gridsim.road.city import CityParams, CityRoad
 from gridsim.road.lanelet import load_lanelet_road
 from gridsim.road.polyline import Polyline
@@ -26,7 +27,7 @@ from gridsim.scenario.schema import (
     VehicleConfig,
 )
 from gridsim.sensors.occupancy import GridSpec, OccupancyGridSensor, SensorMount
-from gridsim.traffic.library import TrajectoryLibrary
+from gridsim.traffic.library import Track, TrajectoryLibrary
 from gridsim.traffic.sources import (
     CityTraffic,
     RecordedSceneTraffic,
@@ -35,6 +36,7 @@ from gridsim.traffic.sources import (
     track_path,
 )
 from gridsim.vehicle.kinematics import BicycleParams
+from gridsim.world.collision import EDGE_TOLERANCE, CollisionChecker
 from gridsim.world.world import World
 
 
@@ -133,7 +135,8 @@ def _seeds(seed: int) -> tuple[int, np.random.Generator, np.random.Generator]:
     )
 
 
-def _synthetic_tracks(scenario: Scenario):
+def synthetic_tracks(scenario: Scenario) -> list[Track]:
+    """Library tracks usable as human profiles (>= 2 s long, not longer than the limit)."""
     t = scenario.config.traffic
     tracks = library_for(scenario).select(min_duration=2.0, max_length=t.max_vehicle_length)
     if not tracks:
@@ -142,6 +145,11 @@ def _synthetic_tracks(scenario: Scenario):
             f"{t.max_vehicle_length} m (traffic.max_vehicle_length)"
         )
     return tracks
+
+
+def road_lane_width(scenario: Scenario) -> float:
+    """Lane width [m] of a generated road (3.5 m for recorded maps)."""
+    return float(getattr(scenario.config.road, "lane_width", 3.5))
 
 
 def _bounds(scenario: Scenario) -> SpeedBounds:
@@ -168,7 +176,7 @@ def _build_seamless(scenario: Scenario, seed: int) -> World:
     lane = cfg.ego.lane
     start, heading = road.lanes[lane].centre.point_at(0.0)
     state = np.array([start[0], start[1], heading, cfg.ego.speed, 0.0])
-    tracks = _synthetic_tracks(scenario)
+    tracks = synthetic_tracks(scenario)
     count = cfg.traffic.participants
     traffic = SeamlessTraffic(road, tracks, count, _bounds(scenario), behind, ahead)
     return World(
@@ -196,7 +204,7 @@ def _build_city(scenario: Scenario, seed: int) -> World:
     route = road.random_route(ego_rng, length)
     start, heading = route.point_at(5.0)
     state = np.array([start[0], start[1], heading, cfg.ego.speed, 0.0])
-    tracks = _synthetic_tracks(scenario)
+    tracks = synthetic_tracks(scenario)
     radius = max(cfg.traffic.window)
     traffic = CityTraffic(road, tracks, cfg.traffic.participants, _bounds(scenario), radius)
     return World(road, traffic, ego, state, cfg.simulation.dt, lambda: route, traffic_rng)
@@ -211,8 +219,13 @@ def _build_recorded(scenario: Scenario, seed: int) -> World:
     )
     tracks = library_for(scenario).scene(rc.scene)
     if cfg.ego.track == "random":
+        unfit = unfit_experts(rc.scene, tuple(tracks), road)
         fit = [
-            t for t in tracks if t.duration >= 2.0 and t.length <= cfg.traffic.max_vehicle_length
+            t
+            for t in tracks
+            if t.duration >= 2.0
+            and t.length <= cfg.traffic.max_vehicle_length
+            and t.track_id not in unfit
         ]
         if not fit:
             raise ScenarioError(
@@ -232,11 +245,62 @@ def _build_recorded(scenario: Scenario, seed: int) -> World:
     u = np.array([np.cos(ego_track.heading[0]), np.sin(ego_track.heading[0])])
     rear = np.array([ego_track.x[0], ego_track.y[0]]) - ego.center_offset * u
     state = np.array([rear[0], rear[1], ego_track.heading[0], ego_track.speed[0], 0.0])
+    state[4] = initial_steering(ego_track, ego)
     route = Polyline(track_path(ego_track)[0])
     traffic = RecordedSceneTraffic(tracks, exclude=ego_track.track_id)
     return World(
         road, traffic, ego, state, cfg.simulation.dt, lambda: route, traffic_rng, ego_track
     )
+
+
+def initial_steering(track: Track, params: BicycleParams) -> float:
+    """Steering angle [rad] matching the curvature of the first second of ``track``."""
+    n = min(len(track.t), 11)
+    dist = float(np.sum(np.hypot(np.diff(track.x[:n]), np.diff(track.y[:n]))))
+    if dist < 1.0:
+        return 0.0
+    curvature = (track.heading[n - 1] - track.heading[0]) / dist
+    delta = np.arctan(params.wheelbase * curvature)
+    return float(np.clip(delta, -params.delta_max, params.delta_max))
+
+
+#: An expert's recorded footprint must stay this far [m] inside the off-road tolerance, so
+#: that tracking it with small errors does not count as leaving the road.
+EXPERT_EDGE_MARGIN = 0.25
+
+
+@lru_cache(maxsize=16)
+def unfit_experts(scene: str, tracks: tuple[Track, ...], road: StaticRoad) -> frozenset[str]:
+    """Tracks that cannot serve as the expert ego because of quirks of the recording: their
+    footprint overlaps another's, or comes within :data:`EXPERT_EDGE_MARGIN` of counting as
+    off the mapped road. The reference must be driveable without collision or leaving it."""
+    import cv2
+
+    bad = set()
+    no_traffic = (np.zeros(0),) * 5
+    for a in tracks:  # the same edge test as the world's
+        checker = CollisionChecker(a.length, a.width, EDGE_TOLERANCE - EXPERT_EDGE_MARGIN)
+        for k in range(len(a.t)):
+            centre = np.array([a.x[k], a.y[k]])
+            checker.set_boundaries(road.boundary_segments(), road.version, centre)
+            if checker.check(centre, float(a.heading[k]), no_traffic, np.zeros(0, int)).boundaries:
+                bad.add(a.track_id)
+                break
+    for i, a in enumerate(tracks):
+        ta = np.round(a.t, 3)
+        for b in tracks[i + 1 :]:
+            tb = np.round(b.t, 3)
+            for t in np.intersect1d(ta, tb):
+                ka, kb = np.searchsorted(ta, t), np.searchsorted(tb, t)
+                reach = 0.5 * (np.hypot(a.length, a.width) + np.hypot(b.length, b.width))
+                if np.hypot(a.x[ka] - b.x[kb], a.y[ka] - b.y[kb]) > reach:
+                    continue
+                ra = ((a.x[ka], a.y[ka]), (a.length, a.width), np.rad2deg(a.heading[ka]))
+                rb = ((b.x[kb], b.y[kb]), (b.length, b.width), np.rad2deg(b.heading[kb]))
+                if cv2.rotatedRectangleIntersection(ra, rb)[0] != cv2.INTERSECT_NONE:
+                    bad |= {a.track_id, b.track_id}
+                    break
+    return frozenset(bad)
 
 
 WORLD_BUILDERS: dict[type, Callable[[Scenario, int], World]] = {

@@ -151,6 +151,22 @@ class EgoConfig(Strict):
     vehicle: VehicleConfig = VehicleConfig()
 
 
+class EnvConfig(Strict):
+    """What the gymnasium environment observes, decides and scores."""
+
+    history: Annotated[int, Field(ge=1, le=32, description="tau_i: grids in an observation")] = 5
+    horizon: Annotated[int, Field(ge=1, le=20, description="tau_o: set-points in a plan")] = 5
+    setpoint_period: Annotated[float, Field(gt=0, le=5, description="set-point spacing [s]")] = 0.5
+    decision_period: Annotated[
+        float, Field(gt=0, le=5, description="time between decisions [s], a multiple of dt")
+    ] = 0.1
+    speed_range: Annotated[
+        tuple[NonNegFloat, PositiveFloat] | None,
+        Field(description="[v_min, v_max] counted by l3 [m/s]; default: the traffic bounds"),
+    ] = None
+    destination_tolerance: Annotated[float, Field(gt=0, le=50)] = 2.0
+
+
 class ScenarioConfig(Strict):
     """A whole scenario file."""
 
@@ -161,10 +177,29 @@ class ScenarioConfig(Strict):
     traffic: TrafficConfig = TrafficConfig()
     ego: EgoConfig = EgoConfig()
     sensor: SensorConfig = SensorConfig()
+    env: EnvConfig = EnvConfig()
 
     @model_validator(mode="after")
-    def _ego_lane(self) -> ScenarioConfig:
+    def _consistency(self) -> ScenarioConfig:
         lanes = getattr(self.road, "lanes", None)
         if lanes is not None and self.ego.lane >= lanes:
             raise ValueError(f"ego.lane ({self.ego.lane}) must be < road.lanes ({lanes})")
+        dt = self.simulation.dt
+        ticks = self.env.decision_period / dt
+        if abs(ticks - round(ticks)) > 1e-6 or round(ticks) < 1:
+            raise ValueError(
+                f"env.decision_period ({self.env.decision_period}) must be a whole multiple of "
+                f"simulation.dt ({dt})"
+            )
+        if self.env.speed_range is not None and self.env.speed_range[0] > self.env.speed_range[1]:
+            raise ValueError(f"env.speed_range {list(self.env.speed_range)} must be [min, max]")
         return self
+
+    @property
+    def ticks_per_decision(self) -> int:
+        return round(self.env.decision_period / self.simulation.dt)
+
+    @property
+    def speed_range(self) -> tuple[float, float]:
+        """``[v_min, v_max]`` [m/s] inside which l3 counts the speed."""
+        return self.env.speed_range or (self.traffic.v_min, self.traffic.v_max)

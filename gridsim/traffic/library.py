@@ -32,9 +32,11 @@ REQUIRED_COLUMNS = (
 _NUMERIC = REQUIRED_COLUMNS[2:]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Track:
-    """One recorded vehicle: arrays of equal length sampled at increasing ``t`` [s]."""
+    """One recorded vehicle: arrays of equal length sampled at increasing ``t`` [s].
+
+    Compared and hashed by identity (tracks are loaded once per library)."""
 
     scenario_id: str
     track_id: str

@@ -7,7 +7,6 @@ every :meth:`tick` (recycling participants that fall out of range on endless roa
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 
 import numpy as np
 
@@ -15,17 +14,9 @@ from gridsim.road.city import CityRoad
 from gridsim.road.seamless import SeamlessRoad
 from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
 from gridsim.traffic.library import Track
+from gridsim.traffic.profiles import HumanProfiles, SpeedBounds
 
 _SPAWN_CLEARANCE = 6.0  # free distance [m] kept around a new participant, beyond the footprints
-
-
-@dataclass(frozen=True)
-class SpeedBounds:
-    """Scenario bounds for synthetic participants."""
-
-    v_min: float
-    v_max: float
-    a_max: float
 
 
 def track_path(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -108,10 +99,9 @@ class RecordedSceneTraffic(TrafficSource):
 
 
 class SyntheticTraffic(TrafficSource):
-    """Recorded human speed and lateral-offset profiles replayed along the lanes of a
-    generated road. Each participant gets a random library track; its speed profile is
-    scaled by ``k`` into ``[v_min, v_max]`` (the fleet also rate-limits it to ``a_max``) and
-    its lateral wander is clipped to stay in the lane. When a profile runs out, the
+    """Recorded human speed and lateral-offset profiles (:class:`HumanProfiles`) replayed
+    along the lanes of a generated road. Each participant gets a random profile scaled into
+    ``[v_min, v_max]`` (the fleet also rate-limits it to ``a_max``); when it runs out, the
     participant continues with another one, scaled to keep its speed continuous.
     """
 
@@ -123,10 +113,8 @@ class SyntheticTraffic(TrafficSource):
         lane_width: float,
         params: FleetParams | None = None,
     ) -> None:
-        if not tracks:
-            raise ValueError("synthetic traffic needs at least one library track")
         self.count = count
-        self.bounds = bounds
+        self.profiles = HumanProfiles(tracks, bounds, lane_width)
         fp = params or FleetParams()
         limits = {
             "v_min": bounds.v_min,
@@ -135,36 +123,13 @@ class SyntheticTraffic(TrafficSource):
             "b_max": max(bounds.a_max, fp.idm.b),
         }
         self.fleet = Fleet(max(1, count), FleetParams(**{**fp.__dict__, **limits}))
-        self._profile_stats = []
-        for tr in tracks:
-            v = tr.smoothed_speed()
-            t = tr.t - tr.t[0]
-            dist = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
-            d_max = max(0.0, 0.5 * (lane_width - tr.width) - 0.2)
-            d = np.clip(tr.lateral_offset(), -d_max, d_max)
+        hp = self.profiles
+        for t, dist, v, d in zip(hp.t, hp.dist, hp.v, hp.d, strict=True):
             self.fleet.profiles.add(t, np.stack([dist, v, d, np.zeros_like(t)], axis=1))
-            self._profile_stats.append((max(v.min(), 0.1), max(v.max(), 0.1)))
-        self._sizes = np.array([(t.length, t.width) for t in tracks])
+        self._sizes = hp.sizes
         self.rng = np.random.default_rng(0)
 
     # -- helpers shared by the road-specific sources ------------------------------------------
-    def _scale_range(self, profile: int) -> tuple[float, float]:
-        """Speed scales that keep ``profile`` inside ``[v_min, v_max]`` (when both cannot hold,
-        the upper bound wins; the fleet clips the rest)."""
-        vmin, vmax = self._profile_stats[profile]
-        b = self.bounds
-        hi = b.v_max / vmax
-        return min(b.v_min / vmin, hi), hi
-
-    def _scale(self, profile: int, v_target: float) -> float:
-        """Feasible speed scale for ``profile`` whose mean speed would be ``v_target``."""
-        vmin, vmax = self._profile_stats[profile]
-        return float(np.clip(v_target / (0.5 * (vmin + vmax)), *self._scale_range(profile)))
-
-    def _new_profile(self) -> tuple[int, float]:
-        prof = int(self.rng.integers(len(self._profile_stats)))
-        return prof, self._scale(prof, self.rng.uniform(self.bounds.v_min, self.bounds.v_max))
-
     def _clear(
         self, x: float, y: float, heading: float, length: float, width: float, ego: EgoPose
     ) -> bool:
@@ -186,7 +151,7 @@ class SyntheticTraffic(TrafficSource):
 
     def _draw(self) -> tuple[int, float, float]:
         """A fresh profile, its speed scale and a start time in its first half."""
-        prof, k = self._new_profile()
+        prof, k = self.profiles.draw(self.rng)
         return prof, k, float(self.rng.uniform(*self.fleet.profiles.x_range(prof)) * 0.5)
 
     def _spawn(
@@ -210,12 +175,9 @@ class SyntheticTraffic(TrafficSource):
         """Give participants whose profile ran out a new one, keeping speed and offset."""
         f = self.fleet
         for i in ended:
-            prof = int(self.rng.integers(len(self._profile_stats)))
-            vals = f.profiles.lookup(np.array([prof]), np.zeros(1))
-            v0 = max(vals[0, 1], 0.1)
-            k = float(np.clip(f.v[i] / v0, *self._scale_range(prof)))
+            prof, k = self.profiles.continue_from(self.rng, f.v[i])
             f.profile[i], f.tau[i], f.k[i] = prof, 0.0, k
-            f.d_bias[i] = f.d[i] - vals[0, 2]
+            f.d_bias[i] = f.d[i] - self.profiles.d[prof][0]
 
 
 class SeamlessTraffic(SyntheticTraffic):

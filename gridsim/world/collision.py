@@ -14,6 +14,8 @@ import numpy as np
 import pymunk
 
 _PARK = (1e9, 1e9)
+#: How far [m] the ego's footprint may reach over a road edge before it counts as off-road.
+EDGE_TOLERANCE = 0.3
 #: Road edges farther than this [m] from the ego are not loaded into pymunk.
 BOUNDARY_RADIUS = 40.0
 #: The edges are reloaded after the ego moved this far [m] (must stay well below the radius).
@@ -40,11 +42,18 @@ def _box(body: pymunk.Body, length: float, width: float) -> pymunk.Poly:
 class CollisionChecker:
     """Checks the ego's footprint (a ``length`` x ``width`` box) against the world."""
 
-    def __init__(self, ego_length: float, ego_width: float) -> None:
+    def __init__(
+        self, ego_length: float, ego_width: float, edge_tolerance: float = EDGE_TOLERANCE
+    ) -> None:
         self.space = pymunk.Space()
         self._ego_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
         self._ego_shape = _box(self._ego_body, ego_length, ego_width)
-        self.space.add(self._ego_body, self._ego_shape)
+        # Against road edges, a wheel on the line is not yet off the road: a box smaller by
+        # ``edge_tolerance`` on every side is tested.
+        shrink = 2 * edge_tolerance
+        core = (max(ego_length - shrink, 0.1), max(ego_width - shrink, 0.1))
+        self._ego_core = _box(self._ego_body, *core)
+        self.space.add(self._ego_body, self._ego_shape, self._ego_core)
         self._ego_radius = 0.5 * np.hypot(ego_length, ego_width)
         self._shapes: dict[int, tuple[pymunk.Body, pymunk.Poly]] = {}
         self._placed: set[int] = set()
@@ -128,11 +137,15 @@ class CollisionChecker:
         self._ego_body.position = (float(ego_center[0]), float(ego_center[1]))
         self._ego_body.angle = float(ego_psi)
         self.space.reindex_shapes_for_body(self._ego_body)
-        vehicles, edges = [], []
-        for hit in self.space.shape_query(self._ego_shape):
-            shape = hit.shape
-            if shape.body.body_type == pymunk.Body.STATIC:
-                edges.append(shape.gridsim_index)
-            else:
-                vehicles.append(shape.body.gridsim_index)
+        ego = self._ego_body
+        vehicles = [
+            hit.shape.body.gridsim_index
+            for hit in self.space.shape_query(self._ego_shape)
+            if hit.shape.body.body_type == pymunk.Body.KINEMATIC and hit.shape.body is not ego
+        ]
+        edges = [
+            hit.shape.gridsim_index
+            for hit in self.space.shape_query(self._ego_core)
+            if hit.shape.body.body_type == pymunk.Body.STATIC
+        ]
         return Contact(tuple(sorted(vehicles)), tuple(sorted(edges)))

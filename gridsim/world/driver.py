@@ -22,18 +22,20 @@ class LaneFollower:
 
     def __call__(self, world) -> tuple[float, float]:
         """Inputs ``(acceleration [m/s^2], steering rate [rad/s])`` for the current state."""
+        return self.inputs(world, self.speed, 0.0)
+
+    def inputs(self, world, speed: float, offset: float) -> tuple[float, float]:
+        """Inputs keeping lateral ``offset`` [m] from the route at up to ``speed`` [m/s]."""
         route = world.route
-        accel, steer_rate = follow_path(world.ego, route, self.speed, world.ego_params, self.gains)
+        p = world.ego_params
+        accel, steer_rate = follow_path(world.ego, route, speed, p, self.gains, offset)
         gap, lead_v = self._leader(world, route)
         if np.isfinite(gap):
             v = world.ego[V]
-            a_idm = float(
-                idm_acceleration(
-                    np.array(v), np.array(self.speed), np.array(gap), np.array(v - lead_v), self.idm
-                )
+            a_idm = idm_acceleration(
+                np.array(v), np.array(speed), np.array(gap), np.array(v - lead_v), self.idm
             )
-            accel = min(accel, a_idm)
-        p = world.ego_params
+            accel = min(accel, float(a_idm))
         return float(np.clip(accel, -p.b_max, p.a_max)), steer_rate
 
     def _leader(self, world, route) -> tuple[float, float]:
@@ -51,3 +53,24 @@ class LaneFollower:
         j = idx[k]
         gap = s[k] - s_ego[0] - 0.5 * (f.length[j] + world.ego_params.length)
         return float(gap), float(f.v[j])
+
+
+class HumanDriver:
+    """Drives the route with a human speed and lateral-offset profile (arrays over time from
+    the start of the episode), keeping its distance to traffic like :class:`LaneFollower`."""
+
+    def __init__(
+        self,
+        times: np.ndarray,
+        speeds: np.ndarray,
+        offsets: np.ndarray,
+        follower: LaneFollower | None = None,
+    ) -> None:
+        self.times, self.speeds, self.offsets = times, speeds, offsets
+        self.follower = follower or LaneFollower(speed=float(np.max(speeds)))
+
+    def __call__(self, world) -> tuple[float, float]:
+        t = world.time
+        speed = float(np.interp(t, self.times, self.speeds))
+        offset = float(np.interp(t, self.times, self.offsets))
+        return self.follower.inputs(world, speed, offset)

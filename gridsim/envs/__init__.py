@@ -1,0 +1,19 @@
+"""Gymnasium environments: ``GridSim-v0``."""
+
+from __future__ import annotations
+
+import gymnasium
+
+ENV_ID = "GridSim-v0"
+
+
+def register_envs() -> None:
+    """Register ``GridSim-v0`` with gymnasium (idempotent)."""
+    if ENV_ID not in gymnasium.registry:
+        gymnasium.register(
+            id=ENV_ID,
+            entry_point="gridsim.envs.gridsim_env:GridSimEnv",
+            # The reward is a vector (MO-Gymnasium style); gymnasium's passive checker would
+            # warn on every step. check_env is run in the test suite instead.
+            disable_env_checker=True,
+        )

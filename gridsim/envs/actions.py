@@ -1,0 +1,167 @@
+"""Action types of GridSim-v0, pluggable by name (:data:`ACTION_TYPES`).
+
+Each type defines its space, turns an action into a per-tick controller for the decision
+period, and gives the *commanded trajectory*: the positions [m, world] at the ``horizon``
+set-point times that the action asks for (used by the fitness term l1).
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+
+import numpy as np
+from gymnasium import spaces
+
+from gridsim.envs.frames import grid_to_world
+from gridsim.road.polyline import Polyline
+from gridsim.vehicle.control import PursuitGains, pursuit_inputs
+from gridsim.vehicle.kinematics import BicycleParams, V, step_bicycle
+
+Controller = Callable[[object], tuple[float, float]]  # world -> (accel, steer rate)
+#: Tight pursuit for following set-points (cuts corners less than lane keeping needs to).
+TRACKING_GAINS = PursuitGains(min_lookahead=2.5, lookahead_time=0.4)
+
+
+def _check_finite(action: np.ndarray) -> np.ndarray:
+    a = np.asarray(action, dtype=np.float64)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"action contains NaN or infinite values: {np.asarray(action).tolist()}")
+    return a
+
+
+def rollout_controls(
+    state: np.ndarray,
+    accel: float,
+    steer_rate: float,
+    params: BicycleParams,
+    period: float,
+    horizon: int,
+) -> np.ndarray:
+    """Positions ``(horizon, 2)`` of the ego holding ``(accel, steer_rate)`` for ``horizon``
+    set-point periods."""
+    out = np.empty((horizon, 2))
+    s = state
+    for i in range(horizon):
+        s = step_bicycle(s, accel, steer_rate, params, period).state
+        out[i] = s[:2]
+    return out
+
+
+class ActionType(ABC):
+    """How an action drives the ego for one decision period."""
+
+    def __init__(
+        self, params: BicycleParams, horizon: int, setpoint_period: float, orientation: str
+    ) -> None:
+        self.params = params
+        self.horizon = horizon
+        self.period = setpoint_period
+        self.orientation = orientation
+
+    @property
+    @abstractmethod
+    def space(self) -> spaces.Space: ...
+
+    @abstractmethod
+    def controller(self, world, action, rotation: float) -> tuple[Controller, np.ndarray]:
+        """A per-tick controller and the commanded positions ``(horizon, 2)`` [m, world]."""
+
+
+class TrajectoryAction(ActionType):
+    """``(horizon, 2)`` set-points [m] in the grid frame at ``t + i * setpoint_period``;
+    values beyond the space bounds are clipped. A pure-pursuit controller follows the
+    polyline through them, at the speed that reaches the first set-point on time."""
+
+    @property
+    def space(self) -> spaces.Box:
+        reach = self.params.v_max * self.horizon * self.period + 5.0
+        return spaces.Box(-reach, reach, (self.horizon, 2), np.float32)
+
+    def controller(self, world, action, rotation):
+        a = _check_finite(action)
+        if a.shape != (self.horizon, 2):
+            raise ValueError(
+                f"trajectory action must have shape ({self.horizon}, 2), got {a.shape}"
+            )
+        box = self.space
+        pts = grid_to_world(np.clip(a, box.low, box.high), world.ego[:2], rotation)
+        origin = world.ego[:2].copy()
+        speed = float(np.hypot(*(pts[0] - origin))) / self.period
+        path_pts = np.vstack([origin, pts])
+        keep = np.concatenate([[True], np.hypot(*np.diff(path_pts, axis=0).T) > 1e-3])
+        path = Polyline(path_pts[keep]) if keep.sum() >= 2 else None
+        gains = TRACKING_GAINS
+        params = self.params
+
+        def control(w) -> tuple[float, float]:
+            if path is None:  # every set-point on the ego: brake to a stop, hold the wheel
+                return -min(params.b_max, w.ego[V] / w.dt), 0.0
+            s, _, _ = path.project(w.ego[None, :2])
+            look = gains.min_lookahead + gains.lookahead_time * max(w.ego[V], 0.0)
+            target, _ = path.point_at(s[0] + look)
+            return pursuit_inputs(w.ego, target, speed, params, gains)
+
+        return control, pts
+
+
+class ControlAction(ActionType):
+    """``[acceleration m/s^2, steering rate rad/s]``, held for the decision period; values
+    beyond the vehicle limits are clipped by the vehicle model."""
+
+    @property
+    def space(self) -> spaces.Box:
+        p = self.params
+        return spaces.Box(
+            np.array([-p.b_max, -p.v_delta_max], np.float32),
+            np.array([p.a_max, p.v_delta_max], np.float32),
+            dtype=np.float32,
+        )
+
+    def controller(self, world, action, rotation):
+        a = _check_finite(action)
+        if a.shape != (2,):
+            raise ValueError(f"control action must have shape (2,), got {a.shape}")
+        accel, rate = float(a[0]), float(a[1])
+        plan = rollout_controls(world.ego, accel, rate, self.params, self.period, self.horizon)
+        return (lambda w: (accel, rate)), plan
+
+
+class DiscreteAction(ActionType):
+    """The original GridSim's discrete commands: 0 keep, 1 accelerate (``a_max``),
+    2 decelerate (``-b_max / 2``), 3 steer left, 4 steer right (the steering angle moves
+    :data:`STEER_STEP_DEG` degrees over the decision period, within the rate limit)."""
+
+    STEER_STEP_DEG = 3.0
+    NAMES = ("keep", "accelerate", "decelerate", "left", "right")
+
+    def __init__(self, *args, decision_period: float = 0.1, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self.decision_period = decision_period
+
+    @property
+    def space(self) -> spaces.Discrete:
+        return spaces.Discrete(len(self.NAMES))
+
+    def controller(self, world, action, rotation):
+        try:
+            k = int(action)
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"discrete action must be an integer in [0, 4], got {action!r}"
+            ) from None
+        if not 0 <= k < len(self.NAMES) or k != action:
+            raise ValueError(f"discrete action must be an integer in [0, 4], got {action!r}")
+        p = self.params
+        rate = np.deg2rad(self.STEER_STEP_DEG) / self.decision_period
+        accel = {1: p.a_max, 2: -0.5 * p.b_max}.get(k, 0.0)
+        steer = {3: rate, 4: -rate}.get(k, 0.0)
+        plan = rollout_controls(world.ego, accel, steer, p, self.period, self.horizon)
+        return (lambda w: (accel, steer)), plan
+
+
+ACTION_TYPES: dict[str, type[ActionType]] = {
+    "trajectory": TrajectoryAction,
+    "control": ControlAction,
+    "discrete": DiscreteAction,
+}

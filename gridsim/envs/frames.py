@@ -1,0 +1,29 @@
+"""The ego-centred grid frame used by observations, actions and labels.
+
+Origin at the ego's rear axle. With ``north_up`` grids the axes are parallel to the world's
+(x east, y north); with ``heading_up`` grids they are the body axes (x forward, y left).
+Either way the frame matches the occupancy grid the network sees.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def grid_rotation(orientation: str, psi: float) -> float:
+    """Angle [rad] from the grid frame's x axis to the world's x axis."""
+    return 0.0 if orientation == "north_up" else float(psi)
+
+
+def world_to_grid(points: np.ndarray, ego_xy: np.ndarray, rotation: float) -> np.ndarray:
+    """World points ``(N, 2)`` into the grid frame."""
+    c, s = np.cos(rotation), np.sin(rotation)
+    d = np.asarray(points, dtype=np.float64) - ego_xy
+    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
+
+
+def grid_to_world(points: np.ndarray, ego_xy: np.ndarray, rotation: float) -> np.ndarray:
+    """Grid-frame points ``(N, 2)`` into the world frame."""
+    c, s = np.cos(rotation), np.sin(rotation)
+    p = np.asarray(points, dtype=np.float64)
+    return np.stack([c * p[:, 0] - s * p[:, 1], s * p[:, 0] + c * p[:, 1]], axis=1) + ego_xy

@@ -1,0 +1,234 @@
+"""GridSim-v0: the gymnasium environment.
+
+Observation (``Dict``):
+
+- ``grids``: uint8 ``(history, rows, cols)``, the last ``env.history`` occupancy grids, oldest
+  first, one per decision (0 free, 128 unknown, 255 occupied; after ``reset`` all copies
+  of the first grid).
+- ``ego``: float32 ``(6,)`` = speed [m/s], steering angle [rad], acceleration [m/s^2] and
+  steering rate [rad/s] applied in the last tick, and cos / sin of the heading in the grid
+  frame (``heading_up``: 1, 0).
+- ``destination``: float32 ``(2,)``, where the reference is at the end of the horizon
+  (``t + horizon * setpoint_period``), in the grid frame [m].
+
+The grid frame has its origin at the rear axle; its axes are the world's (north_up) or the
+body's (heading_up): see :mod:`gridsim.envs.frames`.
+
+Reward: float32 ``(3,)`` fitness vector ``[l1, l2, l3]`` for the step (see
+:meth:`GridSimEnv.step`); ``env.unwrapped.reward_space`` describes it (MO-Gymnasium).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from gridsim.envs.actions import ACTION_TYPES, DiscreteAction
+from gridsim.envs.frames import grid_rotation, world_to_grid
+from gridsim.envs.reference import ReferenceTrajectory, human_reference, reference_from_track
+from gridsim.errors import ScenarioError
+from gridsim.render.topdown import TopDownRenderer
+from gridsim.scenario.build import build_sensor, build_world
+from gridsim.scenario.loader import Scenario, load_scenario
+from gridsim.sensors.occupancy import observe
+from gridsim.vehicle.kinematics import DELTA, PSI, V
+
+EGO_FEATURES = (
+    "speed",
+    "steering_angle",
+    "acceleration",
+    "steering_rate",
+    "cos_heading",
+    "sin_heading",
+)
+
+
+class GridSimEnv(gym.Env):
+    """Drive the ego of a GridSim scenario from occupancy grids.
+
+    ``scenario``: a built-in name or a YAML path (or a loaded :class:`Scenario`);
+    ``action_type``: ``"trajectory"`` (default), ``"control"`` or ``"discrete"``;
+    further keyword arguments are scenario overrides (nested dicts), validated by the
+    scenario schema, e.g. ``traffic={"participants": 20}``.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        scenario: str | Scenario = "seamless",
+        render_mode: str | None = None,
+        action_type: str = "trajectory",
+        **overrides: Any,
+    ) -> None:
+        if isinstance(scenario, Scenario):
+            if overrides:
+                raise ScenarioError("overrides need a scenario name or path, not a Scenario object")
+            self.scenario = scenario
+        else:
+            self.scenario = load_scenario(scenario, overrides)
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+        if action_type not in ACTION_TYPES:
+            raise ValueError(
+                f"action_type must be one of {sorted(ACTION_TYPES)}, got {action_type!r}"
+            )
+        cfg = self.scenario.config
+        self.render_mode = render_mode
+        self.cfg = cfg
+        self.sensor = build_sensor(self.scenario)
+        self._orientation = cfg.sensor.orientation
+        self._ticks = cfg.ticks_per_decision
+        e = cfg.env
+        self._setpoint_times = e.setpoint_period * np.arange(1, e.horizon + 1)
+        self.metadata = {**self.metadata, "render_fps": 1.0 / e.decision_period}
+        # Spaces depend only on the scenario, not on the episode: build from a probe world.
+        from gridsim.scenario.build import vehicle_params
+
+        params = vehicle_params(cfg.ego.vehicle)
+        kwargs = {"decision_period": e.decision_period} if action_type == "discrete" else {}
+        self.action_kind = ACTION_TYPES[action_type](params, e.horizon, e.setpoint_period,
+                                                     self._orientation, **kwargs)  # fmt: skip
+        self.action_type = action_type
+        self.action_space = self.action_kind.space
+        s = cfg.sensor
+        big = np.float32(1e4)
+        self.observation_space = spaces.Dict({
+            "grids": spaces.Box(0, 255, (e.history, s.rows, s.cols), np.uint8),
+            "ego": spaces.Box(-big, big, (len(EGO_FEATURES),), np.float32),
+            "destination": spaces.Box(-big, big, (2,), np.float32),
+        })  # fmt: skip
+        #: Bounds of the per-step fitness vector [l1, l2, l3] (MO-Gymnasium convention).
+        self.reward_space = spaces.Box(
+            np.zeros(3, np.float32), np.full(3, np.inf, np.float32), dtype=np.float32
+        )
+        self.renderer = TopDownRenderer() if render_mode else None
+        self.world = None
+        self._grids = np.zeros(self.observation_space["grids"].shape, np.uint8)
+        self._last_plan = None
+
+    # -- episode ----------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        episode_seed = int(self.np_random.integers(2**31 - 1))
+        self.episode_seed = episode_seed
+        self.world = build_world(self.scenario, episode_seed)
+        self.reference = self._reference(episode_seed)
+        self._last_accel = self._last_rate = 0.0
+        self._last_plan = None
+        self._travelled = 0.0
+        self._destination = self.reference.positions(np.array([self.reference.end_time]))[0]
+        self._reference_length = float(np.sum(np.hypot(*np.diff(self.reference.xy, axis=0).T)))
+        grid = observe(self.sensor, self.world)
+        self._grids[:] = grid[None]
+        return self._observation(), self._info(terms=np.zeros(3, np.float32))
+
+    def _reference(self, seed: int) -> ReferenceTrajectory:
+        cfg = self.cfg
+        track = self.world.ego_track
+        if track is not None:
+            return reference_from_track(track, self.world.ego_params.center_offset)
+        horizon = cfg.env.horizon * cfg.env.setpoint_period
+        return human_reference(self.scenario, seed, cfg.simulation.duration + horizon)
+
+    @property
+    def time_limit(self) -> float:
+        """Episode length [s]: the scenario's duration (on recorded scenes at most the track's)."""
+        limit = self.cfg.simulation.duration
+        if self.world is not None and self.world.ego_track is not None:
+            limit = min(limit, self.world.ego_track.duration)
+        return limit
+
+    def step(self, action):
+        """Advance one decision period. Returns the fitness vector ``[l1, l2, l3]`` (float32):
+
+        - ``l1`` [m^2] (minimise): sum over the ``horizon`` set-point times ``t + i T`` of the
+          squared distance between the commanded position (the action's set-points; for
+          control and discrete actions, the bicycle model holding that input) and the
+          reference position at the same time;
+        - ``l2`` [rad/s] (minimise): sum over the step's ticks of the magnitude of the
+          steering rate applied;
+        - ``l3`` [m/s] (maximise): sum over the step's ticks of the speed, counting a tick only
+          if the speed lies in ``[v_min, v_max]`` (``env.speed_range``).
+        """
+        if self.world is None:
+            raise RuntimeError("call reset() before step()")
+        world = self.world
+        rotation = grid_rotation(self._orientation, world.ego[PSI])
+        control, plan = self.action_kind.controller(world, action, rotation)
+        t0 = world.time
+        ref = self.reference.positions(t0 + self._setpoint_times)
+        l1 = float(np.sum((plan - ref) ** 2))
+        l2 = l3 = 0.0
+        v_lo, v_hi = self.cfg.speed_range
+        result = None
+        for _ in range(self._ticks):
+            before = world.ego[:2].copy()
+            result = world.tick(*control(world))
+            self._travelled += float(np.hypot(*(world.ego[:2] - before)))
+            l2 += abs(result.steer_rate)
+            v = world.ego[V]
+            l3 += v if v_lo <= v <= v_hi else 0.0
+            if result.collided or result.off_road:
+                break
+        self._last_accel, self._last_rate = result.accel, result.steer_rate
+        self._last_plan = plan
+        self._grids[:-1] = self._grids[1:]
+        self._grids[-1] = observe(self.sensor, world)
+        # Reached: at the reference's last point, having driven (most of) its length, so that
+        # a route passing the same place twice does not end the episode on the first pass.
+        tol = self.cfg.env.destination_tolerance
+        near_end = np.hypot(*(world.ego[:2] - self._destination)) <= tol
+        reached = bool(near_end and self._travelled >= 0.9 * self._reference_length - tol)
+        terminated = bool(result.collided or result.off_road or reached)
+        truncated = (not terminated) and world.time >= self.time_limit - 1e-9
+        terms = np.array([l1, l2, l3], np.float32)
+        info = self._info(terms, reached)
+        return self._observation(), terms, terminated, truncated, info
+
+    # -- observation and info ---------------------------------------------------------------
+    def _observation(self) -> dict[str, np.ndarray]:
+        w = self.world
+        rotation = grid_rotation(self._orientation, w.ego[PSI])
+        heading = w.ego[PSI] - rotation
+        ego = np.array([w.ego[V], w.ego[DELTA], self._last_accel, self._last_rate,
+                        np.cos(heading), np.sin(heading)], np.float32)  # fmt: skip
+        horizon_end = w.time + self._setpoint_times[-1]
+        dest = world_to_grid(self.reference.positions(np.array([horizon_end])), w.ego[:2], rotation)
+        return {"grids": self._grids.copy(), "ego": ego, "destination": dest[0].astype(np.float32)}
+
+    def _info(self, terms: np.ndarray, reached: bool = False) -> dict[str, Any]:
+        w = self.world
+        rotation = grid_rotation(self._orientation, w.ego[PSI])
+        ref = self.reference.positions(w.time + self._setpoint_times)
+        contact = w.last.contact
+        return {
+            "time": w.time,
+            "pose": w.ego.copy(),  # [x, y, psi, v, delta] world frame, rear axle
+            "collision": bool(contact.vehicles),
+            "collided_with": list(contact.vehicles),
+            "off_road": bool(w.last.off_road),
+            "road_edges_touched": list(contact.boundaries),
+            "destination_reached": reached,
+            "reference_setpoints": world_to_grid(ref, w.ego[:2], rotation).astype(np.float32),
+            "l1": float(terms[0]),
+            "l2": float(terms[1]),
+            "l3": float(terms[2]),
+            "episode_seed": self.episode_seed,
+        }
+
+    # -- rendering ----------------------------------------------------------------------------
+    def render(self):
+        if self.render_mode != "rgb_array" or self.world is None:
+            return None
+        w = self.world
+        overlay = [self.reference.positions(w.time + self._setpoint_times)]
+        if self._last_plan is not None:
+            overlay.append(self._last_plan)
+        return self.renderer.render(w, self._grids[-1], np.vstack(overlay))
+
+
+__all__ = ["EGO_FEATURES", "DiscreteAction", "GridSimEnv"]

@@ -1,0 +1,92 @@
+"""Human driving profiles: recorded speed and lateral wander, scaled into scenario bounds.
+
+Used by synthetic traffic (one profile per participant, chained when it runs out) and by the
+human reference driver of generated scenes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gridsim.traffic.library import Track
+
+
+@dataclass(frozen=True)
+class SpeedBounds:
+    """Scenario bounds for replayed profiles: speeds [m/s] and acceleration [m/s^2]."""
+
+    v_min: float
+    v_max: float
+    a_max: float
+
+
+class HumanProfiles:
+    """Profiles of library tracks: time ``t`` [s] from 0, travelled distance ``dist`` [m],
+    smoothed speed ``v`` [m/s] and lateral offset ``d`` [m] (clipped to stay in a lane of
+    ``lane_width`` metres). A profile is replayed with a speed scale ``k``."""
+
+    def __init__(self, tracks: list[Track], bounds: SpeedBounds, lane_width: float) -> None:
+        if not tracks:
+            raise ValueError("human profiles need at least one library track")
+        self.bounds = bounds
+        self.t, self.dist, self.v, self.d = [], [], [], []
+        for tr in tracks:
+            v = tr.smoothed_speed()
+            t = tr.t - tr.t[0]
+            d_max = max(0.0, 0.5 * (lane_width - tr.width) - 0.2)
+            self.t.append(t)
+            self.v.append(v)
+            self.dist.append(
+                np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+            )
+            self.d.append(np.clip(tr.lateral_offset(), -d_max, d_max))
+        self.sizes = np.array([(tr.length, tr.width) for tr in tracks])
+        self._v_lo = np.array([max(v.min(), 0.1) for v in self.v])
+        self._v_hi = np.array([max(v.max(), 0.1) for v in self.v])
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def scale_range(self, i: int) -> tuple[float, float]:
+        """Speed scales keeping profile ``i`` inside ``[v_min, v_max]`` (when both bounds
+        cannot hold, the upper one wins; replay clips the rest)."""
+        hi = self.bounds.v_max / self._v_hi[i]
+        return min(self.bounds.v_min / self._v_lo[i], hi), hi
+
+    def scale_for(self, i: int, v_mean: float) -> float:
+        """The feasible scale closest to giving profile ``i`` a mean speed of ``v_mean``."""
+        k = v_mean / (0.5 * (self._v_lo[i] + self._v_hi[i]))
+        return float(np.clip(k, *self.scale_range(i)))
+
+    def draw(self, rng: np.random.Generator) -> tuple[int, float]:
+        """A random profile and scale, for a random mean speed within the bounds."""
+        i = int(rng.integers(len(self)))
+        return i, self.scale_for(i, rng.uniform(self.bounds.v_min, self.bounds.v_max))
+
+    def continue_from(self, rng: np.random.Generator, v_now: float) -> tuple[int, float]:
+        """A random profile and the scale that starts it at (about) ``v_now``."""
+        i = int(rng.integers(len(self)))
+        return i, float(np.clip(v_now / max(self.v[i][0], 0.1), *self.scale_range(i)))
+
+    def chain(self, rng: np.random.Generator, duration: float, dt: float, v_start: float):
+        """Profiles chained end to end for ``duration`` seconds, sampled every ``dt``: times,
+        speeds (scaled, clipped to the bounds, rate-limited to ``a_max`` from ``v_start``) and
+        offsets (each new profile's offset jump decays with a 2 s time constant)."""
+        times = np.arange(0.0, duration + dt / 2, dt)
+        speeds, offsets = np.empty_like(times), np.empty_like(times)
+        i, k = self.continue_from(rng, v_start)
+        start, v_prev, d_bias = 0.0, v_start, -self.d[i][0]
+        b = self.bounds
+        for n, t in enumerate(times):
+            tau = t - start
+            if tau > self.t[i][-1]:
+                v_end, d_end = speeds[n - 1], offsets[n - 1]
+                i, k = self.continue_from(rng, v_end)
+                start, tau = t, 0.0
+                d_bias = d_end - self.d[i][0]
+            v = np.clip(k * np.interp(tau, self.t[i], self.v[i]), b.v_min, b.v_max)
+            speeds[n] = v_prev = np.clip(v, v_prev - b.a_max * dt, v_prev + b.a_max * dt)
+            offsets[n] = np.interp(tau, self.t[i], self.d[i]) + d_bias * np.exp(-tau / 2.0)
+        return times, speeds, offsets
