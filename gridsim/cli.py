@@ -9,6 +9,8 @@ from pathlib import Path
 
 from gridsim.errors import GridSimError
 
+POLICY_NAMES = ("idle", "reference", "lane-follow", "random")
+
 
 def _cmd_scenarios(args: argparse.Namespace) -> int:
     from gridsim.scenario.loader import builtin_scenarios
@@ -36,6 +38,16 @@ def _cmd_drive(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_run(args: argparse.Namespace) -> int:
+    from gridsim.run import run_policy
+
+    summary = run_policy(
+        args.scenario, args.policy, args.steps, args.seed, video=args.video, progress=not args.quiet
+    )
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gridsim", description="Headless GridSim driving simulator.")
     sub = p.add_subparsers(dest="command", required=True)
@@ -44,6 +56,14 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("validate", help="check a scenario YAML file and print precise errors")
     s.add_argument("path")
     s.set_defaults(func=_cmd_validate)
+    s = sub.add_parser("run", help="drive a policy in GridSim-v0, print a summary, export a video")
+    s.add_argument("--scenario", default="seamless", help="built-in name or YAML path")
+    s.add_argument("--steps", type=int, default=300, help="decisions to run at most")
+    s.add_argument("--policy", default="reference", choices=POLICY_NAMES)
+    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--video", default=None, help="write a video (.mp4, or .gif)")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=_cmd_run)
     s = sub.add_parser(
         "drive", help="drive the lane-following ego; write grids and a top-down frame"
     )

@@ -36,6 +36,8 @@ from gridsim.scenario.loader import Scenario, load_scenario
 from gridsim.sensors.occupancy import observe
 from gridsim.vehicle.kinematics import DELTA, PSI, V
 
+REFERENCE_COLOUR = (255, 255, 255)  # the human reference set-points
+PLAN_COLOUR = (255, 220, 0)  # the last commanded set-points
 EGO_FEATURES = (
     "speed",
     "steering_angle",
@@ -225,10 +227,10 @@ class GridSimEnv(gym.Env):
         if self.render_mode != "rgb_array" or self.world is None:
             return None
         w = self.world
-        overlay = [self.reference.positions(w.time + self._setpoint_times)]
+        overlay = [(self.reference.positions(w.time + self._setpoint_times), REFERENCE_COLOUR)]
         if self._last_plan is not None:
-            overlay.append(self._last_plan)
-        return self.renderer.render(w, self._grids[-1], np.vstack(overlay))
+            overlay.append((self._last_plan, PLAN_COLOUR))
+        return self.renderer.render(w, self._grids[-1], overlay)
 
 
 __all__ = ["EGO_FEATURES", "DiscreteAction", "GridSimEnv"]

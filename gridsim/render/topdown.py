@@ -50,12 +50,12 @@ class TopDownRenderer:
         self,
         world,
         grid: np.ndarray | None = None,
-        overlay: np.ndarray | None = None,
+        overlay: list[tuple[np.ndarray, tuple[int, int, int]]] | None = None,
         rays: np.ndarray | None = None,
     ) -> np.ndarray:
-        """One frame. ``grid`` adds an occupancy-grid inset (top right); ``overlay`` ``(K, 2)``
-        world points (e.g. trajectory set-points) are drawn as dots; ``rays`` ``(R, 2)``
-        world end points are drawn as lines from the ego."""
+        """One frame. ``grid`` adds an occupancy-grid inset (top right); ``overlay`` is a list
+        of ``(points (K, 2) [m, world], RGB colour)`` drawn as dots (e.g. set-points);
+        ``rays`` ``(R, 2)`` world end points are drawn as lines from the ego."""
         v = self.view
         ego_xy = world.ego[:2]
         a = self._affine(ego_xy)
@@ -80,9 +80,9 @@ class TopDownRenderer:
         p = world.ego_params
         ego_box = box_corners(c[0], c[1], world.ego[2], p.length, p.width)
         cv2.fillConvexPoly(img, self._px(a, ego_box), _EGO, cv2.LINE_AA, shift=4)
-        if overlay is not None and len(overlay):
-            for q in self._px(a, np.asarray(overlay, float)):
-                cv2.circle(img, tuple(q), 3 * 16, (255, 255, 255), -1, cv2.LINE_AA, shift=4)
+        for points, colour in overlay or []:
+            for q in self._px(a, np.asarray(points, float).reshape(-1, 2)):
+                cv2.circle(img, tuple(q), 3 * 16, colour, -1, cv2.LINE_AA, shift=4)
         if grid is not None:
             self._inset(img, grid)
         return img

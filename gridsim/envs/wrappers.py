@@ -1,0 +1,35 @@
+"""Wrappers for GridSim-v0."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import gymnasium as gym
+import numpy as np
+
+#: Default weights for [l1, l2, l3]: squared set-point error and steering rate are costs,
+#: speed a reward (l1 is in m^2 summed over the horizon, hence its small weight).
+DEFAULT_WEIGHTS = (-0.01, -0.5, 0.1)
+
+
+class LinearScalarization(gym.RewardWrapper):
+    """Scalar reward ``w . [l1, l2, l3]`` for single-objective RL libraries.
+
+    Use negative weights for the minimised objectives (l1, l2) and a positive one for l3.
+    The vector is still in ``info["fitness"]``.
+    """
+
+    def __init__(self, env: gym.Env, weights: Sequence[float] = DEFAULT_WEIGHTS) -> None:
+        super().__init__(env)
+        w = np.asarray(weights, dtype=np.float64)
+        if w.shape != (3,) or not np.all(np.isfinite(w)):
+            raise ValueError(f"weights must be 3 finite numbers for [l1, l2, l3], got {weights!r}")
+        self.weights = w
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        info = {**info, "fitness": np.asarray(reward, dtype=np.float32)}
+        return obs, self.reward(reward), terminated, truncated, info
+
+    def reward(self, reward) -> float:
+        return float(np.dot(self.weights, reward))

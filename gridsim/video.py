@@ -1,0 +1,94 @@
+"""Headless video export with imageio: MP4 through imageio-ffmpeg, GIF as the fallback."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from pathlib import Path
+
+import imageio.v2 as imageio
+import numpy as np
+
+from gridsim.errors import GridSimError
+
+log = logging.getLogger(__name__)
+
+
+class VideoWriter:
+    """Writes RGB frames ``(H, W, 3)`` uint8 to ``path`` at ``fps`` frames per second.
+
+    ``.mp4`` is encoded with H.264 by imageio-ffmpeg; if that is not available the frames go to
+    a ``.gif`` beside it instead (:attr:`path` tells which). ``.gif`` is written directly.
+    """
+
+    def __init__(self, path: str | Path, fps: float) -> None:
+        self.path = Path(path)
+        if self.path.suffix.lower() not in (".mp4", ".gif"):
+            raise GridSimError(f"video path must end in .mp4 or .gif, got {self.path}")
+        if not fps > 0:
+            raise GridSimError(f"fps must be > 0, got {fps}")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        self.fps = float(fps)
+        self.frames = 0
+        self._writer = None
+        if self.path.suffix.lower() == ".mp4":
+            try:
+                self._writer = imageio.get_writer(
+                    self.path, fps=self.fps, codec="libx264", macro_block_size=1,
+                    ffmpeg_log_level="error", pixelformat="yuv420p",
+                )  # fmt: skip
+            except Exception as exc:  # no ffmpeg backend: fall back to GIF
+                log.warning("MP4 export unavailable (%s); writing a GIF instead", exc)
+                self.path = self.path.with_suffix(".gif")
+        if self._writer is None:
+            self._writer = imageio.get_writer(
+                self.path, mode="I", duration=1000.0 / self.fps, loop=0
+            )
+
+    def write(self, frame: np.ndarray) -> None:
+        frame = np.asarray(frame)
+        if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
+            raise GridSimError(f"frames must be uint8 (H, W, 3), got {frame.dtype} {frame.shape}")
+        self._writer.append_data(frame)
+        self.frames += 1
+
+    def close(self) -> None:
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+
+    def __enter__(self) -> VideoWriter:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def record_rollout(
+    env,
+    policy: Callable,
+    path: str | Path,
+    steps: int,
+    seed: int | None = None,
+    on_step: Callable | None = None,
+) -> tuple[Path, list[dict]]:
+    """Run ``policy(env, obs, info) -> action`` for up to ``steps`` steps in an env made with
+    ``render_mode="rgb_array"`` and write one frame per step (plus the first) at the
+    environment's real rate. Returns the video path and the infos of all steps."""
+    if getattr(env, "render_mode", None) != "rgb_array":
+        raise GridSimError("record_rollout needs an environment made with render_mode='rgb_array'")
+    fps = env.metadata.get("render_fps", 10)
+    obs, info = env.reset(seed=seed)
+    infos = []
+    with VideoWriter(path, fps) as video:
+        video.write(env.render())
+        for _ in range(steps):
+            obs, reward, terminated, truncated, info = env.step(policy(env, obs, info))
+            info = {**info, "reward": np.asarray(reward)}
+            infos.append(info)
+            video.write(env.render())
+            if on_step is not None:
+                on_step(info)
+            if terminated or truncated:
+                break
+    return video.path, infos

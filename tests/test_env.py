@@ -1,0 +1,233 @@
+"""GridSim-v0: registration, gymnasium conformance, determinism, episodes, vector envs."""
+
+import hashlib
+import multiprocessing as mp
+import subprocess
+import sys
+import warnings
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.utils.env_checker import check_env
+
+import gridsim
+from gridsim.envs import ENV_ID, register_envs
+from gridsim.envs.gridsim_env import EGO_FEATURES, GridSimEnv
+from gridsim.envs.wrappers import LinearScalarization
+from gridsim.errors import ScenarioError
+from gridsim.policies import LaneFollow
+from gridsim.scenario.loader import builtin_scenarios
+
+SHORT = {"simulation": {"duration": 4.0}}
+
+
+def make(scenario="seamless", **kw):
+    return gym.make(ENV_ID, scenario=scenario, **{**SHORT, **kw})
+
+
+def test_registration_is_idempotent_and_quiet(capsys):
+    register_envs()
+    register_envs()
+    assert ENV_ID in gym.registry and gridsim.ENV_ID == ENV_ID
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        env = gym.make(ENV_ID)
+        env.reset(seed=0)
+        env.step(env.action_space.sample())
+    assert [str(w.message) for w in caught] == []
+    assert capsys.readouterr() == ("", "")
+
+
+def test_make_by_module_path_in_a_fresh_interpreter():
+    code = (
+        "import gymnasium as gym; e = gym.make('gridsim:GridSim-v0');"
+        "print(e.reset(seed=1)[0]['grids'].shape)"
+    )
+    out = subprocess.run(
+        [sys.executable, "-W", "error", "-c", code], capture_output=True, text=True
+    )
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "(5, 128, 128)" and out.stderr == ""
+
+
+@pytest.mark.parametrize("action_type", ["trajectory", "control", "discrete"])
+@pytest.mark.parametrize("scenario", sorted(builtin_scenarios()))
+def test_check_env_passes(scenario, action_type):
+    env = gym.make(
+        ENV_ID, scenario=scenario, action_type=action_type, render_mode="rgb_array", **SHORT
+    )
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env.unwrapped, skip_render_check=False)
+    # The only remarks allowed: the reward is a vector (MO-Gymnasium convention) and the
+    # physical (non-normalised) action bounds.
+    allowed = ("The reward returned by `step()` must be a float", "symmetric and normalized space")
+    unexpected = [str(w.message) for w in caught if not any(a in str(w.message) for a in allowed)]
+    assert unexpected == []
+
+
+def test_spaces_and_documented_observation():
+    env = make()
+    obs, info = env.reset(seed=3)
+    u = env.unwrapped
+    assert set(obs) == {"grids", "ego", "destination"}
+    assert obs["grids"].shape == (5, 128, 128) and obs["grids"].dtype == np.uint8
+    assert set(np.unique(obs["grids"])) <= {0, 128, 255}
+    assert obs["ego"].shape == (len(EGO_FEATURES),) and obs["ego"].dtype == np.float32
+    assert obs["ego"][0] == pytest.approx(u.world.ego[3])  # speed
+    assert np.hypot(*obs["ego"][4:6]) == pytest.approx(1.0)  # cos, sin of heading
+    assert env.action_space.shape == (5, 2)
+    assert u.reward_space.shape == (3,)
+    # The destination is the reference position at the end of the horizon.
+    np.testing.assert_allclose(obs["destination"], info["reference_setpoints"][-1], atol=1e-5)
+    assert info["reference_setpoints"].shape == (5, 2)
+
+
+def rollout_digest(scenario, seed, steps, action_type="trajectory"):
+    env = GridSimEnv(scenario, action_type=action_type, **SHORT)
+    env.action_space.seed(seed)
+    h = hashlib.sha256()
+    obs, info = env.reset(seed=seed)
+    for _ in range(steps):
+        obs, r, term, trunc, info = env.step(env.action_space.sample())
+        for v in (
+            obs["grids"],
+            obs["ego"],
+            obs["destination"],
+            r,
+            info["pose"],
+            info["reference_setpoints"],
+        ):
+            h.update(np.ascontiguousarray(v).tobytes())
+        h.update(repr((term, trunc, info["collision"], info["off_road"])).encode())
+        if term or trunc:
+            obs, info = env.reset()
+    return h.hexdigest()
+
+
+@pytest.mark.parametrize("scenario", ["seamless", "inner_city", "us101_3_3"])
+def test_same_seed_same_episode_bit_for_bit(scenario):
+    a = rollout_digest(scenario, 7, 40, "control")
+    assert a == rollout_digest(scenario, 7, 40, "control")
+    assert a != rollout_digest(scenario, 8, 40, "control")
+
+
+def _digest_in_child(queue):
+    queue.put(rollout_digest("seamless", 11, 30))
+
+
+def test_same_seed_same_episode_in_a_spawned_process():
+    ctx = mp.get_context("spawn")
+    q = ctx.Queue()
+    p = ctx.Process(target=_digest_in_child, args=(q,))
+    p.start()
+    child = q.get(timeout=120)
+    p.join(timeout=60)
+    assert child == rollout_digest("seamless", 11, 30)
+
+
+def run_episode(env, policy, seed):
+    obs, info = env.reset(seed=seed)
+    total = np.zeros(3)
+    while True:
+        obs, r, term, trunc, info = env.step(policy(env, obs, info))
+        total += r
+        if term or trunc:
+            return total, term, trunc, info
+
+
+def test_reference_policy_completes_a_seamless_episode_with_zero_l1():
+    env = gym.make(ENV_ID)  # full 60 s episode
+    total, term, trunc, info = run_episode(env, lambda e, o, i: i["reference_setpoints"], seed=0)
+    assert trunc and not term
+    assert not info["collision"] and not info["off_road"]
+    assert total[0] < 1e-6
+    assert total[2] > 0
+    # The ego did drive the reference: within 2 m of it at the end.
+    u = env.unwrapped
+    ref_now = u.reference.positions(np.array([u.world.time]))[0]
+    assert np.hypot(*(u.world.ego[:2] - ref_now)) < 2.0
+
+
+def test_lane_following_completes_and_steering_off_is_terminated():
+    env = GridSimEnv("seamless", action_type="control")
+    total, term, trunc, info = run_episode(env, LaneFollow(), seed=1)
+    assert not info["collision"] and not info["off_road"]
+    assert trunc or info["destination_reached"]  # faster than the human: done early
+    assert total[0] > 0  # it does not follow the human reference exactly
+    steer_off = lambda e, o, i: np.array([1.0, 0.3 if e.unwrapped.world.time < 1.0 else 0.0])  # noqa: E731
+    total, term, trunc, info = run_episode(env, steer_off, seed=1)
+    assert term and info["off_road"] and not trunc
+
+
+def test_fitness_terms_follow_their_definitions():
+    env = GridSimEnv("seamless", action_type="control", **SHORT)
+    obs, info = env.reset(seed=2)
+    u = env.unwrapped
+    rate = 0.05
+    obs, r, term, trunc, info = env.step(np.array([0.5, rate], np.float32))
+    assert r.dtype == np.float32 and r.shape == (3,)
+    assert r[1] == pytest.approx(rate, rel=1e-5)  # one tick per decision at the defaults
+    v = u.world.ego[3]
+    lo, hi = u.cfg.speed_range
+    assert r[2] == pytest.approx(v if lo <= v <= hi else 0.0, rel=1e-5)
+    assert info["l1"] == pytest.approx(float(r[0]))
+    # Commanding the reference as a plan scores l1 = 0; an offset plan scores its square.
+    env2 = GridSimEnv("seamless", **SHORT)
+    obs, info = env2.reset(seed=2)
+    _, r, *_ = env2.step(info["reference_setpoints"] + np.array([0.0, 1.0], np.float32))
+    assert r[0] == pytest.approx(5 * 1.0, rel=1e-4)
+
+
+def test_bad_actions_and_arguments_raise_clear_errors():
+    env = make()
+    env.reset(seed=0)
+    bad = np.zeros((5, 2), np.float32)
+    bad[2, 1] = np.nan
+    with pytest.raises(ValueError, match="NaN or infinite"):
+        env.step(bad)
+    with pytest.raises(ValueError, match=r"shape \(5, 2\)"):
+        env.step(np.zeros(3, np.float32))
+    huge = np.full((5, 2), 1e6, np.float32)  # clipped to the space, not an error
+    env.step(huge)
+    with pytest.raises(ValueError, match="action_type must be one of"):
+        GridSimEnv(action_type="steer")
+    with pytest.raises(ScenarioError, match="traffic.participant: unknown key"):
+        gym.make(ENV_ID, traffic={"participant": 3})
+    with pytest.raises(ValueError, match="discrete action must be an integer"):
+        d = GridSimEnv(action_type="discrete", **SHORT)
+        d.reset(seed=0)
+        d.step(7)
+    with pytest.raises(RuntimeError, match="reset"):
+        GridSimEnv(**SHORT).step(np.zeros((5, 2)))
+
+
+def test_scalarised_wrapper():
+    env = LinearScalarization(make(), weights=(-1.0, -2.0, 0.5))
+    obs, info = env.reset(seed=0)
+    obs, r, term, trunc, info = env.step(info["reference_setpoints"])
+    assert isinstance(r, float)
+    assert r == pytest.approx(float(np.dot([-1.0, -2.0, 0.5], info["fitness"])), rel=1e-5)
+    with pytest.raises(ValueError, match="3 finite numbers"):
+        LinearScalarization(make(), weights=(1.0, 2.0))
+
+
+def test_vector_envs():
+    venv = gym.vector.SyncVectorEnv([lambda: LinearScalarization(make()) for _ in range(2)])
+    try:
+        obs, _ = venv.reset(seed=[1, 2])
+        assert obs["grids"].shape == (2, 5, 128, 128)
+        for _ in range(45):  # past the 4 s episodes: autoreset
+            obs, r, term, trunc, info = venv.step(venv.action_space.sample())
+        assert r.shape == (2,)
+    finally:
+        venv.close()
+    venv = gym.vector.AsyncVectorEnv([lambda: make() for _ in range(2)])  # vector rewards
+    try:
+        obs, _ = venv.reset(seed=[1, 2])
+        obs, r, term, trunc, info = venv.step(venv.action_space.sample())
+        assert r.shape == (2, 3)
+        assert obs["ego"].shape == (2, len(EGO_FEATURES))
+    finally:
+        venv.close()

@@ -1,0 +1,88 @@
+"""Headless rendering and video export."""
+
+import json
+
+import gymnasium as gym
+import imageio.v3 as iio
+import numpy as np
+import pytest
+
+from gridsim.cli import main
+from gridsim.envs import ENV_ID
+from gridsim.errors import GridSimError
+from gridsim.policies import Reference
+from gridsim.video import VideoWriter, record_rollout
+
+
+def test_render_returns_frames_with_grid_inset_and_setpoints():
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    obs, info = env.reset(seed=0)
+    env.step(info["reference_setpoints"] + np.array([0.0, 1.0], np.float32))
+    frame = env.render()
+    assert frame.shape == (480, 640, 3) and frame.dtype == np.uint8
+    inset = frame[8:168, 472:632]
+    assert (inset[..., 1] == 200).any()  # free cells (green) in the grid inset
+    assert np.all(frame == (255, 220, 0), axis=-1).any()  # the commanded plan
+    assert np.all(frame == (255, 255, 255), axis=-1).any()  # the reference set-points
+    plain = gym.make(ENV_ID)
+    plain.reset(seed=0)
+    assert plain.render() is None  # no render mode: nothing, and never a window
+
+
+@pytest.mark.parametrize("suffix", [".mp4", ".gif"])
+def test_rollout_video_is_readable_with_the_right_frame_count(tmp_path, suffix):
+    env = gym.make(ENV_ID, render_mode="rgb_array", simulation={"duration": 3.0})
+    path, infos = record_rollout(env, Reference(), tmp_path / f"run{suffix}", steps=100, seed=1)
+    assert path.suffix == suffix and len(infos) == 30  # the episode ends at 3 s
+    frames = iio.imread(path, index=None)
+    assert len(frames) == 31  # the first frame plus one per step
+    assert frames.shape[1:3] == (480, 640)
+    assert all(f.std() > 10 for f in frames)  # not blank
+    if suffix == ".mp4":
+        meta = iio.immeta(path)
+        assert meta["fps"] == pytest.approx(10.0)  # the simulation's real rate
+
+
+def test_video_writer_rejects_bad_input(tmp_path):
+    with pytest.raises(GridSimError, match=r"\.mp4 or \.gif"):
+        VideoWriter(tmp_path / "x.avi", 10)
+    with pytest.raises(GridSimError, match="fps"):
+        VideoWriter(tmp_path / "x.gif", 0)
+    with VideoWriter(tmp_path / "x.gif", 10) as v, pytest.raises(GridSimError, match="uint8"):
+        v.write(np.zeros((4, 4), np.float32))
+    env = gym.make(ENV_ID)
+    with pytest.raises(GridSimError, match="render_mode='rgb_array'"):
+        record_rollout(env, Reference(), tmp_path / "y.gif", 3)
+
+
+def test_gymnasium_record_video_wrapper(tmp_path):
+    env = gym.make(ENV_ID, render_mode="rgb_array", simulation={"duration": 2.0})
+    folder = tmp_path / "videos"
+    env = gym.wrappers.RecordVideo(
+        env, str(folder), episode_trigger=lambda e: True, disable_logger=True
+    )
+    obs, info = env.reset(seed=0)
+    done = False
+    while not done:
+        obs, r, term, trunc, info = env.step(info["reference_setpoints"])
+        done = term or trunc
+    env.close()
+    videos = list(folder.glob("*.mp4"))
+    assert len(videos) == 1
+    assert len(iio.imread(videos[0], index=None)) >= 20
+
+
+def test_run_command(tmp_path, capsys):
+    video = tmp_path / "out.mp4"
+    code = main(["run", "--scenario", "inner_city", "--steps", "40", "--policy", "lane-follow",
+                 "--video", str(video), "--quiet"])  # fmt: skip
+    assert code == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["steps"] == 40 and summary["distance_m"] > 10 and not summary["collision"]
+    assert set(summary["fitness_sums"]) == {"l1", "l2", "l3"}
+    assert len(iio.imread(video, index=None)) == 41
+    for policy in ("idle", "random", "reference"):
+        assert main(["run", "--steps", "5", "--policy", policy, "--quiet"]) == 0
+    capsys.readouterr()
+    assert main(["run", "--steps", "0", "--quiet"]) == 2
+    assert "--steps must be >= 1" in capsys.readouterr().err
