@@ -58,10 +58,11 @@ class ActionType(ABC):
         self.horizon = horizon
         self.period = setpoint_period
         self.orientation = orientation
+        self.space = self._make_space()
 
-    @property
     @abstractmethod
-    def space(self) -> spaces.Space: ...
+    def _make_space(self) -> spaces.Space:
+        """The action space (built once)."""
 
     @abstractmethod
     def controller(self, world, action, rotation: float) -> tuple[Controller, np.ndarray]:
@@ -73,8 +74,7 @@ class TrajectoryAction(ActionType):
     values beyond the space bounds are clipped. A pure-pursuit controller follows the
     polyline through them, at the speed that reaches the first set-point on time."""
 
-    @property
-    def space(self) -> spaces.Box:
+    def _make_space(self) -> spaces.Box:
         reach = self.params.v_max * self.horizon * self.period + 5.0
         return spaces.Box(-reach, reach, (self.horizon, 2), np.float32)
 
@@ -109,8 +109,7 @@ class ControlAction(ActionType):
     """``[acceleration m/s^2, steering rate rad/s]``, held for the decision period; values
     beyond the vehicle limits are clipped by the vehicle model."""
 
-    @property
-    def space(self) -> spaces.Box:
+    def _make_space(self) -> spaces.Box:
         p = self.params
         return spaces.Box(
             np.array([-p.b_max, -p.v_delta_max], np.float32),
@@ -136,11 +135,10 @@ class DiscreteAction(ActionType):
     NAMES = ("keep", "accelerate", "decelerate", "left", "right")
 
     def __init__(self, *args, decision_period: float = 0.1, **kwargs) -> None:
-        super().__init__(*args, **kwargs)
         self.decision_period = decision_period
+        super().__init__(*args, **kwargs)
 
-    @property
-    def space(self) -> spaces.Discrete:
+    def _make_space(self) -> spaces.Discrete:
         return spaces.Discrete(len(self.NAMES))
 
     def controller(self, world, action, rotation):

@@ -126,7 +126,17 @@ class GridSimEnv(gym.Env):
         self._reference_length = float(np.sum(np.hypot(*np.diff(self.reference.xy, axis=0).T)))
         grid = observe(self.sensor, self.world)
         self._grids[:] = grid[None]
+        self._look_ahead()
         return self._observation(), self._info(terms=np.zeros(3, np.float32))
+
+    def _look_ahead(self) -> None:
+        """Reference positions at the coming set-point times, world and grid frames."""
+        w = self.world
+        self._ref_future = self.reference.positions(w.time + self._setpoint_times)
+        rotation = grid_rotation(self._orientation, w.ego[PSI])
+        self._ref_future_grid = world_to_grid(self._ref_future, w.ego[:2], rotation).astype(
+            np.float32
+        )
 
     def _reference(self, seed: int) -> ReferenceTrajectory:
         cfg = self.cfg
@@ -161,9 +171,7 @@ class GridSimEnv(gym.Env):
         world = self.world
         rotation = grid_rotation(self._orientation, world.ego[PSI])
         control, plan = self.action_kind.controller(world, action, rotation)
-        t0 = world.time
-        ref = self.reference.positions(t0 + self._setpoint_times)
-        l1 = float(np.sum((plan - ref) ** 2))
+        l1 = float(np.sum((plan - self._ref_future) ** 2))
         l2 = l3 = 0.0
         v_lo, v_hi = self.cfg.speed_range
         result = None
@@ -180,6 +188,7 @@ class GridSimEnv(gym.Env):
         self._last_plan = plan
         self._grids[:-1] = self._grids[1:]
         self._grids[-1] = observe(self.sensor, world)
+        self._look_ahead()
         # Reached: at the reference's last point, having driven (most of) its length, so that
         # a route passing the same place twice does not end the episode on the first pass.
         tol = self.cfg.env.destination_tolerance
@@ -198,14 +207,11 @@ class GridSimEnv(gym.Env):
         heading = w.ego[PSI] - rotation
         ego = np.array([w.ego[V], w.ego[DELTA], self._last_accel, self._last_rate,
                         np.cos(heading), np.sin(heading)], np.float32)  # fmt: skip
-        horizon_end = w.time + self._setpoint_times[-1]
-        dest = world_to_grid(self.reference.positions(np.array([horizon_end])), w.ego[:2], rotation)
-        return {"grids": self._grids.copy(), "ego": ego, "destination": dest[0].astype(np.float32)}
+        dest = self._ref_future_grid[-1].copy()  # the reference at the end of the horizon
+        return {"grids": self._grids.copy(), "ego": ego, "destination": dest}
 
     def _info(self, terms: np.ndarray, reached: bool = False) -> dict[str, Any]:
         w = self.world
-        rotation = grid_rotation(self._orientation, w.ego[PSI])
-        ref = self.reference.positions(w.time + self._setpoint_times)
         contact = w.last.contact
         return {
             "time": w.time,
@@ -215,7 +221,7 @@ class GridSimEnv(gym.Env):
             "off_road": bool(w.last.off_road),
             "road_edges_touched": list(contact.boundaries),
             "destination_reached": reached,
-            "reference_setpoints": world_to_grid(ref, w.ego[:2], rotation).astype(np.float32),
+            "reference_setpoints": self._ref_future_grid.copy(),
             "l1": float(terms[0]),
             "l2": float(terms[1]),
             "l3": float(terms[2]),
@@ -227,7 +233,7 @@ class GridSimEnv(gym.Env):
         if self.render_mode != "rgb_array" or self.world is None:
             return None
         w = self.world
-        overlay = [(self.reference.positions(w.time + self._setpoint_times), REFERENCE_COLOUR)]
+        overlay = [(self._ref_future, REFERENCE_COLOUR)]
         if self._last_plan is not None:
             overlay.append((self._last_plan, PLAN_COLOUR))
         return self.renderer.render(w, self._grids[-1], overlay)

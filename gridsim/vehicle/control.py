@@ -53,9 +53,12 @@ def follow_path(
     params: BicycleParams,
     gains: PursuitGains = PursuitGains(),
     offset: float = 0.0,
+    s: float | None = None,
 ) -> tuple[float, float]:
-    """Pure pursuit along ``path`` (at lateral ``offset`` [m], positive left)."""
-    s, _, _ = path.project(state[None, :2])
+    """Pure pursuit along ``path`` (at lateral ``offset`` [m], positive left). ``s`` is the
+    vehicle's arc length on the path if already known."""
+    if s is None:
+        s = float(path.project(state[None, :2])[0][0])
     look = gains.min_lookahead + gains.lookahead_time * max(state[V], 0.0)
-    target, _ = path.frenet_to_world(s[0] + look, offset)
+    target, _ = path.frenet_to_world(s + look, offset)
     return pursuit_inputs(state, target, target_speed, params, gains)

@@ -1,0 +1,90 @@
+"""GridSim-v0 speed: env.step throughput and reset time, one process, one core.
+
+Prints JSON lines. ``step`` uses the default scenario (seamless) and observation (5 grids of
+128 x 128) with the trajectory action fed from the reference set-points. ``reset`` is timed
+cold (a new seed: builds the world and simulates the human reference) and warm (a seed seen
+before: the reference comes from the cache).
+
+    python benchmarks/bench_env.py [--steps 3000]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import cv2  # noqa: E402
+import gymnasium as gym  # noqa: E402
+import numpy as np  # noqa: E402
+
+import gridsim  # noqa: E402, F401  (registers GridSim-v0)
+
+cv2.setNumThreads(1)
+
+
+def bench_steps(steps: int, action_type: str) -> dict:
+    env = gym.make("GridSim-v0", action_type=action_type)
+    obs, info = env.reset(seed=0)
+    control = np.zeros(2, np.float32)
+    durations = []
+    t_start = time.perf_counter()
+    for _ in range(steps):
+        action = info["reference_setpoints"] if action_type == "trajectory" else control
+        t0 = time.perf_counter()
+        obs, r, term, trunc, info = env.step(action)
+        durations.append(time.perf_counter() - t0)
+        if term or trunc:
+            obs, info = env.reset()
+    total = time.perf_counter() - t_start
+    us = np.array(durations) * 1e6
+    row = {
+        "bench": f"env_step_{action_type}",
+        "steps_per_s": round(len(us) / (us.sum() / 1e6), 1),
+        "median_us": round(float(np.median(us)), 1),
+        "p90_us": round(float(np.percentile(us, 90)), 1),
+        "steps": steps,
+        "wall_s_including_resets": round(total, 2),
+        "target_steps_per_s": 1000,
+    }
+    print(json.dumps(row), flush=True)
+    return row
+
+
+def bench_reset(n: int) -> None:
+    env = gym.make("GridSim-v0")
+    cold, warm = [], []
+    for seed in range(n):
+        t0 = time.perf_counter()
+        env.reset(seed=1000 + seed)
+        cold.append(time.perf_counter() - t0)
+    for seed in range(n):
+        t0 = time.perf_counter()
+        env.reset(seed=1000 + seed)
+        warm.append(time.perf_counter() - t0)
+    row = {
+        "bench": "env_reset",
+        "cold_median_ms": round(1e3 * float(np.median(cold)), 1),
+        "warm_median_ms": round(1e3 * float(np.median(warm)), 1),
+        "resets": n,
+        "episode_s": 60.0,
+    }
+    print(json.dumps(row))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=3000)
+    ap.add_argument("--resets", type=int, default=10)
+    args = ap.parse_args()
+    bench_steps(args.steps, "trajectory")
+    bench_steps(args.steps, "control")
+    bench_reset(args.resets)
+
+
+if __name__ == "__main__":
+    main()
