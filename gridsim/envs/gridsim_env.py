@@ -31,7 +31,7 @@ from gridsim.envs.frames import grid_rotation, world_to_grid
 from gridsim.envs.reference import ReferenceTrajectory, human_reference, reference_from_track
 from gridsim.errors import ScenarioError
 from gridsim.render.topdown import TopDownRenderer
-from gridsim.scenario.build import build_sensor, build_world
+from gridsim.scenario.build import build_sensor, build_world, vehicle_params
 from gridsim.scenario.loader import Scenario, load_scenario
 from gridsim.sensors.occupancy import observe
 from gridsim.vehicle.kinematics import DELTA, PSI, V
@@ -87,9 +87,7 @@ class GridSimEnv(gym.Env):
         e = cfg.env
         self._setpoint_times = e.setpoint_period * np.arange(1, e.horizon + 1)
         self.metadata = {**self.metadata, "render_fps": 1.0 / e.decision_period}
-        # Spaces depend only on the scenario, not on the episode: build from a probe world.
-        from gridsim.scenario.build import vehicle_params
-
+        # Spaces depend only on the scenario, not on the episode.
         params = vehicle_params(cfg.ego.vehicle)
         kwargs = {"decision_period": e.decision_period} if action_type == "discrete" else {}
         self.action_kind = ACTION_TYPES[action_type](params, e.horizon, e.setpoint_period,
