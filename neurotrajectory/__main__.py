@@ -1,0 +1,5 @@
+import sys
+
+from neurotrajectory.cli import main
+
+sys.exit(main())

@@ -1,0 +1,241 @@
+"""Where the population is evaluated: in this process, in a pool of processes, or on Ray.
+
+Every backend runs :class:`Worker` objects. A worker holds the current population and
+advances it from *recipes* (parents and seeds, a few numbers per child), never from weight
+vectors; only a resumed run ships the population once. Individuals are assigned to
+workers statically (``i % workers``) and each evaluation is deterministic, so the results
+do not depend on the backend or the number of workers.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing as mp
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+
+import numpy as np
+
+from neurotrajectory.genome import Recipe, apply_recipe, initial_genome, noise_table, table_size
+from neurotrajectory.model import NetConfig
+from neurotrajectory.rollout import Evaluator
+
+
+class BackendError(RuntimeError):
+    """A backend could not be started or lost its workers."""
+
+
+@dataclass(frozen=True)
+class WorkerSpec:
+    """Everything a worker needs to build its environments and network."""
+
+    scenario: str
+    overrides: dict
+    net: NetConfig
+    seeds: tuple[int, ...]
+
+
+class Worker:
+    """Holds the population and evaluates individuals."""
+
+    def __init__(self, spec: WorkerSpec) -> None:
+        self.evaluator = Evaluator(spec.scenario, spec.overrides, spec.net, list(spec.seeds))
+        n = sum(p.numel() for p in self.evaluator.net.parameters())
+        self.table = noise_table(table_size(n))
+        self.population: np.ndarray | None = None
+
+    @property
+    def genome_size(self) -> int:
+        return sum(p.numel() for p in self.evaluator.net.parameters())
+
+    def advance(self, recipes: list[Recipe]) -> None:
+        """Replace the population by the children of ``recipes``."""
+        net = self.evaluator.net
+        children = [
+            apply_recipe(r, self.population, self.table,
+                         initial_genome(net, r.init_seed) if r.init_seed is not None else None)
+            for r in recipes
+        ]  # fmt: skip
+        self.population = np.stack(children)
+
+    def load(self, population: np.ndarray) -> None:
+        self.population = np.array(population, dtype=np.float32, copy=True)
+
+    def evaluate(self, indices: list[int]) -> list[tuple[int, np.ndarray, dict]]:
+        out = []
+        for i in indices:
+            fitness, stats = self.evaluator.evaluate(self.population[i])
+            out.append((i, fitness, stats.__dict__))
+        return out
+
+
+class Backend(ABC):
+    """Evaluates a population held by its workers."""
+
+    @abstractmethod
+    def advance(self, recipes: list[Recipe]) -> None: ...
+
+    @abstractmethod
+    def load(self, population: np.ndarray) -> None: ...
+
+    @abstractmethod
+    def evaluate(self, size: int) -> tuple[np.ndarray, list[dict]]:
+        """Fitness ``(size, 3)`` and per-individual episode statistics."""
+
+    def close(self) -> None:  # noqa: B027 - optional
+        pass
+
+
+def _collect(size: int, parts: list[list[tuple[int, np.ndarray, dict]]]):
+    fitness = np.zeros((size, 3))
+    stats: list[dict] = [{} for _ in range(size)]
+    for part in parts:
+        for i, f, s in part:
+            fitness[i], stats[i] = f, s
+    return fitness, stats
+
+
+class LocalBackend(Backend):
+    """One worker in this process."""
+
+    def __init__(self, spec: WorkerSpec) -> None:
+        self.worker = Worker(spec)
+
+    def advance(self, recipes):
+        self.worker.advance(recipes)
+
+    def load(self, population):
+        self.worker.load(population)
+
+    def evaluate(self, size):
+        return _collect(size, [self.worker.evaluate(list(range(size)))])
+
+
+def _serve(conn, spec: WorkerSpec) -> None:
+    """Worker process loop: commands arrive as (name, argument) pairs."""
+    worker = Worker(spec)
+    conn.send(("ready", worker.genome_size))
+    while True:
+        name, arg = conn.recv()
+        if name == "stop":
+            break
+        try:
+            conn.send(("ok", getattr(worker, name)(arg)))
+        except Exception as exc:  # report, do not die silently
+            conn.send(("error", f"{type(exc).__name__}: {exc}"))
+
+
+class ProcessBackend(Backend):
+    """``workers`` processes (spawned, so safe with torch), each holding the population."""
+
+    def __init__(self, spec: WorkerSpec, workers: int) -> None:
+        if workers < 1:
+            raise BackendError(f"workers must be >= 1, got {workers}")
+        ctx = mp.get_context("spawn")
+        self.conns, self.procs = [], []
+        for _ in range(workers):
+            parent, child = ctx.Pipe()
+            proc = ctx.Process(target=_serve, args=(child, spec), daemon=True)
+            proc.start()
+            self.conns.append(parent)
+            self.procs.append(proc)
+        for conn in self.conns:
+            self._reply(conn)
+
+    def _reply(self, conn):
+        try:
+            status, value = conn.recv()
+        except EOFError:
+            raise BackendError("a worker process died") from None
+        if status == "error":
+            raise BackendError(f"worker failed: {value}")
+        return value
+
+    def _all(self, name, args):
+        for conn, arg in zip(self.conns, args, strict=True):
+            conn.send((name, arg))
+        return [self._reply(conn) for conn in self.conns]
+
+    def advance(self, recipes):
+        self._all("advance", [recipes] * len(self.conns))
+
+    def load(self, population):
+        self._all("load", [population] * len(self.conns))
+
+    def evaluate(self, size):
+        w = len(self.conns)
+        return _collect(size, self._all("evaluate", [list(range(k, size, w)) for k in range(w)]))
+
+    def close(self):
+        for conn, proc in zip(self.conns, self.procs, strict=True):
+            with contextlib.suppress(BrokenPipeError, OSError):
+                conn.send(("stop", None))
+            proc.join(timeout=10)
+            if proc.is_alive():
+                proc.terminate()
+
+
+def _check_reachable(address: str, timeout: float = 3.0) -> None:
+    """Fail fast (instead of Ray's long retries) when ``host:port`` does not answer."""
+    import socket
+
+    hostport = address.split("://", 1)[-1]
+    host, _, port = hostport.rpartition(":")
+    try:
+        with socket.create_connection((host or "127.0.0.1", int(port)), timeout=timeout):
+            pass
+    except (OSError, ValueError) as exc:
+        raise BackendError(f"cannot connect to Ray at {address}: {exc}") from None
+
+
+class RayBackend(Backend):
+    """``workers`` Ray actors on an existing cluster (``address``) or a local one."""
+
+    def __init__(self, spec: WorkerSpec, workers: int, address: str | None = None) -> None:
+        try:
+            import ray
+        except ImportError:
+            raise BackendError("the ray backend needs Ray: pip install '.[ray]'") from None
+        self.ray = ray
+        if address and address != "auto":
+            _check_reachable(address)
+        try:
+            if not ray.is_initialized():
+                ray.init(address=address, num_cpus=None if address else workers,
+                         include_dashboard=False, log_to_driver=False)  # fmt: skip
+        except Exception as exc:
+            where = address or "a local Ray instance"
+            raise BackendError(f"cannot connect to Ray at {where}: {exc}") from None
+        actor = ray.remote(num_cpus=1)(Worker)
+        self.actors = [actor.remote(spec) for _ in range(workers)]
+
+    def _all(self, name, args):
+        return self.ray.get(
+            [getattr(a, name).remote(arg) for a, arg in zip(self.actors, args, strict=True)]
+        )
+
+    def advance(self, recipes):
+        self._all("advance", [recipes] * len(self.actors))
+
+    def load(self, population):
+        ref = self.ray.put(population)
+        self._all("load", [ref] * len(self.actors))
+
+    def evaluate(self, size):
+        w = len(self.actors)
+        return _collect(size, self._all("evaluate", [list(range(k, size, w)) for k in range(w)]))
+
+    def close(self):
+        for a in self.actors:
+            self.ray.kill(a)
+
+
+def make_backend(name: str, spec: WorkerSpec, workers: int, address: str | None = None) -> Backend:
+    factories = {
+        "local": lambda: LocalBackend(spec),
+        "processes": lambda: ProcessBackend(spec, workers),
+        "ray": lambda: RayBackend(spec, workers, address),
+    }
+    if name not in factories:
+        raise BackendError(f"unknown backend {name!r}; choose from {sorted(factories)}")
+    return factories[name]()

@@ -1,0 +1,128 @@
+"""The NeuroTrajectory network: per-grid CNN -> FC -> FC -> one LSTM branch per set-point.
+
+Input: a GridSim-v0 observation (``grids`` uint8 ``(tau_i, H, W)``, ``ego`` ``(6,)``,
+``destination`` ``(2,)``), batched. Output: ``(batch, tau_o, 2)`` set-points [m] in the grid
+frame, i.e. directly the environment's trajectory action.
+
+Each grid goes through the same CNN (three stride-2 convolutions); its features, with the
+ego state and the destination, go through FC ``fc1`` and FC ``fc2`` (sigmoid by default, as
+in the paper). Branch ``i`` is a many-to-one LSTM over the ``tau_i`` per-frame features and
+a linear read-out of set-point ``i``. With ``prior="constant_velocity"`` the network predicts
+a correction to where the ego would be at constant speed and heading (a residual on a
+kinematic prior, so that a freshly initialised network already drives forward).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+import torch
+from torch import nn
+
+_ACTIVATIONS = {"sigmoid": nn.Sigmoid, "relu": nn.ReLU, "tanh": nn.Tanh}
+DESTINATION_SCALE = 20.0  # m: destination inputs are divided by this
+
+
+@dataclass(frozen=True)
+class NetConfig:
+    """Sizes of the network. ``pool`` downsamples the grids before the CNN (1 = none)."""
+
+    history: int = 5
+    horizon: int = 5
+    grid_size: int = 128
+    pool: int = 2
+    channels: tuple[int, int, int] = (8, 16, 16)
+    fc1: int = 256
+    fc2: int = 128
+    lstm: int = 32
+    activation: str = "sigmoid"
+    setpoint_period: float = 0.5
+    prior: str = "constant_velocity"
+
+    def __post_init__(self) -> None:
+        if self.activation not in _ACTIVATIONS:
+            raise ValueError(
+                f"activation must be one of {sorted(_ACTIVATIONS)}, got {self.activation!r}"
+            )
+        if self.prior not in ("constant_velocity", "none"):
+            raise ValueError(f"prior must be 'constant_velocity' or 'none', got {self.prior!r}")
+        if self.grid_size % (self.pool * 8):
+            raise ValueError(
+                f"grid_size {self.grid_size} must be divisible by pool * 8 = {self.pool * 8}"
+            )
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+#: ``paper``: the full FC 1024 / 512 on 128 x 128 grids (about 19 M parameters);
+#: ``default``: pooled 64 x 64 grids and FC 256 / 128, trains in minutes on 2 CPU cores.
+PRESETS = {
+    "paper": NetConfig(pool=1, channels=(16, 32, 64), fc1=1024, fc2=512, lstm=128),
+    "default": NetConfig(),
+    "tiny": NetConfig(pool=4, channels=(4, 8, 8), fc1=32, fc2=32, lstm=8),
+}
+
+
+class TrajectoryNet(nn.Module):
+    """See the module docstring."""
+
+    def __init__(self, cfg: NetConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        act = _ACTIVATIONS[cfg.activation]
+        c1, c2, c3 = cfg.channels
+        self.pool = nn.AvgPool2d(cfg.pool) if cfg.pool > 1 else nn.Identity()
+        self.cnn = nn.Sequential(
+            nn.Conv2d(1, c1, 5, stride=2, padding=2), nn.ReLU(),
+            nn.Conv2d(c1, c2, 3, stride=2, padding=1), nn.ReLU(),
+            nn.Conv2d(c2, c3, 3, stride=2, padding=1), nn.ReLU(),
+            nn.Flatten(),
+        )  # fmt: skip
+        side = cfg.grid_size // cfg.pool // 8
+        n_cnn = c3 * side * side
+        self.fc = nn.Sequential(
+            nn.Linear(n_cnn + 8, cfg.fc1), act(), nn.Linear(cfg.fc1, cfg.fc2), act()
+        )
+        self.branches = nn.ModuleList(
+            nn.LSTM(cfg.fc2, cfg.lstm, batch_first=True) for _ in range(cfg.horizon)
+        )
+        self.heads = nn.ModuleList(nn.Linear(cfg.lstm, 2) for _ in range(cfg.horizon))
+        times = cfg.setpoint_period * torch.arange(1, cfg.horizon + 1, dtype=torch.float32)
+        self.register_buffer("times", times, persistent=False)
+
+    def forward(
+        self, grids: torch.Tensor, ego: torch.Tensor, destination: torch.Tensor
+    ) -> torch.Tensor:
+        """``grids`` uint8 or float ``(B, tau_i, H, W)``; ``ego`` ``(B, 6)``; ``destination``
+        ``(B, 2)`` [m]. Returns set-points ``(B, tau_o, 2)`` [m]."""
+        b, t, h, w = grids.shape
+        x = grids.reshape(b * t, 1, h, w).float() / 255.0
+        feats = self.cnn(self.pool(x)).reshape(b, t, -1)
+        side = torch.cat([ego, destination / DESTINATION_SCALE], dim=1)
+        feats = self.fc(torch.cat([feats, side[:, None, :].expand(b, t, side.shape[1])], dim=2))
+        points = []
+        for lstm, head in zip(self.branches, self.heads, strict=True):
+            _, (h_n, _) = lstm(feats)
+            points.append(head(h_n[-1]))
+        out = torch.stack(points, dim=1)
+        if self.cfg.prior == "constant_velocity":
+            speed, cos, sin = ego[:, 0:1], ego[:, 4:5], ego[:, 5:6]
+            dist = speed * self.times[None, :]
+            out = out + torch.stack([dist * cos, dist * sin], dim=2)
+        return out
+
+
+def observation_tensors(obs: dict | list[dict]) -> tuple[torch.Tensor, ...]:
+    """Batch GridSim-v0 observations (one dict or a list) into the network's inputs."""
+    if isinstance(obs, dict):
+        obs = [obs]
+    grids = torch.from_numpy(np.stack([o["grids"] for o in obs]))
+    ego = torch.from_numpy(np.stack([o["ego"] for o in obs]).astype(np.float32))
+    dest = torch.from_numpy(np.stack([o["destination"] for o in obs]).astype(np.float32))
+    return grids, ego, dest
+
+
+def count_parameters(net: nn.Module) -> int:
+    return sum(p.numel() for p in net.parameters())

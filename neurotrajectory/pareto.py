@@ -1,0 +1,74 @@
+"""Multi-objective selection: non-dominated sorting, crowding distance, hypervolume.
+
+All objectives are minimised here (negate the ones to maximise before calling).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def dominates_matrix(f: np.ndarray) -> np.ndarray:
+    """``D[i, j]``: point ``i`` dominates point ``j`` (no worse in all, better in one)."""
+    le = np.all(f[:, None, :] <= f[None, :, :], axis=2)
+    lt = np.any(f[:, None, :] < f[None, :, :], axis=2)
+    return le & lt
+
+
+def non_dominated_sort(f: np.ndarray) -> np.ndarray:
+    """Pareto rank of each row of ``f`` ``(N, M)``: 0 for the non-dominated front, 1 for the
+    front after removing it, and so on. Duplicates share a rank."""
+    f = np.asarray(f, dtype=np.float64)
+    if f.ndim != 2 or not np.all(np.isfinite(f)):
+        raise ValueError("objectives must be a finite (N, M) array")
+    dom = dominates_matrix(f)
+    count = dom.sum(axis=0)  # how many dominate each point
+    rank = np.full(len(f), -1)
+    current = np.flatnonzero(count == 0)
+    r = 0
+    while len(current):
+        rank[current] = r
+        count = count - dom[current].sum(axis=0)
+        count[rank >= 0] = -1
+        current = np.flatnonzero(count == 0)
+        r += 1
+    return rank
+
+
+def crowding_distance(f: np.ndarray) -> np.ndarray:
+    """Deb's NSGA-II crowding distance of the points ``f`` ``(N, M)`` of one front: boundary
+    points get infinity; interior points the sum over objectives of the normalised gap
+    between their neighbours (not divided by M)."""
+    f = np.asarray(f, dtype=np.float64)
+    n, m = f.shape
+    dist = np.zeros(n)
+    if n <= 2:
+        return np.full(n, np.inf)
+    for k in range(m):
+        order = np.argsort(f[:, k], kind="stable")
+        span = f[order[-1], k] - f[order[0], k]
+        dist[order[0]] = dist[order[-1]] = np.inf
+        if span > 0:
+            dist[order[1:-1]] += (f[order[2:], k] - f[order[:-2], k]) / span
+    return dist
+
+
+def rank_and_crowding(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pareto ranks and crowding distances (computed within each front)."""
+    rank = non_dominated_sort(f)
+    crowd = np.zeros(len(f))
+    for r in np.unique(rank):
+        members = np.flatnonzero(rank == r)
+        crowd[members] = crowding_distance(f[members])
+    return rank, crowd
+
+
+def hypervolume(f: np.ndarray, ref: np.ndarray) -> float:
+    """Hypervolume dominated by the points ``f`` (minimised) up to ``ref`` (moocore)."""
+    import moocore
+
+    f = np.asarray(f, dtype=np.float64)
+    keep = np.all(f < ref, axis=1)
+    if not np.any(keep):
+        return 0.0
+    return float(moocore.hypervolume(f[keep], ref=np.asarray(ref, dtype=np.float64)))

@@ -1,0 +1,67 @@
+"""Plots of a run: objectives per generation (the paper's Fig. 6), the Pareto front and the
+hypervolume per generation. Written headless (Agg) into ``<run>/plots/``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+NAMES = (
+    "l1: set-point error [m^2] (min)",
+    "l2: steering rate [rad/s] (min)",
+    "l3: speed [m/s] (max)",
+)
+
+
+def plot_run(out: str | Path, history: list[dict]) -> list[Path]:
+    folder = Path(out) / "plots"
+    folder.mkdir(parents=True, exist_ok=True)
+    gens = np.array([h["generation"] for h in history])
+    fit = [np.array(h["fitness"]) for h in history]
+    paths = []
+
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    for k, ax in enumerate(axes):
+        for g, f in zip(gens, fit, strict=True):
+            ax.scatter(np.full(len(f), g), f[:, k], s=8, alpha=0.4, color="tab:blue")
+        ax.plot(gens, [f[:, k].mean() for f in fit], color="tab:red", label="mean")
+        ax.set_xlabel("generation")
+        ax.set_title(NAMES[k], fontsize=9)
+        if k == 0:
+            ax.set_yscale("symlog")
+    axes[0].legend()
+    fig.tight_layout()
+    paths.append(_save(fig, folder / "objectives.png"))
+
+    last, rank = fit[-1], np.array(history[-1]["rank"])
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    for ax, (i, j) in zip(axes, [(0, 1), (0, 2), (1, 2)], strict=True):
+        ax.scatter(last[rank > 0, i], last[rank > 0, j], s=10, color="0.6", label="dominated")
+        ax.scatter(
+            last[rank == 0, i], last[rank == 0, j], s=18, color="tab:red", label="Pareto front"
+        )
+        ax.set_xlabel(NAMES[i], fontsize=8)
+        ax.set_ylabel(NAMES[j], fontsize=8)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(f"generation {gens[-1]}", fontsize=10)
+    fig.tight_layout()
+    paths.append(_save(fig, folder / "front.png"))
+
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    ax.plot(gens, [h["hypervolume"] for h in history], marker="o")
+    ax.set_xlabel("generation")
+    ax.set_ylabel("hypervolume (normalised to generation 0)")
+    fig.tight_layout()
+    paths.append(_save(fig, folder / "hypervolume.png"))
+    return paths
+
+
+def _save(fig, path: Path) -> Path:
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

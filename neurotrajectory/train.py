@@ -1,0 +1,306 @@
+"""Training runs: the generation loop, the run directory, checkpoints and resuming.
+
+A run directory holds ``config.json`` (the resolved configuration), ``checkpoint.npz``
+(the last complete generation: its population and fitness, written atomically),
+``history.json`` (every generation's fitness vectors, Pareto ranks, hypervolume, timing),
+``front.npz`` / ``front.json`` (the final Pareto front: weights and fitness) and ``plots/``.
+A resumed run continues after the last complete generation and gives the same result as an
+uninterrupted run with the same seed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+import time
+from dataclasses import asdict, dataclass, fields
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from neurotrajectory.backends import WorkerSpec, make_backend
+from neurotrajectory.evolution import GAConfig, initial_recipes, minimised, next_generation
+from neurotrajectory.genome import apply_recipe, initial_genome, noise_table, table_size
+from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
+from neurotrajectory.pareto import hypervolume, non_dominated_sort
+
+FORMAT_VERSION = 1
+
+
+class RunError(RuntimeError):
+    """A run directory is missing, corrupt or incompatible with the requested run."""
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Everything that determines a run (saved as ``config.json``)."""
+
+    scenario: str = "seamless"
+    preset: str = "default"
+    population: int = 16
+    generations: int = 10
+    episodes: int = 2
+    episode_seconds: float = 15.0
+    sigma: float = 0.02
+    elite_fraction: float = 0.25
+    seed: int = 0
+    backend: str = "local"
+    workers: int = 2
+    ray_address: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.preset not in PRESETS:
+            raise RunError(f"unknown preset {self.preset!r}; choose from {sorted(PRESETS)}")
+        for name in ("population", "generations", "episodes"):
+            if getattr(self, name) < 1:
+                raise RunError(f"{name} must be >= 1, got {getattr(self, name)}")
+        if self.population < 2:
+            raise RunError(f"population must be >= 2, got {self.population}")
+        if not self.episode_seconds > 0:
+            raise RunError(f"episode_seconds must be > 0, got {self.episode_seconds}")
+
+    @property
+    def ga(self) -> GAConfig:
+        return GAConfig(
+            population=self.population, elite_fraction=self.elite_fraction, sigma=self.sigma
+        )
+
+    @property
+    def episode_seeds(self) -> tuple[int, ...]:
+        """The evaluation episodes: the same for every individual and generation."""
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0xE915]))
+        return tuple(int(s) for s in rng.integers(0, 2**31 - 1, size=self.episodes))
+
+    @property
+    def overrides(self) -> dict:
+        return {"simulation": {"duration": self.episode_seconds}}
+
+    #: Fields that may differ between a run and its resumption (they do not change results).
+    RESUMABLE = ("generations", "backend", "workers", "ray_address")
+
+
+def _atomic_write(path: Path, write) -> None:
+    """Write through a temporary file in the same folder and rename: never half a file."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def _write_json(path: Path, data) -> None:
+    _atomic_write(path, lambda tmp: Path(tmp).write_text(json.dumps(data, indent=1)))
+
+
+def _write_npz(path: Path, **arrays) -> None:
+    def write(tmp):
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+
+    _atomic_write(path, write)
+
+
+class Run:
+    """A training run in ``out``."""
+
+    def __init__(self, out: str | Path, config: TrainConfig) -> None:
+        self.out = Path(out)
+        self.config = config
+        self.net_config = PRESETS[config.preset]
+
+    # -- run directory ------------------------------------------------------------------------
+    @classmethod
+    def create(cls, out: str | Path, config: TrainConfig) -> Run:
+        out = Path(out)
+        if out.exists() and any(out.iterdir()):
+            raise RunError(f"{out} exists and is not empty: use --resume {out} or another --out")
+        out.mkdir(parents=True, exist_ok=True)
+        run = cls(out, config)
+        _write_json(out / "config.json", {"format": FORMAT_VERSION, "train": asdict(config)})
+        return run
+
+    @classmethod
+    def open(cls, out: str | Path, **changes) -> Run:
+        """Reopen a run directory; ``changes`` may only touch :attr:`TrainConfig.RESUMABLE`."""
+        out = Path(out)
+        cfg_path = out / "config.json"
+        if not cfg_path.is_file():
+            raise RunError(f"{out} is not a run directory (no config.json)")
+        try:
+            doc = json.loads(cfg_path.read_text())
+            if doc.get("format") != FORMAT_VERSION:
+                raise RunError(
+                    f"{cfg_path}: format {doc.get('format')!r}, expected {FORMAT_VERSION}"
+                )
+            known = {f.name for f in fields(TrainConfig)}
+            stored = TrainConfig(**{k: v for k, v in doc["train"].items() if k in known})
+        except (json.JSONDecodeError, KeyError, TypeError) as exc:
+            raise RunError(f"{cfg_path}: unreadable run configuration ({exc})") from None
+        clash = {
+            k: (getattr(stored, k), v)
+            for k, v in changes.items()
+            if v is not None and k not in TrainConfig.RESUMABLE and getattr(stored, k) != v
+        }
+        if clash:
+            detail = ", ".join(f"{k}: run has {a!r}, asked {b!r}" for k, (a, b) in clash.items())
+            raise RunError(f"{out}: cannot resume with a different configuration ({detail})")
+        allowed = {k: v for k, v in changes.items() if v is not None and k in TrainConfig.RESUMABLE}
+        config = TrainConfig(**{**asdict(stored), **allowed})
+        if allowed:
+            _write_json(cfg_path, {"format": FORMAT_VERSION, "train": asdict(config)})
+        return cls(out, config)
+
+    def load_checkpoint(self):
+        """``(generation, population, fitness)`` of the last complete generation, or None."""
+        path = self.out / "checkpoint.npz"
+        if not path.exists():
+            return None
+        try:
+            with np.load(path) as data:
+                gen, pop, fit = int(data["generation"]), data["population"], data["fitness"]
+        except Exception as exc:
+            raise RunError(f"{path}: corrupt checkpoint ({exc})") from None
+        if pop.shape[0] != self.config.population or fit.shape != (self.config.population, 3):
+            raise RunError(f"{path}: population {pop.shape[0]} does not match the configuration "
+                           f"({self.config.population})")  # fmt: skip
+        return gen, pop, fit
+
+    def load_history(self) -> list[dict]:
+        path = self.out / "history.json"
+        if not path.exists():
+            return []
+        try:
+            return json.loads(path.read_text())["generations"]
+        except (json.JSONDecodeError, KeyError) as exc:
+            raise RunError(f"{path}: corrupt history ({exc})") from None
+
+    # -- the loop ------------------------------------------------------------------------------
+    def train(self, progress: bool = True, stop_after: int | None = None) -> dict:
+        """Run (or continue) the generations. ``stop_after`` ends the process after that many
+        new generations (for tests of interrupted runs)."""
+        cfg = self.config
+        spec = WorkerSpec(cfg.scenario, cfg.overrides, self.net_config, cfg.episode_seeds)
+        backend = make_backend(cfg.backend, spec, cfg.workers, cfg.ray_address)
+        try:
+            return self._loop(backend, progress, stop_after)
+        finally:
+            backend.close()
+
+    def _loop(self, backend, progress, stop_after) -> dict:
+        cfg = self.config
+        ga = cfg.ga
+        probe = _probe_net(spec_net=self.net_config, scenario=cfg.scenario, overrides=cfg.overrides)
+        n = sum(p.numel() for p in probe.parameters())
+        table = noise_table(table_size(n))
+        history = self.load_history()
+        ckpt = self.load_checkpoint()
+        if ckpt is None:
+            start, recipes = 0, initial_recipes(ga, cfg.seed)
+            population = np.stack([initial_genome(probe, r.init_seed) for r in recipes])
+            backend.advance(recipes)
+        else:
+            gen, population, fitness = ckpt
+            history = history[: gen + 1]
+            if len(history) != gen + 1:
+                raise RunError(
+                    f"{self.out}: history has {len(history)} generations, checkpoint {gen + 1}"
+                )
+            recipes, _ = next_generation(fitness, ga, cfg.seed, gen, n, len(table))
+            backend.load(population)
+            backend.advance(recipes)
+            population = np.stack([apply_recipe(r, population, table) for r in recipes])
+            start = gen + 1
+        bar = tqdm(range(start, cfg.generations), desc="generations", unit="gen",
+                   disable=not progress, initial=start, total=cfg.generations)  # fmt: skip
+        for done, gen in enumerate(bar, start=1):
+            t0 = time.perf_counter()
+            fitness, stats = backend.evaluate(cfg.population)
+            recipes, rank = next_generation(fitness, ga, cfg.seed, gen, n, len(table))
+            history.append(
+                self._record(gen, fitness, rank, stats, time.perf_counter() - t0, history)
+            )
+            _write_npz(
+                self.out / "checkpoint.npz",
+                generation=np.array(gen),
+                population=population,
+                fitness=fitness,
+            )
+            _write_json(self.out / "history.json", {"generations": history})
+            bar.set_postfix(hv=f"{history[-1]['hypervolume']:.3f}", front=int(np.sum(rank == 0)))
+            if gen + 1 < cfg.generations:
+                backend.advance(recipes)
+                population = np.stack([apply_recipe(r, population, table) for r in recipes])
+            if stop_after is not None and done >= stop_after:
+                return {"stopped_at": gen}
+        return self.finish()
+
+    def _record(self, gen, fitness, rank, stats, seconds, history) -> dict:
+        f = minimised(fitness)
+        if history:  # normalise with the bounds of generation 0, fixed for the whole run
+            lo, hi = np.array(history[0]["norm_lo"]), np.array(history[0]["norm_hi"])
+        else:
+            lo, hi = f.min(axis=0), f.max(axis=0)
+        span = np.where(hi - lo > 0, hi - lo, 1.0)
+        front = (f[rank == 0] - lo) / span
+        steps = sum(s.get("steps", 0) for s in stats)
+        return {
+            "generation": gen,
+            "fitness": fitness.tolist(),
+            "rank": rank.tolist(),
+            "hypervolume": hypervolume(front, np.full(3, 1.1)),
+            "norm_lo": lo.tolist(),
+            "norm_hi": hi.tolist(),
+            "seconds": seconds,
+            "individual_steps": steps,
+            "individual_steps_per_s": steps / seconds if seconds > 0 else 0.0,
+            "collisions": sum(s.get("collisions", 0) for s in stats),
+            "off_road": sum(s.get("off_road", 0) for s in stats),
+            "reached": sum(s.get("reached", 0) for s in stats),
+        }
+
+    def finish(self) -> dict:
+        """Write the final front and the plots from the checkpoint and history."""
+        from neurotrajectory.plots import plot_run
+
+        ckpt = self.load_checkpoint()
+        if ckpt is None:
+            raise RunError(f"{self.out}: no complete generation yet")
+        gen, population, fitness = ckpt
+        rank = non_dominated_sort(minimised(fitness))
+        members = np.flatnonzero(rank == 0)
+        _write_npz(
+            self.out / "front.npz",
+            genomes=population[members],
+            fitness=fitness[members],
+            indices=members,
+            net=np.array(json.dumps(self.net_config.to_dict())),
+        )
+        summary = {
+            "generation": gen,
+            "front": [
+                {
+                    "index": int(i),
+                    "l1": float(fitness[i, 0]),
+                    "l2": float(fitness[i, 1]),
+                    "l3": float(fitness[i, 2]),
+                }
+                for i in members
+            ],  # fmt: skip
+            "hypervolume": [h["hypervolume"] for h in self.load_history()],
+        }
+        _write_json(self.out / "front.json", summary)
+        plot_run(self.out, self.load_history())
+        return summary
+
+
+def _probe_net(spec_net: NetConfig, scenario: str, overrides: dict) -> TrajectoryNet:
+    """The network (on the CPU) with the sizes the scenario dictates."""
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from neurotrajectory.rollout import net_config_for
+
+    return TrajectoryNet(net_config_for(GridSimEnv(scenario, **overrides), spec_net))

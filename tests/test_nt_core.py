@@ -1,0 +1,122 @@
+"""NeuroTrajectory building blocks: network, genomes, Pareto sorting, selection."""
+
+import moocore
+import numpy as np
+import pytest
+import torch
+from pymoo.operators.survival.rank_and_crowding.metrics import calc_crowding_distance
+
+from neurotrajectory.evolution import GAConfig, initial_recipes, minimised, next_generation
+from neurotrajectory.genome import (
+    Recipe,
+    apply_recipe,
+    get_genome,
+    initial_genome,
+    noise_table,
+    set_genome,
+)
+from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet, count_parameters
+from neurotrajectory.pareto import crowding_distance, hypervolume, non_dominated_sort
+
+
+def test_presets_sizes_and_output_shape():
+    assert count_parameters(TrajectoryNet(PRESETS["paper"])) == pytest.approx(19.0e6, rel=0.01)
+    net = TrajectoryNet(PRESETS["default"])
+    assert count_parameters(net) == 405_050
+    out = net(torch.zeros(3, 5, 128, 128, dtype=torch.uint8), torch.zeros(3, 6), torch.zeros(3, 2))
+    assert out.shape == (3, 5, 2)
+    with pytest.raises(ValueError, match="activation"):
+        NetConfig(activation="swish")
+    with pytest.raises(ValueError, match="divisible"):
+        NetConfig(grid_size=100)
+
+
+def test_constant_velocity_prior():
+    net = TrajectoryNet(PRESETS["tiny"])
+    set_genome(net, np.zeros(count_parameters(net), np.float32))  # the network adds nothing
+    ego = torch.tensor([[10.0, 0.0, 0.0, 0.0, 0.6, 0.8]])
+    with torch.no_grad():
+        out = net(torch.zeros(1, 5, 128, 128, dtype=torch.uint8), ego, torch.zeros(1, 2))[0]
+    t = 0.5 * np.arange(1, 6)
+    np.testing.assert_allclose(out.numpy(), np.stack([10 * t * 0.6, 10 * t * 0.8], 1), atol=1e-5)
+
+
+def test_noise_table_is_the_same_everywhere():
+    t = noise_table(1 << 22)
+    # NumPy's PCG64 + ziggurat: fixed bits on every platform (torch.randn is not).
+    np.testing.assert_array_equal(
+        t[:4], np.array([0.0012738787, 1.0034029, 1.4405828, 0.18512645], np.float32)
+    )
+    assert abs(float(t.std()) - 1.0) < 1e-3
+    assert not t.flags.writeable
+
+
+def test_genome_round_trip_and_recipes():
+    net = TrajectoryNet(PRESETS["tiny"])
+    g = initial_genome(net, 5)
+    np.testing.assert_array_equal(g, initial_genome(net, 5))
+    set_genome(net, g)
+    np.testing.assert_array_equal(get_genome(net), g)
+    table = noise_table(1 << 22)
+    parents = np.stack([g, -g])
+    mut = apply_recipe(Recipe(parent=0, noise_offset=100, sigma=0.5), parents, table)
+    np.testing.assert_array_equal(mut, g + np.float32(0.5) * table[100 : 100 + len(g)])
+    cross = apply_recipe(Recipe(parent=0, other=1, crossover_seed=9), parents, table)
+    from_other = cross == -g
+    assert 0.4 < from_other[g != 0].mean() < 0.6  # uniform crossover: each weight 50/50
+    np.testing.assert_array_equal(cross[~from_other], g[~from_other])
+    assert Recipe(parent=3).is_elite and np.array_equal(
+        apply_recipe(Recipe(parent=1), parents, table), -g
+    )
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_non_dominated_sort_matches_moocore_with_ties_and_duplicates(seed):
+    rng = np.random.default_rng(seed)
+    n, m = rng.integers(1, 200), rng.integers(2, 4)
+    f = rng.integers(0, 5, size=(n, m)).astype(float)  # many ties and duplicates
+    f = np.vstack([f, f[: n // 4]])
+    np.testing.assert_array_equal(non_dominated_sort(f), moocore.pareto_rank(f))
+    g = rng.random((n, m))
+    np.testing.assert_array_equal(non_dominated_sort(g), moocore.pareto_rank(g))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_crowding_matches_pymoo(seed):
+    rng = np.random.default_rng(seed)
+    f = rng.random((30, 3))
+    f = np.vstack([f, f[:4]])  # duplicates
+    m = f.shape[1]
+    # pymoo divides by the number of objectives; Deb's NSGA-II (ours) does not.
+    np.testing.assert_allclose(crowding_distance(f) / m, calc_crowding_distance(f), rtol=1e-12)
+
+
+def test_crowding_hand_computed():
+    f = np.array([[0.0, 4.0], [1.0, 2.0], [2.0, 1.0], [4.0, 0.0]])
+    d = crowding_distance(f)
+    assert np.isinf(d[0]) and np.isinf(d[3])
+    assert d[1] == pytest.approx(2 / 4 + 3 / 4) and d[2] == pytest.approx(3 / 4 + 2 / 4)
+
+
+def test_hypervolume_known_value():
+    assert hypervolume(np.array([[0.5, 0.5]]), np.array([1.0, 1.0])) == pytest.approx(0.25)
+    assert hypervolume(np.array([[2.0, 2.0]]), np.array([1.0, 1.0])) == 0.0
+
+
+def test_selection_keeps_the_front_and_is_reproducible():
+    rng = np.random.default_rng(0)
+    fit = np.column_stack([rng.random(20) * 100, rng.random(20), rng.random(20) * 50])
+    cfg = GAConfig(population=20, elite_fraction=0.25)
+    a, rank = next_generation(fit, cfg, seed=3, generation=7, genome_size=1000, table_size=4096)
+    b, _ = next_generation(fit, cfg, seed=3, generation=7, genome_size=1000, table_size=4096)
+    assert a == b and len(a) == 20
+    elites = [r for r in a if r.is_elite]
+    assert 1 <= len(elites) <= 5
+    assert all(rank[r.parent] == 0 for r in elites)
+    np.testing.assert_array_equal(rank, moocore.pareto_rank(minimised(fit)))
+    children = [r for r in a if not r.is_elite]
+    assert all(r.noise_offset is not None or r.other is not None for r in children)
+    assert all(r.noise_offset is None or 0 <= r.noise_offset <= 4096 - 1000 for r in children)
+    c, _ = next_generation(fit, cfg, seed=3, generation=8, genome_size=1000, table_size=4096)
+    assert c != a
+    assert len(initial_recipes(cfg, 0)) == 20

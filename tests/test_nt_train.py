@@ -1,0 +1,159 @@
+"""NeuroTrajectory training runs: end to end, resume, backends, bad input, early endings."""
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+from neurotrajectory.backends import BackendError, WorkerSpec, make_backend
+from neurotrajectory.cli import main
+from neurotrajectory.genome import Recipe
+from neurotrajectory.model import PRESETS
+from neurotrajectory.rollout import Evaluator
+from neurotrajectory.train import Run, RunError, TrainConfig
+
+TINY = dict(preset="tiny", population=6, episodes=1, episode_seconds=4.0, seed=1)
+
+
+def history(out):
+    return json.loads((out / "history.json").read_text())["generations"]
+
+
+def test_tiny_run_end_to_end_improves_the_front(tmp_path):
+    run = Run.create(tmp_path / "run", TrainConfig(generations=5, **TINY))
+    summary = run.train(progress=False)
+    hv = summary["hypervolume"]
+    assert len(hv) == 5 and hv[-1] > hv[0]
+    for name in ("config.json", "checkpoint.npz", "history.json", "front.npz", "front.json"):
+        assert (tmp_path / "run" / name).stat().st_size > 0
+    for name in ("objectives.png", "front.png", "hypervolume.png"):
+        assert (tmp_path / "run" / "plots" / name).stat().st_size > 5000
+    with np.load(tmp_path / "run" / "front.npz") as front:
+        assert len(front["genomes"]) == len(summary["front"]) >= 1
+    assert history(tmp_path / "run")[0]["individual_steps"] > 0
+
+
+def test_resume_gives_the_same_result_as_an_uninterrupted_run(tmp_path):
+    cfg = TrainConfig(generations=3, **TINY)
+    Run.create(tmp_path / "a", cfg).train(progress=False)
+    Run.create(tmp_path / "b", cfg).train(progress=False, stop_after=1)
+    assert len(history(tmp_path / "b")) == 1
+    Run.open(tmp_path / "b").train(progress=False)
+    assert [h["fitness"] for h in history(tmp_path / "a")] == [
+        h["fitness"] for h in history(tmp_path / "b")
+    ]
+    with (
+        np.load(tmp_path / "a" / "checkpoint.npz") as a,
+        np.load(tmp_path / "b" / "checkpoint.npz") as b,
+    ):
+        np.testing.assert_array_equal(a["population"], b["population"])
+
+
+def test_a_run_killed_mid_generation_resumes_to_the_same_result(tmp_path):
+    args = ["--preset", "tiny", "--population", "6", "--episodes", "1", "--episode-seconds", "4",
+            "--seed", "1", "--generations", "3", "--quiet"]  # fmt: skip
+    assert main(["train", *args, "--out", str(tmp_path / "a")]) == 0
+    killed = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "neurotrajectory", "train", *args, "--out", str(killed)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and not (killed / "history.json").exists():
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)  # during generation 1
+    proc.wait()
+    done = len(history(killed))
+    assert 1 <= done < 3
+    assert main(["train", "--resume", str(killed), "--quiet"]) == 0
+    assert [h["fitness"] for h in history(tmp_path / "a")] == [
+        h["fitness"] for h in history(killed)
+    ]
+
+
+def test_backends_give_identical_results(tmp_path):
+    spec = WorkerSpec("seamless", {"simulation": {"duration": 3.0}}, PRESETS["tiny"], (5, 6))
+    recipes = [Recipe(init_seed=i) for i in range(4)]
+    results = {}
+    for name in ("local", "processes", "ray"):
+        backend = make_backend(name, spec, workers=2)
+        try:
+            backend.advance(recipes)
+            children = [
+                Recipe(parent=0),
+                Recipe(parent=1, other=2, crossover_seed=3),
+                Recipe(parent=3, noise_offset=10, sigma=0.05),
+                Recipe(parent=2),
+            ]
+            backend.advance(children)
+            results[name] = backend.evaluate(4)[0]
+        finally:
+            backend.close()
+    np.testing.assert_array_equal(results["local"], results["processes"])
+    np.testing.assert_array_equal(results["local"], results["ray"])
+
+
+def test_ray_address_that_cannot_be_reached():
+    spec = WorkerSpec("seamless", {}, PRESETS["tiny"], (1,))
+    with pytest.raises(BackendError, match="cannot connect to Ray at 127.0.0.1:1"):
+        make_backend("ray", spec, workers=1, address="127.0.0.1:1")
+
+
+def test_bad_runs_give_clear_errors_and_overwrite_nothing(tmp_path, capsys):
+    with pytest.raises(SystemExit):  # argparse rejects unknown presets
+        main(["train", "--preset", "huge", "--out", str(tmp_path / "x")])
+    assert "invalid choice: 'huge'" in capsys.readouterr().err
+    with pytest.raises(RunError, match="unknown preset 'huge'"):
+        TrainConfig(preset="huge")
+    with pytest.raises(RunError, match="population must be >= 2"):
+        TrainConfig(population=1)
+    busy = tmp_path / "busy"
+    busy.mkdir()
+    (busy / "notes.txt").write_text("keep me")
+    assert main(["train", "--out", str(busy), "--quiet"]) == 2
+    assert "exists and is not empty" in capsys.readouterr().err
+    assert (busy / "notes.txt").read_text() == "keep me"
+    assert main(["train", "--resume", str(tmp_path / "nowhere")]) == 2
+    assert "not a run directory" in capsys.readouterr().err
+    run_dir = tmp_path / "run"
+    Run.create(run_dir, TrainConfig(generations=2, **TINY)).train(progress=False, stop_after=1)
+    with pytest.raises(RunError, match="population: run has 6, asked 8"):
+        Run.open(run_dir, population=8)
+    good = (run_dir / "checkpoint.npz").read_bytes()
+    (run_dir / "checkpoint.npz").write_bytes(good[: len(good) // 2])
+    with pytest.raises(RunError, match="corrupt checkpoint"):
+        Run.open(run_dir).train(progress=False)
+    assert main(["rollout", "--run", str(run_dir)]) == 2
+    assert "no front.npz" in capsys.readouterr().err
+
+
+def test_early_endings_never_improve_an_objective():
+    ev = Evaluator("seamless", {"simulation": {"duration": 3.0}}, PRESETS["tiny"], [0])
+    env = ev.envs[0]
+    env.action_space.seed(0)
+    obs, info = env.reset(seed=0)
+    for _ in range(30):  # random plans: every step's terms stay within the padding bounds
+        obs, r, term, trunc, info = env.step(env.action_space.sample())
+        tol = 1e-5  # the reward is float32
+        assert r[0] <= ev.worst_step[0] and r[1] <= ev.worst_step[1] + tol and r[2] >= 0.0
+        assert r[0] >= 0.0 and r[1] >= 0.0 and r[2] <= ev.best_step[2] + tol
+        if term or trunc:
+            obs, info = env.reset()
+
+
+def test_train_and_rollout_commands(tmp_path, capsys):
+    out = tmp_path / "run"
+    args = ["--preset", "tiny", "--population", "4", "--generations", "2", "--episodes", "1",
+            "--episode-seconds", "3", "--quiet"]  # fmt: skip
+    assert main(["train", *args, "--out", str(out), "--video", str(out / "knee.mp4")]) == 0
+    assert (out / "knee.mp4").stat().st_size > 1000
+    for pick in ("best-l1", "best-l3"):
+        video = str(tmp_path / f"{pick}.gif")
+        assert (
+            main(["rollout", "--run", str(out), "--pick", pick, "--video", video, "--steps", "5"])
+            == 0
+        )
+        assert (tmp_path / f"{pick}.gif").exists()
+    capsys.readouterr()
