@@ -48,7 +48,8 @@ def initial_genome(net: nn.Module, seed: int) -> np.ndarray:
         if "bias" in name:
             parts.append(np.zeros(p.numel(), np.float32))
             continue
-        fan_in = int(np.prod(p.shape[1:])) if p.dim() > 1 else p.numel()
+        # Convolutions (out, in, k, k): in * k * k; matrices (..., out, in): in.
+        fan_in = int(np.prod(p.shape[1:])) if p.dim() == 4 else int(p.shape[-1])
         parts.append(
             (rng.standard_normal(p.numel(), dtype=np.float32) / np.sqrt(fan_in)).astype(np.float32)
         )

@@ -31,6 +31,28 @@ def test_presets_sizes_and_output_shape():
         NetConfig(grid_size=100)
 
 
+def test_fused_branches_equal_separate_lstms():
+    from torch import nn
+
+    from neurotrajectory.model import BranchLSTMs
+
+    torch.manual_seed(0)
+    fused = BranchLSTMs(3, 16, 8)
+    x = torch.randn(4, 5, 16)
+    with torch.no_grad():
+        out = fused(x)
+        for k in range(3):
+            lstm, head = nn.LSTM(16, 8, batch_first=True), nn.Linear(8, 2)
+            lstm.weight_ih_l0.copy_(fused.weight_ih[k])
+            lstm.weight_hh_l0.copy_(fused.weight_hh[k])
+            lstm.bias_ih_l0.copy_(fused.bias_ih[k])
+            lstm.bias_hh_l0.copy_(fused.bias_hh[k])
+            head.weight.copy_(fused.head_weight[k])
+            head.bias.copy_(fused.head_bias[k])
+            ref = head(lstm(x)[1][0][-1])
+            torch.testing.assert_close(out[:, k], ref, rtol=1e-5, atol=1e-6)
+
+
 def test_constant_velocity_prior():
     net = TrajectoryNet(PRESETS["tiny"])
     set_genome(net, np.zeros(count_parameters(net), np.float32))  # the network adds nothing
