@@ -231,3 +231,12 @@ def test_vector_envs():
         assert obs["ego"].shape == (2, len(EGO_FEATURES))
     finally:
         venv.close()
+
+
+def test_gridsim_never_imports_torch():
+    code = (
+        "import sys, gymnasium as gym, gridsim; e = gym.make('GridSim-v0'); e.reset(seed=0);"
+        "e.step(e.action_space.sample()); print('torch' in sys.modules)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

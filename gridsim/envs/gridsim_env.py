@@ -26,7 +26,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from gridsim.envs.actions import ACTION_TYPES, DiscreteAction
+from gridsim.envs.actions import ACTION_TYPES
 from gridsim.envs.frames import grid_rotation, world_to_grid
 from gridsim.envs.reference import ReferenceTrajectory, human_reference, reference_from_track
 from gridsim.errors import ScenarioError
@@ -237,4 +237,4 @@ class GridSimEnv(gym.Env):
         return self.renderer.render(w, self._grids[-1], overlay)
 
 
-__all__ = ["EGO_FEATURES", "DiscreteAction", "GridSimEnv"]
+__all__ = ["EGO_FEATURES", "GridSimEnv"]
