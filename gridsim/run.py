@@ -33,17 +33,7 @@ def run_policy(
     bar = tqdm(
         total=steps, desc=f"{policy} on {env.scenario.name}", unit="step", disable=not progress
     )
-    if video:
-        path, infos = record_rollout(env, pol, video, steps, seed, on_step=lambda _: bar.update())
-    else:
-        path, infos = None, []
-        obs, info = env.reset(seed=seed)
-        for _ in range(steps):
-            obs, reward, terminated, truncated, info = env.step(pol(env, obs, info))
-            infos.append({**info, "reward": reward})
-            bar.update()
-            if terminated or truncated:
-                break
+    path, infos = record_rollout(env, pol, video, steps, seed, on_step=lambda _: bar.update())
     bar.close()
     poses = np.array([i["pose"][:2] for i in infos])
     fitness = np.sum([i["reward"] for i in infos], axis=0) if infos else np.zeros(3)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 from collections.abc import Callable
 from pathlib import Path
@@ -67,28 +68,33 @@ class VideoWriter:
 def record_rollout(
     env,
     policy: Callable,
-    path: str | Path,
+    path: str | Path | None,
     steps: int,
     seed: int | None = None,
     on_step: Callable | None = None,
-) -> tuple[Path, list[dict]]:
-    """Run ``policy(env, obs, info) -> action`` for up to ``steps`` steps in an env made with
-    ``render_mode="rgb_array"`` and write one frame per step (plus the first) at the
-    environment's real rate. Returns the video path and the infos of all steps."""
-    if getattr(env, "render_mode", None) != "rgb_array":
+) -> tuple[Path | None, list[dict]]:
+    """Run ``policy(env, obs, info) -> action`` for up to ``steps`` steps (one episode).
+
+    With a ``path``, the env must be made with ``render_mode="rgb_array"``; one frame per
+    step (plus the first) is written at the environment's real rate. Returns the video path
+    (``None`` without one) and the infos of all steps, each with its ``"reward"``."""
+    if path is not None and getattr(env, "render_mode", None) != "rgb_array":
         raise GridSimError("record_rollout needs an environment made with render_mode='rgb_array'")
-    fps = env.metadata.get("render_fps", 10)
     obs, info = env.reset(seed=seed)
     infos = []
-    with VideoWriter(path, fps) as video:
-        video.write(env.render())
+    with contextlib.ExitStack() as stack:
+        video = None
+        if path is not None:
+            video = stack.enter_context(VideoWriter(path, env.metadata.get("render_fps", 10)))
+            video.write(env.render())
         for _ in range(steps):
             obs, reward, terminated, truncated, info = env.step(policy(env, obs, info))
             info = {**info, "reward": np.asarray(reward)}
             infos.append(info)
-            video.write(env.render())
+            if video is not None:
+                video.write(env.render())
             if on_step is not None:
                 on_step(info)
             if terminated or truncated:
                 break
-    return video.path, infos
+    return (video.path if video is not None else None), infos

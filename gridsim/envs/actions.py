@@ -15,7 +15,7 @@ from gymnasium import spaces
 
 from gridsim.envs.frames import grid_to_world
 from gridsim.road.polyline import Polyline
-from gridsim.vehicle.control import PursuitGains, pursuit_inputs
+from gridsim.vehicle.control import PursuitGains, follow_path
 from gridsim.vehicle.kinematics import BicycleParams, V, step_bicycle
 
 Controller = Callable[[object], tuple[float, float]]  # world -> (accel, steer rate)
@@ -97,10 +97,7 @@ class TrajectoryAction(ActionType):
         def control(w) -> tuple[float, float]:
             if path is None:  # every set-point on the ego: brake to a stop, hold the wheel
                 return -min(params.b_max, w.ego[V] / w.dt), 0.0
-            s, _, _ = path.project(w.ego[None, :2])
-            look = gains.min_lookahead + gains.lookahead_time * max(w.ego[V], 0.0)
-            target, _ = path.point_at(s[0] + look)
-            return pursuit_inputs(w.ego, target, speed, params, gains)
+            return follow_path(w.ego, path, speed, params, gains)
 
         return control, pts
 
