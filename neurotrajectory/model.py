@@ -103,12 +103,13 @@ class BranchLSTMs(nn.Module):
         return out
 
 
-class TrajectoryNet(nn.Module):
-    """See the module docstring."""
+class GridEncoder(nn.Module):
+    """The network body: each grid through the same CNN, its features with the ego state and
+    the destination through FC ``fc1`` and FC ``fc2``. ``(B, tau_i, H, W)`` grids, ``(B, 6)``
+    ego, ``(B, 2)`` destination [m] -> per-frame features ``(B, tau_i, fc2)``."""
 
     def __init__(self, cfg: NetConfig) -> None:
         super().__init__()
-        self.cfg = cfg
         act = _ACTIVATIONS[cfg.activation]
         c1, c2, c3 = cfg.channels
         self.pool = nn.AvgPool2d(cfg.pool) if cfg.pool > 1 else nn.Identity()
@@ -123,6 +124,32 @@ class TrajectoryNet(nn.Module):
         self.fc = nn.Sequential(
             nn.Linear(n_cnn + 8, cfg.fc1), act(), nn.Linear(cfg.fc1, cfg.fc2), act()
         )
+
+    def forward(
+        self, grids: torch.Tensor, ego: torch.Tensor, destination: torch.Tensor
+    ) -> torch.Tensor:
+        b, t, h, w = grids.shape
+        x = grids.reshape(b * t, 1, h, w).float() / 255.0
+        feats = self.cnn(self.pool(x)).reshape(b, t, -1)
+        side = torch.cat([ego, destination / DESTINATION_SCALE], dim=1)
+        return self.fc(torch.cat([feats, side[:, None, :].expand(b, t, side.shape[1])], dim=2))
+
+
+def constant_velocity_setpoints(ego: torch.Tensor, times: torch.Tensor) -> torch.Tensor:
+    """Where the ego would be at ``times`` [s] holding its speed and heading: ``(B, T, 2)`` [m,
+    grid frame] from ``ego`` ``(B, 6)`` (speed, ..., cos, sin of the heading)."""
+    speed, cos, sin = ego[:, 0:1], ego[:, 4:5], ego[:, 5:6]
+    dist = speed * times[None, :]
+    return torch.stack([dist * cos, dist * sin], dim=2)
+
+
+class TrajectoryNet(nn.Module):
+    """See the module docstring."""
+
+    def __init__(self, cfg: NetConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+        self.encoder = GridEncoder(cfg)
         self.branches = BranchLSTMs(cfg.horizon, cfg.fc2, cfg.lstm)
         times = cfg.setpoint_period * torch.arange(1, cfg.horizon + 1, dtype=torch.float32)
         self.register_buffer("times", times, persistent=False)
@@ -132,16 +159,9 @@ class TrajectoryNet(nn.Module):
     ) -> torch.Tensor:
         """``grids`` uint8 or float ``(B, tau_i, H, W)``; ``ego`` ``(B, 6)``; ``destination``
         ``(B, 2)`` [m]. Returns set-points ``(B, tau_o, 2)`` [m]."""
-        b, t, h, w = grids.shape
-        x = grids.reshape(b * t, 1, h, w).float() / 255.0
-        feats = self.cnn(self.pool(x)).reshape(b, t, -1)
-        side = torch.cat([ego, destination / DESTINATION_SCALE], dim=1)
-        feats = self.fc(torch.cat([feats, side[:, None, :].expand(b, t, side.shape[1])], dim=2))
-        out = self.branches(feats)
+        out = self.branches(self.encoder(grids, ego, destination))
         if self.cfg.prior == "constant_velocity":
-            speed, cos, sin = ego[:, 0:1], ego[:, 4:5], ego[:, 5:6]
-            dist = speed * self.times[None, :]
-            out = out + torch.stack([dist * cos, dist * sin], dim=2)
+            out = out + constant_velocity_setpoints(ego, self.times)
         return out
 
 

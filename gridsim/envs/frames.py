@@ -27,3 +27,16 @@ def grid_to_world(points: np.ndarray, ego_xy: np.ndarray, rotation: float) -> np
     c, s = np.cos(rotation), np.sin(rotation)
     p = np.asarray(points, dtype=np.float64)
     return np.stack([c * p[:, 0] - s * p[:, 1], s * p[:, 0] + c * p[:, 1]], axis=1) + ego_xy
+
+
+def grid_to_pixel(
+    points: np.ndarray, rows: int, cols: int, cell_size: float, orientation: str
+) -> np.ndarray:
+    """Grid-frame points ``(..., 2)`` [m] -> fractional pixel coordinates ``(..., 2)`` =
+    (column u, row v) of the occupancy grid (cell centres at whole numbers; see
+    :mod:`gridsim.sensors.occupancy`)."""
+    p = np.asarray(points, dtype=np.float64)
+    right, up = (p[..., 0], p[..., 1]) if orientation == "north_up" else (-p[..., 1], p[..., 0])
+    return np.stack(
+        [cols / 2 - 0.5 + right / cell_size, rows / 2 - 0.5 - up / cell_size], axis=-1
+    )

@@ -1,0 +1,321 @@
+"""Datasets of labelled windows: what an ego saw and where the human then drove.
+
+A window is taken at a decision time ``t`` of a GridSim-v0 episode in which the ego drives
+the reference (the human trajectory: recorded on NGSIM scenes, a human profile on generated
+roads). It holds the observation (``tau_i`` grids, ego state, destination), the next
+``tau_o`` reference set-points (the label), the discrete command they imply
+(:mod:`neurotrajectory.commands`), the ego's size, and the *track* it came from (an NGSIM
+vehicle or a simulated episode), so that train and test sets never share a track.
+
+On disk a dataset is a folder with ``manifest.json`` (scenario group, seeds, sizes, versions,
+shard checksums) and compressed ``shard-NNNNN.npz`` files.
+
+Scenario groups (:data:`GROUPS`): ``seamless`` and ``inner_city`` are GridSim's generated
+scenarios; ``highway`` (US-101) and ``urban`` (Lankershim, Peachtree) drive every recorded
+NGSIM track of the shipped scenes in turn as the ego, removed from the replayed traffic.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import platform
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+import numpy as np
+
+from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.errors import GridSimError
+from gridsim.scenario.build import library_for
+from gridsim.scenario.loader import load_scenario
+from gridsim.scenario.schema import RecordedRoadConfig
+from neurotrajectory.commands import implied_commands
+
+FORMAT_VERSION = 1
+SHARD_SIZE = 256
+
+#: Scenario groups of the evaluation and the built-in scenarios they consist of.
+GROUPS: dict[str, tuple[str, ...]] = {
+    "seamless": ("seamless",),
+    "inner_city": ("inner_city",),
+    "highway": ("us101_3_3", "us101_4_1"),
+    "urban": ("lankershim_1_1", "peachtree_4_8"),
+}
+#: Where each group's reference trajectories come from.
+GROUP_SOURCE = {
+    "seamless": "simulator",
+    "inner_city": "simulator",
+    "highway": "human (NGSIM)",
+    "urban": "human (NGSIM)",
+}
+
+
+class DatasetError(GridSimError):
+    """A dataset folder is missing, corrupt or does not fit what is asked of it."""
+
+
+@dataclass
+class Windows:
+    """``N`` labelled windows (structure of arrays). Frames: see :mod:`gridsim.envs.frames`."""
+
+    grids: np.ndarray  # uint8 (N, tau_i, H, W)
+    ego: np.ndarray  # float32 (N, 6): speed, steering, accel, steer rate, cos, sin heading
+    destination: np.ndarray  # float32 (N, 2) [m]
+    target: np.ndarray  # float32 (N, tau_o, 2) [m]: the human's next set-points
+    steer: np.ndarray  # int64 (N,): implied steering class
+    longitudinal: np.ndarray  # int64 (N,): implied longitudinal class
+    accel: np.ndarray  # float32 (N,): implied mean acceleration [m/s^2]
+    vehicle: np.ndarray  # float32 (N, 3): wheelbase, length, width [m]
+    track: np.ndarray  # str (N,): "scenario/track" the window comes from
+    time: np.ndarray  # float32 (N,): time in the episode [s]
+
+    def __len__(self) -> int:
+        return int(self.ego.shape[0])
+
+    @property
+    def heading(self) -> np.ndarray:
+        """Ego heading [rad] in the grid frame, ``(N,)``."""
+        return np.arctan2(self.ego[:, 5], self.ego[:, 4]).astype(np.float64)
+
+    @property
+    def speed(self) -> np.ndarray:
+        return self.ego[:, 0].astype(np.float64)
+
+    def take(self, index: np.ndarray) -> Windows:
+        return Windows(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+
+    @staticmethod
+    def concat(parts: Iterable[Windows]) -> Windows:
+        parts = [p for p in parts if len(p)]
+        if not parts:
+            raise DatasetError("no windows were recorded")
+        return Windows(
+            **{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(Windows)}
+        )
+
+
+@dataclass(frozen=True)
+class Dataset:
+    """Windows with their manifest (scenario group, set-point times, limits, provenance)."""
+
+    windows: Windows
+    manifest: dict
+
+    @property
+    def times(self) -> np.ndarray:
+        """Set-point times [s] after the window's decision time, ``(tau_o,)``."""
+        m = self.manifest
+        return m["setpoint_period"] * np.arange(1, m["horizon"] + 1)
+
+
+# -- recording ------------------------------------------------------------------------------
+def _episode_windows(
+    env: GridSimEnv, seed: int, stride: int, track: str, max_steps: int | None = None
+) -> Windows | None:
+    """Drive the reference for one episode; a window every ``stride`` decisions while the
+    reference covers the whole horizon."""
+    obs, info = env.reset(seed=seed)
+    horizon_time = env.cfg.env.horizon * env.cfg.env.setpoint_period
+    end = env.reference.end_time
+    p = env.world.ego_params
+    rows: list[tuple] = []
+    step = 0
+    while True:
+        t = env.world.time
+        if step % stride == 0 and t + horizon_time <= end + 1e-6:
+            rows.append((obs, info["reference_setpoints"], t))
+        obs, _, terminated, truncated, info = env.step(info["reference_setpoints"])
+        step += 1
+        if terminated or truncated or (max_steps is not None and step >= max_steps):
+            break
+    if not rows:
+        return None
+    ego = np.stack([r[0]["ego"] for r in rows]).astype(np.float32)
+    target = np.stack([r[1] for r in rows]).astype(np.float32)
+    heading = np.arctan2(ego[:, 5], ego[:, 4]).astype(np.float64)
+    times = env.cfg.env.setpoint_period * np.arange(1, env.cfg.env.horizon + 1)
+    steer, longitudinal, accel = implied_commands(target, ego[:, 0], heading, times)
+    n = len(rows)
+    return Windows(
+        grids=np.stack([r[0]["grids"] for r in rows]),
+        ego=ego,
+        destination=np.stack([r[0]["destination"] for r in rows]).astype(np.float32),
+        target=target,
+        steer=steer,
+        longitudinal=longitudinal,
+        accel=accel.astype(np.float32),
+        vehicle=np.tile(np.array([p.wheelbase, p.length, p.width], np.float32), (n, 1)),
+        track=np.array([track] * n),
+        time=np.array([r[2] for r in rows], np.float32),
+    )
+
+
+def _is_recorded(name: str) -> bool:
+    return isinstance(load_scenario(name).config.road, RecordedRoadConfig)
+
+
+def record_scenario(
+    scenario: str,
+    episodes: int,
+    seed: int = 0,
+    stride: int = 5,
+    duration: float | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> tuple[Windows, dict]:
+    """Windows of one scenario and its provenance. On a recorded scene, every track of the
+    scene is driven once as the ego (``episodes`` and ``seed`` do not apply); elsewhere
+    ``episodes`` episodes with seeds drawn from ``seed``. ``duration`` [s] shortens
+    generated episodes."""
+    if stride < 1:
+        raise DatasetError(f"stride must be >= 1, got {stride}")
+    parts = []
+    if _is_recorded(scenario):
+        base = load_scenario(scenario)
+        scene = base.config.road.scene
+        tracks = library_for(base).scene(scene)
+        for track in tracks:
+            overrides = {"ego": {"track": track.track_id},
+                         "simulation": {"duration": max(float(track.duration), 0.1)}}  # fmt: skip
+            env = GridSimEnv(scenario, **overrides)
+            parts.append(_episode_windows(env, 0, stride, f"{scene}/{track.track_id}"))
+            if progress:
+                progress(1)
+        source = {"scene": scene, "tracks": len(tracks)}
+    else:
+        if episodes < 1:
+            raise DatasetError(f"episodes must be >= 1, got {episodes}")
+        overrides = {"simulation": {"duration": duration}} if duration else {}
+        env = GridSimEnv(scenario, **overrides)
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xDA7A]))
+        seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=episodes)]
+        for s in seeds:
+            parts.append(_episode_windows(env, s, stride, f"{scenario}/seed{s}"))
+            if progress:
+                progress(1)
+        source = {"episodes": episodes, "episode_seeds": seeds}
+    windows = Windows.concat(p for p in parts if p is not None)
+    cfg = load_scenario(scenario).config
+    meta = {"scenario": scenario, **source, "horizon": cfg.env.horizon,
+            "history": cfg.env.history, "setpoint_period": cfg.env.setpoint_period,
+            "decision_period": cfg.env.decision_period, "stride": stride,
+            "sensor": {"rows": cfg.sensor.rows, "cols": cfg.sensor.cols,
+                       "cell_size": cfg.sensor.cell_size, "orientation": cfg.sensor.orientation},
+            "vehicle": cfg.ego.vehicle.model_dump()}  # fmt: skip
+    return windows, meta
+
+
+def record_group(
+    name: str,
+    episodes: int,
+    seed: int = 0,
+    stride: int | None = None,
+    duration: float | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> Dataset:
+    """Windows of a scenario group of :data:`GROUPS`, or of one scenario (name or YAML path).
+    ``stride`` defaults to every decision on recorded scenes, every fifth elsewhere."""
+    scenarios = GROUPS.get(name, (name,))
+    parts, metas = [], []
+    for scenario in scenarios:
+        s = stride or (1 if _is_recorded(scenario) else 5)
+        w, meta = record_scenario(scenario, episodes, seed, s, duration, progress)
+        parts.append(w)
+        metas.append(meta)
+    first = metas[0]
+    for m in metas[1:]:
+        for key in ("horizon", "history", "setpoint_period", "sensor"):
+            if m[key] != first[key]:
+                raise DatasetError(f"group {name!r}: scenarios differ in {key}")
+    manifest = {
+        "format": FORMAT_VERSION,
+        "group": name,
+        "source": GROUP_SOURCE.get(name, "simulator"),
+        "seed": seed,
+        **{k: first[k] for k in ("horizon", "history", "setpoint_period", "decision_period",
+                                 "sensor", "vehicle")},  # fmt: skip
+        "scenarios": metas,
+        "versions": _versions(),
+    }
+    return Dataset(Windows.concat(parts), manifest)
+
+
+def _versions() -> dict:
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = {"python": platform.python_version(), "numpy": np.__version__}
+    try:
+        out["gridsim"] = version("gridsim")
+    except PackageNotFoundError:
+        out["gridsim"] = "unknown"
+    return out
+
+
+# -- splits ---------------------------------------------------------------------------------
+def split_by_track(
+    windows: Windows, test_fraction: float = 0.3, seed: int = 0
+) -> tuple[Windows, Windows]:
+    """``(train, test)``: whole tracks go to one side; about ``test_fraction`` of the tracks
+    (at least one on each side) are held out."""
+    if not 0 < test_fraction < 1:
+        raise DatasetError(f"test_fraction must be in (0, 1), got {test_fraction}")
+    tracks = np.unique(windows.track)
+    if len(tracks) < 2:
+        raise DatasetError(f"need windows from >= 2 tracks to split, got {len(tracks)}")
+    order = np.random.default_rng(np.random.SeedSequence([seed, 0x5B17])).permutation(len(tracks))
+    n_test = min(max(1, int(round(test_fraction * len(tracks)))), len(tracks) - 1)
+    held_out = np.isin(windows.track, tracks[order[:n_test]])
+    return windows.take(np.flatnonzero(~held_out)), windows.take(np.flatnonzero(held_out))
+
+
+# -- storage --------------------------------------------------------------------------------
+def save_dataset(dataset: Dataset, out: str | Path) -> Path:
+    """Write ``dataset`` into the folder ``out`` (created; must be empty if it exists)."""
+    out = Path(out)
+    if out.exists() and any(out.iterdir()):
+        raise DatasetError(f"{out} exists and is not empty: choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    w = dataset.windows
+    shards = []
+    for k, start in enumerate(range(0, len(w), SHARD_SIZE)):
+        part = w.take(np.arange(start, min(start + SHARD_SIZE, len(w))))
+        name = f"shard-{k:05d}.npz"
+        with open(out / name, "wb") as fh:
+            np.savez_compressed(fh, **{f.name: getattr(part, f.name) for f in fields(Windows)})
+        shards.append({"file": name, "windows": len(part), "sha256": _sha256(out / name)})
+    manifest = {**dataset.manifest, "count": len(w), "shards": shards}
+    (out / "manifest.json").write_text(json.dumps(manifest, indent=1))
+    return out
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def load_dataset(folder: str | Path) -> Dataset:
+    """Read a dataset folder written by :func:`save_dataset`, checking every shard."""
+    folder = Path(folder)
+    path = folder / "manifest.json"
+    if not path.is_file():
+        raise DatasetError(f"{folder} is not a dataset (no manifest.json)")
+    try:
+        manifest = json.loads(path.read_text())
+        shards = manifest["shards"]
+    except (json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise DatasetError(f"{path}: unreadable manifest ({exc})") from None
+    if manifest.get("format") != FORMAT_VERSION:
+        raise DatasetError(f"{path}: format {manifest.get('format')!r}, expected {FORMAT_VERSION}")
+    parts = []
+    for shard in shards:
+        file = folder / shard["file"]
+        if not file.is_file():
+            raise DatasetError(f"{folder}: shard {shard['file']} is missing")
+        if _sha256(file) != shard["sha256"]:
+            raise DatasetError(f"{file}: checksum mismatch (the file was changed or truncated)")
+        with np.load(file) as data:
+            parts.append(Windows(**{f.name: data[f.name] for f in fields(Windows)}))
+    windows = Windows.concat(parts)
+    if len(windows) != manifest.get("count"):
+        raise DatasetError(f"{path}: {len(windows)} windows, manifest says {manifest.get('count')}")
+    return Dataset(windows, manifest)
