@@ -1,16 +1,18 @@
-"""The ``neurotrajectory`` command line: ``train`` and ``rollout``."""
+"""The ``neurotrajectory`` command line: ``train``, ``rollout``, ``record`` and ``evaluate``."""
 
 from __future__ import annotations
 
 import argparse
 import json
 import sys
+from pathlib import Path
 
 from gridsim.errors import GridSimError
 from neurotrajectory.backends import BackendError
 from neurotrajectory.front import PICKS
 from neurotrajectory.model import PRESETS
 from neurotrajectory.train import Run, RunError, TrainConfig
+from neurotrajectory.windows import GROUPS
 
 _TRAIN_KEYS = (
     "scenario", "preset", "population", "generations", "episodes", "episode_seconds", "sigma",
@@ -64,6 +66,48 @@ def _cmd_rollout(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_record(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from neurotrajectory.windows import record_group, save_dataset
+
+    with tqdm(desc=f"record {args.scenario}", unit="episode", disable=args.quiet) as bar:
+        ds = record_group(args.scenario, args.episodes, args.seed, args.stride,
+                          args.episode_seconds, progress=bar.update)  # fmt: skip
+    path = save_dataset(ds, args.out)
+    w = ds.windows
+    print(
+        json.dumps(
+            {
+                "out": str(path),
+                "windows": len(w),
+                "tracks": len(set(w.track.tolist())),
+                "group": ds.manifest["group"],
+                "source": ds.manifest["source"],
+            },
+            indent=1,
+        )
+    )
+    return 0
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from neurotrajectory.baselines.end2end import TrainSettings
+    from neurotrajectory.evaluation import EvalConfig, evaluate
+
+    cfg = EvalConfig(
+        groups=tuple(args.groups), episodes=args.episodes, episode_seconds=args.episode_seconds,
+        test_fraction=args.test_fraction, seed=args.seed, pick=args.pick,
+        end2end=TrainSettings(epochs=args.e2e_epochs, seed=args.seed),
+        closed_loop_episodes=args.closed_loop_episodes,
+        closed_loop_seconds=args.closed_loop_seconds,
+    )  # fmt: skip
+    log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+    evaluate(args.run, args.out, cfg, data_dir=args.data, log=log)
+    print((Path(args.out) / "table2.md").read_text())
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="neurotrajectory", description="NeuroTrajectory: neuroevolution of local trajectories."
@@ -95,6 +139,41 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--seed", type=int, default=0)
     r.add_argument("--steps", type=int, default=None)
     r.set_defaults(func=_cmd_rollout)
+    d = sub.add_parser("record", help="record labelled windows of human driving")
+    d.add_argument("--scenario", required=True,
+                   help=f"a scenario group ({', '.join(GROUPS)}), a built-in scenario or a "
+                        "YAML path; recorded scenes drive every track once")  # fmt: skip
+    d.add_argument("--episodes", type=int, default=8, help="episodes per generated scenario")
+    d.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None)
+    d.add_argument(
+        "--stride",
+        type=int,
+        default=None,
+        help="decisions between windows (default 1 on recorded scenes, else 5)",
+    )
+    d.add_argument("--seed", type=int, default=0)
+    d.add_argument("--out", required=True, help="dataset folder (created)")
+    d.add_argument("--quiet", action="store_true")
+    d.set_defaults(func=_cmd_record)
+    e = sub.add_parser("evaluate", help="compare with DWA, End2End and constant velocity")
+    e.add_argument("--run", required=True, help="a finished training run")
+    e.add_argument("--out", required=True, help="evaluation folder (created)")
+    e.add_argument(
+        "--data",
+        default=None,
+        help="folder with one recorded dataset per group (default: record them)",
+    )
+    e.add_argument("--groups", nargs="+", default=list(GROUPS), choices=list(GROUPS))
+    e.add_argument("--episodes", type=int, default=8)
+    e.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=30.0)
+    e.add_argument("--test-fraction", dest="test_fraction", type=float, default=0.3)
+    e.add_argument("--pick", default="knee", choices=PICKS)
+    e.add_argument("--e2e-epochs", dest="e2e_epochs", type=int, default=8)
+    e.add_argument("--closed-loop-episodes", dest="closed_loop_episodes", type=int, default=3)
+    e.add_argument("--closed-loop-seconds", dest="closed_loop_seconds", type=float, default=20.0)
+    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--quiet", action="store_true")
+    e.set_defaults(func=_cmd_evaluate)
     return p
 
 
@@ -102,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return args.func(args)
-    except (RunError, BackendError, GridSimError) as exc:
+    except (RunError, BackendError, GridSimError, ValueError) as exc:
         print(f"neurotrajectory: error: {exc}", file=sys.stderr)
         return 2
 

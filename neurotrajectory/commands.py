@@ -49,9 +49,12 @@ def implied_commands(
     dist = np.hypot(last[:, 0], last[:, 1])
     angle = np.arctan2(last[:, 1], last[:, 0]) - heading
     angle = np.where(dist >= _MIN_TRAVEL, (angle + np.pi) % (2 * np.pi) - np.pi, 0.0)
-    steer = np.clip(
-        np.rint(np.rad2deg(angle) / STEER_STEP_DEG), -STEER_BINS_EACH_SIDE, STEER_BINS_EACH_SIDE
-    ).astype(np.int64) + STEER_BINS_EACH_SIDE
+    steer = (
+        np.clip(
+            np.rint(np.rad2deg(angle) / STEER_STEP_DEG), -STEER_BINS_EACH_SIDE, STEER_BINS_EACH_SIDE
+        ).astype(np.int64)
+        + STEER_BINS_EACH_SIDE
+    )
     horizon = float(times[-1])
     accel = 2.0 * (dist - speed * horizon) / horizon**2
     longitudinal = 1 + (accel > ACCEL_THRESHOLD).astype(np.int64) - (accel < -ACCEL_THRESHOLD)

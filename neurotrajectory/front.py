@@ -45,23 +45,64 @@ class NetPolicy:
         return self.net(*observation_tensors(obs))[0].numpy()
 
 
-def load_front_member(run_dir: str | Path, pick: str) -> tuple[Run, NetPolicy, dict]:
-    """The run, a policy for the chosen front member, and that member's fitness."""
+class NetPredictor:
+    """A NeuroTrajectory network as a predictor of set-points for labelled windows."""
+
+    def __init__(self, net: TrajectoryNet, name: str = "NeuroTrajectory") -> None:
+        self.net = net.eval()
+        self.name = name
+
+    @torch.no_grad()
+    def predict(self, batch, chunk: int = 128) -> np.ndarray:
+        cfg = self.net.cfg
+        got = (batch.grids.shape[1], batch.grids.shape[2], batch.target.shape[1])
+        want = (cfg.history, cfg.grid_size, cfg.horizon)
+        if got != want:
+            raise RunError(
+                f"the network takes (history, grid size, horizon) = {want}, the windows have "
+                f"{got}: evaluate it on windows of a scenario with the same env and sensor sizes"
+            )
+        out = []
+        for start in range(0, len(batch), chunk):
+            sl = slice(start, start + chunk)
+            inputs = (torch.from_numpy(batch.grids[sl]),
+                      torch.from_numpy(batch.ego[sl].astype(np.float32)),
+                      torch.from_numpy(batch.destination[sl].astype(np.float32)))  # fmt: skip
+            out.append(self.net(*inputs).numpy().astype(np.float64))
+        return np.concatenate(out)
+
+
+def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[TrajectoryNet]]:
+    """The run, its front's fitness ``(M, 3)`` and genomes, and one network per member."""
     run = Run.open(run_dir)
     path = run.out / "front.npz"
     if not path.exists():
         raise RunError(f"{run.out}: no front.npz yet (the run has not finished)")
-    with np.load(path) as data:
-        genomes, fitness = data["genomes"], data["fitness"]
-        base = NetConfig(**json.loads(str(data["net"])))
-    k = pick_member(fitness, pick)
+    try:
+        with np.load(path) as data:
+            genomes, fitness = data["genomes"], data["fitness"]
+            base = NetConfig(**json.loads(str(data["net"])))
+    except (OSError, KeyError, ValueError, TypeError) as exc:
+        raise RunError(f"{path}: unreadable front ({exc})") from None
     env = GridSimEnv(run.config.scenario, **run.config.overrides)
-    net = TrajectoryNet(net_config_for(env, base))
-    set_genome(net, genomes[k])
+    cfg = net_config_for(env, base)
+    nets = []
+    for genome in genomes:
+        net = TrajectoryNet(cfg)
+        set_genome(net, genome)
+        nets.append(net.eval())
+    return run, fitness, genomes, nets
+
+
+def load_front_member(run_dir: str | Path, pick: str) -> tuple[Run, NetPolicy, dict]:
+    """The run, a policy for the chosen front member, and that member's fitness."""
+    run, fitness, _, nets = load_front(run_dir)
+    k = pick_member(fitness, pick)
     member = {
         "pick": pick,
+        "index": k,
         "l1": float(fitness[k, 0]),
         "l2": float(fitness[k, 1]),
         "l3": float(fitness[k, 2]),
     }
-    return run, NetPolicy(net), member
+    return run, NetPolicy(nets[k]), member

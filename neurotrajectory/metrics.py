@@ -33,8 +33,7 @@ def ego_frame_errors(
     target = np.asarray(target, float)
     if predicted.shape != target.shape or predicted.ndim != 3 or predicted.shape[2] != 2:
         raise ValueError(
-            f"predicted and target must both be (N, T, 2), got {predicted.shape} and "
-            f"{target.shape}"
+            f"predicted and target must both be (N, T, 2), got {predicted.shape} and {target.shape}"
         )
     if not np.all(np.isfinite(predicted)):
         raise ValueError("predicted set-points contain NaN or infinite values")

@@ -233,8 +233,17 @@ def record_group(
         "group": name,
         "source": GROUP_SOURCE.get(name, "simulator"),
         "seed": seed,
-        **{k: first[k] for k in ("horizon", "history", "setpoint_period", "decision_period",
-                                 "sensor", "vehicle")},  # fmt: skip
+        **{
+            k: first[k]
+            for k in (
+                "horizon",
+                "history",
+                "setpoint_period",
+                "decision_period",
+                "sensor",
+                "vehicle",
+            )
+        },  # fmt: skip
         "scenarios": metas,
         "versions": _versions(),
     }

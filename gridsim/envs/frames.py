@@ -37,6 +37,4 @@ def grid_to_pixel(
     :mod:`gridsim.sensors.occupancy`)."""
     p = np.asarray(points, dtype=np.float64)
     right, up = (p[..., 0], p[..., 1]) if orientation == "north_up" else (-p[..., 1], p[..., 0])
-    return np.stack(
-        [cols / 2 - 0.5 + right / cell_size, rows / 2 - 0.5 - up / cell_size], axis=-1
-    )
+    return np.stack([cols / 2 - 0.5 + right / cell_size, rows / 2 - 0.5 - up / cell_size], axis=-1)

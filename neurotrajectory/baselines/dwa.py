@@ -138,10 +138,8 @@ class DWA:
             [last[:, None, 0] + ahead * np.cos(last[:, None, PSI]),
              last[:, None, 1] + ahead * np.sin(last[:, None, PSI])], axis=2,
         )  # fmt: skip
-        poses = np.concatenate(
-            [traj[:, 1 : k_check + 1, :3], np.concatenate([brake, np.repeat(last[:, None, PSI:PSI + 1], 3, 1)],
-                                             axis=2)], axis=1,
-        )  # fmt: skip
+        brake_poses = np.concatenate([brake, np.repeat(last[:, None, PSI : PSI + 1], 3, 1)], 2)
+        poses = np.concatenate([traj[:, 1 : k_check + 1, :3], brake_poses], axis=1)
         gap, unseen = self._sample(clearance, unknown, poses, offsets)
         min_gap = gap.min(axis=(1, 2)) - radius
         # An ego that starts closer than the margin (the disks overestimate the box) may go

@@ -1,0 +1,178 @@
+"""The paper's comparison: NeuroTrajectory against DWA, End2End and constant velocity.
+
+**Open loop.** For every scenario group (:data:`~neurotrajectory.windows.GROUPS`), the
+labelled windows are split by track; End2End is trained on the train split, and every method
+predicts the held-out windows, scored by :mod:`neurotrajectory.metrics`. NeuroTrajectory is
+represented by one member of its Pareto front chosen **without** the test data (``pick``,
+the knee by default), and also by the front member with the lowest test RMSE (an optimistic
+pick, labelled as such).
+
+**Closed loop.** Every method drives GridSim-v0 on each scenario of the group: NeuroTrajectory,
+DWA and constant velocity through the trajectory action, End2End through its discrete
+commands, and the human reference for scale. Reported: completion (the episode ran to its
+time limit or destination without collision or leaving the road), collisions, off-road,
+mean speed, mean steering rate and the episode fitness vector ``[l1, l2, l3]``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.policies import Reference
+from gridsim.video import record_rollout
+from neurotrajectory.baselines.constant_velocity import ConstantVelocity
+from neurotrajectory.baselines.dwa import DWA
+from neurotrajectory.baselines.end2end import CommandPolicy, End2End, TrainSettings
+from neurotrajectory.front import NetPredictor, load_front, pick_member
+from neurotrajectory.metrics import Accuracy, accuracy
+from neurotrajectory.predictors import Setting, TrajectoryPolicy
+from neurotrajectory.windows import (
+    GROUPS,
+    Dataset,
+    DatasetError,
+    load_dataset,
+    record_group,
+    save_dataset,
+    split_by_track,
+)
+
+NT_PICKED = "NeuroTrajectory"
+NT_BEST = "NeuroTrajectory (best member on test)"
+METHOD_ORDER = ("constant velocity", "DWA", "End2End", NT_PICKED, NT_BEST)
+
+
+@dataclass(frozen=True)
+class EvalConfig:
+    """What an evaluation records, trains and runs (saved as ``eval_config.json``)."""
+
+    groups: tuple[str, ...] = tuple(GROUPS)
+    episodes: int = 8  # recorded episodes per generated scenario
+    episode_seconds: float = 30.0  # length of recorded generated episodes [s]
+    test_fraction: float = 0.3
+    seed: int = 0
+    pick: str = "knee"
+    end2end: TrainSettings = field(default_factory=TrainSettings)
+    closed_loop_episodes: int = 3  # per scenario of a group
+    closed_loop_seconds: float = 20.0
+
+    def __post_init__(self) -> None:
+        unknown = [g for g in self.groups if g not in GROUPS]
+        if unknown:
+            raise DatasetError(f"unknown scenario groups {unknown}; choose from {list(GROUPS)}")
+        if self.episodes < 1 or self.closed_loop_episodes < 0:
+            raise DatasetError("need episodes >= 1 and closed_loop_episodes >= 0")
+        if not self.episode_seconds > 0 or not self.closed_loop_seconds > 0:
+            raise DatasetError("episode_seconds and closed_loop_seconds must be > 0")
+
+
+@dataclass
+class GroupResult:
+    group: str
+    source: str
+    train_windows: int
+    test_windows: int
+    test_tracks: int
+    accuracy: dict[str, Accuracy]
+    closed_loop: dict[str, dict]
+    best_member: int
+
+
+def _dataset(group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log) -> Dataset:
+    """The group's windows: from ``data_dir/<group>`` if given, else recorded into ``out``."""
+    if data_dir is not None:
+        return load_dataset(data_dir / group)
+    log(f"{group}: recording windows")
+    with tqdm(desc=f"record {group}", unit="episode", leave=False) as bar:
+        ds = record_group(group, cfg.episodes, cfg.seed, duration=cfg.episode_seconds,
+                          progress=bar.update)  # fmt: skip
+    save_dataset(ds, out / "data" / group)
+    return ds
+
+
+def _closed_loop(scenario: str, policy, seeds: list[int], seconds: float) -> dict:
+    """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``."""
+    env = GridSimEnv(scenario, action_type=policy.action_type,
+                     simulation={"duration": seconds})  # fmt: skip
+    ticks = env.cfg.ticks_per_decision
+    rows = []
+    for seed in seeds:
+        _, infos = record_rollout(env, policy, None, 10**6, seed=seed)
+        fitness = np.sum([i["reward"] for i in infos], axis=0)
+        speeds = [i["pose"][3] for i in infos]
+        last = infos[-1]
+        failed = last["collision"] or last["off_road"]
+        rows.append({
+            "completed": float(not failed), "collision": float(last["collision"]),
+            "off_road": float(last["off_road"]), "seconds": float(last["time"]),
+            "mean_speed": float(np.mean(speeds)),
+            "mean_steer_rate": float(fitness[1] / (len(infos) * ticks * env.cfg.simulation.dt)),
+            "l1": float(fitness[0]), "l2": float(fitness[1]), "l3": float(fitness[2]),
+        })  # fmt: skip
+    return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]} | {"episodes": len(rows)}
+
+
+def evaluate(
+    run_dir: str | Path,
+    out: str | Path,
+    cfg: EvalConfig = EvalConfig(),
+    data_dir: str | Path | None = None,
+    log=print,
+) -> list[GroupResult]:
+    """Run the whole comparison; writes tables, plots and models into ``out``."""
+    from neurotrajectory.report import write_report
+
+    out = Path(out)
+    if out.exists() and any(out.iterdir()):
+        raise DatasetError(f"{out} exists and is not empty: choose another --out")
+    out.mkdir(parents=True, exist_ok=True)
+    data_dir = Path(data_dir) if data_dir is not None else None
+    run, fitness, _, nets = load_front(run_dir)
+    picked = pick_member(fitness, cfg.pick)
+    (out / "eval_config.json").write_text(json.dumps(
+        {"run": str(run.out), "train": asdict(run.config), "front_size": len(nets),
+         "picked_member": picked, **asdict(cfg)}, indent=1))  # fmt: skip
+    results = []
+    for group in cfg.groups:
+        t0 = time.perf_counter()
+        ds = _dataset(group, cfg, data_dir, out, log)
+        train, test = split_by_track(ds.windows, cfg.test_fraction, cfg.seed)
+        setting = Setting.from_manifest(ds.manifest)
+        log(f"{group}: {len(train)} train / {len(test)} test windows; training End2End")
+        e2e = End2End.train(train, setting, cfg.end2end)
+        e2e.save(out / "models" / f"end2end-{group}")
+        heading = test.heading
+        methods = {"constant velocity": ConstantVelocity(setting), "DWA": DWA(setting),
+                   "End2End": e2e}  # fmt: skip
+        scores = {name: accuracy(m.predict(test), test.target, heading)
+                  for name, m in methods.items()}  # fmt: skip
+        members = [accuracy(NetPredictor(n).predict(test), test.target, heading) for n in nets]
+        best = int(np.argmin([a.rmse for a in members]))
+        scores[NT_PICKED] = members[picked]
+        scores[NT_BEST] = members[best]
+        loop = {}
+        if cfg.closed_loop_episodes:
+            policies = {"human reference": Reference(),
+                        "constant velocity": TrajectoryPolicy(methods["constant velocity"]),
+                        "DWA": TrajectoryPolicy(methods["DWA"]), "End2End": CommandPolicy(e2e),
+                        NT_PICKED: TrajectoryPolicy(NetPredictor(nets[picked]))}  # fmt: skip
+            rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0xC10])).integers
+            seeds = [int(s) for s in rng(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
+            for name, policy in tqdm(policies.items(), desc=f"closed loop {group}", leave=False):
+                per = [_closed_loop(sc, policy, seeds, cfg.closed_loop_seconds)
+                       for sc in GROUPS[group]]  # fmt: skip
+                loop[name] = {k: float(np.mean([p[k] for p in per])) for k in per[0]}
+                loop[name]["episodes"] = int(sum(p["episodes"] for p in per))
+        results.append(GroupResult(group, ds.manifest["source"], len(train), len(test),
+                                   len(np.unique(test.track)), scores, loop, best))  # fmt: skip
+        log(f"{group}: done in {time.perf_counter() - t0:.0f} s; RMSE "
+            + ", ".join(f"{k} {v.rmse:.2f}" for k, v in scores.items()))  # fmt: skip
+    write_report(results, out, run_info={"run": str(run.out), **asdict(run.config),
+                                         "picked_member": picked, "pick": cfg.pick})  # fmt: skip
+    return results

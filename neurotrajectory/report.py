@@ -1,0 +1,174 @@
+"""Tables and plots of an evaluation, written into its folder.
+
+- ``table2.md``: the paper's Table II layout (metrics x scenario groups; each cell lists the
+  methods in the order of its header), the full per-method table with ADE / FDE and
+  per-set-point RMSE, the closed-loop table, and what each group's ground truth is;
+- ``table2.csv`` (one row per group and method) and ``closed_loop.csv``;
+- ``results.json``: every number;
+- ``fig8_rmse_per_setpoint.png``: RMSE per set-point with a +-1 standard deviation band of the
+  per-window error (the paper's Fig. 8);
+- ``fig9_window_rmse.png``: box plots of the per-window RMSE (the paper's Fig. 9).
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from neurotrajectory.metrics import SUMMARY_KEYS  # noqa: E402
+
+GROUP_TITLES = {
+    "seamless": "GridSim seamless",
+    "inner_city": "GridSim inner-city",
+    "highway": "real highway (US-101)",
+    "urban": "real urban (Lankershim, Peachtree)",
+}
+TABLE_ROWS = (("mean e_x", "mean_ex"), ("max e_x", "max_ex"), ("mean e_y", "mean_ey"),
+              ("max e_y", "max_ey"), ("RMSE", "rmse"))  # fmt: skip
+LOOP_KEYS = ("completed", "collision", "off_road", "mean_speed", "mean_steer_rate", "l1", "l2",
+             "l3", "episodes")  # fmt: skip
+
+
+def _methods(results) -> list[str]:
+    names: list[str] = []
+    for r in results:
+        names += [m for m in r.accuracy if m not in names]
+    return names
+
+
+def write_report(results, out: Path, run_info: dict) -> list[Path]:
+    out = Path(out)
+    methods = _methods(results)
+    paths = [_write_markdown(results, methods, out, run_info), _write_csv(results, out)]
+    paths += [_write_json(results, out, run_info), _fig8(results, methods, out),
+              _fig9(results, methods, out)]  # fmt: skip
+    return paths
+
+
+def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
+    lines = ["# Accuracy against human-driven trajectories (the paper's Table II)", ""]
+    lines.append(
+        f"NeuroTrajectory: run `{run_info['run']}` ({run_info['scenario']}, preset "
+        f"{run_info['preset']}, population {run_info['population']}, "
+        f"{run_info['generations']} generations), front member picked as `{run_info['pick']}`."
+    )
+    lines += ["", "Metres, held-out windows (tracks never shared with End2End's training "
+              "windows); each cell: " + " / ".join(methods) + ".", ""]  # fmt: skip
+    head = ["metric"] + [f"{GROUP_TITLES.get(r.group, r.group)} [{r.source}]" for r in results]
+    lines += ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for label, key in TABLE_ROWS:
+        cells = [" / ".join(f"{getattr(r.accuracy[m], key):.2f}" for m in methods
+                            if m in r.accuracy) for r in results]  # fmt: skip
+        lines.append("| " + " | ".join([label] + cells) + " |")
+    lines += ["", "## Per method", ""]
+    cols = ["group", "method", "windows", *SUMMARY_KEYS, "RMSE per set-point"]
+    lines += ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+    for r in results:
+        for m, a in r.accuracy.items():
+            per = " ".join(f"{v:.2f}" for v in a.rmse_per_setpoint)
+            vals = [f"{getattr(a, k):.2f}" for k in SUMMARY_KEYS]
+            lines.append("| " + " | ".join([r.group, m, str(a.count), *vals, per]) + " |")
+    lines += ["", "Ground truth: " + "; ".join(
+        f"{r.group}: {r.source}, {r.test_windows} test windows from {r.test_tracks} tracks, "
+        f"{r.train_windows} train windows" for r in results) + "."]  # fmt: skip
+    lines += ["Simulator groups use human speed and lane-change profiles replayed in GridSim; "
+              "real groups are the recorded NGSIM drivers themselves.", ""]  # fmt: skip
+    if any(r.closed_loop for r in results):
+        lines += ["## Closed loop in GridSim-v0", "",
+                  "Rates are shares of episodes; speed [m/s], steering rate [rad/s]; l1, l2, l3 "
+                  "are episode sums of the fitness vector.", ""]  # fmt: skip
+        cols = ["group", "method", *LOOP_KEYS]
+        lines += ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
+        for r in results:
+            for m, s in r.closed_loop.items():
+                vals = [f"{s[k]:.3g}" if k != "episodes" else str(int(s[k])) for k in LOOP_KEYS]
+                lines.append("| " + " | ".join([r.group, m, *vals]) + " |")
+    path = out / "table2.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _write_csv(results, out: Path) -> Path:
+    path = out / "table2.csv"
+    horizon = len(next(iter(results[0].accuracy.values())).rmse_per_setpoint)
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["group", "source", "method", "windows", *SUMMARY_KEYS,
+                    *[f"rmse_{k + 1}" for k in range(horizon)]])  # fmt: skip
+        for r in results:
+            for m, a in r.accuracy.items():
+                w.writerow([r.group, r.source, m, a.count,
+                            *[f"{getattr(a, k):.4f}" for k in SUMMARY_KEYS],
+                            *[f"{v:.4f}" for v in a.rmse_per_setpoint]])  # fmt: skip
+    if any(r.closed_loop for r in results):
+        with open(out / "closed_loop.csv", "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(["group", "method", *LOOP_KEYS])
+            for r in results:
+                for m, s in r.closed_loop.items():
+                    w.writerow([r.group, m, *[f"{s[k]:.4f}" for k in LOOP_KEYS]])
+    return path
+
+
+def _write_json(results, out: Path, run_info: dict) -> Path:
+    doc = {"neurotrajectory": run_info, "groups": []}
+    for r in results:
+        doc["groups"].append({
+            "group": r.group, "source": r.source, "train_windows": r.train_windows,
+            "test_windows": r.test_windows, "test_tracks": r.test_tracks,
+            "best_member": r.best_member,
+            "accuracy": {m: {**a.summary(), "rmse_per_setpoint": a.rmse_per_setpoint,
+                             "std_per_setpoint": a.std_per_setpoint}
+                         for m, a in r.accuracy.items()},
+            "closed_loop": r.closed_loop,
+        })  # fmt: skip
+    path = out / "results.json"
+    path.write_text(json.dumps(doc, indent=1))
+    return path
+
+
+def _fig8(results, methods, out: Path) -> Path:
+    fig, axes = plt.subplots(1, len(results), figsize=(4.2 * len(results), 3.6), squeeze=False)
+    for ax, r in zip(axes[0], results, strict=True):
+        for m in methods:
+            if m not in r.accuracy:
+                continue
+            a = r.accuracy[m]
+            k = np.arange(1, len(a.rmse_per_setpoint) + 1)
+            mean, std = np.array(a.rmse_per_setpoint), np.array(a.std_per_setpoint)
+            ax.plot(k, mean, marker="o", label=m)
+            ax.fill_between(k, np.maximum(mean - std, 0), mean + std, alpha=0.15)
+        ax.set_title(GROUP_TITLES.get(r.group, r.group), fontsize=9)
+        ax.set_xlabel("set-point")
+        ax.set_xticks(k)
+    axes[0, 0].set_ylabel("RMSE [m]")
+    axes[0, -1].legend(fontsize=7)
+    fig.tight_layout()
+    path = out / "fig8_rmse_per_setpoint.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def _fig9(results, methods, out: Path) -> Path:
+    fig, axes = plt.subplots(1, len(results), figsize=(4.2 * len(results), 3.8), squeeze=False)
+    for ax, r in zip(axes[0], results, strict=True):
+        names = [m for m in methods if m in r.accuracy]
+        ax.boxplot([r.accuracy[m].window_rmse for m in names], showfliers=False)
+        ax.set_xticks(np.arange(1, len(names) + 1),
+                      [n.replace("NeuroTrajectory", "NT") for n in names], rotation=35,
+                      ha="right", fontsize=7)  # fmt: skip
+        ax.set_title(GROUP_TITLES.get(r.group, r.group), fontsize=9)
+    axes[0, 0].set_ylabel("per-window RMSE [m]")
+    fig.tight_layout()
+    path = out / "fig9_window_rmse.png"
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
