@@ -5,7 +5,7 @@ For each window: sample target speeds and steering angles reachable within one
 the lateral-acceleration limit), drive towards each target for ``control_period`` and hold it
 afterwards, rolling all samples out together with the bicycle model
 (:func:`~gridsim.vehicle.kinematics.step_bicycle`, vectorised over samples) over the
-set-point horizon. The footprint is three disks along the body; a rollout is **rejected** if
+set-point horizon; one more sample brakes to a full stop. The footprint is three disks along the body; a rollout is **rejected** if
 within its first ``collision_horizon`` seconds any disk comes closer to a non-free cell than
 its radius plus ``margin`` (clearances come from one distance transform of the free space per
 window), or if the ego could not then brake to a stop along its heading inside free space
@@ -122,10 +122,12 @@ class DWA:
         k_ctrl = int(round(cfg.control_period / cfg.dt))
         accel = (v_t - v0) / cfg.control_period
         rate = (d_t - d0) / cfg.control_period
+        hold = np.zeros(n)
+        hold[-1] = accel[-1] = -params.b_max  # the last sample brakes to a full stop
         states = [state]
         for k in range(int(self._setpoint_steps[-1])):
             on = k < k_ctrl
-            state = step_bicycle(state, accel if on else 0.0, rate if on else 0.0, params,
+            state = step_bicycle(state, accel if on else hold, rate if on else 0.0, params,
                                  cfg.dt).state  # fmt: skip
             states.append(state)
         traj = np.stack(states, axis=1)  # (n, K + 1, 5)
@@ -156,8 +158,9 @@ class DWA:
                     int(admissible.sum()))  # fmt: skip
 
     def _window(self, v0: float, d0: float, p) -> tuple[np.ndarray, np.ndarray]:
-        """Target (speed, steering) pairs reachable within one control period, plus a full
-        stop straight ahead; steering capped by the lateral-acceleration limit."""
+        """Target (speed, steering) pairs reachable within one control period, plus (last) a
+        full stop on the current wheel angle; steering capped by the lateral-acceleration
+        limit."""
         cfg = self.config
         tc = cfg.control_period
         v_lo = max(p.v_min, v0 - p.b_max * tc)
@@ -170,8 +173,7 @@ class DWA:
         lateral = v_t**2 * np.abs(np.tan(d_t)) / p.wheelbase
         keep = lateral <= cfg.max_lateral_accel
         v_t, d_t = v_t[keep], d_t[keep]
-        stop_steer = float(np.clip(0.0, d_lo, d_hi))
-        return np.append(v_t, v_lo), np.append(d_t, stop_steer)
+        return np.append(v_t, v_lo), np.append(d_t, d0)
 
     def _clearance(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distance [m] from each cell centre to the nearest blocking cell's edge, and the
