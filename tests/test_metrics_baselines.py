@@ -178,8 +178,8 @@ def test_dwa_never_returns_a_colliding_trajectory_on_crafted_grids():
             _rect(grid, -30, 30, 3.5, 4.5)
             _rect(grid, -30, 30, -4.5, -3.5)
         speed = rng.uniform(2, 12)
-        w = make_windows(grid[None, None], [[speed, 0, 0, 0, 1.0, 0.0]],
-                         destination=np.array([[speed * 2.5, rng.uniform(-6, 6)]], np.float32))  # fmt: skip
+        goal = np.array([[speed * 2.5, rng.uniform(-6, 6)]], np.float32)
+        w = make_windows(grid[None, None], [[speed, 0, 0, 0, 1.0, 0.0]], destination=goal)
         plan = dwa.plan(w, 0)
         if not plan.feasible:
             continue

@@ -5,18 +5,22 @@ For each window: sample target speeds and steering angles reachable within one
 the lateral-acceleration limit), drive towards each target for ``control_period`` and hold it
 afterwards, rolling all samples out together with the bicycle model
 (:func:`~gridsim.vehicle.kinematics.step_bicycle`, vectorised over samples) over the
-set-point horizon; one more sample brakes to a full stop. The footprint is three disks along the body; a rollout is **rejected** if
-within its first ``collision_horizon`` seconds any disk comes closer to a non-free cell than
-its radius plus ``margin`` (clearances come from one distance transform of the free space per
-window), or if the ego could not then brake to a stop along its heading inside free space
-(looking at most ``headway`` seconds ahead). An ego that already starts closer than the
-margin may keep any rollout that gets no closer. The grid is a snapshot: obstacles are taken as
-static, which is why only the near future is checked. Unknown cells count as obstacles
-(``unknown="occupied"``, the default) or only add cost (``"penalise"``); points beyond the
-grid are unknown but never reject. Among the admissible rollouts the one of least weighted
-cost wins: distance to the destination at the end of the horizon, heading error, obstacle
-proximity, speed deficit, lateral acceleration and steering change. If no rollout is
-admissible, the one that keeps the most clearance is returned (``feasible`` false).
+set-point horizon; one more sample brakes to a full stop.
+
+The footprint is three disks along the body. A rollout is **rejected** if within its first
+``collision_horizon`` seconds any disk comes closer to a non-free cell than its radius plus
+``margin`` (clearances come from one distance transform of the free space per window), or if
+the ego could not then brake to a stop along its heading inside free space (looking at most
+``headway`` seconds ahead). An ego that already starts closer than the margin may keep any
+rollout that gets no closer. The grid is a snapshot: obstacles are taken as static, which is
+why only the near future is checked. Unknown cells count as obstacles (``unknown=
+"occupied"``, the default) or only add cost (``"penalise"``); points beyond the grid are
+unknown but never reject.
+
+Among the admissible rollouts the one of least weighted cost wins: distance to the
+destination at the end of the horizon, heading error, obstacle proximity, speed deficit,
+lateral acceleration and steering change. If no rollout is admissible, the one that keeps
+the most clearance is returned (``feasible`` false).
 
 The prediction is the winning rollout at the set-point times (grid frame, rear axle).
 """
