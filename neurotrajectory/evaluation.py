@@ -131,9 +131,9 @@ def evaluate(
     out = Path(out)
     if out.exists() and any(out.iterdir()):
         raise DatasetError(f"{out} exists and is not empty: choose another --out")
-    out.mkdir(parents=True, exist_ok=True)
+    run, fitness, _, nets = load_front(run_dir)  # fails before anything is written
     data_dir = Path(data_dir) if data_dir is not None else None
-    run, fitness, _, nets = load_front(run_dir)
+    out.mkdir(parents=True, exist_ok=True)
     picked = pick_member(fitness, cfg.pick)
     (out / "eval_config.json").write_text(json.dumps(
         {"run": str(run.out), "train": asdict(run.config), "front_size": len(nets),

@@ -1,0 +1,174 @@
+"""Labelled windows (recording, storage, splits) and the evaluation command end to end."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from neurotrajectory.cli import main
+from neurotrajectory.commands import implied_commands
+from neurotrajectory.train import Run, TrainConfig
+from neurotrajectory.windows import (
+    DatasetError,
+    load_dataset,
+    record_group,
+    save_dataset,
+    split_by_track,
+)
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("nt") / "run"
+    cfg = TrainConfig(preset="tiny", population=4, generations=1, episodes=1,
+                      episode_seconds=3.0, seed=2)  # fmt: skip
+    Run.create(out, cfg).train(progress=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """Datasets of a seamless and the urban group, recorded through the command line."""
+    root = tmp_path_factory.mktemp("data")
+    for group, extra in (("seamless", ["--episodes", "2", "--episode-seconds", "6"]),
+                         ("urban", [])):  # fmt: skip
+        assert main(["record", "--scenario", group, "--out", str(root / group), "--quiet",
+                     *extra]) == 0  # fmt: skip
+    return root
+
+
+def test_recorded_windows_are_labelled_consistently(data):
+    ds = load_dataset(data / "urban")
+    w = ds.windows
+    assert ds.manifest["source"] == "human (NGSIM)" and ds.manifest["group"] == "urban"
+    n = len(w)
+    assert w.grids.shape == (n, 5, 128, 128) and w.grids.dtype == np.uint8
+    assert w.target.shape == (n, 5, 2) and np.all(np.isfinite(w.target))
+    # every recorded track of both urban scenes drove as the ego
+    scenes = {t.split("/")[0] for t in w.track}
+    assert scenes == {"USA_Lanker-1_1_T-1", "USA_Peach-4_8_T-1"}
+    assert len(set(w.track)) >= 25
+    steer, lon, _ = implied_commands(w.target, w.speed, w.heading, ds.times)
+    np.testing.assert_array_equal(steer, w.steer)
+    np.testing.assert_array_equal(lon, w.longitudinal)
+    # the label starts where the ego is heading: the first set-point lies ahead, not behind
+    first = w.target[:, 0]
+    ahead = first[:, 0] * w.ego[:, 4] + first[:, 1] * w.ego[:, 5]
+    assert np.mean(ahead > -0.1) > 0.99
+
+
+def test_recording_is_deterministic_and_round_trips(tmp_path):
+    a = record_group("seamless", 1, seed=4, duration=4.0)
+    b = record_group("seamless", 1, seed=4, duration=4.0)
+    c = record_group("seamless", 1, seed=5, duration=4.0)
+    np.testing.assert_array_equal(a.windows.grids, b.windows.grids)
+    np.testing.assert_array_equal(a.windows.target, b.windows.target)
+    assert not np.array_equal(a.windows.target, c.windows.target)
+    save_dataset(a, tmp_path / "d")
+    back = load_dataset(tmp_path / "d")
+    for name in ("grids", "ego", "destination", "target", "steer", "track", "time"):
+        np.testing.assert_array_equal(getattr(back.windows, name), getattr(a.windows, name))
+    assert (
+        back.manifest["scenarios"][0]["episode_seeds"]
+        == a.manifest["scenarios"][0]["episode_seeds"]
+    )
+
+
+def test_damaged_datasets_give_clear_errors(tmp_path):
+    ds = record_group("seamless", 1, seed=1, duration=3.0)
+    save_dataset(ds, tmp_path / "d")
+    with pytest.raises(DatasetError, match="not empty"):
+        save_dataset(ds, tmp_path / "d")
+    shard = tmp_path / "d" / "shard-00000.npz"
+    shard.write_bytes(shard.read_bytes()[:-10])
+    with pytest.raises(DatasetError, match="checksum mismatch"):
+        load_dataset(tmp_path / "d")
+    shard.unlink()
+    with pytest.raises(DatasetError, match="shard-00000.npz is missing"):
+        load_dataset(tmp_path / "d")
+    with pytest.raises(DatasetError, match="no manifest.json"):
+        load_dataset(tmp_path / "nothing")
+
+
+def test_splits_never_share_a_track(data):
+    w = load_dataset(data / "urban").windows
+    train, test = split_by_track(w, 0.3, seed=0)
+    assert len(train) + len(test) == len(w)
+    assert not set(train.track) & set(test.track)
+    assert 0.15 < len(set(test.track)) / len(set(w.track)) < 0.45
+    again, _ = split_by_track(w, 0.3, seed=0)
+    np.testing.assert_array_equal(again.track, train.track)
+    with pytest.raises(DatasetError, match=">= 2 tracks"):
+        split_by_track(w.take(np.flatnonzero(w.track == w.track[0])))
+
+
+def _table(path):
+    with open(path) as fh:
+        return list(csv.DictReader(fh))
+
+
+def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_path):
+    out = tmp_path / "eval"
+    args = ["evaluate", "--run", str(tiny_run), "--data", str(data), "--out", str(out),
+            "--groups", "seamless", "urban", "--e2e-epochs", "1", "--closed-loop-episodes", "1",
+            "--closed-loop-seconds", "2", "--quiet"]  # fmt: skip
+    assert main(args) == 0
+    for name in ("table2.md", "table2.csv", "closed_loop.csv", "results.json",
+                 "fig8_rmse_per_setpoint.png", "fig9_window_rmse.png", "eval_config.json",
+                 "models/end2end-urban/end2end.pt"):  # fmt: skip
+        assert (out / name).stat().st_size > 0, name
+    rows = _table(out / "table2.csv")
+    methods = {r["method"] for r in rows}
+    assert {"constant velocity", "DWA", "End2End", "NeuroTrajectory"} <= methods
+    assert {r["group"] for r in rows} == {"seamless", "urban"}
+    assert {r["source"] for r in rows if r["group"] == "urban"} == {"human (NGSIM)"}
+    for r in rows:
+        assert float(r["max_ex"]) >= float(r["mean_ex"]) >= 0
+        assert float(r["rmse"]) > 0
+    # the constant-velocity row is reproducible from the held-out windows
+    from neurotrajectory.baselines.constant_velocity import constant_velocity_setpoints
+    from neurotrajectory.metrics import accuracy
+
+    ds = load_dataset(data / "urban")
+    _, test = split_by_track(ds.windows, 0.3, seed=0)
+    cv = accuracy(constant_velocity_setpoints(test.speed, test.heading, ds.times), test.target,
+                  test.heading)  # fmt: skip
+    row = next(r for r in rows if r["group"] == "urban" and r["method"] == "constant velocity")
+    assert float(row["rmse"]) == pytest.approx(cv.rmse, abs=1e-4)
+    assert int(row["windows"]) == len(test)
+    loop = _table(out / "closed_loop.csv")
+    human = next(r for r in loop if r["group"] == "seamless" and r["method"] == "human reference")
+    assert float(human["completed"]) == 1.0 and float(human["l1"]) < 1e-6
+    md = (out / "table2.md").read_text()
+    assert "| RMSE |" in md and "human (NGSIM)" in md and "simulator" in md
+    doc = json.loads((out / "results.json").read_text())
+    assert doc["neurotrajectory"]["population"] == 4
+
+
+def test_evaluation_is_deterministic(tiny_run, tmp_path):
+    tables = []
+    for name in ("a", "b"):
+        args = ["evaluate", "--run", str(tiny_run), "--out", str(tmp_path / name), "--groups",
+                "seamless", "--episodes", "2", "--episode-seconds", "4", "--e2e-epochs", "1",
+                "--closed-loop-episodes", "0", "--quiet"]  # fmt: skip
+        assert main(args) == 0
+        tables.append((tmp_path / name / "table2.csv").read_text())
+    assert tables[0] == tables[1]
+    assert (tmp_path / "a" / "data" / "seamless" / "manifest.json").is_file()
+
+
+def test_bad_input_gives_clear_errors(tiny_run, tmp_path, capsys):
+    assert main(["evaluate", "--run", str(tmp_path), "--out", str(tmp_path / "e")]) == 2
+    assert "not a run directory" in capsys.readouterr().err
+    assert not (tmp_path / "e").exists()
+    assert main(["record", "--scenario", "nowhere", "--out", str(tmp_path / "r")]) == 2
+    assert "unknown scenario 'nowhere'" in capsys.readouterr().err
+    assert main(["evaluate", "--run", str(tiny_run), "--data", str(tmp_path / "none"),
+                 "--out", str(tmp_path / "e2"), "--groups", "urban"]) == 2  # fmt: skip
+    assert "is not a dataset" in capsys.readouterr().err
+    (tmp_path / "full").mkdir()
+    (tmp_path / "full" / "keep.txt").write_text("mine")
+    assert main(["evaluate", "--run", str(tiny_run), "--out", str(tmp_path / "full")]) == 2
+    assert "not empty" in capsys.readouterr().err
+    assert (tmp_path / "full" / "keep.txt").read_text() == "mine"
