@@ -189,30 +189,34 @@ def test_dwa_never_returns_a_colliding_trajectory_on_crafted_grids():
     assert checked >= 30
 
 
-def test_dwa_avoids_an_obstacle_in_its_lane_and_reaches_towards_the_destination():
+def test_dwa_with_a_full_collision_horizon_avoids_a_stopped_car_and_heads_for_the_goal():
     grid = np.full((SIZE, SIZE), FREE, np.uint8)
     _rect(grid, 12.0, 15.0, -1.5, 1.5)  # a car stopped 12 m ahead
-    w = make_windows(grid[None, None], [[8.0, 0, 0, 0, 1.0, 0.0]],
-                     destination=np.array([[20.0, 0.0]], np.float32))  # fmt: skip
-    plan = DWA(_setting()).plan(w, 0)
+    goal = np.array([[20.0, 0.0]], np.float32)
+    w = make_windows(grid[None, None], [[8.0, 0, 0, 0, 1.0, 0.0]], destination=goal)
+    static_world = DWAConfig(collision_horizon=2.5)
+    plan = DWA(_setting(), static_world).plan(w, 0)
     assert plan.feasible
-    assert _footprint_hits(grid, plan.states) == 0  # over the whole horizon here
+    assert _footprint_hits(grid, plan.states) == 0  # over the whole horizon
     assert plan.setpoints[-1, 0] < 12.0 - 2.85 or abs(plan.setpoints[-1, 1]) > 2.0
-    free_run = DWA(_setting()).plan(
-        make_windows(np.full((1, 1, SIZE, SIZE), FREE), w.ego, destination=w.destination), 0
-    )
-    assert np.hypot(*(free_run.setpoints[-1] - [20.0, 0.0])) < 2.0  # heads for the goal
+    # the default (0.5 s) only guarantees the near future: it keeps going, and brakes later
+    near = DWA(_setting()).plan(w, 0)
+    k = int(round(DWAConfig().collision_horizon / DWAConfig().dt))
+    assert _footprint_hits(grid, near.states[: k + 1]) == 0
+    free = make_windows(np.full((1, 1, SIZE, SIZE), FREE), w.ego, destination=goal)
+    free_run = DWA(_setting()).plan(free, 0)
+    assert np.hypot(*(free_run.setpoints[-1] - goal[0])) < 2.0
 
 
 def test_dwa_flags_a_boxed_in_ego_and_unknown_cells_can_block():
     grid = np.full((SIZE, SIZE), FREE, np.uint8)
-    _rect(grid, 3.5, 5.0, -8, 8)  # a wall just ahead
+    _rect(grid, 5.5, 7.0, -8, 8)  # a wall just ahead
     _rect(grid, -6, 5, 1.6, 3)
     _rect(grid, -6, 5, -3, -1.6)
     w = make_windows(grid[None, None], [[10.0, 0, 0, 0, 1.0, 0.0]])
     assert not DWA(_setting()).plan(w, 0).feasible
     unknown = np.full((SIZE, SIZE), FREE, np.uint8)
-    _rect(unknown, 3.5, 5.0, -8, 8, UNKNOWN)
+    _rect(unknown, 5.5, 7.0, -8, 8, UNKNOWN)
     w = make_windows(unknown[None, None], [[10.0, 0, 0, 0, 1.0, 0.0]])
     assert not DWA(_setting()).plan(w, 0).feasible
     assert DWA(_setting(), DWAConfig(unknown="penalise")).plan(w, 0).feasible
