@@ -13,9 +13,9 @@ The footprint is ``disks`` disks along the body. A rollout is **rejected** if wi
 the ego could not then brake to a stop along its heading inside free space (looking at most
 ``headway`` seconds ahead). An ego that already starts closer than the margin may keep any
 rollout that gets no closer. The grid is a snapshot: obstacles are taken as static, which is
-why only the near future rejects; later overlaps only cost (``w_late_collision``). Unknown cells count as obstacles (``unknown=
-"occupied"``, the default) or only add cost (``"penalise"``); points beyond the grid are
-unknown but never reject.
+why only the near future rejects; later overlaps only cost (``w_late_collision``). Unknown
+cells count as obstacles (``unknown="occupied"``, the default) or only add cost
+(``"penalise"``); points beyond the grid are unknown but never reject.
 
 Among the admissible rollouts the one of least weighted cost wins: distance to the
 destination at the end of the horizon, heading error, obstacle proximity, speed deficit,
