@@ -103,7 +103,13 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         closed_loop_seconds=args.closed_loop_seconds,
     )  # fmt: skip
     log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
-    evaluate(args.run, args.out, cfg, data_dir=args.data, log=log)
+    group_runs = {}
+    for item in args.group_run:
+        group, sep, path = item.partition("=")
+        if not sep or not path:
+            raise RunError(f"--group-run takes GROUP=RUN_DIR, got {item!r}")
+        group_runs[group] = path
+    evaluate(args.run, args.out, cfg, data_dir=args.data, log=log, group_runs=group_runs)
     print((Path(args.out) / "table2.md").read_text())
     return 0
 
@@ -157,6 +163,14 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_cmd_record)
     e = sub.add_parser("evaluate", help="compare with DWA, End2End and constant velocity")
     e.add_argument("--run", required=True, help="a finished training run")
+    e.add_argument(
+        "--group-run",
+        dest="group_run",
+        action="append",
+        default=[],
+        metavar="GROUP=RUN",
+        help="another run for one group (repeatable)",
+    )
     e.add_argument("--out", required=True, help="evaluation folder (created)")
     e.add_argument(
         "--data",

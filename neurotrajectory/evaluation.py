@@ -118,61 +118,103 @@ def _closed_loop(scenario: str, policy, seeds: list[int], seconds: float) -> dic
     return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]} | {"episodes": len(rows)}
 
 
+@dataclass(frozen=True)
+class Front:
+    """A trained run's Pareto front: networks and the member picked without test data."""
+
+    run: object
+    nets: list
+    picked: int
+
+    def info(self, pick: str) -> dict:
+        c = self.run.config
+        return {"run": str(self.run.out), "scenario": c.scenario, "preset": c.preset,
+                "population": c.population, "generations": c.generations,
+                "episodes": c.episodes, "episode_seconds": c.episode_seconds,
+                "front_size": len(self.nets), "picked_member": self.picked,
+                "pick": pick}  # fmt: skip
+
+
+def _load_fronts(runs: dict[str, str | Path], pick: str) -> dict[str, Front]:
+    loaded: dict[str, Front] = {}
+    out = {}
+    for group, run_dir in runs.items():
+        key = str(Path(run_dir).resolve())
+        if key not in loaded:
+            run, fitness, _, nets = load_front(run_dir)
+            loaded[key] = Front(run, nets, pick_member(fitness, pick))
+        out[group] = loaded[key]
+    return out
+
+
+def _evaluate_group(
+    group: str, ds: Dataset, front: Front, cfg: EvalConfig, out: Path, log
+) -> GroupResult:
+    train, test = split_by_track(ds.windows, cfg.test_fraction, cfg.seed)
+    setting = Setting.from_manifest(ds.manifest)
+    log(f"{group}: {len(train)} train / {len(test)} test windows; training End2End")
+    e2e = End2End.train(train, setting, cfg.end2end)
+    e2e.save(out / "models" / f"end2end-{group}")
+    nt = NetPredictor(front.nets[front.picked])
+    methods = {"constant velocity": ConstantVelocity(setting), "DWA": DWA(setting),
+               "End2End": e2e}  # fmt: skip
+    scores = {name: accuracy(m.predict(test), test.target, test.heading)
+              for name, m in methods.items()}  # fmt: skip
+    members = [accuracy(NetPredictor(n).predict(test), test.target, test.heading)
+               for n in front.nets]  # fmt: skip
+    best = int(np.argmin([a.rmse for a in members]))
+    scores[NT_PICKED] = members[front.picked]
+    scores[NT_BEST] = members[best]
+    loop = {}
+    if cfg.closed_loop_episodes:
+        policies = {"human reference": Reference()}
+        policies |= {n: TrajectoryPolicy(methods[n]) for n in ("constant velocity", "DWA")}
+        policies |= {"End2End": CommandPolicy(e2e), NT_PICKED: TrajectoryPolicy(nt)}
+        rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0xC10]))
+        seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
+        for name, policy in tqdm(policies.items(), desc=f"closed loop {group}", leave=False):
+            per = [_closed_loop(sc, policy, seeds, cfg.closed_loop_seconds)
+                   for sc in GROUPS[group]]  # fmt: skip
+            loop[name] = {k: float(np.mean([p[k] for p in per])) for k in per[0]}
+            loop[name]["episodes"] = int(sum(p["episodes"] for p in per))
+    return GroupResult(group, ds.manifest["source"], len(train), len(test),
+                       len(np.unique(test.track)), scores, loop, best)  # fmt: skip
+
+
 def evaluate(
     run_dir: str | Path,
     out: str | Path,
     cfg: EvalConfig = EvalConfig(),
     data_dir: str | Path | None = None,
     log=print,
+    group_runs: dict[str, str | Path] | None = None,
 ) -> list[GroupResult]:
-    """Run the whole comparison; writes tables, plots and models into ``out``."""
+    """Run the whole comparison; writes tables, plots and models into ``out``.
+    NeuroTrajectory is the run in ``run_dir``, or for the groups in ``group_runs`` the run
+    given there."""
     from neurotrajectory.report import write_report
 
     out = Path(out)
     if out.exists() and any(out.iterdir()):
         raise DatasetError(f"{out} exists and is not empty: choose another --out")
-    run, fitness, _, nets = load_front(run_dir)  # fails before anything is written
+    group_runs = dict(group_runs or {})
+    unknown = sorted(set(group_runs) - set(cfg.groups))
+    if unknown:
+        raise DatasetError(f"runs given for groups {unknown} that are not evaluated")
+    runs = {g: group_runs.get(g, run_dir) for g in cfg.groups}
+    fronts = _load_fronts(runs, cfg.pick)  # fails before anything is written
     data_dir = Path(data_dir) if data_dir is not None else None
     out.mkdir(parents=True, exist_ok=True)
-    picked = pick_member(fitness, cfg.pick)
     (out / "eval_config.json").write_text(json.dumps(
-        {"run": str(run.out), "train": asdict(run.config), "front_size": len(nets),
-         "picked_member": picked, **asdict(cfg)}, indent=1))  # fmt: skip
+        {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
+         **asdict(cfg)}, indent=1))  # fmt: skip
     results = []
     for group in cfg.groups:
         t0 = time.perf_counter()
         ds = _dataset(group, cfg, data_dir, out, log)
-        train, test = split_by_track(ds.windows, cfg.test_fraction, cfg.seed)
-        setting = Setting.from_manifest(ds.manifest)
-        log(f"{group}: {len(train)} train / {len(test)} test windows; training End2End")
-        e2e = End2End.train(train, setting, cfg.end2end)
-        e2e.save(out / "models" / f"end2end-{group}")
-        heading = test.heading
-        methods = {"constant velocity": ConstantVelocity(setting), "DWA": DWA(setting),
-                   "End2End": e2e}  # fmt: skip
-        scores = {name: accuracy(m.predict(test), test.target, heading)
-                  for name, m in methods.items()}  # fmt: skip
-        members = [accuracy(NetPredictor(n).predict(test), test.target, heading) for n in nets]
-        best = int(np.argmin([a.rmse for a in members]))
-        scores[NT_PICKED] = members[picked]
-        scores[NT_BEST] = members[best]
-        loop = {}
-        if cfg.closed_loop_episodes:
-            policies = {"human reference": Reference(),
-                        "constant velocity": TrajectoryPolicy(methods["constant velocity"]),
-                        "DWA": TrajectoryPolicy(methods["DWA"]), "End2End": CommandPolicy(e2e),
-                        NT_PICKED: TrajectoryPolicy(NetPredictor(nets[picked]))}  # fmt: skip
-            rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0xC10])).integers
-            seeds = [int(s) for s in rng(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
-            for name, policy in tqdm(policies.items(), desc=f"closed loop {group}", leave=False):
-                per = [_closed_loop(sc, policy, seeds, cfg.closed_loop_seconds)
-                       for sc in GROUPS[group]]  # fmt: skip
-                loop[name] = {k: float(np.mean([p[k] for p in per])) for k in per[0]}
-                loop[name]["episodes"] = int(sum(p["episodes"] for p in per))
-        results.append(GroupResult(group, ds.manifest["source"], len(train), len(test),
-                                   len(np.unique(test.track)), scores, loop, best))  # fmt: skip
+        result = _evaluate_group(group, ds, fronts[group], cfg, out, log)
+        results.append(result)
         log(f"{group}: done in {time.perf_counter() - t0:.0f} s; RMSE "
-            + ", ".join(f"{k} {v.rmse:.2f}" for k, v in scores.items()))  # fmt: skip
-    write_report(results, out, run_info={"run": str(run.out), **asdict(run.config),
-                                         "picked_member": picked, "pick": cfg.pick})  # fmt: skip
+            + ", ".join(f"{k} {v.rmse:.2f}" for k, v in result.accuracy.items()))  # fmt: skip
+    write_report(results, out, {g: f.info(cfg.pick) for g, f in fronts.items()})
     return results

@@ -54,11 +54,16 @@ def write_report(results, out: Path, run_info: dict) -> list[Path]:
 
 def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
     lines = ["# Accuracy against human-driven trajectories (the paper's Table II)", ""]
-    lines.append(
-        f"NeuroTrajectory: run `{run_info['run']}` ({run_info['scenario']}, preset "
-        f"{run_info['preset']}, population {run_info['population']}, "
-        f"{run_info['generations']} generations), front member picked as `{run_info['pick']}`."
-    )
+    runs: dict[str, list[str]] = {}
+    for group, info in run_info.items():
+        text = (f"`{info['run']}` (trained on {info['scenario']}, preset {info['preset']}, "
+                f"population {info['population']}, {info['generations']} generations, "
+                f"{info['episodes']} x {info['episode_seconds']:g} s episodes; front of "
+                f"{info['front_size']}, member {info['picked_member']} picked as "
+                f"`{info['pick']}`)")  # fmt: skip
+        runs.setdefault(text, []).append(group)
+    for text, groups in runs.items():
+        lines.append(f"NeuroTrajectory for {', '.join(groups)}: run {text}.")
     lines += ["", "Metres, held-out windows (tracks never shared with End2End's training "
               "windows); each cell: " + " / ".join(methods) + ".", ""]  # fmt: skip
     head = ["metric"] + [f"{GROUP_TITLES.get(r.group, r.group)} [{r.source}]" for r in results]

@@ -143,7 +143,7 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
     md = (out / "table2.md").read_text()
     assert "| RMSE |" in md and "human (NGSIM)" in md and "simulator" in md
     doc = json.loads((out / "results.json").read_text())
-    assert doc["neurotrajectory"]["population"] == 4
+    assert doc["neurotrajectory"]["urban"]["population"] == 4
 
 
 def test_evaluation_is_deterministic(tiny_run, tmp_path):
