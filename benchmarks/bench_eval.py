@@ -1,0 +1,72 @@
+"""Evaluation speed: recording labelled windows, and the cost per window of each predictor.
+
+    python benchmarks/bench_eval.py [--windows 200]
+
+Prints one JSON line per figure: windows recorded per second (generated and recorded
+scenes), and milliseconds per window for constant velocity, DWA (one window at a time, as in
+closed loop), End2End and NeuroTrajectory (default preset, batched and one at a time), with
+each method's ratio to DWA.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+import torch
+
+from neurotrajectory.baselines.constant_velocity import ConstantVelocity
+from neurotrajectory.baselines.dwa import DWA
+from neurotrajectory.baselines.end2end import End2End, TrainSettings
+from neurotrajectory.front import NetPredictor
+from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
+from neurotrajectory.predictors import Setting
+from neurotrajectory.windows import record_group
+
+
+def _per_window_ms(fn, batch, one_at_a_time: bool) -> float:
+    n = len(batch)
+    t0 = time.perf_counter()
+    if one_at_a_time:
+        for i in range(n):
+            fn(batch.take(np.array([i])))
+    else:
+        fn(batch)
+    return 1000.0 * (time.perf_counter() - t0) / n
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--windows", type=int, default=200, help="windows timed per predictor")
+    args = ap.parse_args()
+    torch.set_num_threads(1)
+    for group, episodes in (("seamless", 2), ("urban", 1)):
+        t0 = time.perf_counter()
+        ds = record_group(group, episodes, seed=0, duration=20.0)
+        seconds = time.perf_counter() - t0
+        print(json.dumps({"bench": "record_windows", "group": group, "windows": len(ds.windows),
+                          "windows_per_s": round(len(ds.windows) / seconds, 1)}))  # fmt: skip
+    ds = record_group("seamless", 4, seed=1, duration=30.0)
+    batch = ds.windows.take(np.arange(min(args.windows, len(ds.windows))))
+    setting = Setting.from_manifest(ds.manifest)
+    e2e = End2End.train(batch, setting, TrainSettings(epochs=1))
+    cfg = NetConfig(**{**PRESETS["default"].to_dict(), "grid_size": batch.grids.shape[-1]})
+    nt = NetPredictor(TrajectoryNet(cfg))
+    timings = {
+        "constant velocity": _per_window_ms(ConstantVelocity(setting).predict, batch, False),
+        "DWA": _per_window_ms(DWA(setting).predict, batch, True),
+        "End2End (batched)": _per_window_ms(e2e.predict, batch, False),
+        "End2End (one at a time)": _per_window_ms(e2e.predict, batch, True),
+        "NeuroTrajectory (batched)": _per_window_ms(nt.predict, batch, False),
+        "NeuroTrajectory (one at a time)": _per_window_ms(nt.predict, batch, True),
+    }
+    for name, ms in timings.items():
+        print(json.dumps({"bench": "predict", "method": name, "windows": len(batch),
+                          "ms_per_window": round(ms, 3),
+                          "ratio_to_dwa": round(ms / timings["DWA"], 3)}))  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
