@@ -78,14 +78,19 @@ class DWAConfig:
 
 @dataclass(frozen=True)
 class Plan:
-    """The chosen rollout: ``states`` ``(K + 1, 5)`` every ``dt`` from the start (grid frame:
-    x, y [m], heading [rad], speed [m/s], steering [rad]), its set-points ``(tau_o, 2)``, and
-    whether any rollout was admissible."""
+    """Chosen rollouts of ``N`` windows: ``states`` ``(N, K + 1, 5)`` every ``dt`` from the
+    start (grid frame: x, y [m], heading [rad], speed [m/s], steering [rad]), set-points
+    ``(N, tau_o, 2)`` [m], whether any rollout was admissible ``(N,)`` and how many
+    ``(N,)``. Indexing with ``[i]`` gives one window's plan."""
 
     states: np.ndarray
     setpoints: np.ndarray
-    feasible: bool
-    admissible: int
+    feasible: np.ndarray
+    admissible: np.ndarray
+
+    def __getitem__(self, i: int) -> Plan:
+        return Plan(self.states[i], self.setpoints[i], bool(self.feasible[i]),
+                    int(self.admissible[i]))  # fmt: skip
 
 
 def footprint_disks(
@@ -113,123 +118,151 @@ class DWA:
             )
         self._setpoint_steps = np.rint(steps).astype(int)
 
-    def predict(self, batch: Windows) -> np.ndarray:
-        return np.stack([self.plan(batch, i).setpoints for i in range(len(batch))])
+    #: windows planned together (memory: ~100 KB per window)
+    CHUNK = 64
 
-    # -- one window -----------------------------------------------------------------------------
+    def predict(self, batch: Windows) -> np.ndarray:
+        parts = []
+        for start in range(0, len(batch), self.CHUNK):
+            index = np.arange(start, min(start + self.CHUNK, len(batch)))
+            parts.append(self.plan_many(batch.take(index)).setpoints)
+        return np.concatenate(parts)
+
     def plan(self, batch: Windows, i: int) -> Plan:
+        """The plan of window ``i`` alone."""
+        return self.plan_many(batch.take(np.array([i])))[0]
+
+    def plan_many(self, batch: Windows) -> Plan:
+        """Plan every window of ``batch`` at once (all samples of all windows in one
+        rollout)."""
         cfg, s = self.config, self.setting
-        wheelbase, length, width = (float(v) for v in batch.vehicle[i])
-        params = replace(s.params, wheelbase=wheelbase, length=length, width=width,
-                         center_offset=0.5 * wheelbase)  # fmt: skip
-        grid = batch.grids[i, -1]
-        clearance, unknown = self._clearance(grid)
-        ego = batch.ego[i].astype(np.float64)
-        v0, d0 = float(ego[0]), float(ego[1])
-        heading = float(np.arctan2(ego[5], ego[4]))
-        v_t, d_t = self._window(v0, d0, params)
-        n = v_t.size
-        state = np.tile([0.0, 0.0, heading, v0, d0], (n, 1))
+        n = len(batch)
+        wheelbase, length, width = (batch.vehicle[:, k].astype(np.float64) for k in range(3))
+        ego = batch.ego.astype(np.float64)
+        v0, d0 = ego[:, 0], ego[:, 1]
+        v_t, d_t, valid = self._window(v0, d0, wheelbase)  # (n, S)
+        samples = v_t.shape[1]
+        rows = lambda a: np.repeat(a, samples)  # noqa: E731  per-window values per sample
+        params = replace(s.params, wheelbase=rows(wheelbase), length=rows(length),
+                         width=rows(width), center_offset=rows(0.5 * wheelbase))  # fmt: skip
+        state = np.zeros((n * samples, 5))
+        state[:, PSI] = rows(np.arctan2(ego[:, 5], ego[:, 4]))
+        state[:, V], state[:, 4] = rows(v0), rows(d0)
+        accel = (v_t - v0[:, None]).ravel() / cfg.control_period
+        rate = (d_t - d0[:, None]).ravel() / cfg.control_period
+        hold = np.zeros((n, samples))
+        hold[:, -1] = -s.params.b_max  # the last sample brakes to a full stop
+        hold = hold.ravel()
+        accel = np.where(hold < 0, hold, accel)
         k_ctrl = int(round(cfg.control_period / cfg.dt))
-        accel = (v_t - v0) / cfg.control_period
-        rate = (d_t - d0) / cfg.control_period
-        hold = np.zeros(n)
-        hold[-1] = accel[-1] = -params.b_max  # the last sample brakes to a full stop
         states = [state]
         for k in range(int(self._setpoint_steps[-1])):
             on = k < k_ctrl
             state = step_bicycle(state, accel if on else hold, rate if on else 0.0, params,
                                  cfg.dt).state  # fmt: skip
             states.append(state)
-        traj = np.stack(states, axis=1)  # (n, K + 1, 5)
-        offsets, radius = footprint_disks(length, width, wheelbase, cfg.disks)
-        k_check = max(1, min(int(round(cfg.collision_horizon / cfg.dt)), traj.shape[1] - 1))
-        last = traj[:, k_check]
-        stop = np.minimum(last[:, V] ** 2 / (2.0 * params.b_max), last[:, V] * cfg.headway)
-        ahead = stop[:, None] * np.array([1 / 3, 2 / 3, 1.0])[None, :]
-        brake = np.stack(
-            [last[:, None, 0] + ahead * np.cos(last[:, None, PSI]),
-             last[:, None, 1] + ahead * np.sin(last[:, None, PSI])], axis=2,
-        )  # fmt: skip
-        brake_poses = np.concatenate([brake, np.repeat(last[:, None, PSI : PSI + 1], 3, 1)], 2)
-        poses = np.concatenate([traj[:, 1 : k_check + 1, :3], brake_poses], axis=1)
+        traj = np.stack(states, axis=1).reshape(n, samples, -1, 5)  # (n, S, K + 1, 5)
+        grids = batch.grids[:, -1]
+        clearance, unknown = self._clearance(grids)
+        disks = [footprint_disks(a, b, c, cfg.disks) for a, b, c in zip(length, width, wheelbase,
+                                                                         strict=True)]  # fmt: skip
+        offsets = np.array([d[0] for d in disks])  # (n, D)
+        radius = np.array([d[1] for d in disks])[:, None]  # (n, 1)
+        k_check = max(1, min(int(round(cfg.collision_horizon / cfg.dt)), traj.shape[2] - 1))
+        last = traj[:, :, k_check]
+        stop = np.minimum(last[..., V] ** 2 / (2.0 * s.params.b_max), last[..., V] * cfg.headway)
+        ahead = stop[..., None] * np.array([1 / 3, 2 / 3, 1.0])
+        heading = np.repeat(last[..., None, PSI], 3, axis=-1)
+        bx = last[..., None, 0] + ahead * np.cos(heading)
+        by = last[..., None, 1] + ahead * np.sin(heading)
+        brake = np.stack([bx, by, heading], axis=-1)
+        poses = np.concatenate([traj[:, :, 1 : k_check + 1, :3], brake], axis=2)
         gap, unseen = self._sample(clearance, unknown, poses, offsets)
-        min_gap = gap.min(axis=(1, 2)) - radius
+        min_gap = gap.min(axis=(2, 3)) - radius
         # An ego that starts closer than the margin (the disks overestimate the box) may go
         # on as long as it gets no closer.
-        start_gap = self._sample(clearance, unknown, traj[:1, :1, :3], offsets)[0].min() - radius
-        admissible = min_gap >= min(cfg.margin, start_gap)
-        cost = self._cost(traj, batch.destination[i], min_gap, unseen, v0, d0, params)
-        if cfg.w_late_collision and k_check + 1 < traj.shape[1]:
-            late_gap, _ = self._sample(clearance, unknown, traj[:, k_check + 1 :, :3], offsets)
-            late_hits = np.mean(late_gap.min(axis=2) - radius < 0.0, axis=1)
+        start_gap = self._sample(clearance, unknown, traj[:, :1, :1, :3], offsets)[0]
+        start_gap = start_gap.min(axis=(1, 2, 3))[:, None] - radius
+        admissible = valid & (min_gap >= np.minimum(cfg.margin, start_gap))
+        cost = self._cost(traj, batch.destination.astype(np.float64), min_gap, unseen, d0,
+                          wheelbase)  # fmt: skip
+        if cfg.w_late_collision and k_check + 1 < traj.shape[2]:
+            late_gap, _ = self._sample(clearance, unknown, traj[:, :, k_check + 1 :, :3], offsets)
+            late_hits = np.mean(late_gap.min(axis=3) - radius[..., None] < 0.0, axis=2)
             cost = cost + cfg.w_late_collision * late_hits
-        if np.any(admissible):
-            best = int(np.argmin(np.where(admissible, cost, np.inf)))
-        else:
-            best = int(np.argmax(min_gap))
-        chosen = traj[best]
-        return Plan(chosen, chosen[self._setpoint_steps, :2].copy(), bool(np.any(admissible)),
-                    int(admissible.sum()))  # fmt: skip
+        feasible = admissible.any(axis=1)
+        best = np.where(feasible, np.argmin(np.where(admissible, cost, np.inf), axis=1),
+                        np.argmax(np.where(valid, min_gap, -np.inf), axis=1))  # fmt: skip
+        chosen = traj[np.arange(n), best]
+        return Plan(chosen, chosen[:, self._setpoint_steps, :2].copy(), feasible,
+                    admissible.sum(axis=1))  # fmt: skip
 
-    def _window(self, v0: float, d0: float, p) -> tuple[np.ndarray, np.ndarray]:
-        """Target (speed, steering) pairs reachable within one control period, plus (last) a
-        full stop on the current wheel angle; steering capped by the lateral-acceleration
-        limit."""
-        cfg = self.config
+    def _window(self, v0: np.ndarray, d0: np.ndarray, wheelbase: np.ndarray):
+        """Target speeds and steering angles ``(n, S)`` reachable within one control period,
+        plus (last) a full stop on the current wheel angle, and which of them keep to the
+        lateral-acceleration limit ``(n, S)``."""
+        cfg, p = self.config, self.setting.params
         tc = cfg.control_period
-        v_lo = max(p.v_min, v0 - p.b_max * tc)
-        v_hi = min(p.v_max, v0 + p.a_max * tc)
-        speeds = np.linspace(v_lo, max(v_lo, v_hi), cfg.speed_samples)
-        d_lo = max(-p.delta_max, d0 - p.v_delta_max * tc)
-        d_hi = min(p.delta_max, d0 + p.v_delta_max * tc)
-        steers = np.linspace(d_lo, max(d_lo, d_hi), cfg.steer_samples)
-        v_t, d_t = (a.ravel() for a in np.meshgrid(speeds, steers, indexing="ij"))
-        lateral = v_t**2 * np.abs(np.tan(d_t)) / p.wheelbase
-        keep = lateral <= cfg.max_lateral_accel
-        v_t, d_t = v_t[keep], d_t[keep]
-        return np.append(v_t, v_lo), np.append(d_t, d0)
+        v_lo = np.maximum(p.v_min, v0 - p.b_max * tc)
+        v_hi = np.maximum(v_lo, np.minimum(p.v_max, v0 + p.a_max * tc))
+        d_lo = np.maximum(-p.delta_max, d0 - p.v_delta_max * tc)
+        d_hi = np.maximum(d_lo, np.minimum(p.delta_max, d0 + p.v_delta_max * tc))
+        fv = np.linspace(0.0, 1.0, cfg.speed_samples)[None, :, None]
+        fd = np.linspace(0.0, 1.0, cfg.steer_samples)[None, None, :]
+        speeds = v_lo[:, None, None] + fv * (v_hi - v_lo)[:, None, None]
+        steers = d_lo[:, None, None] + fd * (d_hi - d_lo)[:, None, None]
+        speeds, steers = np.broadcast_arrays(speeds, steers)
+        n = len(v0)
+        v_t = np.concatenate([speeds.reshape(n, -1), v_lo[:, None]], axis=1)
+        d_t = np.concatenate([steers.reshape(n, -1), d0[:, None]], axis=1)
+        lateral = v_t**2 * np.abs(np.tan(d_t)) / wheelbase[:, None]
+        valid = lateral <= cfg.max_lateral_accel
+        valid[:, -1] = True
+        return v_t, d_t, valid
 
-    def _clearance(self, grid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _clearance(self, grids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distance [m] from each cell centre to the nearest blocking cell's edge, and the
-        unknown mask."""
-        blocking = (grid != FREE) if self.config.unknown == "occupied" else (grid == OCCUPIED)
+        unknown mask, for grids ``(n, H, W)``."""
+        blocking = (grids != FREE) if self.config.unknown == "occupied" else (grids == OCCUPIED)
         free = (~blocking).astype(np.uint8)
-        dist = cv2.distanceTransform(free, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-        cell = self.setting.cell_size
-        return (dist - 0.5) * cell, (grid != FREE) & (grid != OCCUPIED)
+        dist = np.stack([cv2.distanceTransform(f, cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+                         for f in free])  # fmt: skip
+        return (dist - 0.5) * self.setting.cell_size, (grids != FREE) & (grids != OCCUPIED)
 
     def _sample(self, clearance, unknown, poses, offsets):
-        """Clearance [m] ``(n, P, disks)`` at the footprint disks of ``poses`` ``(n, P, 3)``, and
-        the share of disk samples on unknown cells or beyond the grid ``(n,)``."""
+        """Clearance [m] ``(n, S, P, D)`` at the ``D`` footprint disks of ``poses``
+        ``(n, S, P, 3)`` (``offsets`` ``(n, D)``), and the share of disk samples on unknown
+        cells or beyond the grid ``(n, S)``."""
         s = self.setting
-        rows, cols = clearance.shape
+        _, rows, cols = clearance.shape
+        off = offsets[:, None, None, :]
         c, sn = np.cos(poses[..., 2])[..., None], np.sin(poses[..., 2])[..., None]
-        centres = np.stack([poses[..., 0:1] + offsets * c, poses[..., 1:2] + offsets * sn], -1)
+        centres = np.stack([poses[..., 0:1] + off * c, poses[..., 1:2] + off * sn], -1)
         uv = np.rint(grid_to_pixel(centres, rows, cols, s.cell_size, s.orientation)).astype(int)
         inside = (uv[..., 0] >= 0) & (uv[..., 0] < cols) & (uv[..., 1] >= 0) & (uv[..., 1] < rows)
         u = np.clip(uv[..., 0], 0, cols - 1)
         v = np.clip(uv[..., 1], 0, rows - 1)
-        gap = np.where(inside, clearance[v, u], np.inf)
-        unseen = np.mean(~inside | unknown[v, u], axis=(1, 2))
+        w = np.arange(len(clearance))[:, None, None, None]
+        gap = np.where(inside, clearance[w, v, u], np.inf)
+        unseen = np.mean(~inside | unknown[w, v, u], axis=(2, 3))
         return gap, unseen
 
-    def _cost(self, traj, destination, min_gap, unseen, v0, d0, p) -> np.ndarray:
-        cfg = self.config
-        end = traj[:, -1]
-        dest = np.asarray(destination, float)
+    def _cost(self, traj, destination, min_gap, unseen, d0, wheelbase) -> np.ndarray:
+        """Weighted cost ``(n, S)`` of rollouts ``traj`` ``(n, S, K + 1, 5)``."""
+        cfg, p = self.config, self.setting.params
+        end = traj[:, :, -1]
+        dx = destination[:, None, 0] - end[..., 0]
+        dy = destination[:, None, 1] - end[..., 1]
         horizon = float(self.setting.times[-1])
-        scale = max(p.v_max * horizon, 1.0)
-        goal = np.hypot(end[:, 0] - dest[0], end[:, 1] - dest[1]) / scale
-        bearing = np.arctan2(dest[1] - end[:, 1], dest[0] - end[:, 0])
-        near = np.hypot(*(dest - end[:, :2]).T) < 1.0
-        heading = np.where(near, 0.0, np.abs((end[:, PSI] - bearing + np.pi) % (2 * np.pi) - np.pi))
+        goal = np.hypot(dx, dy) / max(p.v_max * horizon, 1.0)
+        error = np.abs((end[..., PSI] - np.arctan2(dy, dx) + np.pi) % (2 * np.pi) - np.pi)
+        heading = np.where(np.hypot(dx, dy) < 1.0, 0.0, error)
         proximity = 1.0 / (1.0 + np.maximum(min_gap, 0.0))
-        speed = (p.v_max - end[:, V]) / max(p.v_max, 1e-6)
-        lateral = np.max(traj[:, :, V] ** 2 * np.abs(np.tan(traj[:, :, 4])), axis=1) / (
-            p.wheelbase * cfg.max_lateral_accel
+        speed = (p.v_max - end[..., V]) / max(p.v_max, 1e-6)
+        lateral = np.max(traj[..., V] ** 2 * np.abs(np.tan(traj[..., 4])), axis=2) / (
+            wheelbase[:, None] * cfg.max_lateral_accel
         )
-        steer = np.abs(traj[:, -1, 4] - d0) / max(p.v_delta_max * cfg.control_period, 1e-6)
+        steer = np.abs(end[..., 4] - d0[:, None]) / max(p.v_delta_max * cfg.control_period, 1e-6)
         cost = (cfg.w_goal * goal + cfg.w_heading * heading / np.pi
                 + cfg.w_clearance * proximity + cfg.w_speed * speed + cfg.w_lateral * lateral
                 + cfg.w_steer_change * steer)  # fmt: skip
