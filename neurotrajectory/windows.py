@@ -231,7 +231,8 @@ def record_group(
     manifest = {
         "format": FORMAT_VERSION,
         "group": name,
-        "source": GROUP_SOURCE.get(name, "simulator"),
+        "source": GROUP_SOURCE.get(name)
+        or ("human (NGSIM)" if all(_is_recorded(sc) for sc in scenarios) else "simulator"),
         "seed": seed,
         **{
             k: first[k]
