@@ -265,3 +265,33 @@ def test_end2end_training_is_deterministic_and_round_trips(tmp_path):
     a.save(tmp_path / "m")
     c = End2End.load(tmp_path / "m", _setting())
     np.testing.assert_array_equal(a.predict(w), c.predict(w))
+
+
+def test_end2end_commands_drive_the_discrete_action():
+    import torch
+
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from neurotrajectory.baselines.end2end import CommandPolicy, End2EndNet
+    from neurotrajectory.model import PRESETS, NetConfig
+
+    env = GridSimEnv("seamless", action_type="discrete")
+    obs, info = env.reset(seed=0)
+    cfg = NetConfig(**{**PRESETS["tiny"].to_dict(), "grid_size": 128})
+    setting = Setting.from_env(env)
+
+    def policy_for(steer: int, lon: int) -> CommandPolicy:
+        net = End2EndNet(cfg)
+        with torch.no_grad():
+            for head, k in ((net.steer, steer), (net.longitudinal, lon)):
+                head.weight.zero_()
+                head.bias.zero_()
+                head.bias[k] = 10.0
+        return CommandPolicy(End2End(net, setting, np.array([-1.0, 0.0, 1.0])))
+
+    straight = STEER_BINS_EACH_SIDE
+    assert policy_for(N_STEER - 1, 1)(env, obs, info) == CommandPolicy.LEFT
+    assert policy_for(0, 1)(env, obs, info) == CommandPolicy.RIGHT
+    for lon, action in ((0, CommandPolicy.DECELERATE), (1, CommandPolicy.KEEP),
+                        (2, CommandPolicy.ACCELERATE)):  # fmt: skip
+        assert policy_for(straight, lon)(env, obs, info) == action
+    assert env.action_space.contains(policy_for(0, 1)(env, obs, info))
