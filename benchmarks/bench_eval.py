@@ -4,7 +4,7 @@
 
 Prints one JSON line per figure: windows recorded per second (generated and recorded
 scenes), and milliseconds per window for constant velocity, DWA (one window at a time, as in
-closed loop), End2End and NeuroTrajectory (default preset, batched and one at a time), with
+closed loop, and batched), End2End and NeuroTrajectory (default preset, batched and one at a time), with
 each method's ratio to DWA.
 """
 
@@ -57,6 +57,7 @@ def main() -> None:
     timings = {
         "constant velocity": _per_window_ms(ConstantVelocity(setting).predict, batch, False),
         "DWA": _per_window_ms(DWA(setting).predict, batch, True),
+        "DWA (batched)": _per_window_ms(DWA(setting).predict, batch, False),
         "End2End (batched)": _per_window_ms(e2e.predict, batch, False),
         "End2End (one at a time)": _per_window_ms(e2e.predict, batch, True),
         "NeuroTrajectory (batched)": _per_window_ms(nt.predict, batch, False),
