@@ -3,9 +3,9 @@
     python benchmarks/bench_eval.py [--windows 200]
 
 Prints one JSON line per figure: windows recorded per second (generated and recorded
-scenes), and milliseconds per window for constant velocity, DWA (one window at a time, as in
-closed loop, and batched), End2End and NeuroTrajectory (default preset, batched and one at a time), with
-each method's ratio to DWA.
+scenes), and milliseconds per window for constant velocity, DWA (one window at a time, as
+in closed loop, and batched), End2End and NeuroTrajectory (default preset, batched and one
+at a time), with each method's ratio to DWA one at a time.
 """
 
 from __future__ import annotations

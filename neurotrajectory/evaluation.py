@@ -10,8 +10,9 @@ pick, labelled as such).
 **Closed loop.** Every method drives GridSim-v0 on each scenario of the group: NeuroTrajectory,
 DWA and constant velocity through the trajectory action, End2End through its discrete
 commands, and the human reference for scale. Reported: completion (the episode ran to its
-time limit or destination without collision or leaving the road), collisions, off-road,
-mean speed, mean steering rate and the episode fitness vector ``[l1, l2, l3]``.
+time limit or destination without collision or leaving the road), progress (distance driven
+over the distance the human reference drove in the same time), collisions, off-road, mean
+speed, mean steering rate and the episode fitness vector ``[l1, l2, l3]``.
 """
 
 from __future__ import annotations
@@ -96,6 +97,10 @@ def _dataset(group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log)
     return ds
 
 
+def _length(points: np.ndarray) -> float:
+    return float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
+
+
 def _closed_loop(scenario: str, policy, seeds: list[int], seconds: float) -> dict:
     """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``."""
     env = GridSimEnv(scenario, action_type=policy.action_type,
@@ -108,8 +113,12 @@ def _closed_loop(scenario: str, policy, seeds: list[int], seconds: float) -> dic
         speeds = [i["pose"][3] for i in infos]
         last = infos[-1]
         failed = last["collision"] or last["off_road"]
+        ref = env.reference
+        path = np.vstack([ref.xy[:1], [i["pose"][:2] for i in infos]])
+        human = ref.positions(np.arange(0.0, last["time"] + 1e-9, env.cfg.simulation.dt))
         rows.append({
-            "completed": float(not failed), "collision": float(last["collision"]),
+            "completed": float(not failed), "progress": _length(path) / max(_length(human), 1e-6),
+            "collision": float(last["collision"]),
             "off_road": float(last["off_road"]), "seconds": float(last["time"]),
             "mean_speed": float(np.mean(speeds)),
             "mean_steer_rate": float(fitness[1] / (len(infos) * ticks * env.cfg.simulation.dt)),

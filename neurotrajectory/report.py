@@ -32,8 +32,8 @@ GROUP_TITLES = {
 }
 TABLE_ROWS = (("mean e_x", "mean_ex"), ("max e_x", "max_ex"), ("mean e_y", "mean_ey"),
               ("max e_y", "max_ey"), ("RMSE", "rmse"))  # fmt: skip
-LOOP_KEYS = ("completed", "collision", "off_road", "mean_speed", "mean_steer_rate", "l1", "l2",
-             "l3", "episodes")  # fmt: skip
+LOOP_KEYS = ("completed", "progress", "collision", "off_road", "mean_speed",
+             "mean_steer_rate", "l1", "l2", "l3", "episodes")  # fmt: skip
 
 
 def _methods(results) -> list[str]:
@@ -87,7 +87,8 @@ def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
               "real groups are the recorded NGSIM drivers themselves.", ""]  # fmt: skip
     if any(r.closed_loop for r in results):
         lines += ["## Closed loop in GridSim-v0", "",
-                  "Rates are shares of episodes; speed [m/s], steering rate [rad/s]; l1, l2, l3 "
+                  "Rates are shares of episodes; progress: distance driven / the human's in the "
+                  "same time; speed [m/s], steering rate [rad/s]; l1, l2, l3 "
                   "are episode sums of the fitness vector.", ""]  # fmt: skip
         cols = ["group", "method", *LOOP_KEYS]
         lines += ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]

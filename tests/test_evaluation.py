@@ -140,6 +140,7 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
     loop = _table(out / "closed_loop.csv")
     human = next(r for r in loop if r["group"] == "seamless" and r["method"] == "human reference")
     assert float(human["completed"]) == 1.0 and float(human["l1"]) < 1e-6
+    assert float(human["progress"]) == pytest.approx(1.0, abs=0.03)
     md = (out / "table2.md").read_text()
     assert "| RMSE |" in md and "human (NGSIM)" in md and "simulator" in md
     doc = json.loads((out / "results.json").read_text())
