@@ -111,9 +111,7 @@ class Dataset:
 
 
 # -- recording ------------------------------------------------------------------------------
-def _episode_windows(
-    env: GridSimEnv, seed: int, stride: int, track: str, max_steps: int | None = None
-) -> Windows | None:
+def _episode_windows(env: GridSimEnv, seed: int, stride: int, track: str) -> Windows | None:
     """Drive the reference for one episode; a window every ``stride`` decisions while the
     reference covers the whole horizon."""
     obs, info = env.reset(seed=seed)
@@ -128,7 +126,7 @@ def _episode_windows(
             rows.append((obs, info["reference_setpoints"], t))
         obs, _, terminated, truncated, info = env.step(info["reference_setpoints"])
         step += 1
-        if terminated or truncated or (max_steps is not None and step >= max_steps):
+        if terminated or truncated:
             break
     if not rows:
         return None
