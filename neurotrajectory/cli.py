@@ -100,7 +100,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         test_fraction=args.test_fraction, seed=args.seed, pick=args.pick,
         end2end=TrainSettings(epochs=args.e2e_epochs, seed=args.seed),
         closed_loop_episodes=args.closed_loop_episodes,
-        closed_loop_seconds=args.closed_loop_seconds,
+        closed_loop_seconds=args.closed_loop_seconds, videos=args.videos,
     )  # fmt: skip
     log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     group_runs = {}
@@ -185,6 +185,11 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--e2e-epochs", dest="e2e_epochs", type=int, default=8)
     e.add_argument("--closed-loop-episodes", dest="closed_loop_episodes", type=int, default=3)
     e.add_argument("--closed-loop-seconds", dest="closed_loop_seconds", type=float, default=20.0)
+    e.add_argument(
+        "--videos",
+        action="store_true",
+        help="export each method's first closed-loop episode to <out>/videos/",
+    )
     e.add_argument("--seed", type=int, default=0)
     e.add_argument("--quiet", action="store_true")
     e.set_defaults(func=_cmd_evaluate)

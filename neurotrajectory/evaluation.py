@@ -62,6 +62,7 @@ class EvalConfig:
     end2end: TrainSettings = field(default_factory=TrainSettings)
     closed_loop_episodes: int = 3  # per scenario of a group
     closed_loop_seconds: float = 20.0
+    videos: bool = False  # export the first closed-loop episode of each method and scenario
 
     def __post_init__(self) -> None:
         unknown = [g for g in self.groups if g not in GROUPS]
@@ -101,14 +102,19 @@ def _length(points: np.ndarray) -> float:
     return float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
 
 
-def _closed_loop(scenario: str, policy, seeds: list[int], seconds: float) -> dict:
-    """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``."""
+def _closed_loop(
+    scenario: str, policy, seeds: list[int], seconds: float, video: Path | None = None
+) -> dict:
+    """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``; with
+    ``video``, the first episode is also exported there."""
     env = GridSimEnv(scenario, action_type=policy.action_type,
+                     render_mode="rgb_array" if video else None,
                      simulation={"duration": seconds})  # fmt: skip
     ticks = env.cfg.ticks_per_decision
     rows = []
-    for seed in seeds:
-        _, infos = record_rollout(env, policy, None, 10**6, seed=seed)
+    for k, seed in enumerate(seeds):
+        path = video if k == 0 else None
+        _, infos = record_rollout(env, policy, path, 10**6, seed=seed)
         fitness = np.sum([i["reward"] for i in infos], axis=0)
         speeds = [i["pose"][3] for i in infos]
         last = infos[-1]
@@ -182,7 +188,9 @@ def _evaluate_group(
         rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0xC10]))
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
         for name, policy in tqdm(policies.items(), desc=f"closed loop {group}", leave=False):
-            per = [_closed_loop(sc, policy, seeds, cfg.closed_loop_seconds)
+            slug = name.lower().replace(" ", "-")
+            per = [_closed_loop(sc, policy, seeds, cfg.closed_loop_seconds,
+                                out / "videos" / f"{group}-{sc}-{slug}.mp4" if cfg.videos else None)
                    for sc in GROUPS[group]]  # fmt: skip
             loop[name] = {k: float(np.mean([p[k] for p in per])) for k in per[0]}
             loop[name]["episodes"] = int(sum(p["episodes"] for p in per))

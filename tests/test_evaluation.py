@@ -112,8 +112,13 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
     out = tmp_path / "eval"
     args = ["evaluate", "--run", str(tiny_run), "--data", str(data), "--out", str(out),
             "--groups", "seamless", "urban", "--e2e-epochs", "1", "--closed-loop-episodes", "1",
-            "--closed-loop-seconds", "2", "--quiet"]  # fmt: skip
+            "--closed-loop-seconds", "2", "--videos", "--quiet"]  # fmt: skip
     assert main(args) == 0
+    import imageio.v3 as iio
+
+    videos = sorted(p.name for p in (out / "videos").iterdir())
+    assert len(videos) == 5 * 3  # 5 policies x (1 seamless + 2 urban scenes)
+    assert len(iio.imread(out / "videos" / "seamless-seamless-dwa.mp4")) == 21  # 2 s + first
     for name in ("table2.md", "table2.csv", "closed_loop.csv", "results.json",
                  "fig8_rmse_per_setpoint.png", "fig9_window_rmse.png", "eval_config.json",
                  "models/end2end-urban/end2end.pt"):  # fmt: skip
