@@ -16,7 +16,7 @@ from neurotrajectory.windows import GROUPS
 
 _TRAIN_KEYS = (
     "scenario", "preset", "population", "generations", "episodes", "episode_seconds", "sigma",
-    "seed", "backend", "workers", "ray_address",
+    "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_epochs",
 )  # fmt: skip
 
 
@@ -131,6 +131,13 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--backend", default=None, choices=["local", "processes", "ray"])
     t.add_argument("--workers", type=int, default=None)
     t.add_argument("--ray-address", dest="ray_address", default=None)
+    t.add_argument(
+        "--pretrain",
+        default=None,
+        metavar="DATA",
+        help="first fit the network to the windows of this recorded dataset",
+    )
+    t.add_argument("--pretrain-epochs", dest="pretrain_epochs", type=int, default=None)
     t.add_argument("--out", default="runs/default", help="run directory (created)")
     t.add_argument("--resume", default=None, help="continue the run in this directory")
     t.add_argument(

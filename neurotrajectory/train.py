@@ -49,6 +49,8 @@ class TrainConfig:
     backend: str = "local"
     workers: int = 2
     ray_address: str | None = None
+    pretrain: str | None = None  # dataset folder to fit the network to before evolving
+    pretrain_epochs: int = 10
 
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
@@ -58,6 +60,8 @@ class TrainConfig:
                 raise RunError(f"{name} must be >= 1, got {getattr(self, name)}")
         if self.population < 2:
             raise RunError(f"population must be >= 2, got {self.population}")
+        if self.pretrain_epochs < 1:
+            raise RunError(f"pretrain_epochs must be >= 1, got {self.pretrain_epochs}")
         if not self.episode_seconds > 0:
             raise RunError(f"episode_seconds must be > 0, got {self.episode_seconds}")
 
@@ -199,7 +203,10 @@ class Run:
         table = noise_table(table_size(n))
         history = self.load_history()
         ckpt = self.load_checkpoint()
-        if ckpt is None:
+        if ckpt is None and cfg.pretrain:
+            start, population = 0, self._pretrained_population(probe, table)
+            backend.load(population)
+        elif ckpt is None:
             start, recipes = 0, initial_recipes(ga, cfg.seed)
             population = np.stack([initial_genome(probe, r.init_seed) for r in recipes])
             backend.advance(recipes)
@@ -238,6 +245,27 @@ class Run:
             if stop_after is not None and done >= stop_after:
                 return {"stopped_at": gen}
         return self.finish()
+
+    def _pretrained_population(self, probe: TrajectoryNet, table: np.ndarray) -> np.ndarray:
+        """Generation 0 of a warm-started run: the network fitted to the pre-training windows
+        (individual 0) and ``sigma``-mutations of it; writes ``pretrain.json``."""
+        from neurotrajectory.pretrain import pretrain_genome
+        from neurotrajectory.windows import DatasetError, load_dataset
+
+        cfg = self.config
+        try:
+            windows = load_dataset(cfg.pretrain).windows
+            start = initial_genome(probe, initial_recipes(cfg.ga, cfg.seed)[0].init_seed)
+            base, stats = pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed)
+        except DatasetError as exc:
+            raise RunError(f"--pretrain {cfg.pretrain}: {exc}") from None
+        _write_json(self.out / "pretrain.json", {"data": str(cfg.pretrain), **stats})
+        n = len(base)
+        rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x9E7A]))
+        offsets = rng.integers(0, len(table) - n, size=cfg.population)
+        population = np.stack([base + np.float32(cfg.sigma) * table[o : o + n] for o in offsets])
+        population[0] = base
+        return population
 
     def _record(self, gen, fitness, rank, stats, seconds, history) -> dict:
         f = minimised(fitness)

@@ -1,0 +1,68 @@
+"""Warm-starting neuroevolution by fitting the network to recorded windows."""
+
+import json
+
+import numpy as np
+import pytest
+
+from neurotrajectory.cli import main
+from neurotrajectory.genome import initial_genome
+from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
+from neurotrajectory.pretrain import PretrainError, pretrain_genome, setpoint_mse
+from neurotrajectory.train import Run, RunError, TrainConfig
+from neurotrajectory.windows import load_dataset, record_group, save_dataset
+
+
+@pytest.fixture(scope="module")
+def windows_dir(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pre") / "seamless"
+    save_dataset(record_group("seamless", 2, seed=9, duration=6.0), out)
+    return out
+
+
+def _tiny_net():
+    return TrajectoryNet(NetConfig(**{**PRESETS["tiny"].to_dict(), "grid_size": 128}))
+
+
+def test_pretraining_fits_the_windows_deterministically(windows_dir):
+    w = load_dataset(windows_dir).windows
+    net = _tiny_net()
+    start = initial_genome(net, 3)
+    a, stats = pretrain_genome(net, start, w, epochs=10, seed=0, learning_rate=1e-2)
+    b, _ = pretrain_genome(_tiny_net(), start, w, epochs=10, seed=0, learning_rate=1e-2)
+    np.testing.assert_array_equal(a, b)
+    assert stats["mse_after"] < 0.8 * stats["mse_before"]
+    assert setpoint_mse(net, w) == pytest.approx(stats["mse_after"])
+    with pytest.raises(PretrainError, match=r"\(history, grid size, horizon\)"):
+        small = TrajectoryNet(NetConfig(**{**PRESETS["tiny"].to_dict(), "grid_size": 64}))
+        pretrain_genome(small, initial_genome(small, 0), w, epochs=1, seed=0)
+
+
+def test_a_warm_started_run_begins_from_the_fitted_network(windows_dir, tmp_path):
+    out = tmp_path / "run"
+    args = ["train", "--preset", "tiny", "--population", "4", "--generations", "2",
+            "--episodes", "1", "--episode-seconds", "3", "--pretrain", str(windows_dir),
+            "--pretrain-epochs", "2", "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(args) == 0
+    stats = json.loads((out / "pretrain.json").read_text())
+    assert stats["mse_after"] < stats["mse_before"] and stats["windows"] > 0
+    run = Run.open(out)
+    assert run.config.pretrain == str(windows_dir) and run.config.pretrain_epochs == 2
+    # generation 0, individual 0 is the fitted network itself
+    history = json.loads((out / "history.json").read_text())["generations"]
+    assert len(history) == 2
+    again = tmp_path / "again"
+    assert main([*args[:-3], "--out", str(again), "--quiet"]) == 0
+    assert (
+        json.loads((again / "history.json").read_text())["generations"][0]["fitness"]
+        == (history[0]["fitness"])
+    )
+
+
+def test_a_missing_pretraining_dataset_is_a_clear_error(tmp_path, capsys):
+    cfg = TrainConfig(preset="tiny", population=2, generations=1, episodes=1,
+                      episode_seconds=2.0, pretrain=str(tmp_path / "nothing"))  # fmt: skip
+    with pytest.raises(RunError, match=r"--pretrain .*nothing.*no manifest.json"):
+        Run.create(tmp_path / "run", cfg).train(progress=False)
+    with pytest.raises(RunError, match="pretrain_epochs must be >= 1"):
+        TrainConfig(pretrain_epochs=0)
