@@ -11,7 +11,13 @@ import torch
 from gridsim.envs.gridsim_env import GridSimEnv
 from neurotrajectory.evolution import minimised
 from neurotrajectory.genome import set_genome
-from neurotrajectory.model import NetConfig, TrajectoryNet, observation_tensors
+from neurotrajectory.model import (
+    NetConfig,
+    TrajectoryNet,
+    observation_tensors,
+    size_mismatch,
+    window_inputs,
+)
 from neurotrajectory.rollout import net_config_for
 from neurotrajectory.train import Run, RunError
 
@@ -54,20 +60,13 @@ class NetPredictor:
 
     @torch.no_grad()
     def predict(self, batch, chunk: int = 128) -> np.ndarray:
-        cfg = self.net.cfg
-        got = (batch.grids.shape[1], batch.grids.shape[2], batch.target.shape[1])
-        want = (cfg.history, cfg.grid_size, cfg.horizon)
-        if got != want:
-            raise RunError(
-                f"the network takes (history, grid size, horizon) = {want}, the windows have "
-                f"{got}: evaluate it on windows of a scenario with the same env and sensor sizes"
-            )
+        problem = size_mismatch(self.net.cfg, batch)
+        if problem:
+            raise RunError(problem)
         out = []
         for start in range(0, len(batch), chunk):
             sl = slice(start, start + chunk)
-            inputs = (torch.from_numpy(batch.grids[sl]),
-                      torch.from_numpy(batch.ego[sl].astype(np.float32)),
-                      torch.from_numpy(batch.destination[sl].astype(np.float32)))  # fmt: skip
+            inputs = window_inputs(batch, np.arange(len(batch))[sl])
             out.append(self.net(*inputs).numpy().astype(np.float64))
         return np.concatenate(out)
 

@@ -177,3 +177,25 @@ def observation_tensors(obs: dict | list[dict]) -> tuple[torch.Tensor, ...]:
 
 def count_parameters(net: nn.Module) -> int:
     return sum(p.numel() for p in net.parameters())
+
+
+def window_inputs(windows, index: np.ndarray) -> tuple[torch.Tensor, ...]:
+    """The network's inputs for ``windows[index]`` (a :class:`~neurotrajectory.windows.Windows`
+    batch): grids, ego state and destination tensors."""
+    return (
+        torch.from_numpy(windows.grids[index]),
+        torch.from_numpy(windows.ego[index].astype(np.float32)),
+        torch.from_numpy(windows.destination[index].astype(np.float32)),
+    )
+
+
+def size_mismatch(cfg: NetConfig, windows) -> str | None:
+    """Why ``windows`` cannot feed a network of ``cfg``, or None if they can."""
+    got = (windows.grids.shape[1], windows.grids.shape[2], windows.target.shape[1])
+    want = (cfg.history, cfg.grid_size, cfg.horizon)
+    if got == want:
+        return None
+    return (
+        f"the windows have (history, grid size, horizon) = {got}, the network needs {want}: "
+        "record them from a scenario with the same env and sensor sizes"
+    )

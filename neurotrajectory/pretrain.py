@@ -15,20 +15,12 @@ import numpy as np
 import torch
 
 from neurotrajectory.genome import get_genome, set_genome
-from neurotrajectory.model import TrajectoryNet
+from neurotrajectory.model import TrajectoryNet, size_mismatch, window_inputs
 from neurotrajectory.windows import DatasetError, Windows
 
 
 class PretrainError(DatasetError):
     """The pre-training data does not fit the network."""
-
-
-def _tensors(w: Windows, index: np.ndarray):
-    return (
-        torch.from_numpy(w.grids[index]),
-        torch.from_numpy(w.ego[index].astype(np.float32)),
-        torch.from_numpy(w.destination[index].astype(np.float32)),
-    )
 
 
 def setpoint_mse(net: TrajectoryNet, windows: Windows, chunk: int = 256) -> float:
@@ -37,7 +29,7 @@ def setpoint_mse(net: TrajectoryNet, windows: Windows, chunk: int = 256) -> floa
     with torch.no_grad():
         for start in range(0, len(windows), chunk):
             idx = np.arange(start, min(start + chunk, len(windows)))
-            pred = net(*_tensors(windows, idx))
+            pred = net(*window_inputs(windows, idx))
             total += float(((pred - torch.from_numpy(windows.target[idx])) ** 2).sum())
     return total / (len(windows) * windows.target.shape[1] * 2)
 
@@ -53,14 +45,9 @@ def pretrain_genome(
 ) -> tuple[np.ndarray, dict]:
     """Fit ``net`` (starting from ``genome``) to ``windows``; returns the new genome and
     ``{"mse_before", "mse_after", "windows", "epochs"}`` [m^2]."""
-    cfg = net.cfg
-    got = (windows.grids.shape[1], windows.grids.shape[2], windows.target.shape[1])
-    want = (cfg.history, cfg.grid_size, cfg.horizon)
-    if got != want:
-        raise PretrainError(
-            f"pre-training windows have (history, grid size, horizon) = {got}, the network "
-            f"needs {want}: record them from a scenario with the same env and sensor sizes"
-        )
+    problem = size_mismatch(net.cfg, windows)
+    if problem:
+        raise PretrainError(f"pre-training: {problem}")
     if epochs < 1:
         raise PretrainError(f"pretrain_epochs must be >= 1, got {epochs}")
     threads = torch.get_num_threads()
@@ -76,7 +63,7 @@ def pretrain_genome(
             order = rng.permutation(len(windows))
             for start in range(0, len(order), batch_size):
                 idx = order[start : start + batch_size]
-                loss = ((net(*_tensors(windows, idx)) - target[idx]) ** 2).mean()
+                loss = ((net(*window_inputs(windows, idx)) - target[idx]) ** 2).mean()
                 opt.zero_grad()
                 loss.backward()
                 opt.step()

@@ -33,7 +33,7 @@ def test_pretraining_fits_the_windows_deterministically(windows_dir):
     np.testing.assert_array_equal(a, b)
     assert stats["mse_after"] < 0.8 * stats["mse_before"]
     assert setpoint_mse(net, w) == pytest.approx(stats["mse_after"])
-    with pytest.raises(PretrainError, match=r"\(history, grid size, horizon\)"):
+    with pytest.raises(PretrainError, match=r"pre-training: .*\(history, grid size, horizon\)"):
         small = TrajectoryNet(NetConfig(**{**PRESETS["tiny"].to_dict(), "grid_size": 64}))
         pretrain_genome(small, initial_genome(small, 0), w, epochs=1, seed=0)
 

@@ -27,7 +27,7 @@ from neurotrajectory.commands import (
     fit_class_accel,
     steer_angles,
 )
-from neurotrajectory.model import PRESETS, GridEncoder, NetConfig
+from neurotrajectory.model import PRESETS, GridEncoder, NetConfig, window_inputs
 from neurotrajectory.predictors import Setting, observation_batch
 from neurotrajectory.windows import Windows
 
@@ -60,14 +60,6 @@ class TrainSettings:
     def __post_init__(self) -> None:
         if self.epochs < 1 or self.batch_size < 1 or not self.learning_rate > 0:
             raise ValueError(f"need epochs >= 1, batch_size >= 1, learning_rate > 0: {self}")
-
-
-def _tensors(batch: Windows, index: np.ndarray):
-    return (
-        torch.from_numpy(batch.grids[index]),
-        torch.from_numpy(batch.ego[index].astype(np.float32)),
-        torch.from_numpy(batch.destination[index].astype(np.float32)),
-    )
 
 
 class End2End:
@@ -109,7 +101,7 @@ class End2End:
             total = 0.0
             for start in range(0, len(order), settings.batch_size):
                 idx = order[start : start + settings.batch_size]
-                s_logits, l_logits = net(*_tensors(windows, idx))
+                s_logits, l_logits = net(*window_inputs(windows, idx))
                 loss = loss_fn(s_logits, steer[idx]) + loss_fn(l_logits, lon[idx])
                 opt.zero_grad()
                 loss.backward()
@@ -126,7 +118,7 @@ class End2End:
         steer, lon = [], []
         for start in range(0, len(batch), chunk):
             idx = np.arange(start, min(start + chunk, len(batch)))
-            s_logits, l_logits = self.net(*_tensors(batch, idx))
+            s_logits, l_logits = self.net(*window_inputs(batch, idx))
             steer.append(s_logits.argmax(1).numpy())
             lon.append(l_logits.argmax(1).numpy())
         return np.concatenate(steer), np.concatenate(lon)
