@@ -46,7 +46,6 @@ from neurotrajectory.windows import (
 
 NT_PICKED = "NeuroTrajectory"
 NT_BEST = "NeuroTrajectory (best member on test)"
-METHOD_ORDER = ("constant velocity", "DWA", "End2End", NT_PICKED, NT_BEST)
 
 
 @dataclass(frozen=True)
@@ -113,17 +112,17 @@ def _closed_loop(
     ticks = env.cfg.ticks_per_decision
     rows = []
     for k, seed in enumerate(seeds):
-        path = video if k == 0 else None
-        _, infos = record_rollout(env, policy, path, 10**6, seed=seed)
+        _, infos = record_rollout(env, policy, video if k == 0 else None, 10**6, seed=seed)
         fitness = np.sum([i["reward"] for i in infos], axis=0)
         speeds = [i["pose"][3] for i in infos]
         last = infos[-1]
         failed = last["collision"] or last["off_road"]
         ref = env.reference
-        path = np.vstack([ref.xy[:1], [i["pose"][:2] for i in infos]])
+        driven = np.vstack([ref.xy[:1], [i["pose"][:2] for i in infos]])
         human = ref.positions(np.arange(0.0, last["time"] + 1e-9, env.cfg.simulation.dt))
         rows.append({
-            "completed": float(not failed), "progress": _length(path) / max(_length(human), 1e-6),
+            "completed": float(not failed),
+            "progress": _length(driven) / max(_length(human), 1e-6),
             "collision": float(last["collision"]),
             "off_road": float(last["off_road"]), "seconds": float(last["time"]),
             "mean_speed": float(np.mean(speeds)),

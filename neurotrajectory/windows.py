@@ -169,9 +169,10 @@ def record_scenario(
     if stride < 1:
         raise DatasetError(f"stride must be >= 1, got {stride}")
     parts = []
-    if _is_recorded(scenario):
-        base = load_scenario(scenario)
-        scene = base.config.road.scene
+    base = load_scenario(scenario)
+    cfg = base.config
+    if isinstance(cfg.road, RecordedRoadConfig):
+        scene = cfg.road.scene
         tracks = library_for(base).scene(scene)
         for track in tracks:
             overrides = {"ego": {"track": track.track_id},
@@ -194,7 +195,6 @@ def record_scenario(
                 progress(1)
         source = {"episodes": episodes, "episode_seeds": seeds}
     windows = Windows.concat(p for p in parts if p is not None)
-    cfg = load_scenario(scenario).config
     meta = {"scenario": scenario, **source, "horizon": cfg.env.horizon,
             "history": cfg.env.history, "setpoint_period": cfg.env.setpoint_period,
             "decision_period": cfg.env.decision_period, "stride": stride,
@@ -215,9 +215,10 @@ def record_group(
     """Windows of a scenario group of :data:`GROUPS`, or of one scenario (name or YAML path).
     ``stride`` defaults to every decision on recorded scenes, every fifth elsewhere."""
     scenarios = GROUPS.get(name, (name,))
+    recorded = {scenario: _is_recorded(scenario) for scenario in scenarios}
     parts, metas = [], []
     for scenario in scenarios:
-        s = stride or (1 if _is_recorded(scenario) else 5)
+        s = stride or (1 if recorded[scenario] else 5)
         w, meta = record_scenario(scenario, episodes, seed, s, duration, progress)
         parts.append(w)
         metas.append(meta)
@@ -230,7 +231,7 @@ def record_group(
         "format": FORMAT_VERSION,
         "group": name,
         "source": GROUP_SOURCE.get(name)
-        or ("human (NGSIM)" if all(_is_recorded(sc) for sc in scenarios) else "simulator"),
+        or ("human (NGSIM)" if all(recorded.values()) else "simulator"),
         "seed": seed,
         **{
             k: first[k]
