@@ -16,7 +16,7 @@ from gymnasium import spaces
 from gridsim.envs.frames import grid_to_world
 from gridsim.road.polyline import Polyline
 from gridsim.vehicle.control import PursuitGains, follow_path
-from gridsim.vehicle.kinematics import BicycleParams, V, step_bicycle
+from gridsim.vehicle.kinematics import PSI, BicycleParams, V, step_bicycle
 
 Controller = Callable[[object], tuple[float, float]]  # world -> (accel, steer rate)
 #: Tight pursuit for following set-points (cuts corners less than lane keeping needs to).
@@ -72,7 +72,8 @@ class ActionType(ABC):
 class TrajectoryAction(ActionType):
     """``(horizon, 2)`` set-points [m] in the grid frame at ``t + i * setpoint_period``;
     values beyond the space bounds are clipped. A pure-pursuit controller follows the
-    polyline through them, at the speed that reaches the first set-point on time."""
+    polyline through them, at the speed that reaches the first set-point on time. A first
+    set-point that is not ahead of the rear axle (the car cannot reverse) means: stop."""
 
     def _make_space(self) -> spaces.Box:
         reach = self.params.v_max * self.horizon * self.period + 5.0
@@ -90,12 +91,14 @@ class TrajectoryAction(ActionType):
         speed = float(np.hypot(*(pts[0] - origin))) / self.period
         path_pts = np.vstack([origin, pts])
         keep = np.concatenate([[True], np.hypot(*np.diff(path_pts, axis=0).T) > 1e-3])
-        path = Polyline(path_pts[keep]) if keep.sum() >= 2 else None
+        heading = np.array([np.cos(world.ego[PSI]), np.sin(world.ego[PSI])])
+        ahead = float(np.dot(pts[0] - origin, heading)) > 0.0
+        path = Polyline(path_pts[keep]) if keep.sum() >= 2 and ahead else None
         gains = TRACKING_GAINS
         params = self.params
 
         def control(w) -> tuple[float, float]:
-            if path is None:  # every set-point on the ego: brake to a stop, hold the wheel
+            if path is None:  # nothing ahead to drive to: brake to a stop, hold the wheel
                 return -min(params.b_max, w.ego[V] / w.dt), 0.0
             return follow_path(w.ego, path, speed, params, gains)
 

@@ -120,8 +120,6 @@ class GridSimEnv(gym.Env):
         self._last_accel = self._last_rate = 0.0
         self._last_plan = None
         self._travelled = 0.0
-        self._destination = self.reference.positions(np.array([self.reference.end_time]))[0]
-        self._reference_length = float(np.sum(np.hypot(*np.diff(self.reference.xy, axis=0).T)))
         grid = observe(self.sensor, self.world)
         self._grids[:] = grid[None]
         self._look_ahead()
@@ -187,11 +185,8 @@ class GridSimEnv(gym.Env):
         self._grids[:-1] = self._grids[1:]
         self._grids[-1] = observe(self.sensor, world)
         self._look_ahead()
-        # Reached: at the reference's last point, having driven (most of) its length, so that
-        # a route passing the same place twice does not end the episode on the first pass.
         tol = self.cfg.env.destination_tolerance
-        near_end = np.hypot(*(world.ego[:2] - self._destination)) <= tol
-        reached = bool(near_end and self._travelled >= 0.9 * self._reference_length - tol)
+        reached = self.reference.reached(world.ego[:2], self._travelled, tol)
         terminated = bool(result.collided or result.off_road or reached)
         truncated = (not terminated) and world.time >= self.time_limit - 1e-9
         terms = np.array([l1, l2, l3], np.float32)

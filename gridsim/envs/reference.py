@@ -5,53 +5,233 @@ human speed and lane-offset profile replayed along the ego's route, exactly like
 a shadow copy of the episode's world (same scenario, same seed) is driven by a
 :class:`~gridsim.world.driver.HumanDriver` (which keeps its distance to traffic with IDM),
 and its ego states are recorded. A policy that follows the reference therefore meets the
-same traffic. References are cached per (scenario, seed): all individuals of a population
-evaluated on the same seeds share them.
+same traffic.
+
+The shadow world is advanced lazily (:class:`HumanReference`): a reset costs one world
+build, and every step advances it only as far as the look-ahead needs. References are
+cached per (scenario, seed) and shared: all individuals of a population evaluated on the
+same seeds advance one shadow world.
 """
 
 from __future__ import annotations
 
 from collections import OrderedDict
-from dataclasses import dataclass
 
 import numpy as np
 
 from gridsim.scenario.build import build_world, road_lane_width, synthetic_tracks
 from gridsim.scenario.loader import Scenario
 from gridsim.traffic.library import Track
-from gridsim.traffic.profiles import HumanProfiles, SpeedBounds
+from gridsim.traffic.profiles import ProfileChain, SpeedBounds, human_profiles
+from gridsim.world.collision import CollisionChecker
 from gridsim.world.driver import HumanDriver
 
-_CACHE: OrderedDict[tuple[str, int], ReferenceTrajectory] = OrderedDict()
+_CACHE: OrderedDict[tuple[str, int], HumanReference] = OrderedDict()
 _CACHE_SIZE = 64
+#: A destination counts as reached after driving this share of the reference's length.
+REACHED_SHARE = 0.9
 
 
-@dataclass(frozen=True)
 class ReferenceTrajectory:
-    """Rear-axle positions ``xy`` [m, world], headings [rad] and speeds [m/s] at times ``t``
-    [s] from the start of the episode. Beyond the last sample it continues at constant
-    velocity."""
+    """Rear-axle positions ``xy`` [m, world], headings ``psi`` [rad] and speeds ``v`` [m/s] at
+    times ``t`` [s] from the start of the episode. Beyond the last sample it continues at
+    constant velocity."""
 
-    t: np.ndarray
-    xy: np.ndarray
-    psi: np.ndarray
-    v: np.ndarray
+    def __init__(self, t: np.ndarray, xy: np.ndarray, psi: np.ndarray, v: np.ndarray) -> None:
+        self.t = t
+        self._xy, self._psi, self._v = xy, psi, v
+        self._ready = len(t)  # samples known so far (all of them here)
+        self._destination: np.ndarray | None = None
+        self._length: float | None = None
+
+    # -- samples -------------------------------------------------------------------------------
+    def _advance(self, ready: int) -> None:
+        """Make the first ``ready`` samples known (all are, for a recorded trajectory)."""
 
     @property
     def end_time(self) -> float:
         return float(self.t[-1])
 
+    @property
+    def complete(self) -> bool:
+        return self._ready == len(self.t)
+
+    @property
+    def xy(self) -> np.ndarray:
+        """All positions ``(N, 2)`` (completes a lazy reference)."""
+        self._advance(len(self.t))
+        return self._xy
+
+    @property
+    def psi(self) -> np.ndarray:
+        self._advance(len(self.t))
+        return self._psi
+
+    @property
+    def v(self) -> np.ndarray:
+        self._advance(len(self.t))
+        return self._v
+
     def positions(self, times: np.ndarray) -> np.ndarray:
         """Positions ``(N, 2)`` at ``times`` [s] (interpolated; extrapolated past the end)."""
         times = np.asarray(times, dtype=np.float64)
-        x = np.interp(times, self.t, self.xy[:, 0])
-        y = np.interp(times, self.t, self.xy[:, 1])
+        if len(times) and not self.complete:
+            # Interpolation reads the two samples around each time: the one after the
+            # latest must be known (np.interp on that prefix equals it on the whole).
+            self._advance(int(np.searchsorted(self.t, times.max(), side="right")) + 2)
+        n = self._ready
+        t, xy = self.t[:n], self._xy[:n]
+        x = np.interp(times, t, xy[:, 0])
+        y = np.interp(times, t, xy[:, 1])
         late = times > self.t[-1]
         if np.any(late):
             extra = times[late] - self.t[-1]
-            x[late] += extra * self.v[-1] * np.cos(self.psi[-1])
-            y[late] += extra * self.v[-1] * np.sin(self.psi[-1])
+            x[late] += extra * self._v[-1] * np.cos(self._psi[-1])
+            y[late] += extra * self._v[-1] * np.sin(self._psi[-1])
         return np.stack([x, y], axis=1)
+
+    # -- the destination -----------------------------------------------------------------------
+    @property
+    def destination(self) -> np.ndarray:
+        """The last position [m, world] (completes a lazy reference)."""
+        if self._destination is None:
+            self._destination = self.positions(np.array([self.end_time]))[0]
+        return self._destination
+
+    @property
+    def length(self) -> float:
+        """Length [m] of the whole path (completes a lazy reference)."""
+        if self._length is None:
+            self._length = float(np.sum(np.hypot(*np.diff(self.xy, axis=0).T)))
+        return self._length
+
+    def reached(self, xy: np.ndarray, travelled: float, tolerance: float) -> bool:
+        """Whether a vehicle at ``xy`` [m, world] that has driven ``travelled`` metres has
+        reached the destination: within ``tolerance`` [m] of the last position, having driven
+        :data:`REACHED_SHARE` of the length (so that a route passing the same place twice does
+        not end on the first pass). A lazy reference is advanced only as far as needed to
+        rule this out."""
+        if not self._could_reach(travelled, tolerance):
+            return False
+        near_end = np.hypot(*(xy - self.destination)) <= tolerance
+        return bool(near_end and travelled >= REACHED_SHARE * self.length - tolerance)
+
+    def _could_reach(self, travelled: float, tolerance: float) -> bool:
+        return True
+
+
+#: How far back [s] a collision found in the shadow world revises the reference: from there
+#: on, the human driver gives way to the vehicle it would have hit. The shadow world runs this
+#: far ahead of the samples handed out, so that a revision never changes one of them.
+REVISION_WINDOW = 3.0
+#: How long [s] after the foreseen collision the driver keeps giving way.
+YIELD_AFTER = 2.0
+#: At most this many revisions per reference (a collision left after them stays).
+MAX_REVISIONS = 12
+#: A near miss is a collision too: the shadow ego's footprint is tested grown by this much
+#: [m] at each end and each side, so that a policy that follows the reference with small
+#: tracking errors keeps clear as well.
+NEAR_MISS_AHEAD, NEAR_MISS_SIDE = 0.5, 0.15
+
+
+class HumanReference(ReferenceTrajectory):
+    """The reference of a generated scene, produced on demand: a human profile
+    (:class:`~gridsim.traffic.profiles.ProfileChain`) driven in a shadow world.
+
+    A human keeps its distance: when the shadow world's ego collides (or nearly: see
+    :data:`NEAR_MISS_AHEAD`) at sample ``k``, the
+    world is rebuilt and replayed to ``k - REVISION_WINDOW`` and driven on giving way to the
+    vehicle hit (:func:`~gridsim.world.driver.conflict_free_accel`) until ``k + YIELD_AFTER``.
+    A reference that never collides is exactly today's human drive; samples are handed out
+    only once no revision can change them, so they do not depend on the order of requests."""
+
+    def __init__(self, scenario: Scenario, seed: int, duration: float) -> None:
+        cfg = scenario.config
+        self._scenario, self._seed = scenario, int(seed)
+        lo, hi = cfg.speed_range
+        bounds = SpeedBounds(lo, min(hi, cfg.ego.vehicle.v_max), cfg.ego.vehicle.a_max)
+        profiles = human_profiles(
+            tuple(synthetic_tracks(scenario)), bounds, road_lane_width(scenario)
+        )
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5EF]))
+        self._chain = ProfileChain(profiles, rng, duration, cfg.simulation.dt, cfg.ego.speed)
+        n = len(self._chain.times)
+        super().__init__(self._chain.times, np.empty((n, 2)), np.empty(n), np.empty(n))
+        self._lag = round(REVISION_WINDOW / cfg.simulation.dt)
+        self._after = round(YIELD_AFTER / cfg.simulation.dt)
+        #: Revisions: (first tick, last tick, fleet indices to give way to).
+        self.revisions: list[tuple[int, int, tuple[int, ...]]] = []
+        #: Samples whose (near) collision no revision could avoid.
+        self.collisions: list[int] = []
+        self._restart()
+        self._ready = 0
+        self._known_length = 0.0  # running sum of the final path's length [m]
+
+    def _restart(self) -> None:
+        """A fresh shadow world at time 0 (sample 0 recorded)."""
+        self._world = w = build_world(self._scenario, self._seed)
+        self._driver = HumanDriver(self._chain, yield_to=self._yield_to)
+        p = w.ego_params
+        self._near = CollisionChecker(p.length + 2 * NEAR_MISS_AHEAD, p.width + 2 * NEAR_MISS_SIDE)
+        self._xy[0], self._psi[0], self._v[0] = w.ego[:2], w.ego[2], w.ego[3]
+        self._front = 1  # samples simulated (the last ``_lag`` of them may still be revised)
+
+    def _yield_to(self, tick: int) -> tuple[int, ...]:
+        return tuple(sorted({j for a, b, js in self.revisions if a <= tick <= b for j in js}))
+
+    def _simulate(self, front: int) -> None:
+        """Simulate up to ``front`` samples, revising after collisions."""
+        while self._front < front:
+            k = self._front
+            w = self._world
+            w.tick(*self._driver(w))
+            self._xy[k], self._psi[k], self._v[k] = w.ego[:2], w.ego[2], w.ego[3]
+            self._front = k + 1
+            f = w.traffic.fleet
+            near = self._near.check(
+                w.ego_center(), float(w.ego[2]), f.footprints(), np.flatnonzero(f.active)
+            )
+            if near.vehicles:
+                self._revise(k, near.vehicles)
+
+    def _revise(self, k: int, vehicles) -> None:
+        """Revise from before sample ``k`` giving way to ``vehicles``; a contact with a vehicle
+        already given way to (or one past :data:`MAX_REVISIONS`) is left as it is."""
+        culprits = {int(j) for j in vehicles} - set(self._yield_to(k - 1))
+        if not culprits or len(self.revisions) >= MAX_REVISIONS:
+            self.collisions.append(k)
+            return
+        start = max(k - self._lag, self._ready, 1)
+        self.revisions.append((start, k + self._after, tuple(sorted(culprits))))
+        self._restart()
+        while self._front < start:  # replay: the same ticks as before up to ``start``
+            self._world.tick(*self._driver(self._world))
+            self._front += 1
+
+    def _advance(self, ready: int) -> None:
+        n = len(self.t)
+        ready = min(ready, n)
+        if ready <= self._ready:
+            return
+        self._simulate(min(ready + self._lag, n))
+        final = n if self._front == n else self._front - self._lag
+        for k in range(max(self._ready, 1), final):
+            self._known_length += float(np.hypot(*(self._xy[k] - self._xy[k - 1])))
+        self._ready = max(self._ready, final)
+        if self.complete:
+            self._world = self._driver = None  # free the shadow world
+
+    def _could_reach(self, travelled: float, tolerance: float) -> bool:
+        """False when ``travelled`` is short of the reached share of the part known so far
+        (with a margin for rounding): the whole path is at least as long. Otherwise the
+        shadow world runs ahead until that rules it out, or to the end."""
+
+        def short() -> bool:
+            return travelled < REACHED_SHARE * self._known_length - tolerance - 1e-6
+
+        while not self.complete and not short():
+            self._advance(self._ready + 1)
+        return self.complete or not short()
 
 
 def reference_from_track(track: Track, center_offset: float) -> ReferenceTrajectory:
@@ -61,30 +241,14 @@ def reference_from_track(track: Track, center_offset: float) -> ReferenceTraject
     return ReferenceTrajectory(track.t - track.t[0], xy, track.heading.copy(), track.speed.copy())
 
 
-def human_reference(scenario: Scenario, seed: int, duration: float) -> ReferenceTrajectory:
-    """The reference of a generated scene: a human profile driven in a shadow world."""
+def human_reference(scenario: Scenario, seed: int, duration: float) -> HumanReference:
+    """The (shared, lazily advanced) reference of a generated scene for ``seed``."""
     key = (scenario.config.model_dump_json() + f"|{duration}", int(seed))
-    hit = _CACHE.get(key)
-    if hit is not None:
+    ref = _CACHE.get(key)
+    if ref is not None:
         _CACHE.move_to_end(key)
-        return hit
-    cfg = scenario.config
-    world = build_world(scenario, seed)
-    lo, hi = cfg.speed_range
-    bounds = SpeedBounds(lo, min(hi, cfg.ego.vehicle.v_max), cfg.ego.vehicle.a_max)
-    profiles = HumanProfiles(synthetic_tracks(scenario), bounds, road_lane_width(scenario))
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5EF]))
-    dt = world.dt
-    times, speeds, offsets = profiles.chain(rng, duration, dt, float(world.ego[3]))
-    driver = HumanDriver(times, speeds, offsets)
-    n = len(times)
-    xy, psi, v = np.empty((n, 2)), np.empty(n), np.empty(n)
-    xy[0], psi[0], v[0] = world.ego[:2], world.ego[2], world.ego[3]
-    for k in range(1, n):
-        world.tick(*driver(world))
-        xy[k], psi[k], v[k] = world.ego[:2], world.ego[2], world.ego[3]
-    ref = ReferenceTrajectory(times, xy, psi, v)
-    _CACHE[key] = ref
+        return ref
+    ref = _CACHE[key] = HumanReference(scenario, seed, duration)
     if len(_CACHE) > _CACHE_SIZE:
         _CACHE.popitem(last=False)
     return ref

@@ -7,6 +7,7 @@ human reference driver of generated scenes.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -70,23 +71,53 @@ class HumanProfiles:
         i = int(rng.integers(len(self)))
         return i, float(np.clip(v_now / max(self.v[i][0], 0.1), *self.scale_range(i)))
 
-    def chain(self, rng: np.random.Generator, duration: float, dt: float, v_start: float):
-        """Profiles chained end to end for ``duration`` seconds, sampled every ``dt``: times,
-        speeds (scaled, clipped to the bounds, rate-limited to ``a_max`` from ``v_start``) and
-        offsets (each new profile's offset jump decays with a 2 s time constant)."""
-        times = np.arange(0.0, duration + dt / 2, dt)
-        speeds, offsets = np.empty_like(times), np.empty_like(times)
-        i, k = self.continue_from(rng, v_start)
-        start, v_prev, d_bias = 0.0, v_start, -self.d[i][0]
-        b = self.bounds
-        for n, t in enumerate(times):
+
+@lru_cache(maxsize=16)
+def human_profiles(tracks: tuple[Track, ...], bounds: SpeedBounds, lane_width: float):
+    """The :class:`HumanProfiles` of ``tracks``, built once per process (they do not depend on
+    the episode seed; smoothing every track costs ~0.1 s)."""
+    return HumanProfiles(list(tracks), bounds, lane_width)
+
+
+class ProfileChain:
+    """Profiles chained end to end for ``duration`` seconds, sampled every ``dt`` [s], produced
+    on demand: :meth:`extend` computes samples up to an index, so that a consumer pays only
+    for the time it reaches. ``times`` is complete from the start; ``speeds`` [m/s] (scaled,
+    clipped to the bounds, rate-limited to ``a_max`` from ``v_start``) and ``offsets`` [m]
+    (each new profile's offset jump decays with a 2 s time constant) are valid up to
+    :attr:`ready`. The samples do not depend on how the work is split into calls."""
+
+    def __init__(
+        self,
+        profiles: HumanProfiles,
+        rng: np.random.Generator,
+        duration: float,
+        dt: float,
+        v_start: float,
+    ) -> None:
+        self.profiles, self.rng, self.dt = profiles, rng, dt
+        self.times = np.arange(0.0, duration + dt / 2, dt)
+        self.speeds = np.empty_like(self.times)
+        self.offsets = np.empty_like(self.times)
+        self.ready = 0
+        self._i, self._k = profiles.continue_from(rng, v_start)
+        self._start, self._v_prev, self._d_bias = 0.0, v_start, -profiles.d[self._i][0]
+
+    def extend(self, n: int) -> None:
+        """Compute the samples up to index ``n`` (exclusive; capped at the end)."""
+        hp, b, dt = self.profiles, self.profiles.bounds, self.dt
+        i, k, start, v_prev, d_bias = self._i, self._k, self._start, self._v_prev, self._d_bias
+        speeds, offsets = self.speeds, self.offsets
+        for m in range(self.ready, min(n, len(self.times))):
+            t = self.times[m]
             tau = t - start
-            if tau > self.t[i][-1]:
-                v_end, d_end = speeds[n - 1], offsets[n - 1]
-                i, k = self.continue_from(rng, v_end)
+            if tau > hp.t[i][-1]:
+                v_end, d_end = speeds[m - 1], offsets[m - 1]
+                i, k = hp.continue_from(self.rng, v_end)
                 start, tau = t, 0.0
-                d_bias = d_end - self.d[i][0]
-            v = np.clip(k * np.interp(tau, self.t[i], self.v[i]), b.v_min, b.v_max)
-            speeds[n] = v_prev = np.clip(v, v_prev - b.a_max * dt, v_prev + b.a_max * dt)
-            offsets[n] = np.interp(tau, self.t[i], self.d[i]) + d_bias * np.exp(-tau / 2.0)
-        return times, speeds, offsets
+                d_bias = d_end - hp.d[i][0]
+            v = np.clip(k * np.interp(tau, hp.t[i], hp.v[i]), b.v_min, b.v_max)
+            speeds[m] = v_prev = np.clip(v, v_prev - b.a_max * dt, v_prev + b.a_max * dt)
+            offsets[m] = np.interp(tau, hp.t[i], hp.d[i]) + d_bias * np.exp(-tau / 2.0)
+            self.ready = m + 1
+        self._i, self._k, self._start, self._v_prev, self._d_bias = i, k, start, v_prev, d_bias

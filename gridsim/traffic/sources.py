@@ -7,6 +7,7 @@ every :meth:`tick` (recycling participants that fall out of range on endless roa
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from functools import lru_cache
 
 import numpy as np
 
@@ -14,7 +15,8 @@ from gridsim.road.city import CityRoad
 from gridsim.road.seamless import SeamlessRoad
 from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
 from gridsim.traffic.library import Track
-from gridsim.traffic.profiles import HumanProfiles, SpeedBounds
+from gridsim.traffic.profiles import HumanProfiles, SpeedBounds, human_profiles
+from gridsim.traffic.tables import TableBank
 
 _SPAWN_CLEARANCE = 6.0  # free distance [m] kept around a new participant, beyond the footprints
 
@@ -98,6 +100,17 @@ class RecordedSceneTraffic(TrafficSource):
         self._activate_due()
 
 
+@lru_cache(maxsize=16)
+def _profile_tables(profiles: HumanProfiles) -> TableBank:
+    """The fleet's profile tables ``(dist, v, d, 0)`` over time for ``profiles``, built once and
+    shared read-only by every fleet replaying them (they do not depend on the episode)."""
+    bank = TableBank(width=4)
+    for t, dist, v, d in zip(profiles.t, profiles.dist, profiles.v, profiles.d, strict=True):
+        bank.add(t, np.stack([dist, v, d, np.zeros_like(t)], axis=1))
+    bank.ranges(np.zeros(1, np.int64))  # build the flat arrays now, once
+    return bank
+
+
 class SyntheticTraffic(TrafficSource):
     """Recorded human speed and lateral-offset profiles (:class:`HumanProfiles`) replayed
     along the lanes of a generated road. Each participant gets a random profile scaled into
@@ -114,7 +127,7 @@ class SyntheticTraffic(TrafficSource):
         params: FleetParams | None = None,
     ) -> None:
         self.count = count
-        self.profiles = HumanProfiles(tracks, bounds, lane_width)
+        self.profiles = human_profiles(tuple(tracks), bounds, lane_width)
         fp = params or FleetParams()
         limits = {
             "v_min": bounds.v_min,
@@ -123,10 +136,8 @@ class SyntheticTraffic(TrafficSource):
             "b_max": max(bounds.a_max, fp.idm.b),
         }
         self.fleet = Fleet(max(1, count), FleetParams(**{**fp.__dict__, **limits}))
-        hp = self.profiles
-        for t, dist, v, d in zip(hp.t, hp.dist, hp.v, hp.d, strict=True):
-            self.fleet.profiles.add(t, np.stack([dist, v, d, np.zeros_like(t)], axis=1))
-        self._sizes = hp.sizes
+        self.fleet.profiles = _profile_tables(self.profiles)
+        self._sizes = self.profiles.sizes
         self.rng = np.random.default_rng(0)
 
     # -- helpers shared by the road-specific sources ------------------------------------------

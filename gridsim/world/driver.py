@@ -2,8 +2,11 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
+from gridsim.traffic.profiles import ProfileChain
 from gridsim.vehicle.control import PursuitGains, follow_path
 from gridsim.vehicle.idm import IDMParams, idm_acceleration
 from gridsim.vehicle.kinematics import V
@@ -26,25 +29,30 @@ class LaneFollower:
         self.speed, self.lookahead = speed, lookahead
         self.idm = idm or IDMParams()
         self.gains = gains or PursuitGains()
-        self._route_id: int | None = None
+        self._route = None  # the route tracked (held, so that a new one is never mistaken for it)
         self._hint = 0
 
     def __call__(self, world) -> tuple[float, float]:
         """Inputs ``(acceleration [m/s^2], steering rate [rad/s])`` for the current state."""
         return self.inputs(world, self.speed, 0.0)
 
-    def _track(self, route, xy: np.ndarray) -> float:
-        if id(route) != self._route_id:  # a new (or regenerated) route: search all of it
+    def _track(self, route, xy: np.ndarray) -> tuple[float, float]:
+        """Arc length and lateral offset [m] of the rear axle on ``route``."""
+        if route is not self._route:  # a new (or regenerated) route: search all of it
             _, _, seg = route.project(xy[None])
-            self._route_id, self._hint = id(route), int(seg[0])
-        s, _, self._hint = route.track(float(xy[0]), float(xy[1]), self._hint)
-        return s
+            self._route, self._hint = route, int(seg[0])
+        s, d, self._hint = route.track(float(xy[0]), float(xy[1]), self._hint)
+        return s, d
 
-    def inputs(self, world, speed: float, offset: float) -> tuple[float, float]:
-        """Inputs keeping lateral ``offset`` [m] from the route at up to ``speed`` [m/s]."""
+    def inputs(
+        self, world, speed: float, offset: float, yield_to: np.ndarray | None = None
+    ) -> tuple[float, float]:
+        """Inputs keeping lateral ``offset`` [m] from the route at up to ``speed`` [m/s];
+        with ``yield_to`` (fleet indices), also giving way to those vehicles
+        (:func:`conflict_free_accel`)."""
         route = world.route
         p = world.ego_params
-        s_rear = self._track(route, world.ego[:2])
+        s_rear, d_rear = self._track(route, world.ego[:2])
         accel, steer_rate = follow_path(world.ego, route, speed, p, self.gains, offset, s_rear)
         gap, lead_v = self._leader(world, route, s_rear)
         if np.isfinite(gap):
@@ -53,7 +61,10 @@ class LaneFollower:
                 np.array(v), np.array(speed), np.array(gap), np.array(v - lead_v), self.idm
             )
             accel = min(accel, float(a_idm))
-        return float(np.clip(accel, -p.b_max, p.a_max)), steer_rate
+        accel = float(np.clip(accel, -p.b_max, p.a_max))
+        if yield_to is not None and len(yield_to):
+            accel = conflict_free_accel(world, route, s_rear, d_rear, accel, yield_to)
+        return accel, steer_rate
 
     def _leader(self, world, route, s_rear: float) -> tuple[float, float]:
         f = world.traffic.fleet
@@ -76,22 +87,90 @@ class LaneFollower:
         return float(gap), float(f.v[j])
 
 
+#: Prediction horizon [s] and step [s] of :func:`conflict_free_accel`.
+YIELD_HORIZON, YIELD_STEP = 4.0, 0.2
+#: Extra clearance [m] between the footprints' covering disks when giving way.
+YIELD_MARGIN = 1.0
+
+
+def _disks(x, y, psi, length):
+    """Centres ``(..., 3, 2)`` [m] of three disks along a vehicle of ``length`` [m] centred at
+    ``(x, y)`` with heading ``psi`` (arrays broadcast); with radius :func:`_disk_radius` they
+    cover its footprint."""
+    along = np.asarray(length)[..., None] * (np.array([-1.0, 0.0, 1.0]) / 3.0)
+    cx = np.asarray(x)[..., None] + along * np.cos(psi)[..., None]
+    cy = np.asarray(y)[..., None] + along * np.sin(psi)[..., None]
+    return np.stack([cx, cy], axis=-1)
+
+
+def _disk_radius(length, width):
+    return np.hypot(np.asarray(length) / 6.0, np.asarray(width) / 2.0)
+
+
+def conflict_free_accel(world, route, s_rear, d_rear, accel, vehicles) -> float:
+    """The acceleration [m/s^2] closest to ``accel`` (trying ``accel``, then braking harder,
+    then accelerating) under which the ego, held at that acceleration along ``route`` at its
+    lateral offset ``d_rear`` [m], keeps clear of ``vehicles`` (fleet indices) for
+    :data:`YIELD_HORIZON` seconds, each predicted along its own path at its current speed.
+    If every candidate meets one, the one that meets it latest."""
+    f = world.traffic.fleet
+    idx = np.asarray([j for j in vehicles if f.active[j]], dtype=np.int64)
+    if len(idx) == 0:
+        return accel
+    p = world.ego_params
+    t = YIELD_STEP * np.arange(1, round(YIELD_HORIZON / YIELD_STEP) + 1)
+    m = len(t)
+    s = (f.s[idx, None] + f.v[idx, None] * t).ravel()
+    xy, h = f.paths.frenet_to_world(np.repeat(f.path[idx], m), s, np.repeat(f.d[idx], m))
+    shape = (len(idx), m)
+    other = _disks(xy[:, 0].reshape(shape), xy[:, 1].reshape(shape), h.reshape(shape),
+                   f.length[idx, None])  # fmt: skip
+    # clearance needed between disk centres, per vehicle (broadcast over time and disks)
+    reach = _disk_radius(f.length[idx], f.width[idx]) + _disk_radius(p.length, p.width)
+    reach = (reach + YIELD_MARGIN)[:, None, None, None]
+    candidates = [accel] + [a for a in (0.0, -1.5, -3.0, -p.b_max) if a < accel] + [p.a_max]
+    v0 = float(world.ego[V])
+    first_conflict = []
+    for a in candidates:
+        stop = np.inf if a >= 0 else v0 / -a
+        tt = np.minimum(t, stop)
+        ds = v0 * tt + 0.5 * a * tt**2
+        rear, h_ego = route.frenet_to_world(s_rear + ds, np.full(m, d_rear))
+        centre = rear + p.center_offset * np.stack([np.cos(h_ego), np.sin(h_ego)], axis=1)
+        ego = _disks(centre[:, 0], centre[:, 1], h_ego, p.length)
+        # distances (vehicle, time, ego disk, other disk)
+        gap = np.linalg.norm(ego[None, :, :, None, :] - other[:, :, None, :, :], axis=-1)
+        hit = np.any(gap < reach, axis=(0, 2, 3))
+        if not hit.any():
+            return float(a)
+        first_conflict.append(t[np.argmax(hit)])
+    return float(candidates[int(np.argmax(first_conflict))])
+
+
 class HumanDriver:
-    """Drives the route with a human speed and lateral-offset profile (arrays over time from
-    the start of the episode), keeping its distance to traffic like :class:`LaneFollower`."""
+    """Drives the route with a human speed and lateral-offset profile (a
+    :class:`~gridsim.traffic.profiles.ProfileChain` over time from the start of the episode,
+    produced as far as needed), keeping its distance to traffic like :class:`LaneFollower`.
+
+    ``yield_to(tick)`` names the fleet indices to give way to at that tick (see
+    :func:`conflict_free_accel`): how a reference avoids a collision it has foreseen."""
 
     def __init__(
         self,
-        times: np.ndarray,
-        speeds: np.ndarray,
-        offsets: np.ndarray,
+        chain: ProfileChain,
         follower: LaneFollower | None = None,
+        yield_to: Callable[[int], np.ndarray] | None = None,
     ) -> None:
-        self.times, self.speeds, self.offsets = times, speeds, offsets
-        self.follower = follower or LaneFollower(speed=float(np.max(speeds)))
+        self.chain = chain
+        self.follower = follower or LaneFollower(speed=chain.profiles.bounds.v_max)
+        self.yield_to = yield_to
 
     def __call__(self, world) -> tuple[float, float]:
-        t = world.time
-        speed = float(np.interp(t, self.times, self.speeds))
-        offset = float(np.interp(t, self.times, self.offsets))
-        return self.follower.inputs(world, speed, offset)
+        t, chain = world.time, self.chain
+        # Interpolation reads the samples around t: make the one after it known.
+        chain.extend(int(t / chain.dt) + 3)
+        n = chain.ready
+        speed = float(np.interp(t, chain.times[:n], chain.speeds[:n]))
+        offset = float(np.interp(t, chain.times[:n], chain.offsets[:n]))
+        avoid = self.yield_to(round(t / world.dt)) if self.yield_to else None
+        return self.follower.inputs(world, speed, offset, avoid)
