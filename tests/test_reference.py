@@ -72,7 +72,7 @@ def test_profile_chain_gives_the_same_samples_however_it_is_extended():
     assert np.all((whole.speeds >= 4.0 - 1e-12) & (whole.speeds <= 13.0 + 1e-12))
 
 
-@pytest.mark.parametrize("seed", [4, 6, 7, 8, 14])
+@pytest.mark.parametrize("seed", [4, 6, 8, 12, 14])
 def test_following_a_revised_reference_does_not_collide(seed):
     """Inner-city seeds whose reference drove into crossing traffic before revisions."""
     env = GridSimEnv("inner_city", simulation={"duration": 30.0})
