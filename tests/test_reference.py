@@ -31,9 +31,12 @@ def test_lazy_reference_equals_the_reference_simulated_up_front(scenario, seed):
     """Digests recorded before references became lazy (references that never collided)."""
     env = GridSimEnv(scenario)
     env.reset(seed=seed)
-    ref = env.reference
-    assert ref._ready < len(ref.t) // 4  # a reset simulates only the first seconds
+    duration = env.cfg.simulation.duration + env.cfg.env.horizon * env.cfg.env.setpoint_period
+    ref = HumanReference(env.scenario, env.episode_seed, duration)  # a fresh one, not cached
+    ref.positions(np.array([2.5]))  # what a reset asks for
+    assert ref._ready < len(ref.t) // 4  # only the first seconds are simulated
     assert _digest(ref) == DIGESTS["digests"][scenario][str(seed)]
+    assert _digest(env.reference) == _digest(ref)
     assert ref.revisions == [] and ref.collisions == []
 
 
