@@ -124,8 +124,9 @@ class ReferenceTrajectory:
 #: on, the human driver gives way to the vehicle it would have hit. The shadow world runs this
 #: far ahead of the samples handed out, so that a revision never changes one of them.
 REVISION_WINDOW = 3.0
-#: How long [s] after the foreseen collision the driver keeps giving way.
-YIELD_AFTER = 2.0
+#: How long [s] after the foreseen collision the driver keeps giving way (it costs nothing
+#: once the vehicle is clear: the driver then drives as it would).
+YIELD_AFTER = 6.0
 #: At most this many revisions per reference (a collision left after them stays).
 MAX_REVISIONS = 12
 #: A near miss is a collision too: the shadow ego's footprint is tested grown by this much
@@ -202,6 +203,7 @@ class HumanReference(ReferenceTrajectory):
             self.collisions.append(k)
             return
         start = max(k - self._lag, self._ready, 1)
+        self.collisions = [c for c in self.collisions if c <= start]  # to be driven again
         self.revisions.append((start, k + self._after, tuple(sorted(culprits))))
         self._restart()
         while self._front < start:  # replay: the same ticks as before up to ``start``
