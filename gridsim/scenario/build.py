@@ -7,8 +7,10 @@ streams for the road, the traffic and the ego.
 
 from __future__ import annotations
 
+import copy
+from collections import OrderedDict
 from collections.abc import Callable
-from functools import lru_cache
+from functools import lru_cache, partial
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +35,7 @@ from gridsim.traffic.sources import (
     RecordedSceneTraffic,
     SeamlessTraffic,
     SpeedBounds,
+    SyntheticTraffic,
     track_path,
 )
 from gridsim.vehicle.kinematics import BicycleParams
@@ -180,7 +183,7 @@ def _build_seamless(scenario: Scenario, seed: int) -> World:
     count = cfg.traffic.participants
     traffic = SeamlessTraffic(road, tracks, count, _bounds(scenario), behind, ahead)
     return World(
-        road, traffic, ego, state, cfg.simulation.dt, lambda: road.lanes[lane].centre, traffic_rng
+        road, traffic, ego, state, cfg.simulation.dt, partial(_lane_centre, road, lane), traffic_rng
     )
 
 
@@ -207,7 +210,7 @@ def _build_city(scenario: Scenario, seed: int) -> World:
     tracks = synthetic_tracks(scenario)
     radius = max(cfg.traffic.window)
     traffic = CityTraffic(road, tracks, cfg.traffic.participants, _bounds(scenario), radius)
-    return World(road, traffic, ego, state, cfg.simulation.dt, lambda: route, traffic_rng)
+    return World(road, traffic, ego, state, cfg.simulation.dt, partial(_fixed, route), traffic_rng)
 
 
 def _build_recorded(scenario: Scenario, seed: int) -> World:
@@ -249,7 +252,7 @@ def _build_recorded(scenario: Scenario, seed: int) -> World:
     route = Polyline(track_path(ego_track)[0])
     traffic = RecordedSceneTraffic(tracks, exclude=ego_track.track_id)
     return World(
-        road, traffic, ego, state, cfg.simulation.dt, lambda: route, traffic_rng, ego_track
+        road, traffic, ego, state, cfg.simulation.dt, partial(_fixed, route), traffic_rng, ego_track
     )
 
 
@@ -310,6 +313,41 @@ WORLD_BUILDERS: dict[type, Callable[[Scenario, int], World]] = {
 }
 
 
+_PRISTINE: OrderedDict[tuple[str, str, int], World] = OrderedDict()
+_PRISTINE_SIZE = 64
+
+
 def build_world(scenario: Scenario, seed: int = 0) -> World:
-    """A fresh world for ``scenario``; the same seed always gives the same world."""
-    return WORLD_BUILDERS[type(scenario.config.road)](scenario, int(seed))
+    """A fresh world for ``scenario``; the same seed always gives the same world.
+
+    The first world built for a (scenario, seed) is kept untouched and later ones are copies
+    of it (a copy costs a fraction of a build: warm resets). Objects that do not depend on
+    the seed and never change (static maps, profile tables) are shared, not copied."""
+    key = (scenario.config.model_dump_json(), str(scenario.base_dir), int(seed))
+    pristine = _PRISTINE.get(key)
+    if pristine is None:
+        pristine = WORLD_BUILDERS[type(scenario.config.road)](scenario, int(seed))
+        _PRISTINE[key] = pristine
+        if len(_PRISTINE) > _PRISTINE_SIZE:
+            _PRISTINE.popitem(last=False)
+    else:
+        _PRISTINE.move_to_end(key)
+    return copy.deepcopy(pristine, {id(o): o for o in _shared_parts(pristine)})
+
+
+def _shared_parts(world: World) -> list:
+    """The parts of ``world`` that copies share: immutable and independent of the seed."""
+    parts = [world.ego_track] if world.ego_track is not None else []
+    if isinstance(world.road, StaticRoad):
+        parts.append(world.road)
+    if isinstance(world.traffic, SyntheticTraffic):
+        parts += [world.traffic.profiles, world.traffic.fleet.profiles]
+    return parts
+
+
+def _lane_centre(road: SeamlessRoad, lane: int) -> Polyline:
+    return road.lanes[lane].centre
+
+
+def _fixed(route: Polyline) -> Polyline:
+    return route

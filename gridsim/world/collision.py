@@ -45,6 +45,7 @@ class CollisionChecker:
     def __init__(
         self, ego_length: float, ego_width: float, edge_tolerance: float = EDGE_TOLERANCE
     ) -> None:
+        self._args = (ego_length, ego_width, edge_tolerance)
         self.space = pymunk.Space()
         self._ego_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
         self._ego_shape = _box(self._ego_body, ego_length, ego_width)
@@ -60,6 +61,12 @@ class CollisionChecker:
         self._boundary_shapes: list[pymunk.Segment] = []
         self._road_version = -1
         self._boundary_center = np.array([np.inf, np.inf])
+
+    def __deepcopy__(self, memo) -> CollisionChecker:
+        """A fresh checker: its pymunk space only caches shapes near the ego (edges within
+        :data:`BOUNDARY_RADIUS` of where they were loaded, traffic boxes placed per check) and
+        contacts come out sorted, so its results do not depend on what it loaded before."""
+        return CollisionChecker(*self._args)
 
     def set_boundaries(self, segments: np.ndarray, version: int, center: np.ndarray) -> None:
         """Load the road-edge segments ``(M, 4)`` within :data:`BOUNDARY_RADIUS` of ``center``
