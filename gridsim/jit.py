@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numba
+from numba.extending import register_jitable
 
 
 def kernel(fn: Callable) -> Callable:
@@ -20,3 +21,8 @@ def kernel(fn: Callable) -> Callable:
         return numba.njit(cache=True, nogil=True)(fn)
     except RuntimeError:  # no writable cache location
         return numba.njit(nogil=True)(fn)
+
+
+def jitable(fn: Callable) -> Callable:
+    """``fn`` unchanged for Python callers, compiled inline when a kernel calls it."""
+    return register_jitable(fn)

@@ -28,17 +28,13 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial import cKDTree
 
+from gridsim.traffic.fleet_kernels import IDM as IDM  # the modes, re-exported
+from gridsim.traffic.fleet_kernels import REPLAY, advance
 from gridsim.traffic.tables import PathBank, TableBank
-from gridsim.vehicle.idm import IDMParams, desired_gap, idm_acceleration
+from gridsim.vehicle.idm import IDMParams
 
-REPLAY, IDM = 0, 1
-_S, _V, _D, _H = range(4)
+_V, _D, _H = 1, 2, 3
 _ALL_PAIRS_MAX = 48  # up to this many vehicles, testing all pairs beats building a tree
-
-
-def _clamp(x, lo, hi):
-    """``np.clip`` without its Python-level overhead (it dominates on small arrays)."""
-    return np.minimum(np.maximum(x, lo), hi)
 
 
 @lru_cache(maxsize=64)
@@ -268,48 +264,16 @@ class Fleet:
         if n == 0:
             return idx
         p = self.p
-        prof, tau, k = self.profile[idx], self.tau[idx], self.k[idx]
+        prof, tau = self.profile[idx], self.tau[idx]
         both = self.profiles.lookup(np.concatenate([prof, prof]), np.concatenate([tau, tau + dt]))
-        now, nxt = both[:n], both[n:]
-        v = self.v[idx]
-        lead_v = self._lead_v[idx]
-        v_rep = np.minimum(k * nxt[:, _V], p.v_max)
-        gap = self.gap[idx]
-        dv = v - lead_v
-        mode = self.mode[idx]
-        to_idm = (mode == REPLAY) & (gap < desired_gap(v, dv, p.idm))
-        to_replay = (
-            (mode == IDM)
-            & (gap > p.resume_factor * desired_gap(v_rep, v_rep - lead_v, p.idm))
-            & (v >= v_rep - p.resume_speed_tol)
-        )
-        mode = np.where(to_idm, IDM, np.where(to_replay, REPLAY, mode)).astype(np.int8)
-        follow = np.flatnonzero(mode == IDM)
-
-        # Replay: recorded scenes move by the recorded distance (exact poses); synthetic
-        # participants integrate the scaled speed, rate-limited to the scenario's bounds.
-        geo = self.geometric[idx]
-        v_syn = _clamp(_clamp(v_rep, p.v_min, p.v_max), v - p.b_max * dt, v + p.a_max * dt)
-        new_v = np.where(geo, v_rep, v_syn)
-        new_s = self.s[idx] + np.where(geo, nxt[:, _S] - now[:, _S], 0.5 * (v + new_v) * dt)
-        new_tau = tau + dt
-        new_d = nxt[:, _D]
-        self.d_bias[idx] *= np.exp(-dt / 2.0)
-        if len(follow):  # IDM, with the profile's current speed as desired speed
-            f = follow
-            v_des = k[f] * now[f, _V]
-            a_f = idm_acceleration(v[f], v_des, gap[f], dv[f], p.idm)
-            vf = _clamp(v[f] + a_f * dt, 0.0, p.v_max)
-            ds = 0.5 * (v[f] + vf) * dt
-            new_s[f] = self.s[idx[f]] + ds
-            new_v[f] = vf
-            new_tau[f] = tau[f] + _clamp(ds / np.maximum(v_des * dt, 1e-3), 0.0, 1.0) * dt
-            new_d[f] = self.d[idx[f]] - self.d_bias[idx[f]]  # hold the lateral position
-        self.s[idx], self.v[idx], self.tau[idx], self.mode[idx] = new_s, new_v, new_tau, mode
-        self.d[idx] = new_d + self.d_bias[idx]
+        fleet = (self.s, self.v, self.tau, self.d, self.d_bias, self.k, self.mode,
+                 self.geometric, self.gap)  # fmt: skip
+        limits = (p.v_min, p.v_max, p.a_max, p.b_max, p.resume_factor, p.resume_speed_tol)
+        advance(idx, both[:n], both[n:], fleet, self._lead_v, limits, p.idm.values, dt,
+                np.exp(-dt / 2.0))  # fmt: skip
         self._update_pose(idx)
         _, hi = self.profiles.ranges(prof)
-        ended = idx[new_tau > hi + 1e-9]
+        ended = idx[self.tau[idx] > hi + 1e-9]
         self.deactivate(ended[self.geometric[ended]])
         return ended
 
