@@ -11,6 +11,9 @@ import numpy as np
 
 from gridsim.jit import kernel
 
+#: Up to this many queries, plain binary search; more use the bucket index.
+SMALL_QUERY = 128
+
 
 @kernel
 def _search_right(keys: np.ndarray, k: float) -> int:
@@ -57,13 +60,19 @@ def lookup(bank, ys, slope, slots, x, clamp, buckets, out) -> None:
 
 
 @kernel
-def frenet(bank, ys, slope, normal, heading, slots, s, d, buckets, xy, h) -> None:
-    """Points ``xy[q]`` at arc length ``s[q]`` and offset ``d[q]`` on path ``slots[q]``
-    (end segments extended), and the path headings ``h[q]``."""
-    keys = bank[0]
+def frenet_one(path, t, s, d, buckets) -> tuple[float, float, float]:
+    """Point ``(x, y)`` at arc length ``s`` and offset ``d`` on path ``t`` (end segments
+    extended) and the path heading; ``path`` is :meth:`PathBank.kernel_data`."""
+    bank, ys, slope, normal, heading = path
+    i, k = _segment(bank, t, s, False, buckets)
+    dk = k - bank[0][i]
+    x = (ys[i, 0] + dk * slope[i, 0]) + d * normal[i, 0]
+    y = (ys[i, 1] + dk * slope[i, 1]) + d * normal[i, 1]
+    return x, y, heading[i]
+
+
+@kernel
+def frenet(path, slots, s, d, buckets, xy, h) -> None:
+    """:func:`frenet_one` for every query, into ``xy`` ``(n, 2)`` and ``h`` ``(n,)``."""
     for q in range(len(s)):
-        i, k = _segment(bank, slots[q], s[q], False, buckets)
-        dk = k - keys[i]
-        for c in range(2):
-            xy[q, c] = (ys[i, c] + dk * slope[i, c]) + d[q] * normal[i, c]
-        h[q] = heading[i]
+        xy[q, 0], xy[q, 1], h[q] = frenet_one(path, slots[q], s[q], d[q], buckets)

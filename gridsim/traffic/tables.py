@@ -11,7 +11,6 @@ import numpy as np
 from gridsim.traffic import table_kernels
 
 _GAP = 1.0  # separation of tables on the shared key axis
-_SMALL_QUERY = 128  # up to this many queries, plain binary search (else the bucket index)
 
 
 class TableBank:
@@ -83,6 +82,8 @@ class TableBank:
         self._lo = np.array([x[0] if x is not None else 0.0 for x in self._x])
         self._hi = np.array([x[-1] if x is not None else 1.0 for x in self._x])
         self._build_buckets()
+        self._bank = (self._keys, self._base, self._first, self._last, self._lo, self._hi,
+                      self._bucket_count, self._bucket_width)  # fmt: skip
         self._dirty = False
         self._on_rebuild()
 
@@ -117,9 +118,7 @@ class TableBank:
         x = np.asarray(x, dtype=np.float64)
         if slots.shape != x.shape or slots.ndim != 1:
             slots, x = (np.ascontiguousarray(a).ravel() for a in np.broadcast_arrays(slots, x))
-        bank = (self._keys, self._base, self._first, self._last, self._lo, self._hi,
-                self._bucket_count, self._bucket_width)  # fmt: skip
-        return bank, slots, x, len(x) > _SMALL_QUERY
+        return self._bank, slots, x, len(x) > table_kernels.SMALL_QUERY
 
     def lookup(self, slots: np.ndarray, x: np.ndarray, clamp: bool = True) -> np.ndarray:
         """Values ``(N, width)`` at ``x`` in tables ``slots``, interpolated linearly.
@@ -169,9 +168,14 @@ class PathBank(TableBank):
     def frenet_to_world(self, slots, s, d):
         """World points ``(N, 2)`` and path headings [rad] at ``(s, d)`` on paths ``slots``
         (extrapolated straight beyond the path ends)."""
-        bank, slots, s, buckets = self._queries(slots, s)
+        _, slots, s, buckets = self._queries(slots, s)
         d = np.broadcast_to(np.asarray(d, dtype=np.float64), s.shape)
         xy, h = np.empty((len(s), 2)), np.empty(len(s))
-        table_kernels.frenet(bank, self._ys, self._slope, self._normal, self._heading, slots, s,
-                             d, buckets, xy, h)  # fmt: skip
+        table_kernels.frenet(self.kernel_data(), slots, s, d, buckets, xy, h)
         return xy, h
+
+    def kernel_data(self) -> tuple:
+        """The flat arrays that :func:`~gridsim.traffic.table_kernels.frenet_one` reads."""
+        if self._dirty:
+            self._rebuild()
+        return self._bank, self._ys, self._slope, self._normal, self._heading
