@@ -156,3 +156,19 @@ def test_box_corners_orientation():
     c = box_corners(np.array([1.0]), np.array([2.0]), np.array([np.pi / 2]), 4.0, 2.0)[0]
     # Heading north: the front-right corner is to the east of the front axle line.
     np.testing.assert_allclose(c, [[2, 0], [2, 4], [0, 4], [0, 0]], atol=1e-12)
+
+
+@pytest.mark.parametrize("v_switch", [np.inf, 7.0])
+def test_one_vehicle_step_is_bit_identical_to_the_batched_step(v_switch):
+    """The pure-Python path for one vehicle gives the batched NumPy path's bits."""
+    params = BicycleParams(v_switch=v_switch, v_max=30.0, v_min=-2.0)
+    rng = np.random.default_rng(11)
+    for _ in range(3000):
+        state = np.array([*rng.uniform(-500, 500, 2), rng.uniform(-7, 7), rng.uniform(-3, 32),
+                          rng.uniform(-0.6, 0.6)])  # fmt: skip
+        accel, rate = float(rng.uniform(-9, 9)), float(rng.uniform(-2, 2))
+        one = step_bicycle(state, accel, rate, params, 0.1)
+        batched = step_bicycle(state[None], np.array([accel]), np.array([rate]), params, 0.1)
+        assert one.state.tobytes() == batched.state[0].tobytes()
+        assert float(one.accel) == float(batched.accel[0])
+        assert float(one.steer_rate) == float(batched.steer_rate[0])

@@ -7,6 +7,8 @@ Either way the frame matches the occupancy grid the network sees.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 
@@ -17,16 +19,23 @@ def grid_rotation(orientation: str, psi: float) -> float:
 
 def world_to_grid(points: np.ndarray, ego_xy: np.ndarray, rotation: float) -> np.ndarray:
     """World points ``(N, 2)`` into the grid frame."""
-    c, s = np.cos(rotation), np.sin(rotation)
+    c, s = math.cos(rotation), math.sin(rotation)
     d = np.asarray(points, dtype=np.float64) - ego_xy
-    return np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
+    out = np.empty(d.shape)
+    out[:, 0] = c * d[:, 0] + s * d[:, 1]
+    out[:, 1] = -s * d[:, 0] + c * d[:, 1]
+    return out
 
 
 def grid_to_world(points: np.ndarray, ego_xy: np.ndarray, rotation: float) -> np.ndarray:
     """Grid-frame points ``(N, 2)`` into the world frame."""
-    c, s = np.cos(rotation), np.sin(rotation)
+    c, s = math.cos(rotation), math.sin(rotation)
     p = np.asarray(points, dtype=np.float64)
-    return np.stack([c * p[:, 0] - s * p[:, 1], s * p[:, 0] + c * p[:, 1]], axis=1) + ego_xy
+    out = np.empty(p.shape)
+    out[:, 0] = c * p[:, 0] - s * p[:, 1]
+    out[:, 1] = s * p[:, 0] + c * p[:, 1]
+    out += ego_xy
+    return out
 
 
 def grid_to_pixel(

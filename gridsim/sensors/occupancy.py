@@ -15,9 +15,9 @@ occluded behind the first hit, out of range, outside every mount's field of view
 **Sensing.** Each mount casts ``rays`` rays over 360 degrees (limited to its ``fov``) out to
 ``max_range`` metres. Along a ray, cells before the first obstacle are free; obstacle cells up
 to ``hit_depth`` metres beyond the first hit are occupied; everything farther is unknown. The
-union over mounts is returned. Rays are sampled every ``ray_step`` cells by a polar remap
-(OpenCV), so the cost does not depend on the number of vehicles. Mount positions are snapped
-to whole cells.
+union over mounts is returned. Rays are sampled every ``ray_step`` cells at precomputed whole
+cells and walked up to their first obstacle (:mod:`gridsim.sensors.rays`), so the cost does not
+depend on the number of vehicles. Mount positions are snapped to whole cells.
 """
 
 from __future__ import annotations
@@ -26,6 +26,8 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
+
+from gridsim.sensors.rays import cell_states, first_hits, mark_visible
 
 FREE, UNKNOWN, OCCUPIED = 0, 128, 255
 _COLOURS = np.zeros((256, 3), np.uint8)
@@ -121,18 +123,20 @@ class OccupancyGridSensor:
         self._range = spec.max_range / spec.cell_size / self._dr
         self._tables: dict[tuple[int, int], tuple] = {}
         self._obstacles = np.empty((rows, cols), np.uint8)
-        self._polar = np.empty((spec.rays, self._n_r), np.uint8)
+        self._visible = np.empty((rows, cols), np.uint8)
+        self._hits = np.empty(spec.rays, np.int64)
 
     def _tables_for(self, ou: int, ov: int):
-        """Remap maps and per-cell (ray, radius) tables for a mount ``(ou, ov)`` cells off the
-        grid centre; cached, as mounts snap to whole cells."""
+        """Ray samples ``(rays, samples, 2)`` (whole cells, column and row) and per-cell
+        (ray, radius) tables for a mount ``(ou, ov)`` cells off the grid centre; cached, as
+        mounts snap to whole cells."""
         key = (ou, ov)
         hit = self._tables.get(key)
         if hit is not None:
             return hit
         s = self.spec
         u0, v0 = s.cols / 2 - 0.5 + ou, s.rows / 2 - 0.5 + ov
-        maps, _ = cv2.convertMaps(
+        samples, _ = cv2.convertMaps(
             self._du + np.float32(u0), self._dv + np.float32(v0), cv2.CV_16SC2, nninterpolation=True
         )
         v, u = np.mgrid[0 : s.rows, 0 : s.cols].astype(np.float64)
@@ -143,7 +147,7 @@ class OccupancyGridSensor:
         rad[rad > self._range] = np.inf  # out of range: never visible
         if len(self._tables) > 256:
             self._tables.clear()
-        self._tables[key] = hit = (maps, ray, rad)
+        self._tables[key] = hit = (samples, ray, rad)
         return hit
 
     # -- geometry ----------------------------------------------------------------------------
@@ -196,15 +200,18 @@ class OccupancyGridSensor:
     def render(self, ego_xy, ego_psi, drivable: list[np.ndarray], boxes: np.ndarray) -> np.ndarray:
         """The occupancy grid (values :data:`FREE`, :data:`UNKNOWN`, :data:`OCCUPIED`)."""
         obstacles = self.obstacle_mask(ego_xy, ego_psi, drivable, boxes)
-        mounts = self.spec.mounts
-        visible = self._visible_from(mounts[0], obstacles, ego_psi)
-        for mount in mounts[1:]:
-            visible |= self._visible_from(mount, obstacles, ego_psi)
-        return _STATE_LUT[obstacles + 2 * visible.view(np.uint8)]
+        visible = self._visible
+        visible.fill(0)
+        for mount in self.spec.mounts:
+            self._mark_visible_from(mount, obstacles, ego_psi, visible)
+        grid = np.empty_like(obstacles)
+        cell_states(obstacles, visible, _STATE_LUT, grid)
+        return grid
 
-    def _visible_from(
-        self, mount: SensorMount, obstacles: np.ndarray, ego_psi: float
-    ) -> np.ndarray:
+    def _mark_visible_from(
+        self, mount: SensorMount, obstacles: np.ndarray, ego_psi: float, visible: np.ndarray
+    ) -> None:
+        """Set ``visible`` to 1 on the cells seen from ``mount``."""
         s = self.spec
         north_up = s.orientation == "north_up"
         up_dir = ego_psi if north_up else np.pi / 2  # direction of the heading in the grid
@@ -212,17 +219,13 @@ class OccupancyGridSensor:
         mx, my = mount.x * c - mount.y * sn, mount.x * sn + mount.y * c
         ou = int(np.clip(np.rint(mx / s.cell_size), -(s.cols // 2), s.cols // 2))
         ov = int(np.clip(np.rint(-my / s.cell_size), -(s.rows // 2), s.rows // 2))
-        maps, ray, rad = self._tables_for(ou, ov)
-        cv2.remap(obstacles, maps, None, cv2.INTER_NEAREST, dst=self._polar,
-                  borderMode=cv2.BORDER_CONSTANT, borderValue=1)  # fmt: skip
-        self._polar[:, -1] = 1  # sentinel: every ray ends
-        reach = np.argmax(self._polar.view(bool), axis=1).astype(np.float32) + np.float32(
-            self._depth
-        )
+        samples, ray, rad = self._tables_for(ou, ov)
+        first_hits(obstacles, samples, self._hits)
+        reach = self._hits.astype(np.float32) + np.float32(self._depth)
         if mount.fov < 2 * np.pi:
             off = np.angle(np.exp(1j * (self._theta - (up_dir + mount.yaw))))
             reach[np.abs(off) > 0.5 * mount.fov] = -np.inf
-        return rad <= reach[ray]
+        mark_visible(rad, ray, reach, visible)
 
 
 def observe(sensor: OccupancyGridSensor, world) -> np.ndarray:

@@ -22,23 +22,20 @@ IDM mode can be in its way.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from gridsim.traffic.fleet_kernels import IDM as IDM  # the modes, re-exported
+from gridsim.traffic.fleet_kernels import REPLAY, advance, ego_ahead, nearest_leaders, same_path
 from gridsim.traffic.tables import PathBank, TableBank
-from gridsim.vehicle.idm import IDMParams, desired_gap, idm_acceleration
+from gridsim.vehicle.idm import IDMParams
 
-REPLAY, IDM = 0, 1
-_S, _V, _D, _H = range(4)
+_V, _D, _H = 1, 2, 3
 _ALL_PAIRS_MAX = 48  # up to this many vehicles, testing all pairs beats building a tree
-
-
-def _clamp(x, lo, hi):
-    """``np.clip`` without its Python-level overhead (it dominates on small arrays)."""
-    return np.minimum(np.maximum(x, lo), hi)
 
 
 @lru_cache(maxsize=64)
@@ -167,38 +164,27 @@ class Fleet:
         corridor, offset = self.paths.corridors(self.path[idx])
         lateral = offset + self.d[idx]
         c, sn = np.cos(self.psi[idx]), np.sin(self.psi[idx])
-        found = [self._same_path(idx), self._cross_path(idx, corridor, lateral, c, sn)]
+        p = self.p
+        found = [
+            same_path(idx, self.path, self.s, self.length, self.v, self.psi, p.lookahead),
+            self._cross_path(idx, corridor, lateral, c, sn),
+        ]
         if ego is not None:
-            found.append(self._ego_ahead(idx, ego, c, sn))
+            pose = (ego.x, ego.y, ego.v, ego.length, ego.width, math.cos(ego.psi),
+                    math.sin(ego.psi))  # fmt: skip
+            fleet = (self.x, self.y, self.s, self.d, self.path, self.length, self.width)
+            paths = self.paths.kernel_data()
+            found.append(ego_ahead(idx, fleet, c, sn, pose, paths, p.lookahead, p.lateral_margin))
         a = np.concatenate([f[0] for f in found])  # follower (index into idx)
         b = np.concatenate([f[1] for f in found])  # leader index into idx, or -2 for the ego
         gap = np.concatenate([f[2] for f in found])
         lead_v = np.concatenate([f[3] for f in found])  # leader speed along a's heading
-        if len(a) == 0:
-            return
-        order = np.lexsort((gap, a))
-        sel = order[np.r_[True, a[order][1:] != a[order][:-1]]]
-        fa = idx[a[sel]]
-        self.gap[fa] = gap[sel]
-        self.leader[fa] = np.where(b[sel] >= 0, idx[np.maximum(b[sel], 0)], -2)
-        self._lead_v[fa] = lead_v[sel]
-
-    def _same_path(self, idx: np.ndarray):
-        """Each vehicle and the next one ahead on the same path, within the look-ahead."""
-        path, s = self.path[idx], self.s[idx]
-        order = np.lexsort((s, path))
-        same = path[order[1:]] == path[order[:-1]]
-        a, b = order[:-1][same], order[1:][same]
-        gap = s[b] - s[a] - 0.5 * (self.length[idx[a]] + self.length[idx[b]])
-        near = gap + 0.5 * (self.length[idx[a]] + self.length[idx[b]]) <= self.p.lookahead
-        a, b, gap = a[near], b[near], gap[near]
-        lead_v = self.v[idx[b]] * np.cos(self.psi[idx[b]] - self.psi[idx[a]])
-        return a, b, gap, lead_v
+        nearest_leaders(idx, a, b, gap, lead_v, self.gap, self.leader, self._lead_v)
 
     def _cross_path(self, idx, corridor, lateral, c, sn):
         """Leaders on another path: pairs from a k-d tree (or all pairs when few), kept if
         the other vehicle lies on the follower's path as far ahead as it is. Pairs inside
-        one corridor are left to :meth:`_same_path`."""
+        one corridor are left to :func:`~gridsim.traffic.fleet_kernels.same_path`."""
         empty = (np.zeros(0, np.int64),) * 2 + (np.zeros(0),) * 2
         if np.all(corridor >= 0):
             return empty
@@ -227,22 +213,6 @@ class Fleet:
         gap = lon - 0.5 * (self.length[idx[a]] + self.length[idx[b]])
         return a, b, gap, self.v[idx[b]] * (c[a] * c[b] + sn[a] * sn[b])
 
-    def _ego_ahead(self, idx, ego: EgoPose, c, sn):
-        """Vehicles that have the ego ahead on their path."""
-        dx, dy = ego.x - self.x[idx], ego.y - self.y[idx]
-        lon = dx * c + dy * sn
-        cos_rel = c * np.cos(ego.psi) + sn * np.sin(ego.psi)
-        a = np.flatnonzero((lon > 0) & (np.hypot(dx, dy) <= self.p.lookahead) & (cos_rel > 0))
-        if len(a) == 0:
-            return a, a, np.zeros(0), np.zeros(0)
-        ia = idx[a]
-        q, _ = self.paths.frenet_to_world(self.path[ia], self.s[ia] + lon[a], self.d[ia])
-        lat = np.hypot(ego.x - q[:, 0], ego.y - q[:, 1])
-        on = lat < 0.5 * (self.width[ia] + ego.width) + self.p.lateral_margin
-        a = a[on]
-        gap = lon[a] - 0.5 * (self.length[idx[a]] + ego.length)
-        return a, np.full(len(a), -2), gap, ego.v * cos_rel[a]
-
     def _pairs(self, px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Unordered pairs ``(i, j)``, ``i < j``, of points closer than the look-ahead.
 
@@ -268,48 +238,16 @@ class Fleet:
         if n == 0:
             return idx
         p = self.p
-        prof, tau, k = self.profile[idx], self.tau[idx], self.k[idx]
+        prof, tau = self.profile[idx], self.tau[idx]
         both = self.profiles.lookup(np.concatenate([prof, prof]), np.concatenate([tau, tau + dt]))
-        now, nxt = both[:n], both[n:]
-        v = self.v[idx]
-        lead_v = self._lead_v[idx]
-        v_rep = np.minimum(k * nxt[:, _V], p.v_max)
-        gap = self.gap[idx]
-        dv = v - lead_v
-        mode = self.mode[idx]
-        to_idm = (mode == REPLAY) & (gap < desired_gap(v, dv, p.idm))
-        to_replay = (
-            (mode == IDM)
-            & (gap > p.resume_factor * desired_gap(v_rep, v_rep - lead_v, p.idm))
-            & (v >= v_rep - p.resume_speed_tol)
-        )
-        mode = np.where(to_idm, IDM, np.where(to_replay, REPLAY, mode)).astype(np.int8)
-        follow = np.flatnonzero(mode == IDM)
-
-        # Replay: recorded scenes move by the recorded distance (exact poses); synthetic
-        # participants integrate the scaled speed, rate-limited to the scenario's bounds.
-        geo = self.geometric[idx]
-        v_syn = _clamp(_clamp(v_rep, p.v_min, p.v_max), v - p.b_max * dt, v + p.a_max * dt)
-        new_v = np.where(geo, v_rep, v_syn)
-        new_s = self.s[idx] + np.where(geo, nxt[:, _S] - now[:, _S], 0.5 * (v + new_v) * dt)
-        new_tau = tau + dt
-        new_d = nxt[:, _D]
-        self.d_bias[idx] *= np.exp(-dt / 2.0)
-        if len(follow):  # IDM, with the profile's current speed as desired speed
-            f = follow
-            v_des = k[f] * now[f, _V]
-            a_f = idm_acceleration(v[f], v_des, gap[f], dv[f], p.idm)
-            vf = _clamp(v[f] + a_f * dt, 0.0, p.v_max)
-            ds = 0.5 * (v[f] + vf) * dt
-            new_s[f] = self.s[idx[f]] + ds
-            new_v[f] = vf
-            new_tau[f] = tau[f] + _clamp(ds / np.maximum(v_des * dt, 1e-3), 0.0, 1.0) * dt
-            new_d[f] = self.d[idx[f]] - self.d_bias[idx[f]]  # hold the lateral position
-        self.s[idx], self.v[idx], self.tau[idx], self.mode[idx] = new_s, new_v, new_tau, mode
-        self.d[idx] = new_d + self.d_bias[idx]
+        fleet = (self.s, self.v, self.tau, self.d, self.d_bias, self.k, self.mode,
+                 self.geometric, self.gap)  # fmt: skip
+        limits = (p.v_min, p.v_max, p.a_max, p.b_max, p.resume_factor, p.resume_speed_tol)
+        advance(idx, both[:n], both[n:], fleet, self._lead_v, limits, p.idm.values, dt,
+                np.exp(-dt / 2.0))  # fmt: skip
         self._update_pose(idx)
         _, hi = self.profiles.ranges(prof)
-        ended = idx[new_tau > hi + 1e-9]
+        ended = idx[self.tau[idx] > hi + 1e-9]
         self.deactivate(ended[self.geometric[ended]])
         return ended
 

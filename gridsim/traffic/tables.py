@@ -8,8 +8,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from gridsim.traffic import table_kernels
+
 _GAP = 1.0  # separation of tables on the shared key axis
-_SMALL_QUERY = 128  # below this many queries, plain binary search is cheaper
 
 
 class TableBank:
@@ -81,6 +82,8 @@ class TableBank:
         self._lo = np.array([x[0] if x is not None else 0.0 for x in self._x])
         self._hi = np.array([x[-1] if x is not None else 1.0 for x in self._x])
         self._build_buckets()
+        self._bank = (self._keys, self._base, self._first, self._last, self._lo, self._hi,
+                      self._bucket_count, self._bucket_width)  # fmt: skip
         self._dirty = False
         self._on_rebuild()
 
@@ -106,28 +109,16 @@ class TableBank:
             self._rebuild()
         return self._lo[slots], self._hi[slots]
 
-    def segments(self, slots: np.ndarray, x: np.ndarray, clamp: bool = True):
-        """Flat segment index and key for each query (see :meth:`lookup`)."""
+    def _queries(self, slots, x) -> tuple[tuple, np.ndarray, np.ndarray, bool]:
+        """The bank's flat arrays for the kernels, queries as 1-D arrays, and whether to
+        locate them through the bucket index."""
         if self._dirty:
             self._rebuild()
-        if clamp:
-            x = np.minimum(np.maximum(x, self._lo[slots]), self._hi[slots])
-        k = x + self._base[slots]
-        return np.minimum(np.maximum(self._find(k), self._first[slots]), self._last[slots]), k
-
-    def _find(self, k: np.ndarray) -> np.ndarray:
-        """``searchsorted(keys, k, side="right") - 1`` through the bucket index."""
-        keys, counts = self._keys, self._bucket_count
-        if len(k) <= _SMALL_QUERY:  # a few binary searches beat the bucket arithmetic
-            return np.searchsorted(keys, k, side="right") - 1
-        b = np.clip(((k - keys[0]) / self._bucket_width).astype(np.int64), 0, len(counts) - 2)
-        lo, hi = counts[b], counts[b + 1]
-        # At most one key inside the bucket: one comparison decides.
-        i = lo - 1 + (keys[np.minimum(lo, len(keys) - 1)] <= k)
-        crowded = np.flatnonzero((hi - lo > 1) | (k < keys[0]) | (k > keys[-1]))
-        if len(crowded):
-            i[crowded] = np.searchsorted(keys, k[crowded], side="right") - 1
-        return i
+        slots = np.asarray(slots, dtype=np.int64)
+        x = np.asarray(x, dtype=np.float64)
+        if slots.shape != x.shape or slots.ndim != 1:
+            slots, x = (np.ascontiguousarray(a).ravel() for a in np.broadcast_arrays(slots, x))
+        return self._bank, slots, x, len(x) > table_kernels.SMALL_QUERY
 
     def lookup(self, slots: np.ndarray, x: np.ndarray, clamp: bool = True) -> np.ndarray:
         """Values ``(N, width)`` at ``x`` in tables ``slots``, interpolated linearly.
@@ -135,8 +126,10 @@ class TableBank:
         With ``clamp`` the argument is clamped to each table's range; otherwise the end
         segments are extended linearly.
         """
-        i, k = self.segments(slots, x, clamp)
-        return self._ys[i] + (k - self._keys[i])[:, None] * self._slope[i]
+        bank, slots, x, buckets = self._queries(slots, x)
+        out = np.empty((len(x), self.width))
+        table_kernels.lookup(bank, self._ys, self._slope, slots, x, clamp, buckets, out)
+        return out
 
 
 class PathBank(TableBank):
@@ -175,6 +168,14 @@ class PathBank(TableBank):
     def frenet_to_world(self, slots, s, d):
         """World points ``(N, 2)`` and path headings [rad] at ``(s, d)`` on paths ``slots``
         (extrapolated straight beyond the path ends)."""
-        i, k = self.segments(slots, s, clamp=False)
-        p = self._ys[i] + (k - self._keys[i])[:, None] * self._slope[i]
-        return p + np.asarray(d)[:, None] * self._normal[i], self._heading[i]
+        _, slots, s, buckets = self._queries(slots, s)
+        d = np.broadcast_to(np.asarray(d, dtype=np.float64), s.shape)
+        xy, h = np.empty((len(s), 2)), np.empty(len(s))
+        table_kernels.frenet(self.kernel_data(), slots, s, d, buckets, xy, h)
+        return xy, h
+
+    def kernel_data(self) -> tuple:
+        """The flat arrays that :func:`~gridsim.traffic.table_kernels.frenet_one` reads."""
+        if self._dirty:
+            self._rebuild()
+        return self._bank, self._ys, self._slope, self._normal, self._heading

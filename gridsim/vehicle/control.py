@@ -6,12 +6,13 @@ Outputs the model's inputs (acceleration [m/s^2], steering rate [rad/s]) within 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from gridsim.road.polyline import Polyline
-from gridsim.vehicle.kinematics import DELTA, PSI, BicycleParams, V, X, Y
+from gridsim.vehicle.kinematics import BicycleParams, V
 
 
 @dataclass(frozen=True)
@@ -33,17 +34,23 @@ def pursuit_inputs(
     gains: PursuitGains = PursuitGains(),
 ) -> tuple[float, float]:
     """Inputs steering the rear axle toward ``target_xy`` [m, world] at ``target_speed`` [m/s]."""
-    dx, dy = target_xy[0] - state[X], target_xy[1] - state[Y]
-    c, s = np.cos(state[PSI]), np.sin(state[PSI])
+    x, y, psi, v, delta = state.tolist()  # [x, y, psi, v, delta], see kinematics
+    dx, dy = float(target_xy[0]) - x, float(target_xy[1]) - y
+    c, s = math.cos(psi), math.sin(psi)
     fwd, left = c * dx + s * dy, -s * dx + c * dy
     dist2 = max(fwd * fwd + left * left, 1e-6)
-    delta_cmd = np.arctan(2.0 * params.wheelbase * left / dist2)
-    delta_cmd = float(np.clip(delta_cmd, -params.delta_max, params.delta_max))
-    steer_rate = (delta_cmd - state[DELTA]) / gains.steer_time
-    accel = gains.speed_gain * (target_speed - state[V])
-    return float(np.clip(accel, -params.b_max, params.a_max)), float(
-        np.clip(steer_rate, -params.v_delta_max, params.v_delta_max)
+    delta_cmd = math.atan(2.0 * params.wheelbase * left / dist2)
+    delta_cmd = _clip(delta_cmd, -params.delta_max, params.delta_max)
+    steer_rate = (delta_cmd - delta) / gains.steer_time
+    accel = gains.speed_gain * (target_speed - v)
+    return _clip(accel, -params.b_max, params.a_max), _clip(
+        steer_rate, -params.v_delta_max, params.v_delta_max
     )
+
+
+def _clip(x: float, lo: float, hi: float) -> float:
+    """``float(np.clip(x, lo, hi))`` for finite Python scalars, without its overhead."""
+    return float(min(max(x, lo), hi))
 
 
 def follow_path(

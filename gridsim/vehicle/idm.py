@@ -1,10 +1,16 @@
-"""Intelligent Driver Model (Treiber et al. 2000), vectorised over vehicles."""
+"""Intelligent Driver Model (Treiber et al. 2000), vectorised over vehicles.
+
+The formulas (:func:`idm_gap`, :func:`idm_accel`) take the parameters as scalars so that
+compiled kernels can call the very same code (:func:`~gridsim.jit.jitable`).
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+
+from gridsim.jit import jitable
 
 
 @dataclass(frozen=True)
@@ -23,10 +29,33 @@ class IDMParams:
     delta: float = 4.0
     b_emergency: float = 9.0
 
+    @property
+    def values(self) -> tuple[float, ...]:
+        """The parameters as a tuple, in field order (the trailing arguments of
+        :func:`idm_gap` and :func:`idm_accel`)."""
+        return (self.a, self.b, self.t_headway, self.s0, self.delta, self.b_emergency)
+
+
+@jitable
+def idm_gap(v, dv, a, b, t_headway, s0, delta, b_emergency):
+    """Desired gap s* [m] (see :func:`desired_gap`); parameters in :class:`IDMParams` order."""
+    return s0 + np.maximum(0.0, v * t_headway + v * dv / (2.0 * np.sqrt(a * b)))
+
+
+@jitable
+def idm_accel(v, v_desired, gap, dv, a, b, t_headway, s0, delta, b_emergency):
+    """IDM acceleration [m/s^2] (see :func:`idm_acceleration`); parameters in
+    :class:`IDMParams` order."""
+    v_des = np.maximum(v_desired, 0.1)
+    free = 1.0 - (np.maximum(v, 0.0) / v_des) ** delta
+    s_star = idm_gap(v, dv, a, b, t_headway, s0, delta, b_emergency)
+    interaction = (s_star / np.maximum(gap, 0.1)) ** 2
+    return np.minimum(np.maximum(a * (free - interaction), -b_emergency), a)
+
 
 def desired_gap(v: np.ndarray, dv: np.ndarray, p: IDMParams) -> np.ndarray:
     """IDM desired bumper-to-bumper gap s* [m]; ``dv`` is own speed minus leader speed."""
-    return p.s0 + np.maximum(0.0, v * p.t_headway + v * dv / (2.0 * np.sqrt(p.a * p.b)))
+    return idm_gap(v, dv, *p.values)
 
 
 def idm_acceleration(
@@ -37,8 +66,4 @@ def idm_acceleration(
     ``gap`` is the bumper-to-bumper distance to the leader [m] (``inf`` for none), ``dv`` the
     approach rate (own speed minus leader speed) [m/s].
     """
-    v_des = np.maximum(v_desired, 0.1)
-    free = 1.0 - (np.maximum(v, 0.0) / v_des) ** p.delta
-    s_star = desired_gap(v, dv, p)
-    interaction = (s_star / np.maximum(gap, 0.1)) ** 2
-    return np.minimum(np.maximum(p.a * (free - interaction), -p.b_emergency), p.a)
+    return idm_accel(v, v_desired, gap, dv, *p.values)

@@ -145,9 +145,9 @@ class CollisionChecker:
         self._ego_body.angle = float(ego_psi)
         self.space.reindex_shapes_for_body(self._ego_body)
         ego = self._ego_body
-        vehicles = [
+        vehicles = [  # none can touch unless the broad phase placed one
             hit.shape.body.gridsim_index
-            for hit in self.space.shape_query(self._ego_shape)
+            for hit in (self.space.shape_query(self._ego_shape) if placed else ())
             if hit.shape.body.body_type == pymunk.Body.KINEMATIC and hit.shape.body is not ego
         ]
         edges = [

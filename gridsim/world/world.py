@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -68,17 +69,19 @@ class World:
     def route(self) -> Polyline:
         return self._route()
 
+    def _center_xy(self) -> tuple[float, float]:
+        x, y, psi = self.ego[X], self.ego[Y], self.ego[PSI]
+        c = self.ego_params.center_offset
+        return float(x + c * math.cos(psi)), float(y + c * math.sin(psi))
+
     def ego_center(self) -> np.ndarray:
         """Centre of the ego footprint [m] in the world frame."""
-        c = self.ego_params.center_offset
-        return self.ego[[X, Y]] + c * np.array([np.cos(self.ego[PSI]), np.sin(self.ego[PSI])])
+        return np.array(self._center_xy())
 
     def ego_pose(self) -> EgoPose:
-        cx, cy = self.ego_center()
+        cx, cy = self._center_xy()
         p = self.ego_params
-        return EgoPose(
-            float(cx), float(cy), float(self.ego[PSI]), float(self.ego[V]), p.length, p.width
-        )
+        return EgoPose(cx, cy, float(self.ego[PSI]), float(self.ego[V]), p.length, p.width)
 
     def tick(self, accel: float, steer_rate: float) -> TickResult:
         """Advance the world by ``dt``: ego kinematics, road generation, traffic, collisions."""

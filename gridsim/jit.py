@@ -1,0 +1,28 @@
+"""Compiled kernels: numba's ``njit``, compiled on first call and cached on disk.
+
+numba is imported only by the modules that define kernels (not by ``import gridsim``). The
+compiled code is cached next to the source (or in numba's user-wide cache directory when the
+package directory is read-only), so that later processes load it instead of compiling; when
+no cache location is writable at all, kernels are compiled once per process. ``fastmath`` is
+never used: kernels must give the same bits as the NumPy code they replace.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numba
+from numba.extending import register_jitable
+
+
+def kernel(fn: Callable) -> Callable:
+    """``fn`` as a lazily compiled, disk-cached numba function (``nopython``, no fastmath)."""
+    try:
+        return numba.njit(cache=True, nogil=True)(fn)
+    except RuntimeError:  # no writable cache location
+        return numba.njit(nogil=True)(fn)
+
+
+def jitable(fn: Callable) -> Callable:
+    """``fn`` unchanged for Python callers, compiled inline when a kernel calls it."""
+    return register_jitable(fn)

@@ -1,0 +1,78 @@
+"""Compiled look-ups in the flat arrays of a :class:`~gridsim.traffic.tables.TableBank`.
+
+One pass per query: clamp, locate the segment (binary search, or one bucket read and one
+comparison when many queries come at once), interpolate. The operations are those of the
+NumPy expressions they replace, in the same order, so the results are the same bits.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gridsim.jit import kernel
+
+#: Up to this many queries, plain binary search; more use the bucket index.
+SMALL_QUERY = 128
+
+
+@kernel
+def _search_right(keys: np.ndarray, k: float) -> int:
+    """``searchsorted(keys, k, side="right") - 1``."""
+    lo, hi = 0, len(keys)
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if keys[mid] <= k:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo - 1
+
+
+@kernel
+def _segment(bank: tuple, t: int, x: float, clamp: bool, buckets: bool) -> tuple[int, float]:
+    """Segment index and shared-axis key of table ``t`` at ``x``."""
+    keys, base, first, last, lo, hi, counts, width = bank
+    if clamp:
+        x = min(max(x, lo[t]), hi[t])
+    k = x + base[t]
+    n = len(keys)
+    if buckets:
+        b = min(max(np.int64((k - keys[0]) / width), 0), len(counts) - 2)
+        c0, c1 = counts[b], counts[b + 1]
+        if c1 - c0 > 1 or k < keys[0] or k > keys[n - 1]:
+            i = _search_right(keys, k)
+        else:  # at most one key inside the bucket: one comparison decides
+            i = c0 - 1 + (1 if keys[min(c0, n - 1)] <= k else 0)
+    else:
+        i = _search_right(keys, k)
+    return min(max(i, first[t]), last[t]), k
+
+
+@kernel
+def lookup(bank, ys, slope, slots, x, clamp, buckets, out) -> None:
+    """``out[q] = ys[i] + (k - keys[i]) * slope[i]`` for table ``slots[q]`` at ``x[q]``."""
+    keys = bank[0]
+    for q in range(len(x)):
+        i, k = _segment(bank, slots[q], x[q], clamp, buckets)
+        dk = k - keys[i]
+        for c in range(ys.shape[1]):
+            out[q, c] = ys[i, c] + dk * slope[i, c]
+
+
+@kernel
+def frenet_one(path, t, s, d, buckets) -> tuple[float, float, float]:
+    """Point ``(x, y)`` at arc length ``s`` and offset ``d`` on path ``t`` (end segments
+    extended) and the path heading; ``path`` is :meth:`PathBank.kernel_data`."""
+    bank, ys, slope, normal, heading = path
+    i, k = _segment(bank, t, s, False, buckets)
+    dk = k - bank[0][i]
+    x = (ys[i, 0] + dk * slope[i, 0]) + d * normal[i, 0]
+    y = (ys[i, 1] + dk * slope[i, 1]) + d * normal[i, 1]
+    return x, y, heading[i]
+
+
+@kernel
+def frenet(path, slots, s, d, buckets, xy, h) -> None:
+    """:func:`frenet_one` for every query, into ``xy`` ``(n, 2)`` and ``h`` ``(n,)``."""
+    for q in range(len(s)):
+        xy[q, 0], xy[q, 1], h[q] = frenet_one(path, slots[q], s[q], d[q], buckets)

@@ -1,0 +1,136 @@
+"""Golden episodes: SHA-256 digests of everything a rollout produces, for bit-identity tests.
+
+Optimisations of the step path must not change any result. :func:`env_digests` rolls out
+``GridSim-v0`` with fixed action policies and hashes, per quantity, the observations, the
+rewards and flags, the ego pose and the fleet state after every step; :func:`world_digests`
+does the same for bare :meth:`World.tick` calls driven by a :class:`LaneFollower`. The
+recorded digests live in ``tests/data/golden_digests.json``; re-record them (only from a
+commit whose results are known to be right) with::
+
+    python tests/golden.py
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from gridsim.envs import ENV_ID
+from gridsim.scenario import build_world, load_scenario
+from gridsim.world.driver import LaneFollower
+
+GOLDEN_PATH = Path(__file__).parent / "data" / "golden_digests.json"
+SCENARIOS = ("seamless", "inner_city", "us101_3_3", "us101_4_1", "lankershim_1_1", "peachtree_4_8")
+SEEDS = (0, 7)
+POLICIES = ("reference", "reference_shifted", "control", "discrete")
+STEPS = 150
+#: World-level cases: (name, scenario, overrides, ticks).
+WORLD_CASES = (
+    (
+        "seamless_1000",
+        "seamless",
+        {"traffic": {"participants": 1000, "window": [4000.0, 4000.0]}},
+        200,
+    ),
+    ("seamless_20", "seamless", {"traffic": {"participants": 20, "window": [80.0, 160.0]}}, 400),
+    ("inner_city_60", "inner_city", {"traffic": {"participants": 60}}, 300),
+)
+
+
+class _Digests:
+    """One running SHA-256 per named quantity."""
+
+    def __init__(self) -> None:
+        self._h: dict[str, hashlib._Hash] = {}
+
+    def add(self, name: str, value) -> None:
+        a = np.ascontiguousarray(np.asarray(value))
+        h = self._h.setdefault(name, hashlib.sha256())
+        h.update(f"{a.dtype.str}{a.shape}".encode())
+        h.update(a.tobytes())
+
+    def hexdigests(self) -> dict[str, str]:
+        return {k: h.hexdigest() for k, h in sorted(self._h.items())}
+
+
+def _fleet(d: _Digests, world) -> None:
+    f = world.traffic.fleet
+    for name in ("active", "mode", "x", "y", "psi", "v", "s", "d", "tau", "gap", "leader"):
+        d.add(f"fleet_{name}", getattr(f, name))
+
+
+def _action(policy: str, info: dict, k: int):
+    if policy == "reference":
+        return info["reference_setpoints"]
+    if policy == "reference_shifted":  # off the reference: a lateral shift and a stretch
+        return info["reference_setpoints"] * np.float32(1.1) + np.float32([0.0, 0.7])
+    if policy == "control":
+        return np.array([1.5 * np.sin(0.1 * k), 0.3 * np.cos(0.07 * k)], np.float32)
+    return k % 5  # discrete
+
+
+def env_digests(scenario: str, seed: int, policy: str, steps: int = STEPS) -> dict[str, str]:
+    """Digests of a ``steps``-step rollout (resetting with the next seed when an episode ends)."""
+    action_type = {"control": "control", "discrete": "discrete"}.get(policy, "trajectory")
+    env = gym.make(ENV_ID, scenario=scenario, action_type=action_type)
+    d = _Digests()
+    obs, info = env.reset(seed=seed)
+    for k in range(steps):
+        obs, reward, terminated, truncated, info = env.step(_action(policy, info, k))
+        for key, value in obs.items():
+            d.add(f"obs_{key}", value)
+        d.add("reward", reward)
+        d.add("flags", [terminated, truncated, info["collision"], info["off_road"],
+                        info["destination_reached"]])  # fmt: skip
+        d.add("pose", info["pose"])
+        d.add("setpoints", info["reference_setpoints"])
+        d.add("contacts", info["collided_with"] + [-1] + info["road_edges_touched"])
+        _fleet(d, env.unwrapped.world)
+        if terminated or truncated:
+            obs, info = env.reset(seed=seed + 1000 + k)
+    env.close()
+    return d.hexdigests()
+
+
+def world_digests(scenario: str, overrides: dict, ticks: int, seed: int = 0) -> dict[str, str]:
+    """Digests of ``ticks`` world ticks driven by a lane follower at 10 m/s."""
+    world = build_world(load_scenario(scenario, overrides), seed)
+    driver = LaneFollower(speed=10.0)
+    d = _Digests()
+    for _ in range(ticks):
+        r = world.tick(*driver(world))
+        d.add("ego", world.ego)
+        d.add("result", [r.accel, r.steer_rate, float(r.off_road)])
+        d.add("contacts", list(r.contact.vehicles) + [-1] + list(r.contact.boundaries))
+        _fleet(d, world)
+    return d.hexdigests()
+
+
+def env_cases() -> list[tuple[str, int, str]]:
+    """Every policy on the first seed, the reference policy on the others."""
+    return [
+        (sc, seed, pol)
+        for sc in SCENARIOS
+        for seed in SEEDS
+        for pol in POLICIES
+        if seed == SEEDS[0] or pol == "reference"
+    ]
+
+
+def record() -> dict:
+    out = {"env": {}, "world": {}}
+    for sc, seed, pol in env_cases():
+        out["env"][f"{sc}/{seed}/{pol}"] = env_digests(sc, seed, pol)
+        print(sc, seed, pol, flush=True)
+    for name, sc, overrides, ticks in WORLD_CASES:
+        out["world"][name] = world_digests(sc, overrides, ticks)
+        print(name, flush=True)
+    return out
+
+
+if __name__ == "__main__":
+    GOLDEN_PATH.write_text(json.dumps(record(), indent=1, sort_keys=True) + "\n")
