@@ -199,3 +199,174 @@ def size_mismatch(cfg: NetConfig, windows) -> str | None:
         f"the windows have (history, grid size, horizon) = {got}, the network needs {want}: "
         "record them from a scenario with the same env and sensor sizes"
     )
+
+
+# -- population forward -----------------------------------------------------------------------
+#
+# ``PopulationNet`` evaluates the TrajectoryNet of many individuals at once, each with its own
+# weights, for a fixed number ``E`` of environments per individual. The arithmetic of one
+# individual never depends on which or how many other individuals are in the batch:
+#
+# * every matrix product is a ``torch.bmm`` item with a fixed shape per individual (convs:
+#   one item per (individual, env, frame), fully connected layers: one item per individual
+#   with all ``E`` rows, dead environments included); MKL computes each item alike
+#   whatever the batch (the rows of one item are NOT independent of the item's row count,
+#   hence the fixed ``E``);
+# * the element-wise functions are exact (add, mul, relu) or computed the same at every
+#   position of a tensor (``exp`` and ``tanh`` go through vectorised kernels with masked
+#   tails); ``torch.sigmoid`` is not (its scalar tail loop rounds differently), so the
+#   sigmoid is ``1 / (1 + exp(-x))``;
+# * average pooling sums the uint8 cells exactly and divides once.
+#
+# The result differs from :class:`TrajectoryNet` by float rounding only (about 1e-6 m on the
+# set-points; asserted in the tests). Training and its fitness use this path only.
+
+_CONVS = ((5, 2, 2), (3, 2, 1), (3, 2, 1))  # kernel, stride, padding of GridEncoder.cnn
+_CONV_NAMES = ("encoder.cnn.0", "encoder.cnn.2", "encoder.cnn.4")
+#: Weight matrices of at least this many numbers are never copied: products with them run
+#: on views into the population, one ``bmm`` per run of consecutive individuals.
+BIG_PARAMETER = 1 << 19
+
+
+def _sigmoid(x: torch.Tensor) -> torch.Tensor:
+    return torch.reciprocal(torch.exp(-x).add_(1.0))
+
+
+def _tanh(x: torch.Tensor) -> torch.Tensor:
+    return torch.tanh(x)
+
+
+_PW_ACTIVATIONS = {"sigmoid": _sigmoid, "relu": torch.relu, "tanh": _tanh}
+
+
+def _bmm_t(x: torch.Tensor, w) -> torch.Tensor:
+    """``x`` ``(K, M, in)`` times the transpose of ``w`` ``(K, out, in)`` per individual; ``w``
+    may be a list of views ``(K_i, out, in)`` covering the K individuals in order."""
+    if isinstance(w, torch.Tensor):
+        return torch.bmm(x, w.transpose(1, 2))
+    outs, a = [], 0
+    for part in w:
+        b = a + part.shape[0]
+        outs.append(torch.bmm(x[a:b], part.transpose(1, 2)))
+        a = b
+    return outs[0] if len(outs) == 1 else torch.cat(outs)
+
+
+class PopulationNet:
+    """The forward pass of :class:`TrajectoryNet` for a batch of individuals (see above)."""
+
+    def __init__(self, cfg: NetConfig) -> None:
+        self.cfg = cfg
+        template = TrajectoryNet(cfg)
+        self.shapes: dict[str, tuple[int, ...]] = {}
+        self.offsets: dict[str, int] = {}
+        off = 0
+        for name, p in template.named_parameters():
+            self.shapes[name], self.offsets[name] = tuple(p.shape), off
+            off += p.numel()
+        self.size = off
+        c3 = cfg.channels[2]
+        self.side = cfg.grid_size // cfg.pool // 8
+        self.n_cnn = c3 * self.side * self.side
+        self.times = template.times.clone()
+        self.act = _PW_ACTIVATIONS[cfg.activation]
+        self.big_parameter = BIG_PARAMETER
+
+    # -- parameters ---------------------------------------------------------------------------
+    def view(self, population: torch.Tensor, name: str) -> torch.Tensor:
+        """Parameter ``name`` of every row of ``population`` ``(K, n)``: a view ``(K, *shape)``."""
+        off, shape = self.offsets[name], self.shapes[name]
+        n = math.prod(shape)
+        return population[:, off : off + n].view(population.shape[0], *shape)
+
+    def params(self, population: torch.Tensor, rows: np.ndarray) -> dict:
+        """The parameters of individuals ``rows`` of ``population``: small ones gathered into
+        ``(len(rows), ...)`` tensors, big weight matrices as lists of views (runs of
+        consecutive rows)."""
+        everyone = len(rows) == population.shape[0]
+        runs = np.split(rows, np.flatnonzero(np.diff(rows) != 1) + 1)
+        index = torch.from_numpy(np.asarray(rows, dtype=np.int64))
+        out = {}
+        for name, shape in self.shapes.items():
+            full = self.view(population, name)
+            if name == "branches.weight_ih":  # used as one (branches * 4h, fc2) matrix
+                full = full.reshape(full.shape[0], shape[0] * shape[1], shape[2])
+            if math.prod(shape) >= self.big_parameter and full.dim() == 3:
+                out[name] = [full[r[0] : r[-1] + 1] for r in runs]
+            else:
+                out[name] = full if everyone else full.index_select(0, index)
+        return out
+
+    # -- the forward pass, in three parts -----------------------------------------------------
+    def frame_features(self, params: dict, owner: torch.Tensor, frames: np.ndarray):
+        """CNN features ``(N, n_cnn)`` of ``frames`` uint8 ``(N, H, W)``; frame ``i`` belongs to
+        individual ``owner[i]`` (an index into ``params``)."""
+        p = self.cfg.pool
+        x = torch.from_numpy(frames)
+        n, h, w = x.shape
+        if p > 1:  # exact integer sums, one rounding
+            x = x.view(n, h // p, p, w // p, p).sum(dim=(2, 4), dtype=torch.int32)
+        x = (x.float() / float(255 * p * p))[:, None]
+        for (k, stride, pad), name in zip(_CONVS, _CONV_NAMES, strict=True):
+            weight = params[name + ".weight"].index_select(0, owner)
+            bias = params[name + ".bias"].index_select(0, owner)
+            side = (x.shape[2] + 2 * pad - k) // stride + 1
+            cols = torch.nn.functional.unfold(x, k, padding=pad, stride=stride)
+            y = torch.bmm(weight.reshape(n, weight.shape[1], -1), cols) + bias[:, :, None]
+            x = torch.relu(y).view(n, weight.shape[1], side, side)
+        return x.reshape(n, -1)
+
+    def grid_part(self, params: dict, feats: torch.Tensor) -> torch.Tensor:
+        """``fc1``'s product with the CNN features of one frame: ``feats`` ``(K, E, n_cnn)`` ->
+        ``(K, E, fc1)``."""
+        w = params["encoder.fc.0.weight"]
+        n = self.n_cnn
+        w = w[:, :, :n] if isinstance(w, torch.Tensor) else [v[:, :, :n] for v in w]
+        return _bmm_t(feats, w)
+
+    def head(self, params: dict, grid: torch.Tensor, ego: torch.Tensor, dest: torch.Tensor):
+        """Set-points ``(K, E, tau_o, 2)`` from ``grid`` ``(K, E, tau_i, fc1)`` (the frames'
+        :meth:`grid_part`, oldest first), ``ego`` ``(K, E, 6)`` and ``dest`` ``(K, E, 2)`` [m]."""
+        k, e, t, _ = grid.shape
+        n = self.n_cnn
+        w1 = params["encoder.fc.0.weight"]
+        w1s = w1[:, :, n:] if isinstance(w1, torch.Tensor) else [v[:, :, n:] for v in w1]
+        side = torch.cat([ego, dest / DESTINATION_SCALE], dim=2)
+        side = _bmm_t(side, w1s) + params["encoder.fc.0.bias"][:, None, :]
+        a1 = self.act(grid + side[:, :, None, :])
+        a2 = _bmm_t(a1.reshape(k, e * t, -1), params["encoder.fc.2.weight"])
+        a2 = self.act(a2 + params["encoder.fc.2.bias"][:, None, :])
+        # the branches: xi (K, E*T, B*4h) -> (K, B, T, E, 4h)
+        b, g4, hid = self.shapes["branches.weight_hh"]
+        xi = _bmm_t(a2, params["branches.weight_ih"]).view(k, e, t, b, g4)
+        bias = (params["branches.bias_ih"] + params["branches.bias_hh"])[:, None, None]
+        xi = (xi + bias).permute(0, 3, 2, 1, 4).contiguous()
+        w_hh = params["branches.weight_hh"].reshape(k * b, g4, hid).transpose(1, 2)
+        h = grid.new_zeros(k * b, e, hid)
+        c = grid.new_zeros(k * b, e, hid)
+        for step in range(t):
+            gates = xi[:, :, step].reshape(k * b, e, g4) + torch.bmm(h, w_hh)
+            i, f, g, o = gates.chunk(4, dim=2)
+            c = _sigmoid(f) * c + _sigmoid(i) * torch.tanh(g)
+            h = _sigmoid(o) * torch.tanh(c)
+        w_head = params["branches.head_weight"].reshape(k * b, 2, hid).transpose(1, 2)
+        out = torch.bmm(h, w_head).view(k, b, e, 2) + params["branches.head_bias"][:, :, None]
+        out = out.permute(0, 2, 1, 3)
+        if self.cfg.prior == "constant_velocity":
+            cv = constant_velocity_setpoints(ego.reshape(k * e, 6), self.times)
+            out = out + cv.view(k, e, b, 2)
+        return out
+
+    def forward(self, population: torch.Tensor, grids, ego, dest) -> torch.Tensor:
+        """Everything at once (no caching): ``population`` ``(K, n)``, ``grids`` uint8
+        ``(K, E, tau_i, H, W)``, ``ego`` ``(K, E, 6)``, ``dest`` ``(K, E, 2)`` -> set-points
+        ``(K, E, tau_o, 2)``. One frame slot at a time, as the rollouts compute it."""
+        k, e, t = grids.shape[:3]
+        params = self.params(population, np.arange(k))
+        owner = torch.arange(k).repeat_interleave(e)
+        slots = []
+        for j in range(t):
+            frames = np.ascontiguousarray(np.asarray(grids)[:, :, j]).reshape(k * e, *grids.shape[3:])
+            feats = self.frame_features(params, owner, frames).view(k, e, -1)
+            slots.append(self.grid_part(params, feats))
+        return self.head(params, torch.stack(slots, dim=2), ego, dest)
