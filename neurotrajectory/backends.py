@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from neurotrajectory.genome import Recipe, apply_recipe, initial_genome, noise_table, table_size
-from neurotrajectory.model import NetConfig
+from neurotrajectory.model import NetConfig, aligned_rows
 from neurotrajectory.rollout import Evaluator
 
 
@@ -59,10 +59,14 @@ class Worker:
                          initial_genome(net, r.init_seed) if r.init_seed is not None else None)
             for r in recipes
         ]  # fmt: skip
-        self.population = np.stack(children)
+        self.load(children)
 
-    def load(self, population: np.ndarray) -> None:
-        self.population = np.array(population, dtype=np.float32, copy=True)
+    def load(self, population) -> None:
+        """Hold a copy of ``population`` (rows aligned for the batched forward pass)."""
+        rows = aligned_rows(len(population), self.genome_size).numpy()
+        for i, genome in enumerate(population):
+            rows[i] = genome
+        self.population = rows
 
     def evaluate(self, indices: list[int]) -> list[tuple[int, np.ndarray, dict]]:
         """Fitness and statistics of individuals ``indices``, evaluated in batches (the result

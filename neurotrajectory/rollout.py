@@ -102,24 +102,21 @@ class Evaluator:
         """Mean episode fitness ``[l1, l2, l3]`` of ``genome`` and episode statistics."""
         return self.evaluate_many(np.asarray(genome, dtype=np.float32)[None])[0]
 
-    def evaluate_many(self, population: np.ndarray) -> list[tuple[np.ndarray, EpisodeStats]]:
-        """:meth:`evaluate` for every row of ``population`` ``(K, n)`` (float32; rows may be a
-        strided view), ``batch`` rows at a time."""
-        pop = torch.from_numpy(population) if isinstance(population, np.ndarray) else population
-        if pop.dtype != torch.float32 or pop.dim() != 2 or pop.shape[1] != self.pop_net.size:
-            raise ValueError(
-                f"population must be float32 (K, {self.pop_net.size}), got "
-                f"{tuple(pop.shape)} {pop.dtype}"
-            )
+    def evaluate_many(self, population) -> list[tuple[np.ndarray, EpisodeStats]]:
+        """:meth:`evaluate` for every row of ``population`` ``(K, n)`` float32, ``batch`` rows at
+        a time. Rows already in 64-byte aligned storage (see :func:`aligned_rows`; strided
+        views of it too) are used in place, others are copied once."""
+        store = self.pop_net.store(population)
         out = []
-        for start in range(0, pop.shape[0], self.batch):
-            out.extend(self._evaluate_batch(pop[start : start + self.batch]))
+        for start in range(0, store.shape[0], self.batch):
+            out.extend(self._evaluate_batch(store[start : start + self.batch]))
         return out
 
     @torch.no_grad()
-    def _evaluate_batch(self, pop: torch.Tensor) -> list[tuple[np.ndarray, EpisodeStats]]:
+    def _evaluate_batch(self, store: torch.Tensor) -> list[tuple[np.ndarray, EpisodeStats]]:
         net = self.pop_net
-        k_all, e, t = pop.shape[0], len(self.seeds), self.net_cfg.history
+        k_all, e, t = store.shape[0], len(self.seeds), self.net_cfg.history
+        small = net.small_copy(store)
         envs = self._env_grid(k_all)
         obs = [[env.reset(seed=s)[0] for env, s in zip(row, self.seeds, strict=True)]
                for row in envs]  # fmt: skip
@@ -135,33 +132,29 @@ class Evaluator:
             if len(active) == 0:
                 break
             if rows is None or not np.array_equal(rows, active):
-                rows, params = active, net.params(pop, active)
-            # which frame slots must be computed, per environment
-            todo: dict[int, list[tuple[int, int, str]]] = {}
-            for a, k in enumerate(rows):
+                rows, params = active, net.params(store, small, active)
+            # how each running episode's frame cache is brought up to date
+            how: dict[tuple[int, int], str] = {}
+            for k in rows:
                 for j in np.flatnonzero(live[k]):
                     g, old = obs[k][j]["grids"], prev[k][j]
                     if self.cache and old is not None and np.array_equal(g[:-1], old[1:]):
-                        todo.setdefault(t - 1, []).append((a, j, "shift"))
+                        how[k, j] = "shift"  # one new frame
                     elif self.cache and old is None and (g[:-1] == g[-1]).all():
-                        todo.setdefault(t - 1, []).append((a, j, "fill"))
+                        how[k, j] = "fill"  # after a reset: all frames the same
                     else:
-                        for slot in range(t):
-                            todo.setdefault(slot, []).append((a, j, "set"))
+                        how[k, j] = "all"
                     prev[k][j] = g
-            for slot, items in todo.items():
-                ai = torch.tensor([a for a, _, _ in items])
-                ji = torch.tensor([j for _, j, _ in items])
-                frames = np.stack([obs[rows[a]][j]["grids"][slot] for a, j, _ in items])
-                feats = torch.zeros(len(rows), e, net.n_cnn)
-                feats[ai, ji] = net.frame_features(params, ai, frames)
-                new = net.grid_part(params, feats)
-                for (a, j, how), row in zip(items, new[ai, ji], strict=True):
-                    cell = grid[rows[a], j]
-                    if how == "shift":
+            slots = range(t) if "all" in how.values() else [t - 1]
+            for slot in slots:  # every environment of every running individual, alike
+                frames = np.stack([[o["grids"][slot] for o in obs[k]] for k in rows])
+                new = net.grid_part(params, net.frame_features(params, frames))
+                for (k, j), mode in how.items():
+                    cell, row = grid[k, j], new[np.searchsorted(rows, k), j]
+                    if mode == "shift":
                         cell[:-1] = cell[1:].clone()
                         cell[-1] = row
-                    elif how == "fill":
+                    elif mode == "fill":
                         cell[:] = row
                     else:
                         cell[slot] = row
