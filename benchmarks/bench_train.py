@@ -33,7 +33,10 @@ def main() -> None:
     args = ap.parse_args()
     seeds = tuple(range(100, 100 + args.episodes))
     spec = WorkerSpec(
-        "seamless", {"simulation": {"duration": args.seconds}}, PRESETS[args.preset], seeds,
+        "seamless",
+        {"simulation": {"duration": args.seconds}},
+        PRESETS[args.preset],
+        seeds,
         batch=args.batch,
     )
     backend = make_backend(args.backend, spec, args.workers)

@@ -200,6 +200,7 @@ def size_mismatch(cfg: NetConfig, windows) -> str | None:
         "record them from a scenario with the same env and sensor sizes"
     )
 
+
 # -- population forward -----------------------------------------------------------------------
 #
 # ``PopulationNet`` evaluates the TrajectoryNet of many individuals at once, each with its own
