@@ -363,18 +363,17 @@ class PopulationNet:
         environment of each individual)."""
         k, e, h, w = frames.shape
         p = self.cfg.pool
-        x = torch.from_numpy(frames).float()
+        x = torch.from_numpy(frames).float().view(k * e, 1, h, w)
+        if p > 1:  # sums of integers: exact, whatever the batch
+            x = torch.nn.functional.avg_pool2d(x, p)
+        x = (x / 255.0).view(k, e, 1, h // p, w // p)
         out = torch.empty(k, e, self.n_cnn)
-        for i in range(k):
-            y = x[i][:, None]
-            if p > 1:  # exact sums of integers
-                y = torch.nn.functional.avg_pool2d(y, p)
-            y = y / 255.0
+        for i in range(k):  # one call per individual, always on its E frames
+            y = x[i]
             for (stride, pad), name in zip(_CONVS, _CONV_NAMES, strict=True):
                 y = torch.nn.functional.conv2d(
                     y, params[name + ".weight"][i], params[name + ".bias"][i], stride, pad
-                )
-                y = torch.relu(y)
+                ).relu_()
             out[i] = y.reshape(e, -1)
         return out
 

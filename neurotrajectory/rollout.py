@@ -134,30 +134,31 @@ class Evaluator:
             if rows is None or not np.array_equal(rows, active):
                 rows, params = active, net.params(store, small, active)
             # how each running episode's frame cache is brought up to date
-            how: dict[tuple[int, int], str] = {}
-            for k in rows:
+            shift, fill, full = [], [], []
+            for a, k in enumerate(rows):
                 for j in np.flatnonzero(live[k]):
                     g, old = obs[k][j]["grids"], prev[k][j]
                     if self.cache and old is not None and np.array_equal(g[:-1], old[1:]):
-                        how[k, j] = "shift"  # one new frame
+                        shift.append((a, k, j))  # one new frame
                     elif self.cache and old is None and (g[:-1] == g[-1]).all():
-                        how[k, j] = "fill"  # after a reset: all frames the same
+                        fill.append((a, k, j))  # after a reset: all frames the same
                     else:
-                        how[k, j] = "all"
+                        full.append((a, k, j))
                     prev[k][j] = g
-            slots = range(t) if "all" in how.values() else [t - 1]
-            for slot in slots:  # every environment of every running individual, alike
+            for slot in range(t) if full else [t - 1]:
+                # every environment of every running individual, always: fixed shapes
                 frames = np.stack([[o["grids"][slot] for o in obs[k]] for k in rows])
                 new = net.grid_part(params, net.frame_features(params, frames))
-                for (k, j), mode in how.items():
-                    cell, row = grid[k, j], new[np.searchsorted(rows, k), j]
+                for which, mode in ((shift, "shift"), (fill, "fill"), (full, "full")):
+                    if not which or (mode != "full" and slot != t - 1):
+                        continue
+                    a, k, j = (torch.tensor(v) for v in zip(*which, strict=True))
                     if mode == "shift":
-                        cell[:-1] = cell[1:].clone()
-                        cell[-1] = row
+                        grid[k, j] = torch.cat([grid[k, j, 1:], new[a, j][:, None]], dim=1)
                     elif mode == "fill":
-                        cell[:] = row
+                        grid[k, j] = new[a, j][:, None].expand(-1, t, -1)
                     else:
-                        cell[slot] = row
+                        grid[k, j, slot] = new[a, j]
             ego = torch.from_numpy(
                 np.array([[o["ego"] for o in obs[k]] for k in rows], dtype=np.float32)
             )
