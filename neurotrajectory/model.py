@@ -402,11 +402,12 @@ class PopulationNet:
         xi = _bmm_t(a2, params["branches.weight_ih"]).view(k, e, t, b, g4)
         bias = (params["branches.bias_ih"] + params["branches.bias_hh"])[:, None, None]
         xi = (xi + bias).permute(0, 3, 2, 1, 4).contiguous()
-        w_hh = _items(params["branches.weight_hh"].reshape(k * b, g4, hid))
+        # (K*B, hid, 4h), contiguous: MKL is twice as fast on it as on the transposed view
+        w_hh = _items(params["branches.weight_hh"].reshape(k * b, g4, hid).transpose(1, 2))
         h = grid.new_zeros(k * b, e, hid)
         c = grid.new_zeros(k * b, e, hid)
         for step in range(t):
-            gates = xi[:, :, step].reshape(k * b, e, g4) + _bmm_t(h, w_hh)
+            gates = xi[:, :, step].reshape(k * b, e, g4) + torch.bmm(_items(h), w_hh)
             i, f, g, o = gates.chunk(4, dim=2)
             c = _sigmoid(f) * c + _sigmoid(i) * torch.tanh(g)
             h = _sigmoid(o) * torch.tanh(c)
