@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from neurotrajectory.genome import Recipe, apply_recipe, initial_genome, noise_table, table_size
-from neurotrajectory.model import NetConfig
+from neurotrajectory.model import NetConfig, aligned_rows
 from neurotrajectory.rollout import Evaluator
 
 
@@ -33,13 +33,16 @@ class WorkerSpec:
     overrides: dict
     net: NetConfig
     seeds: tuple[int, ...]
+    batch: int = 16  # individuals evaluated together (batch * episodes environments)
 
 
 class Worker:
     """Holds the population and evaluates individuals."""
 
     def __init__(self, spec: WorkerSpec) -> None:
-        self.evaluator = Evaluator(spec.scenario, spec.overrides, spec.net, list(spec.seeds))
+        self.evaluator = Evaluator(
+            spec.scenario, spec.overrides, spec.net, list(spec.seeds), batch=spec.batch
+        )
         n = sum(p.numel() for p in self.evaluator.net.parameters())
         self.table = noise_table(table_size(n))
         self.population: np.ndarray | None = None
@@ -56,17 +59,28 @@ class Worker:
                          initial_genome(net, r.init_seed) if r.init_seed is not None else None)
             for r in recipes
         ]  # fmt: skip
-        self.population = np.stack(children)
+        self.load(children)
 
-    def load(self, population: np.ndarray) -> None:
-        self.population = np.array(population, dtype=np.float32, copy=True)
+    def load(self, population) -> None:
+        """Hold a copy of ``population`` (rows aligned for the batched forward pass)."""
+        rows = aligned_rows(len(population), self.genome_size).numpy()
+        for i, genome in enumerate(population):
+            rows[i] = genome
+        self.population = rows
 
     def evaluate(self, indices: list[int]) -> list[tuple[int, np.ndarray, dict]]:
-        out = []
-        for i in indices:
-            fitness, stats = self.evaluator.evaluate(self.population[i])
-            out.append((i, fitness, stats.__dict__))
-        return out
+        """Fitness and statistics of individuals ``indices``, evaluated in batches (the result
+        of each does not depend on the batches)."""
+        idx = np.asarray(indices, dtype=np.int64)
+        if len(idx) == 0:
+            return []
+        step = int(idx[1] - idx[0]) if len(idx) > 1 else 1
+        if step > 0 and np.array_equal(idx, idx[0] + step * np.arange(len(idx))):
+            rows = self.population[idx[0] : idx[-1] + 1 : step]  # a view, no copy
+        else:
+            rows = self.population[idx]
+        results = self.evaluator.evaluate_many(rows)
+        return [(int(i), f, s.__dict__) for i, (f, s) in zip(idx, results, strict=True)]
 
 
 class Backend(ABC):

@@ -16,7 +16,7 @@ from neurotrajectory.windows import GROUPS
 
 _TRAIN_KEYS = (
     "scenario", "preset", "population", "generations", "episodes", "episode_seconds", "sigma",
-    "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_epochs",
+    "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_epochs", "batch",
 )  # fmt: skip
 
 
@@ -25,7 +25,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         run = Run.open(args.resume, scenario=args.scenario, preset=args.preset,
                        population=args.population, episodes=args.episodes, seed=args.seed,
                        generations=args.generations, backend=args.backend,
-                       workers=args.workers, ray_address=args.ray_address)  # fmt: skip
+                       workers=args.workers, ray_address=args.ray_address,
+                       batch=args.batch)  # fmt: skip
     else:
         defaults = TrainConfig()
         given = {k: getattr(args, k) for k in _TRAIN_KEYS}
@@ -131,6 +132,8 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--backend", default=None, choices=["local", "processes", "ray"])
     t.add_argument("--workers", type=int, default=None)
     t.add_argument("--ray-address", dest="ray_address", default=None)
+    t.add_argument("--batch", type=int, default=None,
+                   help="individuals each worker evaluates together (default 16)")  # fmt: skip
     t.add_argument(
         "--pretrain",
         default=None,

@@ -199,3 +199,235 @@ def size_mismatch(cfg: NetConfig, windows) -> str | None:
         f"the windows have (history, grid size, horizon) = {got}, the network needs {want}: "
         "record them from a scenario with the same env and sensor sizes"
     )
+
+
+# -- population forward -----------------------------------------------------------------------
+#
+# ``PopulationNet`` evaluates the TrajectoryNet of many individuals at once, each with its own
+# weights, for a fixed number ``E`` of environments per individual. The arithmetic of one
+# individual never depends on which or how many other individuals are in the batch, nor on
+# where in the batch it sits:
+#
+# * every matrix product is a ``torch.bmm`` item of a fixed shape per individual (one item
+#   per individual with all ``E`` rows, finished episodes included: MKL does not compute a
+#   row alike for different row counts), and every convolution one ``conv2d`` call per
+#   individual on its ``E`` frames;
+# * MKL's result for an item also depends on the 64-byte alignment of its operands, so every
+#   item starts at the same alignment: weights live in 64-byte aligned rows (the population
+#   store, and a per-batch copy of the small parameters, each at an aligned offset), and
+#   activations are copied into aligned rows when they are not;
+# * element-wise functions are exact (add, mul, relu) or computed alike at every position
+#   of a tensor (``exp`` and ``tanh`` use vectorised kernels with masked tails);
+#   ``torch.sigmoid`` is not (its scalar tail loop rounds differently), so the sigmoid is
+#   ``1 / (1 + exp(-x))``;
+# * average pooling sums the integer cell values exactly and scales once.
+#
+# The result differs from :class:`TrajectoryNet` by float rounding only (about 1e-7 m on the
+# set-points; asserted in the tests). Training and its fitness use this path only.
+
+_CONVS = ((2, 2), (2, 1), (2, 1))  # stride, padding of GridEncoder.cnn's convolutions
+_CONV_NAMES = ("encoder.cnn.0", "encoder.cnn.2", "encoder.cnn.4")
+ALIGN = 16  # floats: 64 bytes
+#: Parameters of at least this many numbers are not copied per batch: products with them
+#: run on views into the population store, one ``bmm`` per run of consecutive individuals.
+BIG_PARAMETER = 1 << 19
+
+
+def _padded(n: int) -> int:
+    return -(-n // ALIGN) * ALIGN
+
+
+def aligned_rows(k: int, n: int) -> torch.Tensor:
+    """An uninitialised ``(k, n)`` float32 view whose rows start at 64-byte boundaries."""
+    return torch.empty(k, _padded(n))[:, :n]
+
+
+def _is_aligned(x: torch.Tensor) -> bool:
+    """Whether every item ``x[i]`` of a tensor with contiguous items starts 64-byte aligned."""
+    return (
+        x.data_ptr() % 64 == 0
+        and (x.shape[0] < 2 or x.stride(0) % ALIGN == 0)
+        and x[0].is_contiguous()
+    )
+
+
+def _items(x: torch.Tensor) -> torch.Tensor:
+    """``x`` with contiguous, 64-byte aligned items (a copy when it is not already so)."""
+    if _is_aligned(x):
+        return x
+    k = x.shape[0]
+    out = aligned_rows(k, math.prod(x.shape[1:])).view(x.shape)
+    out.copy_(x)
+    return out
+
+
+def _sigmoid(x: torch.Tensor) -> torch.Tensor:
+    return torch.reciprocal(torch.exp(-x).add_(1.0))
+
+
+_PW_ACTIVATIONS = {"sigmoid": _sigmoid, "relu": torch.relu, "tanh": torch.tanh}
+
+
+def _bmm_t(x: torch.Tensor, w) -> torch.Tensor:
+    """``x`` ``(K, M, in)`` times the transpose of ``w`` ``(K, out, in)`` per individual; ``w``
+    may be a list of views ``(K_i, out, in)`` covering the K individuals in order."""
+    if isinstance(w, torch.Tensor):
+        return torch.bmm(_items(x), w.transpose(1, 2))
+    outs, a = [], 0
+    for part in w:
+        b = a + part.shape[0]
+        outs.append(torch.bmm(_items(x[a:b]), part.transpose(1, 2)))
+        a = b
+    return outs[0] if len(outs) == 1 else torch.cat(outs)
+
+
+class PopulationNet:
+    """The forward pass of :class:`TrajectoryNet` for a batch of individuals (see above).
+
+    Use: ``store = net.store(population)`` (aligned rows, once), ``params =
+    net.params(store, rows)`` for the individuals ``rows`` that still drive, then per step
+    :meth:`frame_features` and :meth:`grid_part` for new frames and :meth:`head` for the
+    set-points; :meth:`forward` does all at once.
+    """
+
+    def __init__(self, cfg: NetConfig) -> None:
+        self.cfg = cfg
+        template = TrajectoryNet(cfg)
+        self.shapes: dict[str, tuple[int, ...]] = {}
+        self.offsets: dict[str, int] = {}
+        self.small: dict[str, int] = {}  # offsets in the per-batch copy of small parameters
+        off = small = 0
+        for name, p in template.named_parameters():
+            self.shapes[name], self.offsets[name] = tuple(p.shape), off
+            off += p.numel()
+            if p.numel() < BIG_PARAMETER:
+                self.small[name] = small
+                small += _padded(p.numel())
+        self.size = off
+        self.small_size = small
+        self.n_cnn = cfg.channels[2] * (cfg.grid_size // cfg.pool // 8) ** 2
+        self.times = template.times.clone()
+        self.act = _PW_ACTIVATIONS[cfg.activation]
+
+    # -- parameters ---------------------------------------------------------------------------
+    def store(self, population) -> torch.Tensor:
+        """``population`` ``(K, n)`` as a float32 tensor with 64-byte aligned rows (itself when
+        it already is one, e.g. a view of :func:`aligned_rows`)."""
+        pop = torch.from_numpy(population) if isinstance(population, np.ndarray) else population
+        if pop.dtype != torch.float32 or pop.dim() != 2 or pop.shape[1] != self.size:
+            raise ValueError(
+                f"population must be float32 (K, {self.size}), got {tuple(pop.shape)} {pop.dtype}"
+            )
+        if pop.stride(1) == 1 and _is_aligned(pop):
+            return pop
+        out = aligned_rows(*pop.shape)
+        out.copy_(pop)
+        return out
+
+    def _view(self, rows: torch.Tensor, name: str, offset: int) -> torch.Tensor:
+        shape = self.shapes[name]
+        return rows[:, offset : offset + math.prod(shape)].view(rows.shape[0], *shape)
+
+    def small_copy(self, store: torch.Tensor) -> torch.Tensor:
+        """The small parameters of every row of ``store``, each at a 64-byte aligned offset."""
+        out = torch.empty(store.shape[0], self.small_size)
+        for name, off in self.small.items():
+            self._view(out, name, off).copy_(self._view(store, name, self.offsets[name]))
+        return out
+
+    def params(self, store: torch.Tensor, small: torch.Tensor, rows: np.ndarray) -> dict:
+        """The parameters of individuals ``rows`` (indices into ``store``, increasing): the
+        small ones gathered from ``small`` (:meth:`small_copy` of ``store``), the big ones as
+        lists of views into ``store`` (runs of consecutive rows)."""
+        rows = np.asarray(rows, dtype=np.int64)
+        if len(rows) != store.shape[0]:
+            small = small.index_select(0, torch.from_numpy(rows))
+        runs = np.split(rows, np.flatnonzero(np.diff(rows) != 1) + 1)
+        out = {}
+        for name, shape in self.shapes.items():
+            if name in self.small:
+                out[name] = self._view(small, name, self.small[name])
+                continue
+            full = self._view(store, name, self.offsets[name])
+            if name == "branches.weight_ih":  # used as one (branches * 4h, fc2) matrix
+                full = full.reshape(full.shape[0], shape[0] * shape[1], shape[2])
+            out[name] = [full[r[0] : r[-1] + 1] for r in runs]
+        if "branches.weight_ih" in self.small:
+            w = out["branches.weight_ih"]
+            out["branches.weight_ih"] = w.reshape(w.shape[0], -1, w.shape[-1])
+        return out
+
+    # -- the forward pass, in three parts -----------------------------------------------------
+    def frame_features(self, params: dict, frames: np.ndarray) -> torch.Tensor:
+        """CNN features ``(K, E, n_cnn)`` of ``frames`` uint8 ``(K, E, H, W)`` (one frame per
+        environment of each individual)."""
+        k, e, h, w = frames.shape
+        p = self.cfg.pool
+        x = torch.from_numpy(frames).float().view(k * e, 1, h, w)
+        if p > 1:  # sums of integers: exact, whatever the batch
+            x = torch.nn.functional.avg_pool2d(x, p)
+        x = (x / 255.0).view(k, e, 1, h // p, w // p)
+        out = torch.empty(k, e, self.n_cnn)
+        for i in range(k):  # one call per individual, always on its E frames
+            y = x[i]
+            for (stride, pad), name in zip(_CONVS, _CONV_NAMES, strict=True):
+                y = torch.nn.functional.conv2d(
+                    y, params[name + ".weight"][i], params[name + ".bias"][i], stride, pad
+                ).relu_()
+            out[i] = y.reshape(e, -1)
+        return out
+
+    def grid_part(self, params: dict, feats: torch.Tensor) -> torch.Tensor:
+        """``fc1``'s product with the CNN features of one frame: ``feats`` ``(K, E, n_cnn)`` ->
+        ``(K, E, fc1)``."""
+        w = params["encoder.fc.0.weight"]
+        n = self.n_cnn
+        w = w[:, :, :n] if isinstance(w, torch.Tensor) else [v[:, :, :n] for v in w]
+        return _bmm_t(feats, w)
+
+    def head(self, params: dict, grid: torch.Tensor, ego: torch.Tensor, dest: torch.Tensor):
+        """Set-points ``(K, E, tau_o, 2)`` from ``grid`` ``(K, E, tau_i, fc1)`` (the frames'
+        :meth:`grid_part`, oldest first), ``ego`` ``(K, E, 6)`` and ``dest`` ``(K, E, 2)`` [m]."""
+        k, e, t, _ = grid.shape
+        n = self.n_cnn
+        w1 = params["encoder.fc.0.weight"]
+        w1s = w1[:, :, n:] if isinstance(w1, torch.Tensor) else [v[:, :, n:] for v in w1]
+        side = torch.cat([ego, dest / DESTINATION_SCALE], dim=2)
+        side = _bmm_t(side, w1s) + params["encoder.fc.0.bias"][:, None, :]
+        a1 = self.act(grid + side[:, :, None, :])
+        a2 = _bmm_t(a1.reshape(k, e * t, -1), params["encoder.fc.2.weight"])
+        a2 = self.act(a2 + params["encoder.fc.2.bias"][:, None, :])
+        # the branches: xi (K, E*T, B*4h) -> (K, B, T, E, 4h)
+        b, g4, hid = self.shapes["branches.weight_hh"]
+        xi = _bmm_t(a2, params["branches.weight_ih"]).view(k, e, t, b, g4)
+        bias = (params["branches.bias_ih"] + params["branches.bias_hh"])[:, None, None]
+        xi = (xi + bias).permute(0, 3, 2, 1, 4).contiguous()
+        # (K*B, hid, 4h), contiguous: MKL is twice as fast on it as on the transposed view
+        w_hh = _items(params["branches.weight_hh"].reshape(k * b, g4, hid).transpose(1, 2))
+        h = grid.new_zeros(k * b, e, hid)
+        c = grid.new_zeros(k * b, e, hid)
+        for step in range(t):
+            gates = xi[:, :, step].reshape(k * b, e, g4) + torch.bmm(_items(h), w_hh)
+            i, f, g, o = gates.chunk(4, dim=2)
+            c = _sigmoid(f) * c + _sigmoid(i) * torch.tanh(g)
+            h = _sigmoid(o) * torch.tanh(c)
+        w_head = _items(params["branches.head_weight"].reshape(k * b, 2, hid))
+        out = _bmm_t(h, w_head).view(k, b, e, 2) + params["branches.head_bias"][:, :, None]
+        out = out.permute(0, 2, 1, 3)
+        if self.cfg.prior == "constant_velocity":
+            cv = constant_velocity_setpoints(ego.reshape(k * e, 6), self.times)
+            out = out + cv.view(k, e, b, 2)
+        return out
+
+    def forward(self, population, grids: np.ndarray, ego, dest) -> torch.Tensor:
+        """Everything at once (no caching): ``population`` ``(K, n)``, ``grids`` uint8
+        ``(K, E, tau_i, H, W)``, ``ego`` ``(K, E, 6)``, ``dest`` ``(K, E, 2)`` -> set-points
+        ``(K, E, tau_o, 2)``, computed one frame slot at a time as the rollouts do."""
+        store = self.store(population)
+        params = self.params(store, self.small_copy(store), np.arange(store.shape[0]))
+        t = grids.shape[2]
+        slots = []
+        for j in range(t):
+            frames = np.ascontiguousarray(grids[:, :, j])
+            slots.append(self.grid_part(params, self.frame_features(params, frames)))
+        return self.head(params, torch.stack(slots, dim=2), ego, dest)

@@ -1,7 +1,7 @@
 """Rolling networks out in GridSim-v0 and scoring them with the fitness vector.
 
-An :class:`Evaluator` owns one environment per evaluation episode and one network; it runs
-all episodes of a genome in lockstep, one batched forward pass per step.
+An :class:`Evaluator` runs the evaluation episodes of a batch of individuals in lockstep,
+one batched forward pass (each individual with its own weights) per step.
 
 **Early endings never pay.** An episode that ends by collision or off-road before its
 ``max_steps`` counts every remaining step at the worst per-step values: ``l1`` as if every
@@ -21,8 +21,7 @@ import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
-from neurotrajectory.genome import set_genome
-from neurotrajectory.model import NetConfig, TrajectoryNet, observation_tensors
+from neurotrajectory.model import NetConfig, PopulationNet, TrajectoryNet
 
 
 @dataclass
@@ -51,17 +50,38 @@ def net_config_for(env: GridSimEnv, base: NetConfig) -> NetConfig:
 
 
 class Evaluator:
-    """Evaluates genomes on a fixed list of episode seeds."""
+    """Evaluates genomes on a fixed list of episode seeds, ``batch`` individuals at a time.
+
+    The ``E`` episodes of each of up to ``batch`` individuals (``batch * E`` environments) are
+    stepped in lockstep, with one :class:`~neurotrajectory.model.PopulationNet` forward pass
+    per step for all individuals that still have a running episode. An individual's fitness
+    does not depend on the batch it is evaluated in (see :mod:`neurotrajectory.model`).
+
+    The CNN features of a frame, and their product with ``fc1``, are computed once, when the
+    frame is the newest one, and kept per environment while it moves back through the
+    observation (``cache=False`` recomputes every frame every step; the result is the same).
+    """
 
     def __init__(
-        self, scenario: str, overrides: dict, net_cfg: NetConfig, seeds: list[int]
+        self,
+        scenario: str,
+        overrides: dict,
+        net_cfg: NetConfig,
+        seeds: list[int],
+        batch: int = 16,
+        cache: bool = True,
     ) -> None:
         torch.set_num_threads(1)  # the same arithmetic in every process: bit-identical results
+        if batch < 1:
+            raise ValueError(f"batch must be >= 1, got {batch}")
+        self.scenario, self.overrides = scenario, overrides
         self.envs = [GridSimEnv(scenario, **overrides) for _ in seeds]
         self.seeds = list(seeds)
+        self.batch, self.cache = batch, cache
         env = self.envs[0]
         self.net_cfg = net_config_for(env, net_cfg)
-        self.net = TrajectoryNet(self.net_cfg).eval()
+        self.net = TrajectoryNet(self.net_cfg).eval()  # the parameter layout of a genome
+        self.pop_net = PopulationNet(self.net_cfg)
         cfg = env.cfg
         self.max_steps = int(round(cfg.simulation.duration / cfg.env.decision_period))
         reach = float(env.action_space.high.max())
@@ -71,34 +91,94 @@ class Evaluator:
                                     ticks * env.action_kind.params.v_delta_max, 0.0])  # fmt: skip
         self.best_step = np.array([0.0, 0.0, ticks * min(vmax, cfg.speed_range[1])])
 
-    @torch.no_grad()
+    def _env_grid(self, k: int) -> list[list[GridSimEnv]]:
+        """Environments for ``k`` individuals (``k * E``, created on first use)."""
+        e = len(self.seeds)
+        while len(self.envs) < k * e:
+            self.envs.append(GridSimEnv(self.scenario, **self.overrides))
+        return [self.envs[i * e : (i + 1) * e] for i in range(k)]
+
     def evaluate(self, genome: np.ndarray) -> tuple[np.ndarray, EpisodeStats]:
         """Mean episode fitness ``[l1, l2, l3]`` of ``genome`` and episode statistics."""
-        set_genome(self.net, genome)
-        n = len(self.envs)
-        obs = [env.reset(seed=s)[0] for env, s in zip(self.envs, self.seeds, strict=True)]
-        totals = np.zeros((n, 3))
-        done_steps = np.zeros(n, int)
-        live = list(range(n))
-        stats = EpisodeStats()
+        return self.evaluate_many(np.asarray(genome, dtype=np.float32)[None])[0]
+
+    def evaluate_many(self, population) -> list[tuple[np.ndarray, EpisodeStats]]:
+        """:meth:`evaluate` for every row of ``population`` ``(K, n)`` float32, ``batch`` rows at
+        a time. Rows already in 64-byte aligned storage (see :func:`aligned_rows`; strided
+        views of it too) are used in place, others are copied once."""
+        store = self.pop_net.store(population)
+        out = []
+        for start in range(0, store.shape[0], self.batch):
+            out.extend(self._evaluate_batch(store[start : start + self.batch]))
+        return out
+
+    @torch.no_grad()
+    def _evaluate_batch(self, store: torch.Tensor) -> list[tuple[np.ndarray, EpisodeStats]]:
+        net = self.pop_net
+        k_all, e, t = store.shape[0], len(self.seeds), self.net_cfg.history
+        small = net.small_copy(store)
+        envs = self._env_grid(k_all)
+        obs = [[env.reset(seed=s)[0] for env, s in zip(row, self.seeds, strict=True)]
+               for row in envs]  # fmt: skip
+        prev: list[list[np.ndarray | None]] = [[None] * e for _ in range(k_all)]
+        grid = torch.zeros(k_all, e, t, self.net_cfg.fc1)  # fc1 x CNN features, per frame
+        totals = np.zeros((k_all, e, 3))
+        done_steps = np.zeros((k_all, e), int)
+        live = np.ones((k_all, e), bool)
+        stats = [EpisodeStats() for _ in range(k_all)]
+        rows, params = None, None
         for _ in range(self.max_steps):
-            if not live:
+            active = np.flatnonzero(live.any(axis=1))
+            if len(active) == 0:
                 break
-            plans = self.net(*observation_tensors([obs[i] for i in live])).numpy()
-            still = []
-            for k, i in enumerate(live):
-                obs[i], reward, terminated, truncated, info = self.envs[i].step(plans[k])
-                totals[i] += reward
-                done_steps[i] += 1
-                stats.steps += 1
-                if terminated:
-                    remaining = self.max_steps - done_steps[i]
-                    pad = self.best_step if info["destination_reached"] else self.worst_step
-                    totals[i] += max(remaining, 0) * pad
-                    stats.collisions += info["collision"]
-                    stats.off_road += info["off_road"]
-                    stats.reached += info["destination_reached"]
-                elif not truncated:
-                    still.append(i)
-            live = still
-        return totals.mean(axis=0), stats
+            if rows is None or not np.array_equal(rows, active):
+                rows, params = active, net.params(store, small, active)
+            # how each running episode's frame cache is brought up to date
+            shift, fill, full = [], [], []
+            for a, k in enumerate(rows):
+                for j in np.flatnonzero(live[k]):
+                    g, old = obs[k][j]["grids"], prev[k][j]
+                    if self.cache and old is not None and np.array_equal(g[:-1], old[1:]):
+                        shift.append((a, k, j))  # one new frame
+                    elif self.cache and old is None and (g[:-1] == g[-1]).all():
+                        fill.append((a, k, j))  # after a reset: all frames the same
+                    else:
+                        full.append((a, k, j))
+                    prev[k][j] = g
+            for slot in range(t) if full else [t - 1]:
+                # every environment of every running individual, always: fixed shapes
+                frames = np.stack([[o["grids"][slot] for o in obs[k]] for k in rows])
+                new = net.grid_part(params, net.frame_features(params, frames))
+                for which, mode in ((shift, "shift"), (fill, "fill"), (full, "full")):
+                    if not which or (mode != "full" and slot != t - 1):
+                        continue
+                    a, k, j = (torch.tensor(v) for v in zip(*which, strict=True))
+                    if mode == "shift":
+                        grid[k, j] = torch.cat([grid[k, j, 1:], new[a, j][:, None]], dim=1)
+                    elif mode == "fill":
+                        grid[k, j] = new[a, j][:, None].expand(-1, t, -1)
+                    else:
+                        grid[k, j, slot] = new[a, j]
+            ego = torch.from_numpy(
+                np.array([[o["ego"] for o in obs[k]] for k in rows], dtype=np.float32)
+            )
+            dest = torch.from_numpy(
+                np.array([[o["destination"] for o in obs[k]] for k in rows], dtype=np.float32)
+            )
+            plans = net.head(params, grid[rows], ego, dest).numpy()
+            for a, k in enumerate(rows):
+                for j in np.flatnonzero(live[k]):
+                    obs[k][j], reward, terminated, truncated, info = envs[k][j].step(plans[a, j])
+                    totals[k, j] += reward
+                    done_steps[k, j] += 1
+                    stats[k].steps += 1
+                    if terminated:
+                        remaining = self.max_steps - done_steps[k, j]
+                        pad = self.best_step if info["destination_reached"] else self.worst_step
+                        totals[k, j] += max(remaining, 0) * pad
+                        stats[k].collisions += info["collision"]
+                        stats[k].off_road += info["off_road"]
+                        stats[k].reached += info["destination_reached"]
+                    if terminated or truncated:
+                        live[k, j] = False
+        return [(totals[k].mean(axis=0), stats[k]) for k in range(k_all)]

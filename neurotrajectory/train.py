@@ -48,6 +48,7 @@ class TrainConfig:
     seed: int = 0
     backend: str = "local"
     workers: int = 2
+    batch: int = 16  # individuals a worker evaluates together (does not change results)
     ray_address: str | None = None
     pretrain: str | None = None  # dataset folder to fit the network to before evolving
     pretrain_epochs: int = 10
@@ -60,6 +61,8 @@ class TrainConfig:
                 raise RunError(f"{name} must be >= 1, got {getattr(self, name)}")
         if self.population < 2:
             raise RunError(f"population must be >= 2, got {self.population}")
+        if self.batch < 1:
+            raise RunError(f"batch must be >= 1, got {self.batch}")
         if self.pretrain_epochs < 1:
             raise RunError(f"pretrain_epochs must be >= 1, got {self.pretrain_epochs}")
         if not self.episode_seconds > 0:
@@ -82,7 +85,7 @@ class TrainConfig:
         return {"simulation": {"duration": self.episode_seconds}}
 
     #: Fields that may differ between a run and its resumption (they do not change results).
-    RESUMABLE = ("generations", "backend", "workers", "ray_address")
+    RESUMABLE = ("generations", "backend", "workers", "ray_address", "batch")
 
 
 def _atomic_write(path: Path, write) -> None:
@@ -188,7 +191,9 @@ class Run:
         """Run (or continue) the generations. ``stop_after`` ends the process after that many
         new generations (for tests of interrupted runs)."""
         cfg = self.config
-        spec = WorkerSpec(cfg.scenario, cfg.overrides, self.net_config, cfg.episode_seeds)
+        spec = WorkerSpec(
+            cfg.scenario, cfg.overrides, self.net_config, cfg.episode_seeds, batch=cfg.batch
+        )
         backend = make_backend(cfg.backend, spec, cfg.workers, cfg.ray_address)
         try:
             return self._loop(backend, progress, stop_after)

@@ -1,0 +1,122 @@
+"""Batched population evaluation: an individual's fitness never depends on its batch."""
+
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from neurotrajectory import model
+from neurotrajectory.backends import WorkerSpec, make_backend
+from neurotrajectory.genome import Recipe, initial_genome, set_genome
+from neurotrajectory.model import PRESETS, PopulationNet, TrajectoryNet
+from neurotrajectory.rollout import Evaluator
+from neurotrajectory.train import Run, TrainConfig
+
+SHORT = {"simulation": {"duration": 3.0}}
+#: The batched forward pass versus TrajectoryNet: float rounding only (observed <= 2.4e-7 m).
+FORWARD_TOLERANCE = 1e-5
+
+
+def _population(net, count, seed=0):
+    """Initial genomes plus strongly mutated ones (their episodes end early, at different
+    steps, so that individuals and episodes drop out of the batch mid-way)."""
+    rng = np.random.default_rng(seed)
+    pop = np.stack([initial_genome(net, s) for s in range(count)])
+    for i in range(1, count, 3):
+        pop[i] += np.float32(0.3) * rng.standard_normal(pop.shape[1], dtype=np.float32)
+    return pop
+
+
+def _inputs(k, e, cfg, seed=0):
+    rng = np.random.default_rng(seed)
+    grids = ((rng.random((k, e, cfg.history, 128, 128)) < 0.2) * 255).astype(np.uint8)
+    ego = torch.from_numpy(rng.normal(size=(k, e, 6)).astype(np.float32))
+    dest = torch.from_numpy(rng.normal(scale=10.0, size=(k, e, 2)).astype(np.float32))
+    return grids, ego, dest
+
+
+@pytest.mark.parametrize("preset", ["tiny", "default"])
+def test_population_forward_matches_trajectorynet_and_ignores_the_batch(preset):
+    torch.set_num_threads(1)
+    cfg = PRESETS[preset]
+    net = TrajectoryNet(cfg).eval()
+    pnet = PopulationNet(cfg)
+    k, e = 5, 2
+    pop = _population(net, k)
+    grids, ego, dest = _inputs(k, e, cfg)
+    with torch.no_grad():
+        together = pnet.forward(pop, grids, ego, dest)
+        for i in range(k):
+            set_genome(net, pop[i])
+            ref = net(torch.from_numpy(grids[i]), ego[i], dest[i])
+            assert float((together[i] - ref).abs().max()) < FORWARD_TOLERANCE
+            alone = pnet.forward(pop[i : i + 1], grids[i : i + 1], ego[i : i + 1], dest[i : i + 1])
+            assert torch.equal(alone[0], together[i])
+        shifted = pnet.forward(pop[::-1].copy(), grids[::-1].copy(), ego.flip(0), dest.flip(0))
+        assert torch.equal(shifted.flip(0), together)
+
+
+def _results(ev, pop):
+    return [(f.tolist(), s.__dict__) for f, s in ev.evaluate_many(pop)]
+
+
+def test_fitness_does_not_depend_on_the_batch_nor_on_the_frame_cache():
+    ev = Evaluator("seamless", SHORT, PRESETS["tiny"], [5, 6], batch=1)
+    pop = _population(ev.net, 8)
+    alone = _results(ev, pop)
+    steps = [s["steps"] for _, s in alone]
+    assert min(steps) < max(steps)  # some episodes end early: the batch shrinks mid-way
+    for batch in (2, 5, 8, 16):
+        ev.batch = batch
+        assert _results(ev, pop) == alone
+    ev.batch = 3  # other positions in the batches
+    assert _results(ev, pop[::-1].copy())[::-1] == alone
+    ev.batch, ev.cache = 8, False  # every frame recomputed every step
+    assert _results(ev, pop) == alone
+    fitness, stats = ev.evaluate(pop[2])
+    assert (fitness.tolist(), stats.__dict__) == alone[2]
+
+
+def test_big_parameters_used_in_place_do_not_depend_on_the_batch(monkeypatch):
+    monkeypatch.setattr(model, "BIG_PARAMETER", 2048)  # tiny's fc1 and LSTM input weights
+    ev = Evaluator("seamless", SHORT, PRESETS["tiny"], [7], batch=1)
+    assert {"encoder.fc.0.weight", "branches.weight_ih"}.isdisjoint(ev.pop_net.small)
+    pop = _population(ev.net, 7, seed=1)
+    alone = _results(ev, pop)
+    for batch in (3, 7):
+        ev.batch = batch
+        assert _results(ev, pop) == alone
+
+
+def test_backends_and_batch_sizes_give_identical_results():
+    recipes = [Recipe(init_seed=i) for i in range(5)]
+    children = [Recipe(parent=0), Recipe(parent=1, other=2, crossover_seed=3),
+                Recipe(parent=3, noise_offset=10, sigma=0.3), Recipe(parent=2),
+                Recipe(parent=4, noise_offset=99, sigma=0.3)]  # fmt: skip
+    results = {}
+    for name, batch in (("local", 1), ("local", 16), ("processes", 2), ("ray", 3)):
+        spec = WorkerSpec("seamless", SHORT, PRESETS["tiny"], (5, 6), batch=batch)
+        backend = make_backend(name, spec, workers=2)
+        try:
+            backend.advance(recipes)
+            backend.advance(children)
+            results[name, batch] = backend.evaluate(5)
+        finally:
+            backend.close()
+    ref_fitness, ref_stats = results["local", 1]
+    for fitness, stats in results.values():
+        np.testing.assert_array_equal(fitness, ref_fitness)
+        assert stats == ref_stats
+
+
+def test_training_history_does_not_depend_on_the_batch(tmp_path):
+    cfg = dict(preset="tiny", population=6, episodes=2, episode_seconds=3.0, seed=2,
+               generations=2)  # fmt: skip
+    Run.create(tmp_path / "a", TrainConfig(batch=1, **cfg)).train(progress=False)
+    Run.create(tmp_path / "b", TrainConfig(batch=4, **cfg)).train(progress=False)
+
+    def fitness(out):
+        return [h["fitness"] for h in json.loads((out / "history.json").read_text())["generations"]]
+
+    assert fitness(tmp_path / "a") == fitness(tmp_path / "b")
