@@ -178,6 +178,7 @@ class HumanReference(ReferenceTrajectory):
         self._front = 1  # samples simulated (the last ``_lag`` of them may still be revised)
 
     def _yield_to(self, tick: int) -> tuple[int, ...]:
+        """Fleet indices the driver gives way to at ``tick`` (sorted)."""
         return tuple(sorted({j for a, b, js in self.revisions if a <= tick <= b for j in js}))
 
     def _simulate(self, front: int) -> None:
@@ -188,10 +189,7 @@ class HumanReference(ReferenceTrajectory):
             w.tick(*self._driver(w))
             self._xy[k], self._psi[k], self._v[k] = w.ego[:2], w.ego[2], w.ego[3]
             self._front = k + 1
-            f = w.traffic.fleet
-            near = self._near.check(
-                w.ego_center(), float(w.ego[2]), f.footprints(), np.flatnonzero(f.active)
-            )
+            near = w.contacts(self._near)  # no road edges loaded: vehicles only
             if near.vehicles:
                 self._revise(k, near.vehicles)
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -45,7 +45,7 @@ class LaneFollower:
         return s, d
 
     def inputs(
-        self, world, speed: float, offset: float, yield_to: np.ndarray | None = None
+        self, world, speed: float, offset: float, yield_to: Sequence[int] = ()
     ) -> tuple[float, float]:
         """Inputs keeping lateral ``offset`` [m] from the route at up to ``speed`` [m/s];
         with ``yield_to`` (fleet indices), also giving way to those vehicles
@@ -62,7 +62,7 @@ class LaneFollower:
             )
             accel = min(accel, float(a_idm))
         accel = float(np.clip(accel, -p.b_max, p.a_max))
-        if yield_to is not None and len(yield_to):
+        if len(yield_to):
             accel = conflict_free_accel(world, route, s_rear, d_rear, accel, yield_to)
         return accel, steer_rate
 
@@ -159,7 +159,7 @@ class HumanDriver:
         self,
         chain: ProfileChain,
         follower: LaneFollower | None = None,
-        yield_to: Callable[[int], np.ndarray] | None = None,
+        yield_to: Callable[[int], Sequence[int]] | None = None,
     ) -> None:
         self.chain = chain
         self.follower = follower or LaneFollower(speed=chain.profiles.bounds.v_max)
@@ -172,5 +172,5 @@ class HumanDriver:
         n = chain.ready
         speed = float(np.interp(t, chain.times[:n], chain.speeds[:n]))
         offset = float(np.interp(t, chain.times[:n], chain.offsets[:n]))
-        avoid = self.yield_to(round(t / world.dt)) if self.yield_to else None
+        avoid = self.yield_to(round(t / world.dt)) if self.yield_to else ()
         return self.follower.inputs(world, speed, offset, avoid)

@@ -106,6 +106,12 @@ class World:
     def check_contacts(self) -> Contact:
         center = self.ego_center()
         self.collision.set_boundaries(self.road.boundary_segments(), self.road.version, center)
+        return self.contacts(self.collision, center)
+
+    def contacts(self, checker: CollisionChecker, center: np.ndarray | None = None) -> Contact:
+        """What ``checker``'s ego box, placed at the ego's pose, touches among the active
+        traffic (and the road edges it has loaded). ``center``: the ego centre if known."""
+        center = self.ego_center() if center is None else center
         f = self.traffic.fleet
         idx = np.flatnonzero(f.active)
-        return self.collision.check(center, float(self.ego[PSI]), f.footprints(), idx)
+        return checker.check(center, float(self.ego[PSI]), f.footprints(), idx)
