@@ -1,5 +1,8 @@
 """The paper's comparison: NeuroTrajectory against DWA, End2End and constant velocity.
 
+The baselines: constant velocity, the destination curve (the feasible arc to the given
+destination, no grid: the floor when the destination is known), DWA and End2End.
+
 **Open loop.** For every scenario group (:data:`~neurotrajectory.windows.GROUPS`), the
 labelled windows are split by track; End2End is trained on the train split, and every method
 predicts the held-out windows, scored by :mod:`neurotrajectory.metrics`. NeuroTrajectory is
@@ -25,12 +28,12 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.policies import Reference
-from gridsim.video import record_rollout
 from neurotrajectory.baselines.constant_velocity import ConstantVelocity
+from neurotrajectory.baselines.destination_curve import DestinationCurve
 from neurotrajectory.baselines.dwa import DWA
 from neurotrajectory.baselines.end2end import CommandPolicy, End2End, TrainSettings
+from neurotrajectory.closed_loop import closed_loop
 from neurotrajectory.front import NetPredictor, load_front, pick_member
 from neurotrajectory.metrics import Accuracy, accuracy
 from neurotrajectory.predictors import Setting, TrajectoryPolicy
@@ -97,41 +100,6 @@ def _dataset(group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log)
     return ds
 
 
-def _length(points: np.ndarray) -> float:
-    return float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
-
-
-def _closed_loop(
-    scenario: str, policy, seeds: list[int], seconds: float, video: Path | None = None
-) -> dict:
-    """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``; with
-    ``video``, the first episode is also exported there."""
-    env = GridSimEnv(scenario, action_type=policy.action_type,
-                     render_mode="rgb_array" if video else None,
-                     simulation={"duration": seconds})  # fmt: skip
-    ticks = env.cfg.ticks_per_decision
-    rows = []
-    for k, seed in enumerate(seeds):
-        _, infos = record_rollout(env, policy, video if k == 0 else None, 10**6, seed=seed)
-        fitness = np.sum([i["reward"] for i in infos], axis=0)
-        speeds = [i["pose"][3] for i in infos]
-        last = infos[-1]
-        failed = last["collision"] or last["off_road"]
-        ref = env.reference
-        driven = np.vstack([ref.xy[:1], [i["pose"][:2] for i in infos]])
-        human = ref.positions(np.arange(0.0, last["time"] + 1e-9, env.cfg.simulation.dt))
-        rows.append({
-            "completed": float(not failed),
-            "progress": _length(driven) / max(_length(human), 1e-6),
-            "collision": float(last["collision"]),
-            "off_road": float(last["off_road"]), "seconds": float(last["time"]),
-            "mean_speed": float(np.mean(speeds)),
-            "mean_steer_rate": float(fitness[1] / (len(infos) * ticks * env.cfg.simulation.dt)),
-            "l1": float(fitness[0]), "l2": float(fitness[1]), "l3": float(fitness[2]),
-        })  # fmt: skip
-    return {k: float(np.mean([r[k] for r in rows])) for k in rows[0]} | {"episodes": len(rows)}
-
-
 @dataclass(frozen=True)
 class Front:
     """A trained run's Pareto front: networks and the member picked without test data."""
@@ -170,7 +138,8 @@ def _evaluate_group(
     e2e = End2End.train(train, setting, cfg.end2end)
     e2e.save(out / "models" / f"end2end-{group}")
     nt = NetPredictor(front.nets[front.picked])
-    methods = {"constant velocity": ConstantVelocity(setting), "DWA": DWA(setting),
+    methods = {"constant velocity": ConstantVelocity(setting),
+               "destination curve": DestinationCurve(setting), "DWA": DWA(setting),
                "End2End": e2e}  # fmt: skip
     scores = {name: accuracy(m.predict(test), test.target, test.heading)
               for name, m in methods.items()}  # fmt: skip
@@ -182,13 +151,14 @@ def _evaluate_group(
     loop = {}
     if cfg.closed_loop_episodes:
         policies = {"human reference": Reference()}
-        policies |= {n: TrajectoryPolicy(methods[n]) for n in ("constant velocity", "DWA")}
+        policies |= {n: TrajectoryPolicy(methods[n])
+                     for n in ("constant velocity", "destination curve", "DWA")}  # fmt: skip
         policies |= {"End2End": CommandPolicy(e2e), NT_PICKED: TrajectoryPolicy(nt)}
         rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0xC10]))
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
         for name, policy in tqdm(policies.items(), desc=f"closed loop {group}", leave=False):
             slug = name.lower().replace(" ", "-")
-            per = [_closed_loop(sc, policy, seeds, cfg.closed_loop_seconds,
+            per = [closed_loop(sc, policy, seeds, cfg.closed_loop_seconds,
                                 out / "videos" / f"{group}-{sc}-{slug}.mp4" if cfg.videos else None)
                    for sc in GROUPS[group]]  # fmt: skip
             loop[name] = {k: float(np.mean([p[k] for p in per])) for k in per[0]}

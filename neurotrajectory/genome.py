@@ -41,11 +41,13 @@ def set_genome(net: nn.Module, genome: np.ndarray) -> None:
 
 def initial_genome(net: nn.Module, seed: int) -> np.ndarray:
     """Weights ~ N(0, 1 / fan_in), biases 0, drawn with NumPy from ``seed`` (reproducible
-    everywhere, unlike torch's initialisers)."""
+    everywhere, unlike torch's initialisers); the parameters the network names in its
+    ``zero_init`` (if any) start at 0."""
     rng = np.random.default_rng(seed)
+    zero = set(getattr(net, "zero_init", ()))
     parts = []
     for name, p in net.named_parameters():
-        if "bias" in name:
+        if "bias" in name or name in zero:
             parts.append(np.zeros(p.numel(), np.float32))
             continue
         # Convolutions (out, in, k, k): in * k * k; matrices (..., out, in): in.

@@ -7,27 +7,63 @@ frame, i.e. directly the environment's trajectory action.
 Each grid goes through the same CNN (three stride-2 convolutions); its features, with the
 ego state and the destination, go through FC ``fc1`` and FC ``fc2`` (sigmoid by default, as
 in the paper). Branch ``i`` is a many-to-one LSTM over the ``tau_i`` per-frame features and
-a linear read-out of set-point ``i``. With ``prior="constant_velocity"`` the network predicts
-a correction to where the ego would be at constant speed and heading (a residual on a
-kinematic prior, so that a freshly initialised network already drives forward).
+a linear read-out of set-point ``i``. The output is a residual on a kinematic prior
+(``NetConfig.prior``): ``"destination_curve"`` (the default: the feasible arc to the given
+destination, :mod:`neurotrajectory.curves`), ``"constant_velocity"`` (where the ego would be
+at constant speed and heading) or ``"none"``; with a prior a freshly initialised network
+already drives forward.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, astuple, dataclass
 
 import numpy as np
 import torch
 from torch import nn
 
+from neurotrajectory.curves import CurveLimits, destination_curves
+
 _ACTIVATIONS = {"sigmoid": nn.Sigmoid, "relu": nn.ReLU, "tanh": nn.Tanh}
 DESTINATION_SCALE = 20.0  # m: destination inputs are divided by this
 
 
+def constant_velocity_setpoints(ego: torch.Tensor, times: torch.Tensor) -> torch.Tensor:
+    """Where the ego would be at ``times`` [s] holding its speed and heading: ``(B, T, 2)`` [m,
+    grid frame] from ``ego`` ``(B, 6)`` (speed, ..., cos, sin of the heading)."""
+    speed, cos, sin = ego[:, 0:1], ego[:, 4:5], ego[:, 5:6]
+    dist = speed * times[None, :]
+    return torch.stack([dist * cos, dist * sin], dim=2)
+
+
+def _destination_curve_prior(cfg: NetConfig, ego, dest, times) -> torch.Tensor:
+    curves = destination_curves(ego.numpy(), dest.numpy(), times.numpy(), cfg.curve_limits)
+    return torch.from_numpy(curves)
+
+
+#: The kinematic priors the network's output is a residual on: ``(cfg, ego (B, 6), dest
+#: (B, 2), times (T,)) -> (B, T, 2)`` [m, grid frame], each row computed on its own (the
+#: same result in any batch); None: no prior.
+PRIORS = {
+    "destination_curve": _destination_curve_prior,
+    "constant_velocity": lambda cfg, ego, dest, times: constant_velocity_setpoints(ego, times),
+    "none": None,
+}
+
+
+def prior_setpoints(cfg: NetConfig, ego, dest, times) -> torch.Tensor | None:
+    """The set-points of ``cfg.prior`` (see :data:`PRIORS`), or None."""
+    prior = PRIORS[cfg.prior]
+    return None if prior is None else prior(cfg, ego, dest, times)
+
+
 @dataclass(frozen=True)
 class NetConfig:
-    """Sizes of the network. ``pool`` downsamples the grids before the CNN (1 = none)."""
+    """Sizes of the network. ``pool`` downsamples the grids before the CNN (1 = none).
+    ``limits`` are the ego's (:class:`~neurotrajectory.curves.CurveLimits` fields: a_max,
+    b_max, v_max, max_curvature) for the destination-curve prior; the scenario sets them
+    (:func:`~neurotrajectory.rollout.net_config_for`)."""
 
     history: int = 5
     horizon: int = 5
@@ -39,15 +75,18 @@ class NetConfig:
     lstm: int = 32
     activation: str = "sigmoid"
     setpoint_period: float = 0.5
-    prior: str = "constant_velocity"
+    prior: str = "destination_curve"
+    limits: tuple[float, float, float, float] = astuple(CurveLimits())
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "channels", tuple(self.channels))
+        object.__setattr__(self, "limits", tuple(float(x) for x in self.limits))
         if self.activation not in _ACTIVATIONS:
             raise ValueError(
                 f"activation must be one of {sorted(_ACTIVATIONS)}, got {self.activation!r}"
             )
-        if self.prior not in ("constant_velocity", "none"):
-            raise ValueError(f"prior must be 'constant_velocity' or 'none', got {self.prior!r}")
+        if self.prior not in PRIORS:
+            raise ValueError(f"prior must be one of {list(PRIORS)}, got {self.prior!r}")
         if self.grid_size % (self.pool * 8):
             raise ValueError(
                 f"grid_size {self.grid_size} must be divisible by pool * 8 = {self.pool * 8}"
@@ -55,6 +94,10 @@ class NetConfig:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    @property
+    def curve_limits(self) -> CurveLimits:
+        return CurveLimits(*self.limits)
 
 
 #: ``paper``: the full FC 1024 / 512 on 128 x 128 grids (about 19 M parameters);
@@ -135,14 +178,6 @@ class GridEncoder(nn.Module):
         return self.fc(torch.cat([feats, side[:, None, :].expand(b, t, side.shape[1])], dim=2))
 
 
-def constant_velocity_setpoints(ego: torch.Tensor, times: torch.Tensor) -> torch.Tensor:
-    """Where the ego would be at ``times`` [s] holding its speed and heading: ``(B, T, 2)`` [m,
-    grid frame] from ``ego`` ``(B, 6)`` (speed, ..., cos, sin of the heading)."""
-    speed, cos, sin = ego[:, 0:1], ego[:, 4:5], ego[:, 5:6]
-    dist = speed * times[None, :]
-    return torch.stack([dist * cos, dist * sin], dim=2)
-
-
 class TrajectoryNet(nn.Module):
     """See the module docstring."""
 
@@ -154,15 +189,20 @@ class TrajectoryNet(nn.Module):
         times = cfg.setpoint_period * torch.arange(1, cfg.horizon + 1, dtype=torch.float32)
         self.register_buffer("times", times, persistent=False)
 
+    @property
+    def zero_init(self) -> tuple[str, ...]:
+        """Parameters that start at 0 (:func:`~neurotrajectory.genome.initial_genome`): with a
+        prior, the read-out, so that a fresh network outputs its prior exactly."""
+        return () if self.cfg.prior == "none" else ("branches.head_weight",)
+
     def forward(
         self, grids: torch.Tensor, ego: torch.Tensor, destination: torch.Tensor
     ) -> torch.Tensor:
         """``grids`` uint8 or float ``(B, tau_i, H, W)``; ``ego`` ``(B, 6)``; ``destination``
         ``(B, 2)`` [m]. Returns set-points ``(B, tau_o, 2)`` [m]."""
         out = self.branches(self.encoder(grids, ego, destination))
-        if self.cfg.prior == "constant_velocity":
-            out = out + constant_velocity_setpoints(ego, self.times)
-        return out
+        prior = prior_setpoints(self.cfg, ego.detach(), destination.detach(), self.times)
+        return out if prior is None else out + prior
 
 
 def observation_tensors(obs: dict | list[dict]) -> tuple[torch.Tensor, ...]:
@@ -414,10 +454,9 @@ class PopulationNet:
         w_head = _items(params["branches.head_weight"].reshape(k * b, 2, hid))
         out = _bmm_t(h, w_head).view(k, b, e, 2) + params["branches.head_bias"][:, :, None]
         out = out.permute(0, 2, 1, 3)
-        if self.cfg.prior == "constant_velocity":
-            cv = constant_velocity_setpoints(ego.reshape(k * e, 6), self.times)
-            out = out + cv.view(k, e, b, 2)
-        return out
+        flat_ego, flat_dest = ego.reshape(k * e, -1), dest.reshape(k * e, 2)
+        prior = prior_setpoints(self.cfg, flat_ego, flat_dest, self.times)
+        return out if prior is None else out + prior.view(k, e, b, 2)
 
     def forward(self, population, grids: np.ndarray, ego, dest) -> torch.Tensor:
         """Everything at once (no caching): ``population`` ``(K, n)``, ``grids`` uint8

@@ -1,11 +1,14 @@
 """NeuroTrajectory building blocks: network, genomes, Pareto sorting, selection."""
 
+from dataclasses import replace
+
 import moocore
 import numpy as np
 import pytest
 import torch
 from pymoo.operators.survival.rank_and_crowding.metrics import calc_crowding_distance
 
+from neurotrajectory.curves import CurveLimits, destination_curves
 from neurotrajectory.evolution import GAConfig, initial_recipes, minimised, next_generation
 from neurotrajectory.genome import (
     Recipe,
@@ -53,14 +56,21 @@ def test_fused_branches_equal_separate_lstms():
             torch.testing.assert_close(out[:, k], ref, rtol=1e-5, atol=1e-6)
 
 
-def test_constant_velocity_prior():
-    net = TrajectoryNet(PRESETS["tiny"])
+@pytest.mark.parametrize("prior", ["constant_velocity", "destination_curve"])
+def test_a_zero_network_outputs_its_prior(prior):
+    net = TrajectoryNet(replace(PRESETS["tiny"], prior=prior))
     set_genome(net, np.zeros(count_parameters(net), np.float32))  # the network adds nothing
     ego = torch.tensor([[10.0, 0.0, 0.0, 0.0, 0.6, 0.8]])
+    dest = torch.tensor([[12.0, 21.0]])  # 2.5 s ahead, 3 m left of the heading
     with torch.no_grad():
-        out = net(torch.zeros(1, 5, 128, 128, dtype=torch.uint8), ego, torch.zeros(1, 2))[0]
+        out = net(torch.zeros(1, 5, 128, 128, dtype=torch.uint8), ego, dest)[0].numpy()
     t = 0.5 * np.arange(1, 6)
-    np.testing.assert_allclose(out.numpy(), np.stack([10 * t * 0.6, 10 * t * 0.8], 1), atol=1e-5)
+    if prior == "constant_velocity":
+        want = np.stack([10 * t * 0.6, 10 * t * 0.8], 1)
+    else:
+        want = destination_curves(ego.numpy(), dest.numpy(), t, CurveLimits())[0]
+        np.testing.assert_allclose(want[-1], dest[0], atol=1e-4)  # it arrives
+    np.testing.assert_allclose(out, want, atol=1e-5)
 
 
 def test_noise_table_is_the_same_everywhere():
@@ -142,3 +152,30 @@ def test_selection_keeps_the_front_and_is_reproducible():
     c, _ = next_generation(fit, cfg, seed=3, generation=8, genome_size=1000, table_size=4096)
     assert c != a
     assert len(initial_recipes(cfg, 0)) == 20
+
+
+def test_constrained_sort_puts_completing_first():
+    # objectives to minimise; point 2 dominates everything but violates the constraint
+    f = np.array([[3.0, 3.0], [1.0, 4.0], [0.0, 0.0], [0.5, 0.5], [2.0, 2.0]])
+    violation = np.array([0.0, 0.0, 0.5, 0.2, 0.0])
+    rank = non_dominated_sort(f, violation)
+    # feasible points by Pareto dominance first ([2, 2] dominates [3, 3]); then the smaller
+    # violation, whatever the objectives
+    np.testing.assert_array_equal(rank, [1, 0, 3, 2, 0])
+    np.testing.assert_array_equal(non_dominated_sort(f, np.zeros(5)), non_dominated_sort(f))
+    with pytest.raises(ValueError, match="violation must be 5 numbers >= 0"):
+        non_dominated_sort(f, -np.ones(5))
+
+
+def test_selection_never_keeps_a_failing_member_over_a_completing_one():
+    rng = np.random.default_rng(0)
+    fitness = np.column_stack(
+        [rng.uniform(1, 10, 12), rng.uniform(0, 1, 12), rng.uniform(0, 5, 12)]
+    )
+    fitness[0] = [0.0, 0.0, 100.0]  # the best in every objective, but it crashed
+    violation = np.zeros(12)
+    violation[0] = 0.1
+    cfg = GAConfig(population=12, elite_fraction=0.5)
+    recipes, rank = next_generation(fitness, cfg, 0, 0, 10, 100, violation)
+    assert rank[0] > 0 and rank.min() == 0
+    assert all(r.parent != 0 for r in recipes if r.is_elite)

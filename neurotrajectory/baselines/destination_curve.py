@@ -1,0 +1,25 @@
+"""The destination-curve baseline: the feasible arc to the given destination at constant
+acceleration (:mod:`neurotrajectory.curves`), no grid. When the destination is known, this
+is the floor a learned planner must beat."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from neurotrajectory.curves import CurveLimits, destination_curves
+from neurotrajectory.predictors import Setting
+from neurotrajectory.windows import Windows
+
+
+class DestinationCurve:
+    """Drives the destination curve; ignores the grids."""
+
+    name = "destination curve"
+
+    def __init__(self, setting: Setting) -> None:
+        self.setting = setting
+        self.limits = CurveLimits.from_params(setting.params)
+
+    def predict(self, batch: Windows) -> np.ndarray:
+        curves = destination_curves(batch.ego, batch.destination, self.setting.times, self.limits)
+        return curves.astype(np.float64)

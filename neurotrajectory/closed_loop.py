@@ -1,0 +1,65 @@
+"""Closed-loop driving: a policy drives GridSim-v0 episodes, and how well it went.
+
+Per episode: ``completed`` (ran to its time limit or destination without collision or
+leaving the road), ``progress`` (distance driven over the distance the human reference drove
+in the same time), collision, off-road, time driven [s], mean speed [m/s], mean steering rate
+[rad/s] and the episode's fitness vector ``[l1, l2, l3]``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.video import record_rollout
+
+
+def _length(points: np.ndarray) -> float:
+    return float(np.sum(np.hypot(*np.diff(points, axis=0).T)))
+
+
+def drive_episodes(
+    scenario: str, policy, seeds: list[int], seconds: float, video: Path | None = None
+) -> list[dict]:
+    """One row of statistics per episode of ``policy`` on ``scenario`` (episodes of
+    ``seconds``, one per seed); with ``video``, the first episode is also exported there."""
+    env = GridSimEnv(scenario, action_type=policy.action_type,
+                     render_mode="rgb_array" if video else None,
+                     simulation={"duration": seconds})  # fmt: skip
+    ticks = env.cfg.ticks_per_decision
+    rows = []
+    for k, seed in enumerate(seeds):
+        _, infos = record_rollout(env, policy, video if k == 0 else None, 10**6, seed=seed)
+        fitness = np.sum([i["reward"] for i in infos], axis=0)
+        speeds = [i["pose"][3] for i in infos]
+        last = infos[-1]
+        failed = last["collision"] or last["off_road"]
+        ref = env.reference
+        driven = np.vstack([ref.xy[:1], [i["pose"][:2] for i in infos]])
+        human = ref.positions(np.arange(0.0, last["time"] + 1e-9, env.cfg.simulation.dt))
+        rows.append({
+            "seed": int(seed),
+            "completed": float(not failed),
+            "progress": _length(driven) / max(_length(human), 1e-6),
+            "collision": float(last["collision"]),
+            "off_road": float(last["off_road"]), "seconds": float(last["time"]),
+            "mean_speed": float(np.mean(speeds)),
+            "mean_steer_rate": float(fitness[1] / (len(infos) * ticks * env.cfg.simulation.dt)),
+            "l1": float(fitness[0]), "l2": float(fitness[1]), "l3": float(fitness[2]),
+        })  # fmt: skip
+    return rows
+
+
+def summarise(rows: list[dict]) -> dict:
+    """The mean of every statistic over ``rows``, and the number of episodes."""
+    keys = [k for k in rows[0] if k != "seed"]
+    return {k: float(np.mean([r[k] for r in rows])) for k in keys} | {"episodes": len(rows)}
+
+
+def closed_loop(
+    scenario: str, policy, seeds: list[int], seconds: float, video: Path | None = None
+) -> dict:
+    """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``."""
+    return summarise(drive_episodes(scenario, policy, seeds, seconds, video))
