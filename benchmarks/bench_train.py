@@ -42,9 +42,9 @@ def main() -> None:
     backend = make_backend(args.backend, spec, args.workers)
     try:
         backend.advance(initial_recipes(GAConfig(population=args.population), 0))
-        backend.evaluate(args.population)  # warm-up: references cached, kernels loaded
+        backend.evaluate(args.population, spec.seeds)  # warm-up: references cached, kernels loaded
         t0 = time.perf_counter()
-        _, stats = backend.evaluate(args.population)
+        _, stats = backend.evaluate(args.population, spec.seeds)
         seconds = time.perf_counter() - t0
     finally:
         backend.close()

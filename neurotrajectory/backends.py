@@ -32,8 +32,12 @@ class WorkerSpec:
     scenario: str
     overrides: dict
     net: NetConfig
-    seeds: tuple[int, ...]
+    seeds: tuple[int, ...]  # the default episodes; each evaluation names its own
     batch: int = 16  # individuals evaluated together (batch * episodes environments)
+
+
+#: One individual's result: its index, mean fitness ``[l1, l2, l3]`` and episode statistics.
+Evaluated = tuple[int, np.ndarray, dict]
 
 
 class Worker:
@@ -68,9 +72,11 @@ class Worker:
             rows[i] = genome
         self.population = rows
 
-    def evaluate(self, indices: list[int]) -> list[tuple[int, np.ndarray, dict]]:
-        """Fitness and statistics of individuals ``indices``, evaluated in batches (the result
-        of each does not depend on the batches)."""
+    def evaluate(self, job: tuple[list[int], tuple[int, ...]]) -> list[Evaluated]:
+        """Fitness and statistics of individuals ``indices`` on the episodes ``seeds``
+        (``job = (indices, seeds)``), evaluated in batches (the result of each does not depend
+        on the batches)."""
+        indices, seeds = job
         idx = np.asarray(indices, dtype=np.int64)
         if len(idx) == 0:
             return []
@@ -79,7 +85,7 @@ class Worker:
             rows = self.population[idx[0] : idx[-1] + 1 : step]  # a view, no copy
         else:
             rows = self.population[idx]
-        results = self.evaluator.evaluate_many(rows)
+        results = self.evaluator.evaluate_many(rows, seeds)
         return [(int(i), f, s.__dict__) for i, (f, s) in zip(idx, results, strict=True)]
 
 
@@ -93,20 +99,26 @@ class Backend(ABC):
     def load(self, population: np.ndarray) -> None: ...
 
     @abstractmethod
-    def evaluate(self, size: int) -> tuple[np.ndarray, list[dict]]:
-        """Fitness ``(size, 3)`` and per-individual episode statistics."""
+    def evaluate(self, size: int, seeds: tuple[int, ...]) -> tuple[np.ndarray, list[dict]]:
+        """Fitness ``(size, 3)`` and per-individual episode statistics on the episodes
+        ``seeds``."""
 
     def close(self) -> None:  # noqa: B027 - optional
         pass
 
 
-def _collect(size: int, parts: list[list[tuple[int, np.ndarray, dict]]]):
+def _collect(size: int, parts: list[list[Evaluated]]):
     fitness = np.zeros((size, 3))
     stats: list[dict] = [{} for _ in range(size)]
     for part in parts:
         for i, f, s in part:
             fitness[i], stats[i] = f, s
     return fitness, stats
+
+
+def _jobs(size: int, workers: int, seeds: tuple[int, ...]) -> list:
+    """Individual ``i`` goes to worker ``i % workers``; every worker runs the same episodes."""
+    return [(list(range(k, size, workers)), tuple(seeds)) for k in range(workers)]
 
 
 class LocalBackend(Backend):
@@ -121,8 +133,8 @@ class LocalBackend(Backend):
     def load(self, population):
         self.worker.load(population)
 
-    def evaluate(self, size):
-        return _collect(size, [self.worker.evaluate(list(range(size)))])
+    def evaluate(self, size, seeds):
+        return _collect(size, [self.worker.evaluate((list(range(size)), seeds))])
 
 
 def _serve(conn, spec: WorkerSpec) -> None:
@@ -176,9 +188,8 @@ class ProcessBackend(Backend):
     def load(self, population):
         self._all("load", [population] * len(self.conns))
 
-    def evaluate(self, size):
-        w = len(self.conns)
-        return _collect(size, self._all("evaluate", [list(range(k, size, w)) for k in range(w)]))
+    def evaluate(self, size, seeds):
+        return _collect(size, self._all("evaluate", _jobs(size, len(self.conns), seeds)))
 
     def close(self):
         for conn, proc in zip(self.conns, self.procs, strict=True):
@@ -235,9 +246,8 @@ class RayBackend(Backend):
         ref = self.ray.put(population)
         self._all("load", [ref] * len(self.actors))
 
-    def evaluate(self, size):
-        w = len(self.actors)
-        return _collect(size, self._all("evaluate", [list(range(k, size, w)) for k in range(w)]))
+    def evaluate(self, size, seeds):
+        return _collect(size, self._all("evaluate", _jobs(size, len(self.actors), seeds)))
 
     def close(self):
         for a in self.actors:

@@ -10,13 +10,14 @@ from pathlib import Path
 from gridsim.errors import GridSimError
 from neurotrajectory.backends import BackendError
 from neurotrajectory.front import PICKS
-from neurotrajectory.model import PRESETS
+from neurotrajectory.model import PRESETS, PRIORS
 from neurotrajectory.train import Run, RunError, TrainConfig
 from neurotrajectory.windows import GROUPS
 
 _TRAIN_KEYS = (
     "scenario", "preset", "population", "generations", "episodes", "episode_seconds", "sigma",
-    "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_epochs", "batch",
+    "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_epochs", "batch", "prior",
+    "resample_episodes", "constrained", "validation_episodes",
 )  # fmt: skip
 
 
@@ -36,9 +37,24 @@ def _cmd_train(args: argparse.Namespace) -> int:
         run = Run.create(args.out, config)
     summary = run.train(progress=not args.quiet)
     print(json.dumps({"run": str(run.out), **summary}, indent=1))
+    if args.heldout:
+        _heldout(run, args.heldout)
     if args.video:
         _rollout(str(run.out), "knee", args.video, seed=run.config.seed, steps=None)
     return 0
+
+
+def _heldout(run: Run, episodes: int) -> None:
+    """Drive the knee member on held-out episodes; write ``heldout.json``, print a summary."""
+    from neurotrajectory.front import heldout
+
+    report = heldout(run.out, episodes)
+    (run.out / "heldout.json").write_text(json.dumps(report, indent=1))
+    net, curve = report["network"], report["destination curve"]
+    print(f"knee member on {episodes} held-out episodes of {report['episode_seconds']:g} s: "
+          f"completed {net['completed']:.0%} (destination curve {curve['completed']:.0%}), "
+          f"progress {net['progress']:.0%} of the human's, "
+          f"mean l1 {net['l1']:.0f} m^2 (destination curve {curve['l1']:.0f})")  # fmt: skip
 
 
 def _rollout(run_dir: str, pick: str, video: str, seed: int, steps: int | None) -> dict:
@@ -145,6 +161,45 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--resume", default=None, help="continue the run in this directory")
     t.add_argument(
         "--video", default=None, help="after training, drive the knee member into this video"
+    )
+    t.add_argument(
+        "--prior",
+        default=None,
+        choices=list(PRIORS),
+        help="the kinematic prior the network refines (default destination_curve)",
+    )
+    t.add_argument(
+        "--fixed-episodes",
+        dest="resample_episodes",
+        action="store_const",
+        const=False,
+        default=None,
+        help="evaluate every generation on the same episodes (default: new ones)",
+    )
+    t.add_argument(
+        "--unconstrained",
+        dest="constrained",
+        action="store_const",
+        const=False,
+        default=None,
+        help="rank collisions and off-road by fitness alone",
+    )
+    t.add_argument(
+        "--validation-episodes",
+        dest="validation_episodes",
+        type=int,
+        default=None,
+        metavar="N",
+        help="choose the final front on N more training episodes (default 8; 0: the last "
+        "generation's)",
+    )
+    t.add_argument(
+        "--heldout",
+        type=int,
+        default=20,
+        metavar="N",
+        help="after training, drive the knee member on N held-out episodes "
+        "(default 20; 0: skip) and write heldout.json",
     )
     t.add_argument("--quiet", action="store_true")
     t.set_defaults(func=_cmd_train)

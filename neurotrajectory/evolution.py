@@ -1,7 +1,9 @@
 """Multi-objective neuroevolution (after Such et al. 2017, with NSGA-II selection).
 
 Each generation: sort the population into Pareto fronts by its fitness vectors (minimising
-l1 and l2, maximising l3), with crowding distance as tie-break; carry the first front
+l1 and l2, maximising l3; constrained by the share of episode time lost to collisions and
+leaving the road, when given: completing beats any fitness), with crowding distance as
+tie-break; carry the first front
 (at most ``elite_fraction`` of the population, the least crowded first) over unmodified;
 fill the rest with children of tournament-selected parents: uniform crossover of two parents
 with probability ``p_crossover``, additive Gaussian mutation (``sigma`` times a slice of the
@@ -27,7 +29,7 @@ class GAConfig:
     tournament: int = 2
     p_crossover: float = 0.5
     p_mutation: float = 0.5
-    sigma: float = 0.02
+    sigma: float = 0.005  # small steps: a network on its prior already drives
 
     def __post_init__(self) -> None:
         if self.population < 2:
@@ -63,11 +65,13 @@ def next_generation(
     generation: int,
     genome_size: int,
     table_size: int,
+    violation: np.ndarray | None = None,
 ) -> tuple[list[Recipe], np.ndarray]:
-    """Recipes of the next population from the fitness ``(K, 3)`` of this one. Also returns
-    the Pareto rank of every individual of this generation."""
+    """Recipes of the next population from the fitness ``(K, 3)`` of this one (and its
+    constraint ``violation`` ``(K,)``, if any). Also returns the (constrained) Pareto rank of
+    every individual of this generation."""
     k = config.population
-    rank, crowd = rank_and_crowding(minimised(fitness))
+    rank, crowd = rank_and_crowding(minimised(fitness), violation)
     rng = generation_rng(seed, generation)
     # Elites: the first front, least crowded first, capped.
     front = np.flatnonzero(rank == 0)

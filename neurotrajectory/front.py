@@ -105,3 +105,28 @@ def load_front_member(run_dir: str | Path, pick: str) -> tuple[Run, NetPolicy, d
         "l3": float(fitness[k, 2]),
     }
     return run, NetPolicy(nets[k]), member
+
+
+def heldout(run_dir: str | Path, episodes: int, pick: str = "knee") -> dict:
+    """Closed-loop statistics of the picked front member on ``episodes`` episodes that no
+    generation trained on (:meth:`~neurotrajectory.train.TrainConfig.heldout_seeds`), each as
+    long as the training episodes, beside the destination curve's on the same episodes."""
+    from neurotrajectory.baselines.destination_curve import DestinationCurve
+    from neurotrajectory.closed_loop import drive_episodes, summarise
+    from neurotrajectory.predictors import Setting, TrajectoryPolicy
+
+    run, policy, member = load_front_member(run_dir, pick)
+    cfg = run.config
+    seeds = list(cfg.heldout_seeds(episodes))
+    rows = drive_episodes(cfg.scenario, policy, seeds, cfg.episode_seconds)
+    env = GridSimEnv(cfg.scenario, **cfg.overrides)
+    curve = TrajectoryPolicy(DestinationCurve(Setting.from_env(env)))
+    baseline = drive_episodes(cfg.scenario, curve, seeds, cfg.episode_seconds)
+    return {
+        "member": member,
+        "episode_seconds": cfg.episode_seconds,
+        "seeds": seeds,
+        "network": summarise(rows),
+        "destination curve": summarise(baseline),
+        "episodes": rows,
+    }

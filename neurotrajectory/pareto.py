@@ -1,6 +1,11 @@
 """Multi-objective selection: non-dominated sorting, crowding distance, hypervolume.
 
 All objectives are minimised here (negate the ones to maximise before calling).
+
+With a constraint ``violation`` per point (0: feasible), domination is Deb's constrained
+domination (constrained NSGA-II): a point with a smaller violation dominates one with a larger
+violation; among equal violations (in particular between feasible points) the usual Pareto
+domination decides.
 """
 
 from __future__ import annotations
@@ -8,20 +13,29 @@ from __future__ import annotations
 import numpy as np
 
 
-def dominates_matrix(f: np.ndarray) -> np.ndarray:
-    """``D[i, j]``: point ``i`` dominates point ``j`` (no worse in all, better in one)."""
+def dominates_matrix(f: np.ndarray, violation: np.ndarray | None = None) -> np.ndarray:
+    """``D[i, j]``: point ``i`` dominates point ``j`` (no worse in all, better in one; with
+    ``violation`` ``(N,)``, constrained domination: see the module docstring)."""
     le = np.all(f[:, None, :] <= f[None, :, :], axis=2)
     lt = np.any(f[:, None, :] < f[None, :, :], axis=2)
-    return le & lt
+    if violation is None:
+        return le & lt
+    v = np.asarray(violation, dtype=np.float64)
+    return (v[:, None] < v[None, :]) | ((v[:, None] == v[None, :]) & le & lt)
 
 
-def non_dominated_sort(f: np.ndarray) -> np.ndarray:
+def non_dominated_sort(f: np.ndarray, violation: np.ndarray | None = None) -> np.ndarray:
     """Pareto rank of each row of ``f`` ``(N, M)``: 0 for the non-dominated front, 1 for the
-    front after removing it, and so on. Duplicates share a rank."""
+    front after removing it, and so on. Duplicates share a rank. ``violation`` ``(N,)``
+    (>= 0) makes it constrained."""
     f = np.asarray(f, dtype=np.float64)
     if f.ndim != 2 or not np.all(np.isfinite(f)):
         raise ValueError("objectives must be a finite (N, M) array")
-    dom = dominates_matrix(f)
+    if violation is not None:
+        violation = np.asarray(violation, dtype=np.float64)
+        if violation.shape != (len(f),) or not np.all(violation >= 0):
+            raise ValueError(f"violation must be {len(f)} numbers >= 0")
+    dom = dominates_matrix(f, violation)
     count = dom.sum(axis=0)  # how many dominate each point
     rank = np.full(len(f), -1)
     current = np.flatnonzero(count == 0)
@@ -53,9 +67,12 @@ def crowding_distance(f: np.ndarray) -> np.ndarray:
     return dist
 
 
-def rank_and_crowding(f: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Pareto ranks and crowding distances (computed within each front)."""
-    rank = non_dominated_sort(f)
+def rank_and_crowding(
+    f: np.ndarray, violation: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Pareto ranks (constrained with ``violation``) and crowding distances (computed within
+    each front)."""
+    rank = non_dominated_sort(f, violation)
     crowd = np.zeros(len(f))
     for r in np.unique(rank):
         members = np.flatnonzero(rank == r)

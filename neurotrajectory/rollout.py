@@ -15,26 +15,32 @@ sums ``[l1, l2, l3]`` (l1, l2 minimised, l3 maximised).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import astuple, dataclass, field
 
 import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
+from neurotrajectory.curves import CurveLimits
 from neurotrajectory.model import NetConfig, PopulationNet, TrajectoryNet
 
 
 @dataclass
 class EpisodeStats:
+    """An individual's episodes: steps driven, how they ended, and ``lost``: the mean share of
+    an episode's steps lost to collisions and leaving the road (its constraint violation)."""
+
     steps: int = 0
     collisions: int = 0
     off_road: int = 0
     reached: int = 0
+    lost: float = 0.0
     extra: dict = field(default_factory=dict)
 
 
 def net_config_for(env: GridSimEnv, base: NetConfig) -> NetConfig:
-    """``base`` with the sizes the environment dictates (history, horizon, grid, period)."""
+    """``base`` with the sizes and limits the environment dictates (history, horizon, grid,
+    period, the ego's limits)."""
     cfg = env.cfg
     if cfg.sensor.rows != cfg.sensor.cols:
         raise ValueError(
@@ -45,6 +51,7 @@ def net_config_for(env: GridSimEnv, base: NetConfig) -> NetConfig:
         "horizon": cfg.env.horizon,
         "grid_size": cfg.sensor.rows,
         "setpoint_period": cfg.env.setpoint_period,
+        "limits": astuple(CurveLimits.from_params(env.action_kind.params)),
     }
     return NetConfig(**{**base.to_dict(), **sizes})
 
@@ -91,34 +98,38 @@ class Evaluator:
                                     ticks * env.action_kind.params.v_delta_max, 0.0])  # fmt: skip
         self.best_step = np.array([0.0, 0.0, ticks * min(vmax, cfg.speed_range[1])])
 
-    def _env_grid(self, k: int) -> list[list[GridSimEnv]]:
-        """Environments for ``k`` individuals (``k * E``, created on first use)."""
-        e = len(self.seeds)
+    def _env_grid(self, k: int, e: int) -> list[list[GridSimEnv]]:
+        """Environments for ``k`` individuals of ``e`` episodes each (created on first use)."""
         while len(self.envs) < k * e:
             self.envs.append(GridSimEnv(self.scenario, **self.overrides))
         return [self.envs[i * e : (i + 1) * e] for i in range(k)]
 
-    def evaluate(self, genome: np.ndarray) -> tuple[np.ndarray, EpisodeStats]:
-        """Mean episode fitness ``[l1, l2, l3]`` of ``genome`` and episode statistics."""
-        return self.evaluate_many(np.asarray(genome, dtype=np.float32)[None])[0]
+    def evaluate(self, genome: np.ndarray, seeds=None) -> tuple[np.ndarray, EpisodeStats]:
+        """Mean episode fitness ``[l1, l2, l3]`` of ``genome`` and episode statistics, on
+        ``seeds`` (default: the evaluator's)."""
+        return self.evaluate_many(np.asarray(genome, dtype=np.float32)[None], seeds)[0]
 
-    def evaluate_many(self, population) -> list[tuple[np.ndarray, EpisodeStats]]:
+    def evaluate_many(self, population, seeds=None) -> list[tuple[np.ndarray, EpisodeStats]]:
         """:meth:`evaluate` for every row of ``population`` ``(K, n)`` float32, ``batch`` rows at
-        a time. Rows already in 64-byte aligned storage (see :func:`aligned_rows`; strided
-        views of it too) are used in place, others are copied once."""
+        a time, on the episodes ``seeds`` (default: the evaluator's). Rows
+        already in 64-byte aligned storage (see :func:`aligned_rows`; strided views of it too)
+        are used in place, others are copied once."""
+        seeds = self.seeds if seeds is None else [int(s) for s in seeds]
+        if not seeds:
+            raise ValueError("need at least one episode seed")
         store = self.pop_net.store(population)
         out = []
         for start in range(0, store.shape[0], self.batch):
-            out.extend(self._evaluate_batch(store[start : start + self.batch]))
+            out.extend(self._evaluate_batch(store[start : start + self.batch], seeds))
         return out
 
     @torch.no_grad()
-    def _evaluate_batch(self, store: torch.Tensor) -> list[tuple[np.ndarray, EpisodeStats]]:
+    def _evaluate_batch(self, store: torch.Tensor, seeds: list[int]):
         net = self.pop_net
-        k_all, e, t = store.shape[0], len(self.seeds), self.net_cfg.history
+        k_all, e, t = store.shape[0], len(seeds), self.net_cfg.history
         small = net.small_copy(store)
-        envs = self._env_grid(k_all)
-        obs = [[env.reset(seed=s)[0] for env, s in zip(row, self.seeds, strict=True)]
+        envs = self._env_grid(k_all, e)
+        obs = [[env.reset(seed=s)[0] for env, s in zip(row, seeds, strict=True)]
                for row in envs]  # fmt: skip
         prev: list[list[np.ndarray | None]] = [[None] * e for _ in range(k_all)]
         grid = torch.zeros(k_all, e, t, self.net_cfg.fc1)  # fc1 x CNN features, per frame
@@ -176,6 +187,8 @@ class Evaluator:
                         remaining = self.max_steps - done_steps[k, j]
                         pad = self.best_step if info["destination_reached"] else self.worst_step
                         totals[k, j] += max(remaining, 0) * pad
+                        if not info["destination_reached"]:
+                            stats[k].lost += max(remaining, 0) / (self.max_steps * e)
                         stats[k].collisions += info["collision"]
                         stats[k].off_road += info["off_road"]
                         stats[k].reached += info["destination_reached"]

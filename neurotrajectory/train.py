@@ -14,7 +14,7 @@ import json
 import os
 import tempfile
 import time
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +23,7 @@ from tqdm import tqdm
 from neurotrajectory.backends import WorkerSpec, make_backend
 from neurotrajectory.evolution import GAConfig, initial_recipes, minimised, next_generation
 from neurotrajectory.genome import apply_recipe, initial_genome, noise_table, table_size
-from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
+from neurotrajectory.model import PRESETS, PRIORS, NetConfig, TrajectoryNet
 from neurotrajectory.pareto import hypervolume, non_dominated_sort
 
 FORMAT_VERSION = 1
@@ -43,8 +43,8 @@ class TrainConfig:
     generations: int = 10
     episodes: int = 2
     episode_seconds: float = 15.0
-    sigma: float = 0.02
-    elite_fraction: float = 0.25
+    sigma: float = GAConfig.sigma
+    elite_fraction: float = GAConfig.elite_fraction
     seed: int = 0
     backend: str = "local"
     workers: int = 2
@@ -52,6 +52,10 @@ class TrainConfig:
     ray_address: str | None = None
     pretrain: str | None = None  # dataset folder to fit the network to before evolving
     pretrain_epochs: int = 10
+    prior: str | None = None  # the network's kinematic prior; None: the preset's
+    resample_episodes: bool = True  # new episode seeds every generation (else fixed)
+    constrained: bool = True  # collisions and leaving the road rank below any fitness
+    validation_episodes: int = 8  # the final population's front is chosen on these
 
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
@@ -63,10 +67,14 @@ class TrainConfig:
             raise RunError(f"population must be >= 2, got {self.population}")
         if self.batch < 1:
             raise RunError(f"batch must be >= 1, got {self.batch}")
+        if self.validation_episodes < 0:
+            raise RunError(f"validation_episodes must be >= 0, got {self.validation_episodes}")
         if self.pretrain_epochs < 1:
             raise RunError(f"pretrain_epochs must be >= 1, got {self.pretrain_epochs}")
         if not self.episode_seconds > 0:
             raise RunError(f"episode_seconds must be > 0, got {self.episode_seconds}")
+        if self.prior is not None and self.prior not in PRIORS:
+            raise RunError(f"unknown prior {self.prior!r}; choose from {list(PRIORS)}")
 
     @property
     def ga(self) -> GAConfig:
@@ -75,10 +83,30 @@ class TrainConfig:
         )
 
     @property
-    def episode_seeds(self) -> tuple[int, ...]:
-        """The evaluation episodes: the same for every individual and generation."""
-        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0xE915]))
-        return tuple(int(s) for s in rng.integers(0, 2**31 - 1, size=self.episodes))
+    def net(self) -> NetConfig:
+        """The preset's network with the configured prior."""
+        base = PRESETS[self.preset]
+        return base if self.prior is None else replace(base, prior=self.prior)
+
+    def episode_seeds(self, generation: int) -> tuple[int, ...]:
+        """The episodes (scenario seeds) of ``generation``, the same for every individual:
+        drawn anew each generation (``resample_episodes``) or the same for all. Training
+        seeds are even; :meth:`heldout_seeds` are odd, so never used in training."""
+        salt = [generation] if self.resample_episodes else []
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0xE915, *salt]))
+        return tuple(2 * int(s) for s in rng.integers(0, 2**30 - 1, size=self.episodes))
+
+    @property
+    def validation_seeds(self) -> tuple[int, ...]:
+        """The episodes the final front is chosen on: training seeds (even) that no
+        generation was evaluated on."""
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0x7A11D]))
+        return tuple(2 * int(s) for s in rng.integers(0, 2**30 - 1, size=self.validation_episodes))
+
+    def heldout_seeds(self, count: int) -> tuple[int, ...]:
+        """``count`` episode seeds that no generation trains on (odd numbers)."""
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0x4E1D]))
+        return tuple(2 * int(s) + 1 for s in rng.integers(0, 2**30 - 1, size=count))
 
     @property
     def overrides(self) -> dict:
@@ -118,7 +146,7 @@ class Run:
     def __init__(self, out: str | Path, config: TrainConfig) -> None:
         self.out = Path(out)
         self.config = config
-        self.net_config = PRESETS[config.preset]
+        self.net_config = config.net
 
     # -- run directory ------------------------------------------------------------------------
     @classmethod
@@ -163,19 +191,25 @@ class Run:
         return cls(out, config)
 
     def load_checkpoint(self):
-        """``(generation, population, fitness)`` of the last complete generation, or None."""
+        """``(generation, population, fitness, violation)`` of the last complete generation, or
+        None."""
         path = self.out / "checkpoint.npz"
         if not path.exists():
             return None
         try:
             with np.load(path) as data:
                 gen, pop, fit = int(data["generation"]), data["population"], data["fitness"]
+                violation = data["violation"] if "violation" in data else np.zeros(len(fit))
         except Exception as exc:
             raise RunError(f"{path}: corrupt checkpoint ({exc})") from None
         if pop.shape[0] != self.config.population or fit.shape != (self.config.population, 3):
             raise RunError(f"{path}: population {pop.shape[0]} does not match the configuration "
                            f"({self.config.population})")  # fmt: skip
-        return gen, pop, fit
+        return gen, pop, fit, violation
+
+    def _violation(self, violation: np.ndarray) -> np.ndarray | None:
+        """What selection sees of the constraint (nothing for unconstrained runs)."""
+        return violation if self.config.constrained else None
 
     def load_history(self) -> list[dict]:
         path = self.out / "history.json"
@@ -192,7 +226,7 @@ class Run:
         new generations (for tests of interrupted runs)."""
         cfg = self.config
         spec = WorkerSpec(
-            cfg.scenario, cfg.overrides, self.net_config, cfg.episode_seeds, batch=cfg.batch
+            cfg.scenario, cfg.overrides, self.net_config, cfg.episode_seeds(0), batch=cfg.batch
         )
         backend = make_backend(cfg.backend, spec, cfg.workers, cfg.ray_address)
         try:
@@ -216,13 +250,15 @@ class Run:
             population = np.stack([initial_genome(probe, r.init_seed) for r in recipes])
             backend.advance(recipes)
         else:
-            gen, population, fitness = ckpt
+            gen, population, fitness, violation = ckpt
             history = history[: gen + 1]
             if len(history) != gen + 1:
                 raise RunError(
                     f"{self.out}: history has {len(history)} generations, checkpoint {gen + 1}"
                 )
-            recipes, _ = next_generation(fitness, ga, cfg.seed, gen, n, len(table))
+            recipes, _ = next_generation(
+                fitness, ga, cfg.seed, gen, n, len(table), self._violation(violation)
+            )
             backend.load(population)
             backend.advance(recipes)
             population = np.stack([apply_recipe(r, population, table) for r in recipes])
@@ -231,16 +267,19 @@ class Run:
                    disable=not progress, initial=start, total=cfg.generations)  # fmt: skip
         for done, gen in enumerate(bar, start=1):
             t0 = time.perf_counter()
-            fitness, stats = backend.evaluate(cfg.population)
-            recipes, rank = next_generation(fitness, ga, cfg.seed, gen, n, len(table))
-            history.append(
-                self._record(gen, fitness, rank, stats, time.perf_counter() - t0, history)
+            fitness, stats = backend.evaluate(cfg.population, cfg.episode_seeds(gen))
+            violation = np.array([s.get("lost", 0.0) for s in stats])
+            recipes, rank = next_generation(
+                fitness, ga, cfg.seed, gen, n, len(table), self._violation(violation)
             )
+            history.append(self._record(gen, fitness, violation, rank, stats,
+                                        time.perf_counter() - t0, history))  # fmt: skip
             _write_npz(
                 self.out / "checkpoint.npz",
                 generation=np.array(gen),
                 population=population,
                 fitness=fitness,
+                violation=violation,
             )
             _write_json(self.out / "history.json", {"generations": history})
             bar.set_postfix(hv=f"{history[-1]['hypervolume']:.3f}", front=int(np.sum(rank == 0)))
@@ -249,7 +288,7 @@ class Run:
                 population = np.stack([apply_recipe(r, population, table) for r in recipes])
             if stop_after is not None and done >= stop_after:
                 return {"stopped_at": gen}
-        return self.finish()
+        return self.finish(backend)
 
     def _pretrained_population(self, probe: TrajectoryNet, table: np.ndarray) -> np.ndarray:
         """Generation 0 of a warm-started run: the network fitted to the pre-training windows
@@ -272,18 +311,20 @@ class Run:
         population[0] = base
         return population
 
-    def _record(self, gen, fitness, rank, stats, seconds, history) -> dict:
+    def _record(self, gen, fitness, violation, rank, stats, seconds, history) -> dict:
         f = minimised(fitness)
         if history:  # normalise with the bounds of generation 0, fixed for the whole run
             lo, hi = np.array(history[0]["norm_lo"]), np.array(history[0]["norm_hi"])
         else:
             lo, hi = f.min(axis=0), f.max(axis=0)
-        span = np.where(hi - lo > 0, hi - lo, 1.0)
+        # an objective generation 0 did not spread (all members alike) is scaled by its size
+        span = np.where(hi - lo > 0, hi - lo, np.maximum(np.abs(lo), 1e-9))
         front = (f[rank == 0] - lo) / span
         steps = sum(s.get("steps", 0) for s in stats)
         return {
             "generation": gen,
             "fitness": fitness.tolist(),
+            "violation": violation.tolist(),
             "rank": rank.tolist(),
             "hypervolume": hypervolume(front, np.full(3, 1.1)),
             "norm_lo": lo.tolist(),
@@ -296,31 +337,41 @@ class Run:
             "reached": sum(s.get("reached", 0) for s in stats),
         }
 
-    def finish(self) -> dict:
-        """Write the final front and the plots from the checkpoint and history."""
+    def finish(self, backend) -> dict:
+        """Write the final front and the plots from the checkpoint and history. With
+        ``validation_episodes``, the final population is evaluated again on them (more
+        episodes than a generation's, none trained on) and the front is chosen on that."""
         from neurotrajectory.plots import plot_run
 
         ckpt = self.load_checkpoint()
         if ckpt is None:
             raise RunError(f"{self.out}: no complete generation yet")
-        gen, population, fitness = ckpt
-        rank = non_dominated_sort(minimised(fitness))
+        gen, population, fitness, violation = ckpt
+        seeds = self.config.validation_seeds
+        if seeds:
+            backend.load(population)
+            fitness, stats = backend.evaluate(len(population), seeds)
+            violation = np.array([s.get("lost", 0.0) for s in stats])
+        rank = non_dominated_sort(minimised(fitness), self._violation(violation))
         members = np.flatnonzero(rank == 0)
         _write_npz(
             self.out / "front.npz",
             genomes=population[members],
             fitness=fitness[members],
+            violation=violation[members],
             indices=members,
             net=np.array(json.dumps(self.net_config.to_dict())),
         )
         summary = {
             "generation": gen,
+            "chosen_on": f"{len(seeds)} validation episodes" if seeds else "the last generation",
             "front": [
                 {
                     "index": int(i),
                     "l1": float(fitness[i, 0]),
                     "l2": float(fitness[i, 1]),
                     "l3": float(fitness[i, 2]),
+                    "violation": float(violation[i]),
                 }
                 for i in members
             ],  # fmt: skip

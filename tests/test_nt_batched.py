@@ -101,7 +101,7 @@ def test_backends_and_batch_sizes_give_identical_results():
         try:
             backend.advance(recipes)
             backend.advance(children)
-            results[name, batch] = backend.evaluate(5)
+            results[name, batch] = backend.evaluate(5, spec.seeds)
         finally:
             backend.close()
     ref_fitness, ref_stats = results["local", 1]

@@ -24,8 +24,9 @@ def history(out):
 
 
 def test_tiny_run_end_to_end_improves_the_front(tmp_path):
-    run = Run.create(tmp_path / "run", TrainConfig(generations=5, **TINY))
-    summary = run.train(progress=False)
+    # on fixed episodes (comparable generations), from random networks without a prior
+    fixed = TrainConfig(generations=5, prior="none", resample_episodes=False, **TINY)
+    summary = Run.create(tmp_path / "run", fixed).train(progress=False)
     hv = summary["hypervolume"]
     assert len(hv) == 5 and hv[-1] > hv[0]
     for name in ("config.json", "checkpoint.npz", "history.json", "front.npz", "front.json"):
@@ -55,7 +56,7 @@ def test_resume_gives_the_same_result_as_an_uninterrupted_run(tmp_path):
 
 def test_a_run_killed_mid_generation_resumes_to_the_same_result(tmp_path):
     args = ["--preset", "tiny", "--population", "6", "--episodes", "1", "--episode-seconds", "4",
-            "--seed", "1", "--generations", "3", "--quiet"]  # fmt: skip
+            "--seed", "1", "--generations", "3", "--heldout", "0", "--quiet"]  # fmt: skip
     assert main(["train", *args, "--out", str(tmp_path / "a")]) == 0
     killed = tmp_path / "killed"
     cmd = [sys.executable, "-m", "neurotrajectory", "train", *args, "--out", str(killed)]
@@ -67,7 +68,7 @@ def test_a_run_killed_mid_generation_resumes_to_the_same_result(tmp_path):
     proc.wait()
     done = len(history(killed))
     assert 1 <= done < 3
-    assert main(["train", "--resume", str(killed), "--quiet"]) == 0
+    assert main(["train", "--resume", str(killed), "--heldout", "0", "--quiet"]) == 0
     assert [h["fitness"] for h in history(tmp_path / "a")] == [
         h["fitness"] for h in history(killed)
     ]
@@ -88,7 +89,7 @@ def test_backends_give_identical_results(tmp_path):
                 Recipe(parent=2),
             ]
             backend.advance(children)
-            results[name] = backend.evaluate(4)[0]
+            results[name] = backend.evaluate(4, spec.seeds)[0]
         finally:
             backend.close()
     np.testing.assert_array_equal(results["local"], results["processes"])
@@ -147,8 +148,14 @@ def test_train_and_rollout_commands(tmp_path, capsys):
     out = tmp_path / "run"
     args = ["--preset", "tiny", "--population", "4", "--generations", "2", "--episodes", "1",
             "--episode-seconds", "3", "--quiet"]  # fmt: skip
-    assert main(["train", *args, "--out", str(out), "--video", str(out / "knee.mp4")]) == 0
+    video = str(out / "knee.mp4")
+    assert main(["train", *args, "--out", str(out), "--video", video, "--heldout", "2"]) == 0
     assert (out / "knee.mp4").stat().st_size > 1000
+    assert "knee member on 2 held-out episodes of 3 s: completed" in capsys.readouterr().out
+    report = json.loads((out / "heldout.json").read_text())
+    assert report["seeds"] == list(Run.open(out).config.heldout_seeds(2))
+    assert len(report["episodes"]) == 2 and 0 <= report["network"]["completed"] <= 1
+    assert report["destination curve"]["episodes"] == 2
     for pick in ("best-l1", "best-l3"):
         video = str(tmp_path / f"{pick}.gif")
         assert (
@@ -157,3 +164,25 @@ def test_train_and_rollout_commands(tmp_path, capsys):
         )
         assert (tmp_path / f"{pick}.gif").exists()
     capsys.readouterr()
+
+
+def test_episodes_are_drawn_anew_and_heldout_seeds_are_never_trained_on():
+    cfg = TrainConfig(**{**TINY, "episodes": 3})
+    trained = {s for g in range(200) for s in cfg.episode_seeds(g)}
+    assert len(trained) == 600
+    assert cfg.episode_seeds(3) == TrainConfig(**{**TINY, "episodes": 3}).episode_seeds(3)
+    assert not trained & set(cfg.heldout_seeds(500))
+    fixed = TrainConfig(**{**TINY, "resample_episodes": False})
+    assert fixed.episode_seeds(0) == fixed.episode_seeds(9)
+
+
+def test_training_improves_a_tiny_problem(tmp_path):
+    """From networks that keep the ego's speed and heading (and their random residuals), on a
+    fixed episode, evolution brings the best l1 (distance to the human's set-points) well
+    down."""
+    cfg = TrainConfig(preset="tiny", prior="constant_velocity", population=8, generations=6,
+                      episodes=1, episode_seconds=3.0, seed=2,
+                      resample_episodes=False)  # fmt: skip
+    Run.create(tmp_path / "run", cfg).train(progress=False)
+    best = [min(f[0] for f in g["fitness"]) for g in history(tmp_path / "run")]
+    assert best[-1] < 0.5 * best[0], best

@@ -20,8 +20,9 @@ def windows_dir(tmp_path_factory):
     return out
 
 
-def _tiny_net():
-    return TrajectoryNet(NetConfig(**{**PRESETS["tiny"].to_dict(), "grid_size": 128}))
+def _tiny_net():  # on the constant-velocity prior: much to fit
+    sizes = {"grid_size": 128, "prior": "constant_velocity"}
+    return TrajectoryNet(NetConfig(**{**PRESETS["tiny"].to_dict(), **sizes}))
 
 
 def test_pretraining_fits_the_windows_deterministically(windows_dir):
