@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 from gridsim.errors import GridSimError
@@ -22,12 +23,15 @@ _TRAIN_KEYS = (
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
+    started = time.perf_counter()
     if args.resume:
         run = Run.open(args.resume, scenario=args.scenario, preset=args.preset,
                        population=args.population, episodes=args.episodes, seed=args.seed,
                        generations=args.generations, backend=args.backend,
                        workers=args.workers, ray_address=args.ray_address,
-                       batch=args.batch)  # fmt: skip
+                       batch=args.batch, prior=args.prior,
+                       resample_episodes=args.resample_episodes, constrained=args.constrained,
+                       validation_episodes=args.validation_episodes)  # fmt: skip
     else:
         defaults = TrainConfig()
         given = {k: getattr(args, k) for k in _TRAIN_KEYS}
@@ -39,8 +43,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
     print(json.dumps({"run": str(run.out), **summary}, indent=1))
     if args.heldout:
         _heldout(run, args.heldout)
-    if args.video:
-        _rollout(str(run.out), "knee", args.video, seed=run.config.seed, steps=None)
+    if args.video:  # an episode no generation trained on
+        _rollout(str(run.out), "knee", args.video, seed=run.config.heldout_seeds(1)[0], steps=None)
+    minutes, seconds = divmod(round(time.perf_counter() - started), 60)
+    print(f"done in {minutes} min {seconds} s")
     return 0
 
 
