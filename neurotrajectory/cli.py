@@ -17,7 +17,8 @@ from neurotrajectory.windows import GROUPS
 
 _TRAIN_KEYS = (
     "scenario", "preset", "population", "generations", "episodes", "episode_seconds", "sigma",
-    "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_epochs", "batch", "prior",
+    "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_episodes", "pretrain_epochs",
+    "batch", "prior",
     "resample_episodes", "constrained", "validation_episodes",
 )  # fmt: skip
 
@@ -25,13 +26,8 @@ _TRAIN_KEYS = (
 def _cmd_train(args: argparse.Namespace) -> int:
     started = time.perf_counter()
     if args.resume:
-        run = Run.open(args.resume, scenario=args.scenario, preset=args.preset,
-                       population=args.population, episodes=args.episodes, seed=args.seed,
-                       generations=args.generations, backend=args.backend,
-                       workers=args.workers, ray_address=args.ray_address,
-                       batch=args.batch, prior=args.prior,
-                       resample_episodes=args.resample_episodes, constrained=args.constrained,
-                       validation_episodes=args.validation_episodes)  # fmt: skip
+        # flags that would change the run's results are refused unless they match it
+        run = Run.open(args.resume, **{k: getattr(args, k) for k in _TRAIN_KEYS})
     else:
         defaults = TrainConfig()
         given = {k: getattr(args, k) for k in _TRAIN_KEYS}
@@ -162,7 +158,22 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DATA",
         help="first fit the network to the windows of this recorded dataset",
     )
-    t.add_argument("--pretrain-epochs", dest="pretrain_epochs", type=int, default=None)
+    t.add_argument(
+        "--pretrain-episodes",
+        dest="pretrain_episodes",
+        type=int,
+        default=None,
+        metavar="N",
+        help="first fit the network to N episodes of the scenario recorded now (30 s each, "
+        "training seeds; generated scenarios only)",
+    )
+    t.add_argument(
+        "--pretrain-epochs",
+        dest="pretrain_epochs",
+        type=int,
+        default=None,
+        help="epochs of the warm start's fit (default 20)",
+    )
     t.add_argument("--out", default="runs/default", help="run directory (created)")
     t.add_argument("--resume", default=None, help="continue the run in this directory")
     t.add_argument(

@@ -27,6 +27,7 @@ from neurotrajectory.model import PRESETS, PRIORS, NetConfig, TrajectoryNet
 from neurotrajectory.pareto import hypervolume, non_dominated_sort
 
 FORMAT_VERSION = 1
+PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
 
 
 class RunError(RuntimeError):
@@ -51,7 +52,8 @@ class TrainConfig:
     batch: int = 16  # individuals a worker evaluates together (does not change results)
     ray_address: str | None = None
     pretrain: str | None = None  # dataset folder to fit the network to before evolving
-    pretrain_epochs: int = 10
+    pretrain_episodes: int = 0  # or record this many episodes of the scenario to fit it to
+    pretrain_epochs: int = 20
     prior: str | None = None  # the network's kinematic prior; None: the preset's
     resample_episodes: bool = True  # new episode seeds every generation (else fixed)
     constrained: bool = True  # collisions and leaving the road rank below any fitness
@@ -69,6 +71,10 @@ class TrainConfig:
             raise RunError(f"batch must be >= 1, got {self.batch}")
         if self.validation_episodes < 0:
             raise RunError(f"validation_episodes must be >= 0, got {self.validation_episodes}")
+        if self.pretrain_episodes < 0:
+            raise RunError(f"pretrain_episodes must be >= 0, got {self.pretrain_episodes}")
+        if self.pretrain and self.pretrain_episodes:
+            raise RunError("give either pretrain (a dataset) or pretrain_episodes, not both")
         if self.pretrain_epochs < 1:
             raise RunError(f"pretrain_epochs must be >= 1, got {self.pretrain_epochs}")
         if not self.episode_seconds > 0:
@@ -95,6 +101,13 @@ class TrainConfig:
         salt = [generation] if self.resample_episodes else []
         rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0xE915, *salt]))
         return tuple(2 * int(s) for s in rng.integers(0, 2**30 - 1, size=self.episodes))
+
+    @property
+    def pretrain_seeds(self) -> tuple[int, ...]:
+        """The episodes recorded for the warm start (``pretrain_episodes``): training seeds
+        (even), none of them a generation's or a validation episode."""
+        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0x9E7B]))
+        return tuple(2 * int(s) for s in rng.integers(0, 2**30 - 1, size=self.pretrain_episodes))
 
     @property
     def validation_seeds(self) -> tuple[int, ...]:
@@ -242,7 +255,7 @@ class Run:
         table = noise_table(table_size(n))
         history = self.load_history()
         ckpt = self.load_checkpoint()
-        if ckpt is None and cfg.pretrain:
+        if ckpt is None and (cfg.pretrain or cfg.pretrain_episodes):
             start, population = 0, self._pretrained_population(probe, table)
             backend.load(population)
         elif ckpt is None:
@@ -294,22 +307,44 @@ class Run:
         """Generation 0 of a warm-started run: the network fitted to the pre-training windows
         (individual 0) and ``sigma``-mutations of it; writes ``pretrain.json``."""
         from neurotrajectory.pretrain import pretrain_genome
-        from neurotrajectory.windows import DatasetError, load_dataset
 
         cfg = self.config
-        try:
-            windows = load_dataset(cfg.pretrain).windows
-            start = initial_genome(probe, initial_recipes(cfg.ga, cfg.seed)[0].init_seed)
-            base, stats = pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed)
-        except DatasetError as exc:
-            raise RunError(f"--pretrain {cfg.pretrain}: {exc}") from None
-        _write_json(self.out / "pretrain.json", {"data": str(cfg.pretrain), **stats})
+        windows, source = self._pretrain_windows()
+        start = initial_genome(probe, initial_recipes(cfg.ga, cfg.seed)[0].init_seed)
+        base, stats = pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed)
+        _write_json(self.out / "pretrain.json", {**source, **stats})
         n = len(base)
         rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x9E7A]))
         offsets = rng.integers(0, len(table) - n, size=cfg.population)
         population = np.stack([base + np.float32(cfg.sigma) * table[o : o + n] for o in offsets])
         population[0] = base
         return population
+
+    def _pretrain_windows(self):
+        """The warm start's windows and where they came from: the dataset ``pretrain``, or
+        ``pretrain_episodes`` episodes of the training scenario recorded now (training seeds,
+        :data:`PRETRAIN_EPISODE_SECONDS` each)."""
+        from neurotrajectory.windows import (
+            DatasetError,
+            is_recorded,
+            load_dataset,
+            record_scenario,
+        )
+
+        cfg = self.config
+        if cfg.pretrain:
+            try:
+                return load_dataset(cfg.pretrain).windows, {"data": str(cfg.pretrain)}
+            except DatasetError as exc:
+                raise RunError(f"--pretrain {cfg.pretrain}: {exc}") from None
+        if is_recorded(cfg.scenario):
+            raise RunError(f"--pretrain-episodes: {cfg.scenario!r} replays a recorded scene; "
+                           "record windows of its training tracks and pass them as "
+                           "--pretrain DATA")  # fmt: skip
+        seeds = list(cfg.pretrain_seeds)
+        windows, _ = record_scenario(cfg.scenario, len(seeds), seeds=seeds,
+                                     duration=PRETRAIN_EPISODE_SECONDS)  # fmt: skip
+        return windows, {"recorded_episodes": seeds, "episode_seconds": PRETRAIN_EPISODE_SECONDS}
 
     def _record(self, gen, fitness, violation, rank, stats, seconds, history) -> dict:
         f = minimised(fitness)

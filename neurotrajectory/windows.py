@@ -150,7 +150,8 @@ def _episode_windows(env: GridSimEnv, seed: int, stride: int, track: str) -> Win
     )
 
 
-def _is_recorded(name: str) -> bool:
+def is_recorded(name: str) -> bool:
+    """Whether scenario ``name`` (built-in or YAML path) replays a recorded scene."""
     return isinstance(load_scenario(name).config.road, RecordedRoadConfig)
 
 
@@ -161,11 +162,12 @@ def record_scenario(
     stride: int = 5,
     duration: float | None = None,
     progress: Callable[[int], None] | None = None,
+    seeds: list[int] | None = None,
 ) -> tuple[Windows, dict]:
     """Windows of one scenario and its provenance. On a recorded scene, every track of the
     scene is driven once as the ego (``episodes`` and ``seed`` do not apply); elsewhere
-    ``episodes`` episodes with seeds drawn from ``seed``. ``duration`` [s] shortens
-    generated episodes."""
+    ``episodes`` episodes with seeds drawn from ``seed`` (or the episode ``seeds`` given).
+    ``duration`` [s] shortens generated episodes."""
     if stride < 1:
         raise DatasetError(f"stride must be >= 1, got {stride}")
     parts = []
@@ -187,8 +189,9 @@ def record_scenario(
             raise DatasetError(f"episodes must be >= 1, got {episodes}")
         overrides = {"simulation": {"duration": duration}} if duration else {}
         env = GridSimEnv(scenario, **overrides)
-        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xDA7A]))
-        seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=episodes)]
+        if seeds is None:
+            rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xDA7A]))
+            seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=episodes)]
         for s in seeds:
             parts.append(_episode_windows(env, s, stride, f"{scenario}/seed{s}"))
             if progress:
@@ -215,7 +218,7 @@ def record_group(
     """Windows of a scenario group of :data:`GROUPS`, or of one scenario (name or YAML path).
     ``stride`` defaults to every decision on recorded scenes, every fifth elsewhere."""
     scenarios = GROUPS.get(name, (name,))
-    recorded = {scenario: _is_recorded(scenario) for scenario in scenarios}
+    recorded = {scenario: is_recorded(scenario) for scenario in scenarios}
     parts, metas = [], []
     for scenario in scenarios:
         s = stride or (1 if recorded[scenario] else 5)

@@ -67,3 +67,25 @@ def test_a_missing_pretraining_dataset_is_a_clear_error(tmp_path, capsys):
         Run.create(tmp_path / "run", cfg).train(progress=False)
     with pytest.raises(RunError, match="pretrain_epochs must be >= 1"):
         TrainConfig(pretrain_epochs=0)
+
+
+def test_a_run_can_record_its_own_warm_start(tmp_path, capsys):
+    out = tmp_path / "run"
+    args = ["train", "--preset", "tiny", "--population", "4", "--generations", "1",
+            "--episodes", "1", "--episode-seconds", "3", "--pretrain-episodes", "1",
+            "--pretrain-epochs", "1", "--validation-episodes", "0", "--heldout", "0",
+            "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(args) == 0
+    stats = json.loads((out / "pretrain.json").read_text())
+    seeds = Run.open(out).config.pretrain_seeds
+    assert stats["recorded_episodes"] == list(seeds) and all(s % 2 == 0 for s in seeds)
+    assert stats["windows"] > 0 and stats["epochs"] == 1  # (fitting: tested above)
+    with pytest.raises(RunError, match="either pretrain .* or pretrain_episodes"):
+        TrainConfig(pretrain="data", pretrain_episodes=3)
+    recorded = TrainConfig(scenario="us101_3_3", preset="tiny", population=2, generations=1,
+                           pretrain_episodes=2)  # fmt: skip
+    with pytest.raises(RunError, match="'us101_3_3' replays a recorded scene"):
+        Run.create(tmp_path / "rec", recorded).train(progress=False)
+    # a resumed run refuses flags that would change its results
+    assert main(["train", "--resume", str(out), "--sigma", "0.1", "--quiet"]) == 2
+    assert "sigma: run has 0.005, asked 0.1" in capsys.readouterr().err
