@@ -1,6 +1,8 @@
 """Ablation of the trainer's ingredients on the README's main job: each variant trains with
-the main job's settings and one ingredient changed, then drives its knee member on the same
-20 held-out seamless episodes (``heldout.json``). Prints one JSON line per variant.
+the main job's settings without its warm start (``recipe``: evolution alone) and one
+ingredient changed (``warm-start`` adds the warm start: the README's main job), then drives
+its knee member on the same 20 held-out seamless episodes (``heldout.json``). Prints one JSON
+line per variant.
 
     python benchmarks/ablate_trainer.py --out runs/ablation [--variants recipe no-constraint]
 
@@ -22,6 +24,7 @@ MAIN_JOB = ["--scenario", "seamless", "--population", "24", "--generations", "25
 
 VARIANTS = {
     "recipe": [],
+    "warm-start": ["--pretrain-episodes", "12"],
     "no-validation-front": ["--validation-episodes", "0"],
     "sigma-0.02": ["--validation-episodes", "0", "--sigma", "0.02"],
     "no-constraint": ["--unconstrained"],
