@@ -117,7 +117,7 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
     import imageio.v3 as iio
 
     videos = sorted(p.name for p in (out / "videos").iterdir())
-    assert len(videos) == 5 * 3  # 5 policies x (1 seamless + 2 urban scenes)
+    assert len(videos) == 6 * 3  # 6 policies x (1 seamless + 2 urban scenes)
     assert len(iio.imread(out / "videos" / "seamless-seamless-dwa.mp4")) == 21  # 2 s + first
     for name in ("table2.md", "table2.csv", "closed_loop.csv", "results.json",
                  "fig8_rmse_per_setpoint.png", "fig9_window_rmse.png", "eval_config.json",
@@ -125,7 +125,13 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
         assert (out / name).stat().st_size > 0, name
     rows = _table(out / "table2.csv")
     methods = {r["method"] for r in rows}
-    assert {"constant velocity", "DWA", "End2End", "NeuroTrajectory"} <= methods
+    assert {
+        "constant velocity",
+        "destination curve",
+        "DWA",
+        "End2End",
+        "NeuroTrajectory",
+    } <= methods
     assert {r["group"] for r in rows} == {"seamless", "urban"}
     assert {r["source"] for r in rows if r["group"] == "urban"} == {"human (NGSIM)"}
     for r in rows:
