@@ -19,7 +19,8 @@ _TRAIN_KEYS = (
     "scenario", "preset", "population", "generations", "episodes", "episode_seconds", "sigma",
     "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_episodes", "pretrain_epochs",
     "batch", "prior",
-    "resample_episodes", "constrained", "validation_episodes",
+    "resample_episodes", "constrained", "validation_episodes", "frame", "skip",
+    "pretrain_validation",
 )  # fmt: skip
 
 
@@ -174,6 +175,15 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="epochs of the warm start's fit (default 20)",
     )
+    t.add_argument(
+        "--pretrain-validation",
+        dest="pretrain_validation",
+        type=float,
+        default=None,
+        metavar="SHARE",
+        help="share of the warm start's tracks held out to pick its epoch (default 0.2; 0: "
+        "keep the last epoch)",
+    )
     t.add_argument("--out", default="runs/default", help="run directory (created)")
     t.add_argument("--resume", default=None, help="continue the run in this directory")
     t.add_argument(
@@ -184,6 +194,21 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         choices=list(PRIORS),
         help="the kinematic prior the network refines (default destination_curve)",
+    )
+    t.add_argument(
+        "--frame",
+        default=None,
+        choices=["ego", "grid"],
+        help="frame of the network's residual on its prior (default ego: along and across "
+        "the heading)",
+    )
+    t.add_argument(
+        "--no-skip",
+        dest="skip",
+        action="store_const",
+        const=False,
+        default=None,
+        help="without the linear read-out of the ego's kinematic features",
     )
     t.add_argument(
         "--fixed-episodes",

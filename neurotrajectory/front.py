@@ -80,7 +80,7 @@ def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[T
     try:
         with np.load(path) as data:
             genomes, fitness = data["genomes"], data["fitness"]
-            base = NetConfig(**json.loads(str(data["net"])))
+            base = NetConfig.from_dict(json.loads(str(data["net"])))
     except (OSError, KeyError, ValueError, TypeError) as exc:
         raise RunError(f"{path}: unreadable front ({exc})") from None
     env = GridSimEnv(run.config.scenario, **run.config.overrides)

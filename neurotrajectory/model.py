@@ -12,6 +12,14 @@ a linear read-out of set-point ``i``. The output is a residual on a kinematic pr
 destination, :mod:`neurotrajectory.curves`), ``"constant_velocity"`` (where the ego would be
 at constant speed and heading) or ``"none"``; with a prior a freshly initialised network
 already drives forward.
+
+The residual is read out in the ego frame (``NetConfig.frame = "ego"``: x along the heading,
+y to the left; rotated into the grid frame before it is added to the prior), so that "slow
+down" or "keep left" is the same output whatever the heading. With ``NetConfig.skip`` a
+linear read-out of the :func:`kinematic_features` (speed, acceleration, steering, the
+destination and the prior's set-points, all in the ego frame) is added to each branch's
+residual: the speed profile a human adds to the prior is mostly a function of these few
+numbers. Both read-outs start at 0.
 """
 
 from __future__ import annotations
@@ -35,6 +43,37 @@ def constant_velocity_setpoints(ego: torch.Tensor, times: torch.Tensor) -> torch
     speed, cos, sin = ego[:, 0:1], ego[:, 4:5], ego[:, 5:6]
     dist = speed * times[None, :]
     return torch.stack([dist * cos, dist * sin], dim=2)
+
+
+def to_ego_frame(xy: torch.Tensor, ego: torch.Tensor) -> torch.Tensor:
+    """Points ``(B, ..., 2)`` [m, grid frame] in the ego frame (x along the heading, y to the
+    left), with the heading's cos, sin from ``ego`` ``(B, 6)``."""
+    shape = (-1,) + (1,) * (xy.dim() - 2)
+    cos, sin = ego[:, 4].reshape(shape), ego[:, 5].reshape(shape)
+    x, y = xy[..., 0], xy[..., 1]
+    return torch.stack([x * cos + y * sin, y * cos - x * sin], dim=-1)
+
+
+def from_ego_frame(xy: torch.Tensor, ego: torch.Tensor) -> torch.Tensor:
+    """The inverse of :func:`to_ego_frame`."""
+    shape = (-1,) + (1,) * (xy.dim() - 2)
+    cos, sin = ego[:, 4].reshape(shape), ego[:, 5].reshape(shape)
+    x, y = xy[..., 0], xy[..., 1]
+    return torch.stack([x * cos - y * sin, x * sin + y * cos], dim=-1)
+
+
+def kinematic_features(cfg: NetConfig, ego, dest, prior) -> torch.Tensor:
+    """The skip read-out's inputs ``(B, 6 + 2 tau_o)``, heading-invariant and of order 1:
+    speed / v_max, steering [rad], acceleration / a_max, steering rate [rad/s], then the
+    destination and the prior's set-points (``prior`` ``(B, tau_o, 2)`` or None: zeros) in
+    the ego frame / :data:`DESTINATION_SCALE`."""
+    a_max, _, v_max, _ = cfg.limits
+    b = ego.shape[0]
+    if prior is None:
+        prior = ego.new_zeros(b, cfg.horizon, 2)
+    points = to_ego_frame(torch.cat([dest[:, None, :], prior], dim=1), ego)
+    state = torch.stack([ego[:, 0] / v_max, ego[:, 1], ego[:, 2] / a_max, ego[:, 3]], dim=1)
+    return torch.cat([state, points.reshape(b, -1) / DESTINATION_SCALE], dim=1)
 
 
 def _destination_curve_prior(cfg: NetConfig, ego, dest, times) -> torch.Tensor:
@@ -77,6 +116,21 @@ class NetConfig:
     setpoint_period: float = 0.5
     prior: str = "destination_curve"
     limits: tuple[float, float, float, float] = astuple(CurveLimits())
+    frame: str = "ego"  # the residual's frame: "ego" (heading-aligned) or "grid"
+    skip: bool = True  # add a linear read-out of the kinematic features
+
+    #: What configurations saved before ``frame`` and ``skip`` existed meant.
+    LEGACY = {"frame": "grid", "skip": False}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> NetConfig:
+        """A saved configuration (:meth:`to_dict`); keys it predates take their old values."""
+        return cls(**{**cls.LEGACY, **d})
+
+    @property
+    def features(self) -> int:
+        """Width of :func:`kinematic_features`."""
+        return 6 + 2 * self.horizon
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "channels", tuple(self.channels))
@@ -87,6 +141,8 @@ class NetConfig:
             )
         if self.prior not in PRIORS:
             raise ValueError(f"prior must be one of {list(PRIORS)}, got {self.prior!r}")
+        if self.frame not in ("ego", "grid"):
+            raise ValueError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
         if self.grid_size % (self.pool * 8):
             raise ValueError(
                 f"grid_size {self.grid_size} must be divisible by pool * 8 = {self.pool * 8}"
@@ -186,14 +242,18 @@ class TrajectoryNet(nn.Module):
         self.cfg = cfg
         self.encoder = GridEncoder(cfg)
         self.branches = BranchLSTMs(cfg.horizon, cfg.fc2, cfg.lstm)
+        if cfg.skip:  # per set-point, (x, y) from the kinematic features
+            self.skip_weight = nn.Parameter(torch.zeros(cfg.horizon, 2, cfg.features))
         times = cfg.setpoint_period * torch.arange(1, cfg.horizon + 1, dtype=torch.float32)
         self.register_buffer("times", times, persistent=False)
 
     @property
     def zero_init(self) -> tuple[str, ...]:
-        """Parameters that start at 0 (:func:`~neurotrajectory.genome.initial_genome`): with a
-        prior, the read-out, so that a fresh network outputs its prior exactly."""
-        return () if self.cfg.prior == "none" else ("branches.head_weight",)
+        """Parameters that start at 0 (:func:`~neurotrajectory.genome.initial_genome`): the
+        skip read-out and, with a prior, the branches' read-out, so that a fresh network
+        outputs its prior exactly."""
+        skip = ("skip_weight",) if self.cfg.skip else ()
+        return skip if self.cfg.prior == "none" else ("branches.head_weight", *skip)
 
     def forward(
         self, grids: torch.Tensor, ego: torch.Tensor, destination: torch.Tensor
@@ -202,7 +262,18 @@ class TrajectoryNet(nn.Module):
         ``(B, 2)`` [m]. Returns set-points ``(B, tau_o, 2)`` [m]."""
         out = self.branches(self.encoder(grids, ego, destination))
         prior = prior_setpoints(self.cfg, ego.detach(), destination.detach(), self.times)
-        return out if prior is None else out + prior
+        if self.cfg.skip:
+            feats = kinematic_features(self.cfg, ego, destination, prior)
+            out = out + torch.einsum("bf,tcf->btc", feats, self.skip_weight)
+        return finish_setpoints(self.cfg, out, prior, ego)
+
+
+def finish_setpoints(cfg: NetConfig, residual, prior, ego) -> torch.Tensor:
+    """Set-points [m, grid frame] from the ``residual`` ``(B, tau_o, 2)`` (in ``cfg.frame``)
+    and the ``prior`` (grid frame, or None)."""
+    if cfg.frame == "ego":
+        residual = from_ego_frame(residual, ego)
+    return residual if prior is None else residual + prior
 
 
 def observation_tensors(obs: dict | list[dict]) -> tuple[torch.Tensor, ...]:
@@ -456,7 +527,12 @@ class PopulationNet:
         out = out.permute(0, 2, 1, 3)
         flat_ego, flat_dest = ego.reshape(k * e, -1), dest.reshape(k * e, 2)
         prior = prior_setpoints(self.cfg, flat_ego, flat_dest, self.times)
-        return out if prior is None else out + prior.view(k, e, b, 2)
+        if self.cfg.skip:
+            feats = kinematic_features(self.cfg, flat_ego, flat_dest, prior).view(k, e, -1)
+            w_skip = params["skip_weight"].reshape(k, b * 2, -1)
+            out = out + _bmm_t(feats, w_skip).view(k, e, b, 2)
+        out = finish_setpoints(self.cfg, out.reshape(k * e, b, 2), prior, flat_ego)
+        return out.view(k, e, b, 2)
 
     def forward(self, population, grids: np.ndarray, ego, dest) -> torch.Tensor:
         """Everything at once (no caching): ``population`` ``(K, n)``, ``grids`` uint8

@@ -5,8 +5,11 @@ many generations. With ``--pretrain DATA``, the run first fits one network by
 backpropagation (Adam, mean squared set-point error) to the labelled windows of a dataset
 recorded with ``neurotrajectory record`` (:mod:`neurotrajectory.windows`), starting from the
 run's NumPy-drawn initial weights; generation 0 is then that network (individual 0) and
-mutations of it (``sigma`` times slices of the shared noise table). Deterministic: the same
-data and seed give the same weights on this machine (single-threaded torch).
+mutations of it (``sigma`` times slices of the shared noise table). With ``validation`` > 0
+that share of the tracks is held out of the fit and the epoch whose weights predict them
+best is kept (epoch 0, the untrained network, included): the fit never ends worse than the
+prior on tracks it did not see. Deterministic: the same data and seed give the same weights
+on this machine (single-threaded torch).
 """
 
 from __future__ import annotations
@@ -15,8 +18,15 @@ import numpy as np
 import torch
 
 from neurotrajectory.genome import get_genome, set_genome
-from neurotrajectory.model import TrajectoryNet, size_mismatch, window_inputs
-from neurotrajectory.windows import DatasetError, Windows
+from neurotrajectory.model import (
+    TrajectoryNet,
+    kinematic_features,
+    prior_setpoints,
+    size_mismatch,
+    to_ego_frame,
+    window_inputs,
+)
+from neurotrajectory.windows import DatasetError, Windows, split_by_track
 
 
 class PretrainError(DatasetError):
@@ -34,6 +44,54 @@ def setpoint_mse(net: TrajectoryNet, windows: Windows, chunk: int = 256) -> floa
     return total / (len(windows) * windows.target.shape[1] * 2)
 
 
+#: Ridge penalties tried for the skip read-out (on standardised features, per window).
+RIDGE_PENALTIES = (1e-3, 1e-2, 1e-1, 1.0, 10.0)
+
+
+def _skip_problem(net: TrajectoryNet, windows: Windows) -> tuple[np.ndarray, np.ndarray]:
+    """The skip read-out's inputs ``(N, F)`` and what it should output ``(N, tau_o * 2)``: the
+    human set-points minus the prior's, in the residual's frame."""
+    ego = torch.from_numpy(windows.ego.astype(np.float32))
+    dest = torch.from_numpy(windows.destination.astype(np.float32))
+    prior = prior_setpoints(net.cfg, ego, dest, net.times)
+    residual = torch.from_numpy(windows.target.astype(np.float32))
+    if prior is not None:
+        residual = residual - prior
+    if net.cfg.frame == "ego":
+        residual = to_ego_frame(residual, ego)
+    feats = kinematic_features(net.cfg, ego, dest, prior)
+    return feats.double().numpy(), residual.reshape(len(windows), -1).double().numpy()
+
+
+def fit_skip(net: TrajectoryNet, fit: Windows, held_out: Windows | None) -> dict:
+    """Set the skip read-out (and the branches' output bias) to the ridge regression of the
+    residual on the kinematic features over ``fit``, the penalty chosen on ``held_out``
+    (the smallest of :data:`RIDGE_PENALTIES` without it); the branches' read-out weights must
+    be 0. Returns ``{"ridge_penalty", "ridge_validation_mse"}``."""
+    x, y = _skip_problem(net, fit)
+    mu, sd = x.mean(axis=0), x.std(axis=0)
+    sd = np.where(sd > 1e-9, sd, 1.0)
+    z = (x - mu) / sd
+    ym = y.mean(axis=0)
+    gram, rhs = z.T @ z, z.T @ (y - ym)
+    best = None
+    for penalty in RIDGE_PENALTIES if held_out is not None else RIDGE_PENALTIES[:1]:
+        coef = np.linalg.solve(gram + penalty * len(z) * np.eye(len(gram)), rhs) / sd[:, None]
+        bias = ym - mu @ coef
+        score = None
+        if held_out is not None:
+            xv, yv = _skip_problem(net, held_out)
+            score = float(np.mean((xv @ coef + bias - yv) ** 2))
+        if best is None or score < best[0]:
+            best = (score, penalty, coef, bias)
+    score, penalty, coef, bias = best
+    horizon = net.cfg.horizon
+    with torch.no_grad():
+        net.skip_weight.copy_(torch.from_numpy(coef.T.reshape(horizon, 2, -1)))
+        net.branches.head_bias.copy_(torch.from_numpy(bias.reshape(horizon, 2)))
+    return {"ridge_penalty": penalty, "ridge_validation_mse": score}
+
+
 def pretrain_genome(
     net: TrajectoryNet,
     genome: np.ndarray,
@@ -42,24 +100,38 @@ def pretrain_genome(
     seed: int,
     batch_size: int = 32,
     learning_rate: float = 1e-3,
+    validation: float = 0.0,
 ) -> tuple[np.ndarray, dict]:
-    """Fit ``net`` (starting from ``genome``) to ``windows``; returns the new genome and
-    ``{"mse_before", "mse_after", "windows", "epochs"}`` [m^2]."""
+    """Fit ``net`` (starting from ``genome``) to ``windows``, holding out ``validation`` of
+    the tracks to pick the epoch (see the module docstring); returns the new genome and
+    ``{"mse_before", "mse_after", "windows", "epochs"}`` [m^2] (on the fitted windows), with
+    ``validation_mse`` per epoch (from 0), ``best_epoch`` and ``validation_windows``."""
     problem = size_mismatch(net.cfg, windows)
     if problem:
         raise PretrainError(f"pre-training: {problem}")
     if epochs < 1:
         raise PretrainError(f"pretrain_epochs must be >= 1, got {epochs}")
+    held_out = None
+    if validation > 0:
+        if len(np.unique(windows.track)) < 2:
+            raise PretrainError(
+                "pre-training: a validation share needs windows of >= 2 tracks, got "
+                f"{len(np.unique(windows.track))}; record more episodes or set it to 0"
+            )
+        windows, held_out = split_by_track(windows, validation, seed)
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
         set_genome(net, np.array(genome, dtype=np.float32, copy=True))  # params alias it
         before = setpoint_mse(net, windows)
+        ridge = fit_skip(net, windows, held_out) if net.cfg.skip else {}
+        scores = [setpoint_mse(net, held_out)] if held_out is not None else []
+        best = get_genome(net).copy()
         opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
         target = torch.from_numpy(windows.target.astype(np.float32))
         rng = np.random.default_rng(np.random.SeedSequence([seed, 0x9E7]))
-        net.train()
         for _ in range(epochs):
+            net.train()
             order = rng.permutation(len(windows))
             for start in range(0, len(order), batch_size):
                 idx = order[start : start + batch_size]
@@ -67,9 +139,20 @@ def pretrain_genome(
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
-        net.eval()
+            net.eval()
+            if held_out is not None:
+                scores.append(setpoint_mse(net, held_out))
+                if scores[-1] < min(scores[:-1]):
+                    best = get_genome(net).copy()
+        if held_out is None:
+            best = get_genome(net)
+        set_genome(net, best.copy())  # the parameters alias what they are set from
         after = setpoint_mse(net, windows)
     finally:
         torch.set_num_threads(threads)
-    stats = {"mse_before": before, "mse_after": after, "windows": len(windows), "epochs": epochs}
-    return get_genome(net), stats
+    stats = {"mse_before": before, "mse_after": after, "windows": len(windows), "epochs": epochs,
+             **ridge}  # fmt: skip
+    if held_out is not None:
+        stats |= {"validation_windows": len(held_out), "validation_mse": scores,
+                  "best_epoch": int(np.argmin(scores))}  # fmt: skip
+    return best, stats

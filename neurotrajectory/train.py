@@ -26,7 +26,7 @@ from neurotrajectory.genome import apply_recipe, initial_genome, noise_table, ta
 from neurotrajectory.model import PRESETS, PRIORS, NetConfig, TrajectoryNet
 from neurotrajectory.pareto import hypervolume, non_dominated_sort
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
 PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
 
 
@@ -58,6 +58,12 @@ class TrainConfig:
     resample_episodes: bool = True  # new episode seeds every generation (else fixed)
     constrained: bool = True  # collisions and leaving the road rank below any fitness
     validation_episodes: int = 8  # the final population's front is chosen on these
+    frame: str = "ego"  # the frame of the network's residual (NetConfig.frame)
+    skip: bool = True  # the network's kinematic skip read-out (NetConfig.skip)
+    pretrain_validation: float = 0.2  # share of the warm start's tracks that pick its epoch
+
+    #: What format-1 configurations (saved before the fields above existed) meant.
+    LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0}
 
     def __post_init__(self) -> None:
         if self.preset not in PRESETS:
@@ -77,8 +83,17 @@ class TrainConfig:
             raise RunError("give either pretrain (a dataset) or pretrain_episodes, not both")
         if self.pretrain_epochs < 1:
             raise RunError(f"pretrain_epochs must be >= 1, got {self.pretrain_epochs}")
+        if self.pretrain_episodes == 1 and self.pretrain_validation > 0:
+            raise RunError("pretrain_episodes 1 leaves no episode to validate the warm start on: "
+                           "record >= 2 or set pretrain_validation to 0")  # fmt: skip
         if not self.episode_seconds > 0:
             raise RunError(f"episode_seconds must be > 0, got {self.episode_seconds}")
+        if self.frame not in ("ego", "grid"):
+            raise RunError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
+        if not 0 <= self.pretrain_validation < 1:
+            raise RunError(
+                f"pretrain_validation must be in [0, 1), got {self.pretrain_validation}"
+            )
         if self.prior is not None and self.prior not in PRIORS:
             raise RunError(f"unknown prior {self.prior!r}; choose from {list(PRIORS)}")
 
@@ -91,7 +106,7 @@ class TrainConfig:
     @property
     def net(self) -> NetConfig:
         """The preset's network with the configured prior."""
-        base = PRESETS[self.preset]
+        base = replace(PRESETS[self.preset], frame=self.frame, skip=self.skip)
         return base if self.prior is None else replace(base, prior=self.prior)
 
     def episode_seeds(self, generation: int) -> tuple[int, ...]:
@@ -181,12 +196,15 @@ class Run:
             raise RunError(f"{out} is not a run directory (no config.json)")
         try:
             doc = json.loads(cfg_path.read_text())
-            if doc.get("format") != FORMAT_VERSION:
+            if doc.get("format") not in (1, FORMAT_VERSION):
                 raise RunError(
                     f"{cfg_path}: format {doc.get('format')!r}, expected {FORMAT_VERSION}"
                 )
             known = {f.name for f in fields(TrainConfig)}
-            stored = TrainConfig(**{k: v for k, v in doc["train"].items() if k in known})
+            legacy = TrainConfig.LEGACY if doc["format"] == 1 else {}
+            stored = TrainConfig(
+                **{**legacy, **{k: v for k, v in doc["train"].items() if k in known}}
+            )
         except (json.JSONDecodeError, KeyError, TypeError) as exc:
             raise RunError(f"{cfg_path}: unreadable run configuration ({exc})") from None
         clash = {
@@ -311,7 +329,8 @@ class Run:
         cfg = self.config
         windows, source = self._pretrain_windows()
         start = initial_genome(probe, initial_recipes(cfg.ga, cfg.seed)[0].init_seed)
-        base, stats = pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed)
+        base, stats = pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed,
+                                      validation=cfg.pretrain_validation)  # fmt: skip
         _write_json(self.out / "pretrain.json", {**source, **stats})
         n = len(base)
         rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x9E7A]))

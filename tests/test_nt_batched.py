@@ -9,7 +9,7 @@ import torch
 from neurotrajectory import model
 from neurotrajectory.backends import WorkerSpec, make_backend
 from neurotrajectory.genome import Recipe, initial_genome, set_genome
-from neurotrajectory.model import PRESETS, PopulationNet, TrajectoryNet
+from neurotrajectory.model import PRESETS, NetConfig, PopulationNet, TrajectoryNet
 from neurotrajectory.rollout import Evaluator
 from neurotrajectory.train import Run, TrainConfig
 
@@ -36,10 +36,13 @@ def _inputs(k, e, cfg, seed=0):
     return grids, ego, dest
 
 
-@pytest.mark.parametrize("preset", ["tiny", "default"])
+@pytest.mark.parametrize("preset", ["tiny", "default", "tiny-legacy"])
 def test_population_forward_matches_trajectorynet_and_ignores_the_batch(preset):
     torch.set_num_threads(1)
-    cfg = PRESETS[preset]
+    if preset.endswith("-legacy"):  # networks saved before the ego-frame residual and skip
+        cfg = NetConfig.from_dict({**PRESETS["tiny"].to_dict(), **NetConfig.LEGACY})
+    else:
+        cfg = PRESETS[preset]
     net = TrajectoryNet(cfg).eval()
     pnet = PopulationNet(cfg)
     k, e = 5, 2

@@ -10,7 +10,7 @@ from neurotrajectory.genome import initial_genome
 from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
 from neurotrajectory.pretrain import PretrainError, pretrain_genome, setpoint_mse
 from neurotrajectory.train import Run, RunError, TrainConfig
-from neurotrajectory.windows import load_dataset, record_group, save_dataset
+from neurotrajectory.windows import load_dataset, record_group, save_dataset, split_by_track
 
 
 @pytest.fixture(scope="module")
@@ -37,6 +37,29 @@ def test_pretraining_fits_the_windows_deterministically(windows_dir):
     with pytest.raises(PretrainError, match=r"pre-training: .*\(history, grid size, horizon\)"):
         small = TrajectoryNet(NetConfig(**{**PRESETS["tiny"].to_dict(), "grid_size": 64}))
         pretrain_genome(small, initial_genome(small, 0), w, epochs=1, seed=0)
+
+
+def test_the_epoch_kept_is_the_one_that_predicts_held_out_tracks_best(windows_dir):
+    w = load_dataset(windows_dir).windows
+    net = _tiny_net()
+    start = initial_genome(net, 3)
+    genome, stats = pretrain_genome(net, start, w, epochs=6, seed=0, learning_rate=1e-2,
+                                    validation=0.5)  # fmt: skip
+    scores = stats["validation_mse"]
+    assert len(scores) == 7 and stats["best_epoch"] == int(np.argmin(scores))
+    assert stats["validation_windows"] + stats["windows"] == len(w)
+    fit, held_out = split_by_track(w, 0.5, 0)
+    assert setpoint_mse(net, held_out) == pytest.approx(min(scores))
+    # a fit that only gets worse on held-out tracks (a diverging step) keeps the start
+    kept, stats = pretrain_genome(_tiny_net(), start, w, epochs=2, seed=0, learning_rate=100.0,
+                                  validation=0.5)  # fmt: skip
+    assert stats["best_epoch"] == 0 and min(stats["validation_mse"][1:]) > stats["validation_mse"][0]
+    np.testing.assert_array_equal(kept, start)
+    with pytest.raises(PretrainError, match="needs windows of >= 2 tracks"):
+        one = w.take(np.flatnonzero(w.track == w.track[0]))
+        pretrain_genome(_tiny_net(), start, one, epochs=1, seed=0, validation=0.2)
+    with pytest.raises(RunError, match="pretrain_episodes 1 leaves no episode"):
+        TrainConfig(pretrain_episodes=1)
 
 
 def test_a_warm_started_run_begins_from_the_fitted_network(windows_dir, tmp_path):
@@ -73,8 +96,8 @@ def test_a_run_can_record_its_own_warm_start(tmp_path, capsys):
     out = tmp_path / "run"
     args = ["train", "--preset", "tiny", "--population", "4", "--generations", "1",
             "--episodes", "1", "--episode-seconds", "3", "--pretrain-episodes", "1",
-            "--pretrain-epochs", "1", "--validation-episodes", "0", "--heldout", "0",
-            "--out", str(out), "--quiet"]  # fmt: skip
+            "--pretrain-epochs", "1", "--pretrain-validation", "0", "--validation-episodes", "0",
+            "--heldout", "0", "--out", str(out), "--quiet"]  # fmt: skip
     assert main(args) == 0
     stats = json.loads((out / "pretrain.json").read_text())
     seeds = Run.open(out).config.pretrain_seeds
