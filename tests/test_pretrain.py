@@ -53,7 +53,8 @@ def test_the_epoch_kept_is_the_one_that_predicts_held_out_tracks_best(windows_di
     # a fit that only gets worse on held-out tracks (a diverging step) keeps the start
     kept, stats = pretrain_genome(_tiny_net(), start, w, epochs=2, seed=0, learning_rate=100.0,
                                   validation=0.5)  # fmt: skip
-    assert stats["best_epoch"] == 0 and min(stats["validation_mse"][1:]) > stats["validation_mse"][0]
+    scores = stats["validation_mse"]
+    assert stats["best_epoch"] == 0 and min(scores[1:]) > scores[0]
     np.testing.assert_array_equal(kept, start)
     with pytest.raises(PretrainError, match="needs windows of >= 2 tracks"):
         one = w.take(np.flatnonzero(w.track == w.track[0]))
