@@ -91,9 +91,7 @@ class TrainConfig:
         if self.frame not in ("ego", "grid"):
             raise RunError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
         if not 0 <= self.pretrain_validation < 1:
-            raise RunError(
-                f"pretrain_validation must be in [0, 1), got {self.pretrain_validation}"
-            )
+            raise RunError(f"pretrain_validation must be in [0, 1), got {self.pretrain_validation}")
         if self.prior is not None and self.prior not in PRIORS:
             raise RunError(f"unknown prior {self.prior!r}; choose from {list(PRIORS)}")
 
