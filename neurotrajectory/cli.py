@@ -89,11 +89,16 @@ def _cmd_rollout(args: argparse.Namespace) -> int:
 def _cmd_record(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from neurotrajectory.windows import record_group, save_dataset
+    from neurotrajectory.windows import Dataset, record_group, save_dataset, split_by_track
 
     with tqdm(desc=f"record {args.scenario}", unit="episode", disable=args.quiet) as bar:
         ds = record_group(args.scenario, args.episodes, args.seed, args.stride,
                           args.episode_seconds, progress=bar.update)  # fmt: skip
+    if args.split:  # the side evaluate --seed S --test-fraction F uses
+        sides = dict(zip(("train", "test"), split_by_track(ds.windows, args.test_fraction,
+                                                           args.seed), strict=True))  # fmt: skip
+        split = {"side": args.split, "test_fraction": args.test_fraction, "seed": args.seed}
+        ds = Dataset(sides[args.split], {**ds.manifest, "split": split})
     path = save_dataset(ds, args.out)
     w = ds.windows
     print(
@@ -265,6 +270,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="decisions between windows (default 1 on recorded scenes, else 5)",
     )
     d.add_argument("--seed", type=int, default=0)
+    d.add_argument(
+        "--split",
+        choices=["train", "test"],
+        default=None,
+        help="keep only this side of the split by track that `evaluate` with the same --seed "
+        "and --test-fraction makes (e.g. train data for a group's run)",
+    )
+    d.add_argument("--test-fraction", dest="test_fraction", type=float, default=0.3)
     d.add_argument("--out", required=True, help="dataset folder (created)")
     d.add_argument("--quiet", action="store_true")
     d.set_defaults(func=_cmd_record)

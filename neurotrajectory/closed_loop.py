@@ -21,13 +21,19 @@ def _length(points: np.ndarray) -> float:
 
 
 def drive_episodes(
-    scenario: str, policy, seeds: list[int], seconds: float, video: Path | None = None
+    scenario: str,
+    policy,
+    seeds: list[int],
+    seconds: float,
+    video: Path | None = None,
+    ego: dict | None = None,
 ) -> list[dict]:
     """One row of statistics per episode of ``policy`` on ``scenario`` (episodes of
-    ``seconds``, one per seed); with ``video``, the first episode is also exported there."""
+    ``seconds``, one per seed; ``ego`` overrides the scenario's ego section); with ``video``,
+    the first episode is also exported there."""
     env = GridSimEnv(scenario, action_type=policy.action_type,
                      render_mode="rgb_array" if video else None,
-                     simulation={"duration": seconds})  # fmt: skip
+                     simulation={"duration": seconds}, **({"ego": ego} if ego else {}))  # fmt: skip
     ticks = env.cfg.ticks_per_decision
     rows = []
     for k, seed in enumerate(seeds):

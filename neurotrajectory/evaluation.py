@@ -91,7 +91,13 @@ class GroupResult:
 def _dataset(group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log) -> Dataset:
     """The group's windows: from ``data_dir/<group>`` if given, else recorded into ``out``."""
     if data_dir is not None:
-        return load_dataset(data_dir / group)
+        ds = load_dataset(data_dir / group)
+        if "split" in ds.manifest:
+            raise DatasetError(
+                f"{data_dir / group}: holds only the {ds.manifest['split']['side']} side of a "
+                "split (record --split); evaluation needs the whole group's windows"
+            )
+        return ds
     log(f"{group}: recording windows")
     with tqdm(desc=f"record {group}", unit="episode", leave=False) as bar:
         ds = record_group(group, cfg.episodes, cfg.seed, duration=cfg.episode_seconds,

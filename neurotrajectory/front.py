@@ -109,8 +109,9 @@ def load_front_member(run_dir: str | Path, pick: str) -> tuple[Run, NetPolicy, d
 
 def heldout(run_dir: str | Path, episodes: int, pick: str = "knee") -> dict:
     """Closed-loop statistics of the picked front member on ``episodes`` episodes that no
-    generation trained on (:meth:`~neurotrajectory.train.TrainConfig.heldout_seeds`), each as
-    long as the training episodes, beside the destination curve's on the same episodes."""
+    generation trained on (:meth:`~neurotrajectory.train.TrainConfig.heldout_seeds`; on a
+    recorded scene trained on some ``ego_tracks``, the scene's other tracks), each as long as
+    the training episodes, beside the destination curve's on the same episodes."""
     from neurotrajectory.baselines.destination_curve import DestinationCurve
     from neurotrajectory.closed_loop import drive_episodes, summarise
     from neurotrajectory.predictors import Setting, TrajectoryPolicy
@@ -118,15 +119,30 @@ def heldout(run_dir: str | Path, episodes: int, pick: str = "knee") -> dict:
     run, policy, member = load_front_member(run_dir, pick)
     cfg = run.config
     seeds = list(cfg.heldout_seeds(episodes))
-    rows = drive_episodes(cfg.scenario, policy, seeds, cfg.episode_seconds)
+    ego = {"track": _other_tracks(cfg.scenario, cfg.ego_tracks)} if cfg.ego_tracks else None
+    rows = drive_episodes(cfg.scenario, policy, seeds, cfg.episode_seconds, ego=ego)
     env = GridSimEnv(cfg.scenario, **cfg.overrides)
     curve = TrajectoryPolicy(DestinationCurve(Setting.from_env(env)))
-    baseline = drive_episodes(cfg.scenario, curve, seeds, cfg.episode_seconds)
+    baseline = drive_episodes(cfg.scenario, curve, seeds, cfg.episode_seconds, ego=ego)
     return {
         "member": member,
         "episode_seconds": cfg.episode_seconds,
+        **({"ego_tracks": ego["track"]} if ego else {}),
         "seeds": seeds,
         "network": summarise(rows),
         "destination curve": summarise(baseline),
         "episodes": rows,
     }
+
+
+def _other_tracks(scenario: str, trained: tuple[str, ...]) -> list[str]:
+    """The track ids of ``scenario``'s recorded scene that are not in ``trained``."""
+    from gridsim.scenario.build import library_for
+    from gridsim.scenario.loader import load_scenario
+
+    base = load_scenario(scenario)
+    ids = [t.track_id for t in library_for(base).scene(base.config.road.scene)]
+    others = [t for t in ids if t not in set(trained)]
+    if not others:
+        raise RunError(f"{scenario}: every track of the scene was trained on; none is held out")
+    return others

@@ -61,11 +61,18 @@ class TrainConfig:
     frame: str = "ego"  # the frame of the network's residual (NetConfig.frame)
     skip: bool = True  # the network's kinematic skip read-out (NetConfig.skip)
     pretrain_validation: float = 0.2  # share of the warm start's tracks that pick its epoch
+    #: recorded scenes: the tracks the episodes drive as the ego (empty: any; with pretrain
+    #: data on a recorded scene, Run.create sets the data's tracks of that scene)
+    ego_tracks: tuple[str, ...] = ()
 
     #: What format-1 configurations (saved before the fields above existed) meant.
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0}
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
+        self._check()
+
+    def _check(self) -> None:
         if self.preset not in PRESETS:
             raise RunError(f"unknown preset {self.preset!r}; choose from {sorted(PRESETS)}")
         for name in ("population", "generations", "episodes"):
@@ -136,7 +143,8 @@ class TrainConfig:
 
     @property
     def overrides(self) -> dict:
-        return {"simulation": {"duration": self.episode_seconds}}
+        tracks = {"ego": {"track": list(self.ego_tracks)}} if self.ego_tracks else {}
+        return {"simulation": {"duration": self.episode_seconds}, **tracks}
 
     #: Fields that may differ between a run and its resumption (they do not change results).
     RESUMABLE = ("generations", "backend", "workers", "ray_address", "batch")
@@ -180,6 +188,7 @@ class Run:
         out = Path(out)
         if out.exists() and any(out.iterdir()):
             raise RunError(f"{out} exists and is not empty: use --resume {out} or another --out")
+        config = _with_training_tracks(config)
         out.mkdir(parents=True, exist_ok=True)
         run = cls(out, config)
         _write_json(out / "config.json", {"format": FORMAT_VERSION, "train": asdict(config)})
@@ -432,6 +441,27 @@ class Run:
         _write_json(self.out / "front.json", summary)
         plot_run(self.out, self.load_history())
         return summary
+
+
+def _with_training_tracks(config: TrainConfig) -> TrainConfig:
+    """On a recorded scene with pre-training data and no ``ego_tracks``: the data's tracks of
+    that scene, so that the tracks held out of the data are never driven in training."""
+    from neurotrajectory.windows import DatasetError, is_recorded, load_dataset
+
+    if config.ego_tracks or not config.pretrain or not is_recorded(config.scenario):
+        return config
+    from gridsim.envs.gridsim_env import GridSimEnv
+
+    scene = GridSimEnv(config.scenario).cfg.road.scene
+    try:
+        tracks = load_dataset(config.pretrain).windows.track
+    except DatasetError as exc:
+        raise RunError(f"--pretrain {config.pretrain}: {exc}") from None
+    ids = sorted({t.split("/", 1)[1] for t in np.unique(tracks) if t.startswith(scene + "/")})
+    if not ids:
+        raise RunError(f"--pretrain {config.pretrain} has no track of scene {scene!r}, which "
+                       f"{config.scenario!r} replays: record windows of that scene")  # fmt: skip
+    return replace(config, ego_tracks=tuple(ids))
 
 
 def _probe_net(spec_net: NetConfig, scenario: str, overrides: dict) -> TrajectoryNet:

@@ -10,7 +10,13 @@ from neurotrajectory.genome import initial_genome
 from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
 from neurotrajectory.pretrain import PretrainError, pretrain_genome, setpoint_mse
 from neurotrajectory.train import Run, RunError, TrainConfig
-from neurotrajectory.windows import load_dataset, record_group, save_dataset, split_by_track
+from neurotrajectory.windows import (
+    DatasetError,
+    load_dataset,
+    record_group,
+    save_dataset,
+    split_by_track,
+)
 
 
 @pytest.fixture(scope="module")
@@ -113,3 +119,33 @@ def test_a_run_can_record_its_own_warm_start(tmp_path, capsys):
     # a resumed run refuses flags that would change its results
     assert main(["train", "--resume", str(out), "--sigma", "0.1", "--quiet"]) == 2
     assert "sigma: run has 0.005, asked 0.1" in capsys.readouterr().err
+
+
+def test_a_recorded_scene_run_drives_only_the_tracks_of_its_training_data(tmp_path):
+    """record --split train keeps evaluate's train side; a run on that scene with it as
+    warm-start data trains on exactly those tracks, and its held-out report on the others."""
+    from neurotrajectory.evaluation import EvalConfig, _dataset
+
+    data = tmp_path / "highway-train"
+    assert main(["record", "--scenario", "us101_3_3", "--split", "train", "--out", str(data),
+                 "--quiet"]) == 0  # fmt: skip
+    ds = load_dataset(data)
+    whole = record_group("us101_3_3", 1, seed=0)
+    train, test = split_by_track(whole.windows, 0.3, 0)
+    assert set(ds.windows.track) == set(train.track) and ds.manifest["split"]["side"] == "train"
+    out = tmp_path / "run"
+    args = ["train", "--scenario", "us101_3_3", "--preset", "tiny", "--population", "2",
+            "--generations", "1", "--episodes", "1", "--episode-seconds", "2", "--pretrain",
+            str(data), "--pretrain-epochs", "1", "--validation-episodes", "0", "--heldout", "2",
+            "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(args) == 0
+    trained = Run.open(out).config.ego_tracks
+    assert {f"USA_US101-3_3_T-1/{t}" for t in trained} == set(train.track)
+    report = json.loads((out / "heldout.json").read_text())
+    assert not set(report["ego_tracks"]) & set(trained)
+    assert {f"USA_US101-3_3_T-1/{t}" for t in report["ego_tracks"]} >= set(test.track)
+    # evaluation refuses a dataset that holds one side of a split
+    (tmp_path / "data").mkdir()
+    data.rename(tmp_path / "data" / "highway")
+    with pytest.raises(DatasetError, match="holds only the train side"):
+        _dataset("highway", EvalConfig(), tmp_path / "data", tmp_path, print)

@@ -221,29 +221,7 @@ def _build_recorded(scenario: Scenario, seed: int) -> World:
         str(_resolve(scenario, rc.map, ("data", "ngsim", "commonroad-xml"), ".xml"))
     )
     tracks = library_for(scenario).scene(rc.scene)
-    if cfg.ego.track == "random":
-        unfit = unfit_experts(rc.scene, tuple(tracks), road)
-        fit = [
-            t
-            for t in tracks
-            if t.duration >= 2.0
-            and t.length <= cfg.traffic.max_vehicle_length
-            and t.track_id not in unfit
-        ]
-        if not fit:
-            raise ScenarioError(
-                f"{scenario.source}: scene {rc.scene!r} has no track >= 2 s to use as ego"
-            )
-        ego_track = fit[int(ego_rng.integers(len(fit)))]
-    else:
-        match = [t for t in tracks if t.track_id == cfg.ego.track]
-        if not match:
-            ids = ", ".join(t.track_id for t in tracks)
-            raise ScenarioError(
-                f"{scenario.source}: ego.track {cfg.ego.track!r} is not in scene "
-                f"{rc.scene!r}; tracks: {ids}"
-            )
-        ego_track = match[0]
+    ego_track = _pick_ego_track(scenario, tracks, road, ego_rng)
     ego = vehicle_params(cfg.ego.vehicle, ego_track.length, ego_track.width)
     u = np.array([np.cos(ego_track.heading[0]), np.sin(ego_track.heading[0])])
     rear = np.array([ego_track.x[0], ego_track.y[0]]) - ego.center_offset * u
@@ -254,6 +232,44 @@ def _build_recorded(scenario: Scenario, seed: int) -> World:
     return World(
         road, traffic, ego, state, cfg.simulation.dt, partial(_fixed, route), traffic_rng, ego_track
     )
+
+
+def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
+    """The ego's track: ``ego.track`` by id, or drawn from the seed among the fit tracks (at
+    least 2 s long, not too long a vehicle, inside the road) of the scene (``"random"``) or of
+    a list of ids."""
+    cfg, rc = scenario.config, scenario.config.road
+    wanted = cfg.ego.track
+    if isinstance(wanted, str) and wanted != "random":
+        match = [t for t in tracks if t.track_id == wanted]
+        if not match:
+            ids = ", ".join(t.track_id for t in tracks)
+            raise ScenarioError(
+                f"{scenario.source}: ego.track {wanted!r} is not in scene {rc.scene!r}; "
+                f"tracks: {ids}"
+            )
+        return match[0]
+    if isinstance(wanted, list):
+        missing = sorted(set(wanted) - {t.track_id for t in tracks})
+        if missing:
+            raise ScenarioError(
+                f"{scenario.source}: ego.track lists {len(missing)} track(s) not in scene "
+                f"{rc.scene!r}: {', '.join(missing[:10])}"
+            )
+    unfit = unfit_experts(rc.scene, tuple(tracks), road)
+    listed = set(wanted) if isinstance(wanted, list) else {t.track_id for t in tracks}
+    fit = [
+        t
+        for t in tracks
+        if t.track_id in listed
+        and t.duration >= 2.0
+        and t.length <= cfg.traffic.max_vehicle_length
+        and t.track_id not in unfit
+    ]
+    if not fit:
+        which = "the listed tracks" if isinstance(wanted, list) else f"scene {rc.scene!r}"
+        raise ScenarioError(f"{scenario.source}: {which} have no track >= 2 s to use as ego")
+    return fit[int(rng.integers(len(fit)))]
 
 
 def initial_steering(track: Track, params: BicycleParams) -> float:

@@ -147,7 +147,13 @@ RoadConfig = Annotated[
 class EgoConfig(Strict):
     lane: Annotated[int, Field(ge=0, le=7)] = 1
     speed: NonNegFloat = 8.0
-    track: str = "random"
+    track: Annotated[
+        str | list[Annotated[str, Field(min_length=1)]],
+        Field(
+            description="recorded scenes: the ego's track_id, 'random' (any fit track, drawn "
+            "from the seed) or a list of track_ids to draw from"
+        ),
+    ] = "random"
     vehicle: VehicleConfig = VehicleConfig()
 
 
