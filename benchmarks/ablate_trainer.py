@@ -1,6 +1,8 @@
 """Ablation of the trainer's ingredients on the README's main job: each variant trains with
 the main job's settings without its warm start (``recipe``: evolution alone) and one
-ingredient changed (``warm-start`` adds the warm start: the README's main job), then drives
+ingredient changed (``warm-start`` adds the warm start: the README's main job; the
+``warm-start-*`` variants change one thing in it; ``warm-start-grid-frame`` is the network
+and warm start before the ego-frame residual, skip read-out and validated epoch), then drives
 its knee member on the same 20 held-out seamless episodes (``heldout.json``). Prints one JSON
 line per variant.
 
@@ -25,6 +27,10 @@ MAIN_JOB = ["--scenario", "seamless", "--population", "24", "--generations", "25
 VARIANTS = {
     "recipe": [],
     "warm-start": ["--pretrain-episodes", "12"],
+    "warm-start-one-generation": ["--pretrain-episodes", "12", "--generations", "1"],
+    "warm-start-no-skip": ["--pretrain-episodes", "12", "--no-skip"],
+    "warm-start-grid-frame": ["--pretrain-episodes", "12", "--no-skip", "--frame", "grid",
+                              "--pretrain-validation", "0"],  # fmt: skip
     "no-validation-front": ["--validation-episodes", "0"],
     "sigma-0.02": ["--validation-episodes", "0", "--sigma", "0.02"],
     "no-constraint": ["--unconstrained"],
