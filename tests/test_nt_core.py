@@ -25,7 +25,7 @@ from neurotrajectory.pareto import crowding_distance, hypervolume, non_dominated
 def test_presets_sizes_and_output_shape():
     assert count_parameters(TrajectoryNet(PRESETS["paper"])) == pytest.approx(19.0e6, rel=0.01)
     net = TrajectoryNet(PRESETS["default"])
-    assert count_parameters(net) == 405_050 + 5 * 2 * 16  # + the skip read-out
+    assert count_parameters(net) == 405_050 + 5 * 2 * 15  # + the skip read-out
     out = net(torch.zeros(3, 5, 128, 128, dtype=torch.uint8), torch.zeros(3, 6), torch.zeros(3, 2))
     assert out.shape == (3, 5, 2)
     with pytest.raises(ValueError, match="activation"):

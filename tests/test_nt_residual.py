@@ -47,9 +47,9 @@ def test_frames_round_trip_and_features_do_not_depend_on_the_heading():
     for f in feats[1:]:
         np.testing.assert_allclose(f, feats[0], atol=1e-6)  # the prior is float32
     assert feats[0].shape == (1, cfg.features)
-    # speed / v_max, steering, acceleration / a_max, steering rate, destination / 20
+    # speed / v_max, steering, acceleration / a_max, destination / 20 (not the steering rate)
     a_max, _, v_max, _ = cfg.limits
-    np.testing.assert_allclose(feats[0][0, :6], [8.0 / v_max, 0.05, 0.7 / a_max, -0.01, 0.9, 0.1])
+    np.testing.assert_allclose(feats[0][0, :5], [8.0 / v_max, 0.05, 0.7 / a_max, 0.9, 0.1])
 
 
 def test_a_fresh_network_outputs_its_prior_whatever_the_frame():
