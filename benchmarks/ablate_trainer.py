@@ -29,8 +29,15 @@ VARIANTS = {
     "warm-start": ["--pretrain-episodes", "12"],
     "warm-start-one-generation": ["--pretrain-episodes", "12", "--generations", "1"],
     "warm-start-no-skip": ["--pretrain-episodes", "12", "--no-skip"],
-    "warm-start-grid-frame": ["--pretrain-episodes", "12", "--no-skip", "--frame", "grid",
-                              "--pretrain-validation", "0"],  # fmt: skip
+    "warm-start-grid-frame": [
+        "--pretrain-episodes",
+        "12",
+        "--no-skip",
+        "--frame",
+        "grid",
+        "--pretrain-validation",
+        "0",
+    ],
     "no-validation-front": ["--validation-episodes", "0"],
     "sigma-0.02": ["--validation-episodes", "0", "--sigma", "0.02"],
     "no-constraint": ["--unconstrained"],
