@@ -12,7 +12,13 @@ from neurotrajectory.baselines.constant_velocity import (
     ConstantVelocity,
     constant_velocity_setpoints,
 )
-from neurotrajectory.baselines.dwa import DWA, DWAConfig
+from neurotrajectory.baselines.dwa import (
+    ADMISSIBLE,
+    DWA,
+    MOST_CLEARANCE,
+    NO_BRAKING_CHECK,
+    DWAConfig,
+)
 from neurotrajectory.baselines.end2end import End2End, TrainSettings
 from neurotrajectory.commands import (
     N_STEER,
@@ -181,7 +187,7 @@ def test_dwa_never_returns_a_colliding_trajectory_on_crafted_grids():
         goal = np.array([[speed * 2.5, rng.uniform(-6, 6)]], np.float32)
         w = make_windows(grid[None, None], [[speed, 0, 0, 0, 1.0, 0.0]], destination=goal)
         plan = dwa.plan(w, 0)
-        if not plan.feasible:
+        if plan.level > NO_BRAKING_CHECK:  # the near future is checked down to this level
             continue
         checked += 1
         k = int(round(dwa.config.collision_horizon / dwa.config.dt))
@@ -222,9 +228,48 @@ def test_dwa_flags_a_boxed_in_ego_and_unknown_cells_can_block():
     assert DWA(_setting(), DWAConfig(unknown="penalise")).plan(w, 0).feasible
 
 
+def _queue(speed: float, gap: float):
+    """An ego at ``speed`` [m/s] heading +x in a lane between two walls, a car ``gap`` [m]
+    ahead of its rear axle, and the destination where it would be holding speed (as if the
+    car ahead moved at the ego's speed)."""
+    grid = np.full((SIZE, SIZE), FREE, np.uint8)
+    _rect(grid, -30, 30, 2.2, 3.0)
+    _rect(grid, -30, 30, -3.0, -2.2)
+    _rect(grid, gap, gap + 4.5, -0.9, 0.9)
+    goal = np.array([[speed * TIMES[-1], 0.0]], np.float32)
+    return make_windows(grid[None, None], [[speed, 0, 0, 0, 1.0, 0.0]], destination=goal)
+
+
+def test_dwa_does_not_brake_hard_when_only_the_braking_check_fails():
+    w = _queue(12.0, 12.0)  # every rollout clears 0.5 s, none could then stop within 0.5 s
+    plan = DWA(_setting()).plan(w, 0)
+    assert not plan.feasible and plan.admissible == 0
+    assert plan.level == NO_BRAKING_CHECK
+    assert plan.states[-1, 3] > 10.0  # keeps most of its 12 m/s
+    assert plan.setpoints[-1, 0] > 25.0 and abs(plan.setpoints[-1, 1]) < 1.0
+    k = int(round(DWAConfig().collision_horizon / DWAConfig().dt))
+    assert _footprint_hits(w.grids[0, -1], plan.states[: k + 1]) == 0
+    # the fallback before issue 10 took the first rollout of most clearance: the slowest
+    # speed in the window (12 m/s - b_max * 0.5 s)
+    old = DWA(_setting(), DWAConfig(fallback="clearance")).plan(w, 0)
+    assert old.level == MOST_CLEARANCE
+    assert old.states[-1, 3] == pytest.approx(9.0)
+
+
+def test_dwa_fallback_leaves_admissible_plans_alone():
+    dwa, old = DWA(_setting()), DWA(_setting(), DWAConfig(fallback="clearance"))
+    for gap in (20.0, 30.0):
+        w = _queue(12.0, gap)
+        plan = dwa.plan(w, 0)
+        assert plan.feasible and plan.level == ADMISSIBLE
+        np.testing.assert_array_equal(plan.states, old.plan(w, 0).states)
+
+
 def test_dwa_rejects_bad_configuration():
     with pytest.raises(ValueError, match="unknown must be"):
         DWAConfig(unknown="ignore")
+    with pytest.raises(ValueError, match="fallback must be"):
+        DWAConfig(fallback="stop")
     with pytest.raises(ValueError, match="multiples of dt"):
         DWA(Setting(np.array([0.25, 0.55]), CELL, "north_up", BicycleParams()))
 

@@ -19,8 +19,15 @@ cells count as obstacles (``unknown="occupied"``, the default) or only add cost
 
 Among the admissible rollouts the one of least weighted cost wins: distance to the
 destination at the end of the horizon, heading error, obstacle proximity, speed deficit,
-lateral acceleration and steering change. If no rollout is admissible, the one that keeps
-the most clearance is returned (``feasible`` false).
+lateral acceleration and steering change. If no rollout is admissible (``feasible`` false),
+the test is relaxed step by step and the least-cost rollout of the first step that leaves
+any is taken (``Plan.level``): without the braking check (:data:`NO_BRAKING_CHECK`; a
+snapshot cannot tell a queue moving at the ego's speed from a stopped one), then checking
+only the first ``dt`` (:data:`FIRST_STEP`), then any rollout within ``fallback_tolerance``
+of the most clearance (:data:`MOST_CLEARANCE`). Before issue 10 (``fallback="clearance"``)
+the first rollout of most clearance was taken outright; as samples are ordered by speed,
+that was the hardest braking one among equal clearances, so the ego braked from highway
+speed behind a queue moving at its own speed.
 
 The prediction is the winning rollout at the set-point times (grid frame, rear axle).
 """
@@ -66,31 +73,44 @@ class DWAConfig:
     #: cost per share of the rollout after ``collision_horizon`` that would hit an obstacle
     #: were it static (moving traffic may have left by then, so it only costs)
     w_late_collision: float = 0.1
+    #: when no rollout is admissible: "relax" the test step by step (module docstring);
+    #: "clearance" (before issue 10) takes the first rollout of most clearance
+    fallback: str = "relax"
+    #: m: the last relaxation keeps the rollouts this close to the most clearance
+    fallback_tolerance: float = 0.1
 
     def __post_init__(self) -> None:
         if self.unknown not in ("occupied", "penalise"):
             raise ValueError(f"unknown must be 'occupied' or 'penalise', got {self.unknown!r}")
+        if self.fallback not in ("relax", "clearance"):
+            raise ValueError(f"fallback must be 'relax' or 'clearance', got {self.fallback!r}")
         if self.speed_samples < 1 or self.steer_samples < 1 or self.disks < 1:
             raise ValueError("speed_samples, steer_samples and disks must be >= 1")
         if not 0 < self.dt <= self.control_period:
             raise ValueError(f"need 0 < dt <= control_period, got {self.dt}, {self.control_period}")
 
 
+#: Plan.level: how the rollout was chosen (see the module docstring)
+ADMISSIBLE, NO_BRAKING_CHECK, FIRST_STEP, MOST_CLEARANCE = range(4)
+
+
 @dataclass(frozen=True)
 class Plan:
     """Chosen rollouts of ``N`` windows: ``states`` ``(N, K + 1, 5)`` every ``dt`` from the
     start (grid frame: x, y [m], heading [rad], speed [m/s], steering [rad]), set-points
-    ``(N, tau_o, 2)`` [m], whether any rollout was admissible ``(N,)`` and how many
-    ``(N,)``. Indexing with ``[i]`` gives one window's plan."""
+    ``(N, tau_o, 2)`` [m], whether any rollout was admissible ``(N,)``, how many ``(N,)``
+    and the fallback ``level`` ``(N,)`` the rollout was chosen at (:data:`ADMISSIBLE` when
+    one was admissible). Indexing with ``[i]`` gives one window's plan."""
 
     states: np.ndarray
     setpoints: np.ndarray
     feasible: np.ndarray
     admissible: np.ndarray
+    level: np.ndarray
 
     def __getitem__(self, i: int) -> Plan:
         return Plan(self.states[i], self.setpoints[i], bool(self.feasible[i]),
-                    int(self.admissible[i]))  # fmt: skip
+                    int(self.admissible[i]), int(self.level[i]))  # fmt: skip
 
 
 def footprint_disks(
@@ -178,24 +198,42 @@ class DWA:
         brake = np.stack([bx, by, heading], axis=-1)
         poses = np.concatenate([traj[:, :, 1 : k_check + 1, :3], brake], axis=2)
         gap, unseen = self._sample(clearance, unknown, poses, offsets)
-        min_gap = gap.min(axis=(2, 3)) - radius
+        pose_gap = gap.min(axis=3) - radius[..., None]  # (n, S, k_check + 3)
+        min_gap = pose_gap.min(axis=2)
         # An ego that starts closer than the margin (the disks overestimate the box) may go
         # on as long as it gets no closer.
         start_gap = self._sample(clearance, unknown, traj[:, :1, :1, :3], offsets)[0]
         start_gap = start_gap.min(axis=(1, 2, 3))[:, None] - radius
-        admissible = valid & (min_gap >= np.minimum(cfg.margin, start_gap))
+        clear = pose_gap >= np.minimum(cfg.margin, start_gap)[..., None]
+        # the admissibility test, then its relaxations: without the braking check, then
+        # only the first rollout step
+        tests = [clear.all(axis=2), clear[..., :k_check].all(axis=2), clear[..., 0]]
         cost = self._cost(traj, batch.destination.astype(np.float64), min_gap, unseen, d0,
                           wheelbase)  # fmt: skip
         if cfg.w_late_collision and k_check + 1 < traj.shape[2]:
             late_gap, _ = self._sample(clearance, unknown, traj[:, :, k_check + 1 :, :3], offsets)
             late_hits = np.mean(late_gap.min(axis=3) - radius[..., None] < 0.0, axis=2)
             cost = cost + cfg.w_late_collision * late_hits
-        feasible = admissible.any(axis=1)
-        best = np.where(feasible, np.argmin(np.where(admissible, cost, np.inf), axis=1),
-                        np.argmax(np.where(valid, min_gap, -np.inf), axis=1))  # fmt: skip
+        best, level = self._choose([valid & t for t in tests], valid, cost, min_gap)
         chosen = traj[np.arange(n), best]
-        return Plan(chosen, chosen[:, self._setpoint_steps, :2].copy(), feasible,
-                    admissible.sum(axis=1))  # fmt: skip
+        return Plan(chosen, chosen[:, self._setpoint_steps, :2].copy(), level == 0,
+                    (valid & tests[0]).sum(axis=1), level)  # fmt: skip
+
+    def _choose(self, tests, valid, cost, min_gap) -> tuple[np.ndarray, np.ndarray]:
+        """The chosen rollout ``(n,)`` and the level it was chosen at ``(n,)``, given which
+        rollouts ``(n, S)`` pass the admissibility test and each of its relaxations
+        (``tests``, in :class:`Plan` level order), their cost and least clearance [m]."""
+        cfg = self.config
+        first_of_most_clearance = np.argmax(np.where(valid, min_gap, -np.inf), axis=1)
+        if cfg.fallback == "clearance":
+            level = np.where(tests[ADMISSIBLE].any(axis=1), ADMISSIBLE, MOST_CLEARANCE)
+            least_cost = np.argmin(np.where(tests[ADMISSIBLE], cost, np.inf), axis=1)
+            return np.where(level == ADMISSIBLE, least_cost, first_of_most_clearance), level
+        most = min_gap[np.arange(len(cost)), first_of_most_clearance][:, None]
+        tiers = np.stack([*tests, valid & (min_gap >= most - cfg.fallback_tolerance)])
+        level = np.argmax(tiers.any(axis=2), axis=0)  # the first tier that leaves any
+        candidates = tiers[level, np.arange(len(cost))]
+        return np.argmin(np.where(candidates, cost, np.inf), axis=1), level
 
     def _window(self, v0: np.ndarray, d0: np.ndarray, wheelbase: np.ndarray):
         """Target speeds and steering angles ``(n, S)`` reachable within one control period,
