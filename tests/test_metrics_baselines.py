@@ -1,5 +1,7 @@
 """Accuracy metrics, commands, and the constant-velocity, DWA and End2End baselines."""
 
+from dataclasses import replace
+
 import cv2
 import numpy as np
 import pytest
@@ -240,18 +242,24 @@ def _queue(speed: float, gap: float):
     return make_windows(grid[None, None], [[speed, 0, 0, 0, 1.0, 0.0]], destination=goal)
 
 
-def test_dwa_does_not_brake_hard_when_only_the_braking_check_fails():
-    w = _queue(12.0, 12.0)  # every rollout clears 0.5 s, none could then stop within 0.5 s
-    plan = DWA(_setting()).plan(w, 0)
+@pytest.mark.parametrize(
+    ("config", "gap"),
+    # the defaults (0.3 s checked, 0.3 s headway), and the horizons before tuning (0.5 s)
+    [(DWAConfig(), 10.0), (DWAConfig(collision_horizon=0.5, headway=0.5), 12.0)],
+)
+def test_dwa_does_not_brake_hard_when_only_the_braking_check_fails(config, gap):
+    # every rollout clears the collision horizon, none could then stop within the headway
+    w = _queue(12.0, gap)
+    plan = DWA(_setting(), config).plan(w, 0)
     assert not plan.feasible and plan.admissible == 0
     assert plan.level == NO_BRAKING_CHECK
     assert plan.states[-1, 3] > 10.0  # keeps most of its 12 m/s
     assert plan.setpoints[-1, 0] > 25.0 and abs(plan.setpoints[-1, 1]) < 1.0
-    k = int(round(DWAConfig().collision_horizon / DWAConfig().dt))
+    k = int(round(config.collision_horizon / config.dt))
     assert _footprint_hits(w.grids[0, -1], plan.states[: k + 1]) == 0
     # the fallback before issue 10 took the first rollout of most clearance: the slowest
     # speed in the window (12 m/s - b_max * 0.5 s)
-    old = DWA(_setting(), DWAConfig(fallback="clearance")).plan(w, 0)
+    old = DWA(_setting(), replace(config, fallback="clearance")).plan(w, 0)
     assert old.level == MOST_CLEARANCE
     assert old.states[-1, 3] == pytest.approx(9.0)
 
