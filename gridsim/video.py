@@ -11,8 +11,19 @@ import imageio.v2 as imageio
 import numpy as np
 
 from gridsim.errors import GridSimError
+from gridsim.paths import output_problem
 
 log = logging.getLogger(__name__)
+
+VIDEO_SUFFIXES = (".mp4", ".gif")
+
+
+def video_problem(path: str | Path) -> str | None:
+    """Why a video cannot be written to ``path``, or None if it can (nothing is created)."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in VIDEO_SUFFIXES:
+        return f"unsupported extension {suffix or '(none)'!r}; use .mp4 or .gif"
+    return output_problem(path, directory=False)
 
 
 class VideoWriter:
@@ -24,8 +35,9 @@ class VideoWriter:
 
     def __init__(self, path: str | Path, fps: float) -> None:
         self.path = Path(path)
-        if self.path.suffix.lower() not in (".mp4", ".gif"):
-            raise GridSimError(f"video path must end in .mp4 or .gif, got {self.path}")
+        problem = video_problem(self.path)
+        if problem:
+            raise GridSimError(f"video {self.path}: {problem}")
         if not fps > 0:
             raise GridSimError(f"fps must be > 0, got {fps}")
         self.path.parent.mkdir(parents=True, exist_ok=True)

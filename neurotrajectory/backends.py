@@ -20,6 +20,8 @@ from neurotrajectory.genome import Recipe, apply_recipe, initial_genome, noise_t
 from neurotrajectory.model import NetConfig, aligned_rows
 from neurotrajectory.rollout import Evaluator
 
+BACKENDS = ("local", "processes", "ray")
+
 
 class BackendError(RuntimeError):
     """A backend could not be started or lost its workers."""

@@ -9,12 +9,13 @@ import time
 from pathlib import Path
 
 from gridsim.errors import GridSimError
-from neurotrajectory.backends import BackendError
+from neurotrajectory.backends import BACKENDS, BackendError
 from neurotrajectory.front import PICKS
 from neurotrajectory.model import PRESETS, PRIORS
 from neurotrajectory.train import Run, RunError, TrainConfig
 from neurotrajectory.windows import GROUPS
 
+DEFAULT_OUT = "runs/default"
 _TRAIN_KEYS = (
     "scenario", "preset", "population", "generations", "episodes", "episode_seconds", "sigma",
     "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_episodes", "pretrain_epochs",
@@ -26,6 +27,14 @@ _TRAIN_KEYS = (
 
 def _cmd_train(args: argparse.Namespace) -> int:
     started = time.perf_counter()
+    moved = args.resume and args.out and Path(args.out).resolve() != Path(args.resume).resolve()
+    if moved:
+        raise RunError(f"--out {args.out} with --resume {args.resume}: a resumed run stays in "
+                       "its folder; leave out --out (or drop --resume for a new run)")  # fmt: skip
+    if args.heldout < 0:
+        raise RunError(f"--heldout must be >= 0, got {args.heldout}")
+    if args.video:
+        _check_video(args.video)
     if args.resume:
         # flags that would change the run's results are refused unless they match it
         run = Run.open(args.resume, **{k: getattr(args, k) for k in _TRAIN_KEYS})
@@ -35,7 +44,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = TrainConfig(
             **{k: (v if v is not None else getattr(defaults, k)) for k, v in given.items()}
         )
-        run = Run.create(args.out, config)
+        run = Run.create(args.out or DEFAULT_OUT, config)
     summary = run.train(progress=not args.quiet)
     print(json.dumps({"run": str(run.out), **summary}, indent=1))
     if args.heldout:
@@ -45,6 +54,14 @@ def _cmd_train(args: argparse.Namespace) -> int:
     minutes, seconds = divmod(round(time.perf_counter() - started), 60)
     print(f"done in {minutes} min {seconds} s")
     return 0
+
+
+def _check_video(path: str) -> None:
+    from gridsim.video import video_problem
+
+    problem = video_problem(path)
+    if problem:
+        raise RunError(f"--video {path}: {problem}")
 
 
 def _heldout(run: Run, episodes: int) -> None:
@@ -153,7 +170,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None)
     t.add_argument("--sigma", type=float, default=None, help="mutation noise scale")
     t.add_argument("--seed", type=int, default=None)
-    t.add_argument("--backend", default=None, choices=["local", "processes", "ray"])
+    t.add_argument("--backend", default=None, choices=BACKENDS)
     t.add_argument("--workers", type=int, default=None)
     t.add_argument("--ray-address", dest="ray_address", default=None)
     t.add_argument("--batch", type=int, default=None,
@@ -189,7 +206,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="share of the warm start's tracks held out to pick its epoch (default 0.2; 0: "
         "keep the last epoch)",
     )
-    t.add_argument("--out", default="runs/default", help="run directory (created)")
+    t.add_argument("--out", default=None, help=f"run directory (created; default {DEFAULT_OUT})")
     t.add_argument("--resume", default=None, help="continue the run in this directory")
     t.add_argument(
         "--video", default=None, help="after training, drive the knee member into this video"

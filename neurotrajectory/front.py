@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from neurotrajectory.evolution import minimised
-from neurotrajectory.genome import set_genome
+from neurotrajectory.genome import genome_mismatch, set_genome
 from neurotrajectory.model import (
     NetConfig,
     TrajectoryNet,
@@ -81,13 +82,16 @@ def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[T
         with np.load(path) as data:
             genomes, fitness = data["genomes"], data["fitness"]
             base = NetConfig.from_dict(json.loads(str(data["net"])))
-    except (OSError, KeyError, ValueError, TypeError) as exc:
-        raise RunError(f"{path}: unreadable front ({exc})") from None
+    except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as exc:
+        raise RunError(f"{path}: unreadable front ({type(exc).__name__}: {exc})") from None
     env = GridSimEnv(run.config.scenario, **run.config.overrides)
     cfg = net_config_for(env, base)
     nets = []
     for genome in genomes:
         net = TrajectoryNet(cfg)
+        problem = genome_mismatch(net, genome.shape[-1])
+        if problem:
+            raise RunError(f"{path}: {problem}")
         set_genome(net, genome)
         nets.append(net.eval())
     return run, fitness, genomes, nets

@@ -34,7 +34,19 @@ def get_genome(net: nn.Module) -> np.ndarray:
     return torch.nn.utils.parameters_to_vector(net.parameters()).detach().numpy().astype(np.float32)
 
 
+def genome_mismatch(net: nn.Module, size: int) -> str | None:
+    """Why genomes of ``size`` weights do not fit ``net``, or None if they do."""
+    n = sum(p.numel() for p in net.parameters())
+    if size == n:
+        return None
+    return (f"genomes of {size} weights, the network has {n}: saved with another preset, "
+            "prior, frame or scenario")  # fmt: skip
+
+
 def set_genome(net: nn.Module, genome: np.ndarray) -> None:
+    problem = genome_mismatch(net, np.shape(genome)[-1] if np.ndim(genome) else 0)
+    if problem:
+        raise ValueError(problem)
     vec = torch.from_numpy(np.ascontiguousarray(genome, dtype=np.float32))
     torch.nn.utils.vector_to_parameters(vec, net.parameters())
 

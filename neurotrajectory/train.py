@@ -11,6 +11,7 @@ uninterrupted run with the same seed.
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 import time
@@ -20,10 +21,18 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from neurotrajectory.backends import WorkerSpec, make_backend
+from gridsim.errors import GridSimError
+from gridsim.paths import output_problem
+from neurotrajectory.backends import BACKENDS, WorkerSpec, make_backend
 from neurotrajectory.evolution import GAConfig, initial_recipes, minimised, next_generation
-from neurotrajectory.genome import apply_recipe, initial_genome, noise_table, table_size
-from neurotrajectory.model import PRESETS, PRIORS, NetConfig, TrajectoryNet
+from neurotrajectory.genome import (
+    apply_recipe,
+    genome_mismatch,
+    initial_genome,
+    noise_table,
+    table_size,
+)
+from neurotrajectory.model import PRESETS, PRIORS, NetConfig, TrajectoryNet, size_mismatch
 from neurotrajectory.pareto import hypervolume, non_dominated_sort
 
 FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
@@ -72,24 +81,32 @@ class TrainConfig:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
         self._check()
 
+    #: The smallest value of each integer field.
+    MINIMUM = {"population": 2, "generations": 1, "episodes": 1, "workers": 1, "batch": 1,
+               "seed": 0, "validation_episodes": 0, "pretrain_episodes": 0,
+               "pretrain_epochs": 1}  # fmt: skip
+
     def _check(self) -> None:
         if self.preset not in PRESETS:
             raise RunError(f"unknown preset {self.preset!r}; choose from {sorted(PRESETS)}")
-        for name in ("population", "generations", "episodes"):
-            if getattr(self, name) < 1:
-                raise RunError(f"{name} must be >= 1, got {getattr(self, name)}")
-        if self.population < 2:
-            raise RunError(f"population must be >= 2, got {self.population}")
-        if self.batch < 1:
-            raise RunError(f"batch must be >= 1, got {self.batch}")
-        if self.validation_episodes < 0:
-            raise RunError(f"validation_episodes must be >= 0, got {self.validation_episodes}")
-        if self.pretrain_episodes < 0:
-            raise RunError(f"pretrain_episodes must be >= 0, got {self.pretrain_episodes}")
+        for name, low in self.MINIMUM.items():
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
+                raise RunError(f"{name} must be >= {low} (an integer), got {value!r}")
+        for name in ("sigma", "elite_fraction", "episode_seconds", "pretrain_validation"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+                raise RunError(f"{name} must be a number, got {value!r}")
+            if not math.isfinite(value):
+                raise RunError(f"{name} must be a finite number, got {value}")
+        if not self.sigma > 0:
+            raise RunError(f"sigma must be > 0, got {self.sigma}")
+        if not 0 < self.elite_fraction < 1:
+            raise RunError(f"elite_fraction must be in (0, 1), got {self.elite_fraction}")
+        if self.backend not in BACKENDS:
+            raise RunError(f"unknown backend {self.backend!r}; choose from {list(BACKENDS)}")
         if self.pretrain and self.pretrain_episodes:
             raise RunError("give either pretrain (a dataset) or pretrain_episodes, not both")
-        if self.pretrain_epochs < 1:
-            raise RunError(f"pretrain_epochs must be >= 1, got {self.pretrain_epochs}")
         if self.pretrain_episodes == 1 and self.pretrain_validation > 0:
             raise RunError("pretrain_episodes 1 leaves no episode to validate the warm start on: "
                            "record >= 2 or set pretrain_validation to 0")  # fmt: skip
@@ -181,16 +198,24 @@ class Run:
         self.out = Path(out)
         self.config = config
         self.net_config = config.net
+        self._windows = None  # the pre-training windows, once loaded
 
     # -- run directory ------------------------------------------------------------------------
     @classmethod
     def create(cls, out: str | Path, config: TrainConfig) -> Run:
+        """A new run in ``out``. Everything is checked (the folder, the scenario with the
+        network, the pre-training data) before anything is written, so that a failure leaves
+        ``out`` as it was."""
         out = Path(out)
+        problem = output_problem(out, directory=True)
+        if problem:
+            raise RunError(f"--out {out}: {problem}")
         if out.exists() and any(out.iterdir()):
             raise RunError(f"{out} exists and is not empty: use --resume {out} or another --out")
-        config = _with_training_tracks(config)
+        config, windows = _checked(config)
         out.mkdir(parents=True, exist_ok=True)
         run = cls(out, config)
+        run._windows = windows
         _write_json(out / "config.json", {"format": FORMAT_VERSION, "train": asdict(config)})
         return run
 
@@ -203,6 +228,9 @@ class Run:
             raise RunError(f"{out} is not a run directory (no config.json)")
         try:
             doc = json.loads(cfg_path.read_text())
+            if not isinstance(doc, dict) or not isinstance(doc.get("train"), dict):
+                raise RunError(f"{cfg_path}: expected an object with 'format' and 'train', "
+                               f"got {_json_kind(doc)}")  # fmt: skip
             if doc.get("format") not in (1, FORMAT_VERSION):
                 raise RunError(
                     f"{cfg_path}: format {doc.get('format')!r}, expected {FORMAT_VERSION}"
@@ -224,9 +252,26 @@ class Run:
             raise RunError(f"{out}: cannot resume with a different configuration ({detail})")
         allowed = {k: v for k, v in changes.items() if v is not None and k in TrainConfig.RESUMABLE}
         config = TrainConfig(**{**asdict(stored), **allowed})
+        run = cls(out, config)
+        done = run.completed_generations() if "generations" in allowed else 0
+        if config.generations < done:
+            raise RunError(f"{out}: --generations {config.generations} is fewer than the "
+                           f"{done} generations the run has done; give >= {done} (or "
+                           "leave it out to finish the run as configured)")  # fmt: skip
         if allowed:
             _write_json(cfg_path, {"format": FORMAT_VERSION, "train": asdict(config)})
-        return cls(out, config)
+        return run
+
+    def completed_generations(self) -> int:
+        """How many generations the checkpoint holds (0 without one)."""
+        path = self.out / "checkpoint.npz"
+        if not path.exists():
+            return 0
+        try:
+            with np.load(path) as data:
+                return int(data["generation"]) + 1
+        except Exception as exc:
+            raise RunError(f"{path}: corrupt checkpoint ({exc})") from None
 
     def load_checkpoint(self):
         """``(generation, population, fitness, violation)`` of the last complete generation, or
@@ -280,6 +325,13 @@ class Run:
         table = noise_table(table_size(n))
         history = self.load_history()
         ckpt = self.load_checkpoint()
+        if ckpt is None and history:
+            raise RunError(f"{self.out}: history.json has {len(history)} generations but "
+                           "checkpoint.npz is missing: restore it, or start a new run "
+                           "with another --out")  # fmt: skip
+        if ckpt is not None and genome_mismatch(probe, ckpt[1].shape[1]):
+            raise RunError(f"{self.out / 'checkpoint.npz'}: "
+                           f"{genome_mismatch(probe, ckpt[1].shape[1])}")  # fmt: skip
         if ckpt is None and (cfg.pretrain or cfg.pretrain_episodes):
             start, population = 0, self._pretrained_population(probe, table)
             backend.load(population)
@@ -289,11 +341,10 @@ class Run:
             backend.advance(recipes)
         else:
             gen, population, fitness, violation = ckpt
-            history = history[: gen + 1]
             if len(history) != gen + 1:
-                raise RunError(
-                    f"{self.out}: history has {len(history)} generations, checkpoint {gen + 1}"
-                )
+                raise RunError(f"{self.out}: history.json has {len(history)} generations, "
+                               f"checkpoint.npz {gen + 1}: they disagree; restore both or "
+                               "start a new run with another --out")  # fmt: skip
             recipes, _ = next_generation(
                 fitness, ga, cfg.seed, gen, n, len(table), self._violation(violation)
             )
@@ -350,23 +401,14 @@ class Run:
         """The warm start's windows and where they came from: the dataset ``pretrain``, or
         ``pretrain_episodes`` episodes of the training scenario recorded now (training seeds,
         :data:`PRETRAIN_EPISODE_SECONDS` each)."""
-        from neurotrajectory.windows import (
-            DatasetError,
-            is_recorded,
-            load_dataset,
-            record_scenario,
-        )
+        from neurotrajectory.windows import record_scenario
 
         cfg = self.config
         if cfg.pretrain:
-            try:
-                return load_dataset(cfg.pretrain).windows, {"data": str(cfg.pretrain)}
-            except DatasetError as exc:
-                raise RunError(f"--pretrain {cfg.pretrain}: {exc}") from None
-        if is_recorded(cfg.scenario):
-            raise RunError(f"--pretrain-episodes: {cfg.scenario!r} replays a recorded scene; "
-                           "record windows of its training tracks and pass them as "
-                           "--pretrain DATA")  # fmt: skip
+            if self._windows is None:
+                self._windows = _pretrain_data(cfg.pretrain)
+            return self._windows, {"data": str(cfg.pretrain)}
+        _check_pretrain_episodes(cfg)
         seeds = list(cfg.pretrain_seeds)
         windows, _ = record_scenario(cfg.scenario, len(seeds), seeds=seeds,
                                      duration=PRETRAIN_EPISODE_SECONDS)  # fmt: skip
@@ -443,20 +485,65 @@ class Run:
         return summary
 
 
-def _with_training_tracks(config: TrainConfig) -> TrainConfig:
-    """On a recorded scene with pre-training data and no ``ego_tracks``: the data's tracks of
-    that scene, so that the tracks held out of the data are never driven in training."""
-    from neurotrajectory.windows import DatasetError, is_recorded, load_dataset
+def _json_kind(doc) -> str:
+    return {dict: "an object", list: "a list", str: "a string"}.get(type(doc), repr(doc))
 
-    if config.ego_tracks or not config.pretrain or not is_recorded(config.scenario):
+
+def _checked(config: TrainConfig):
+    """``(config, windows)``: the configuration checked against its scenario, network and
+    pre-training data (the data's windows, or None), with :func:`_with_training_tracks`."""
+    from gridsim.scenario.loader import load_scenario
+
+    try:
+        load_scenario(config.scenario)
+    except GridSimError as exc:
+        raise RunError(f"--scenario {config.scenario}: {exc}") from None
+    try:
+        probe = _probe_net(config.net, config.scenario, config.overrides)
+    except GridSimError as exc:
+        raise RunError(f"--episode-seconds {config.episode_seconds:g} on {config.scenario}: "
+                       f"{exc}") from None
+    windows = None
+    if config.pretrain:
+        windows = _pretrain_data(config.pretrain)
+        problem = size_mismatch(probe.cfg, windows)
+        if problem:
+            raise RunError(f"--pretrain {config.pretrain}: {problem}")
+    elif config.pretrain_episodes:
+        _check_pretrain_episodes(config)
+    return _with_training_tracks(config, windows), windows
+
+
+def _pretrain_data(folder: str):
+    from neurotrajectory.windows import DatasetError, load_dataset
+
+    try:
+        return load_dataset(folder).windows
+    except DatasetError as exc:
+        raise RunError(f"--pretrain {folder}: {exc}") from None
+
+
+def _check_pretrain_episodes(config: TrainConfig) -> None:
+    from neurotrajectory.windows import is_recorded
+
+    if is_recorded(config.scenario):
+        raise RunError(f"--pretrain-episodes: {config.scenario!r} replays a recorded scene; "
+                       "record windows of its training tracks and pass them as "
+                       "--pretrain DATA")  # fmt: skip
+
+
+def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
+    """On a recorded scene with pre-training data (``windows``) and no ``ego_tracks``: the
+    data's tracks of that scene, so that the tracks held out of the data are never driven in
+    training."""
+    from neurotrajectory.windows import is_recorded
+
+    if config.ego_tracks or windows is None or not is_recorded(config.scenario):
         return config
     from gridsim.envs.gridsim_env import GridSimEnv
 
     scene = GridSimEnv(config.scenario).cfg.road.scene
-    try:
-        tracks = load_dataset(config.pretrain).windows.track
-    except DatasetError as exc:
-        raise RunError(f"--pretrain {config.pretrain}: {exc}") from None
+    tracks = windows.track
     ids = sorted({t.split("/", 1)[1] for t in np.unique(tracks) if t.startswith(scene + "/")})
     if not ids:
         raise RunError(f"--pretrain {config.pretrain} has no track of scene {scene!r}, which "

@@ -1,10 +1,13 @@
 """NeuroTrajectory training runs: end to end, resume, backends, bad input, early endings."""
 
+import io
 import json
+import shutil
 import signal
 import subprocess
 import sys
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -186,3 +189,125 @@ def test_training_improves_a_tiny_problem(tmp_path):
     Run.create(tmp_path / "run", cfg).train(progress=False)
     best = [min(f[0] for f in g["fitness"]) for g in history(tmp_path / "run")]
     assert best[-1] < 0.5 * best[0], best
+
+
+# -- run folders: nothing is written before every argument is checked ---------------------------
+
+QUICK = ["--preset", "tiny", "--population", "4", "--generations", "1", "--episodes", "1",
+         "--episode-seconds", "2", "--heldout", "0", "--quiet"]  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "bad, expected",
+    [
+        (["--scenario", "nope"], ["--scenario nope", "unknown scenario 'nope'"]),
+        (["--seed", "-3"], ["seed must be >= 0 (an integer), got -3"]),
+        (["--sigma", "nan"], ["sigma must be a finite number, got nan"]),
+        (["--sigma", "-0.1"], ["sigma must be > 0, got -0.1"]),
+        (["--workers", "0"], ["workers must be >= 1 (an integer), got 0"]),
+        (["--episode-seconds", "inf"], ["episode_seconds must be a finite number, got inf"]),
+        (["--episode-seconds", "5000"], ["--episode-seconds 5000", "simulation.duration", "3600"]),
+        (["--pretrain", "no-such-data"], ["--pretrain no-such-data", "not a dataset"]),
+        (["--pretrain-episodes", "2", "--scenario", "us101_3_3"], ["replays a recorded scene"]),
+        (["--video", "knee.avi"], ["--video knee.avi: unsupported extension '.avi'"]),
+        (["--video", "knee"], ["--video knee: unsupported extension '(none)'; use .mp4 or .gif"]),
+        (["--heldout", "-1"], ["--heldout must be >= 0, got -1"]),
+    ],
+)
+def test_bad_train_arguments_are_refused_before_the_run_folder_is_made(
+    tmp_path, capsys, monkeypatch, bad, expected
+):
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", *QUICK, "--out", "run", *bad]) == 2
+    err = capsys.readouterr().err
+    for text in expected:
+        assert text in err
+    assert not (tmp_path / "run").exists()  # the corrected command can use --out run
+
+
+def test_unusable_out_and_video_paths_are_refused_before_training(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    Path("afile").write_text("keep me")
+    cases = [
+        (["--out", "afile"], "--out afile: is a file, expected a folder"),
+        (["--out", "afile/run"], f"--out afile/run: {tmp_path / 'afile'} is a file, not a folder"),
+        (["--out", "run", "--video", "afile/knee.mp4"], f"{tmp_path / 'afile'} is a file"),
+        (["--out", "run", "--video", "."], "--video .: unsupported extension"),
+    ]
+    for args, text in cases:
+        assert main(["train", *QUICK, *args]) == 2
+        assert text in capsys.readouterr().err
+    assert Path("afile").read_text() == "keep me" and not Path("run").exists()
+    monkeypatch.setattr("gridsim.paths.os.access", lambda *a: False)
+    assert main(["train", *QUICK, "--out", "run"]) == 2
+    assert f"--out run: {tmp_path} is not writable" in capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def finished_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("finished") / "run"
+    cfg = TrainConfig(generations=2, validation_episodes=0, **TINY)
+    Run.create(out, cfg).train(progress=False)
+    return out
+
+
+def _copy(run, tmp_path):
+    return Path(shutil.copytree(run, tmp_path / "copy"))
+
+
+def test_resume_refuses_a_checkpoint_and_history_that_disagree(finished_run, tmp_path):
+    run = _copy(finished_run, tmp_path)
+    kept = (run / "checkpoint.npz").read_bytes()
+    (run / "checkpoint.npz").unlink()
+    with pytest.raises(RunError, match="history.json has 2 generations but checkpoint.npz is "
+                                       "missing"):  # fmt: skip
+        Run.open(run).train(progress=False)
+    assert len(history(run)) == 2  # not restarted from generation 0
+    (run / "checkpoint.npz").write_bytes(kept)
+    doc = json.loads((run / "history.json").read_text())
+    (run / "history.json").write_text(json.dumps({"generations": doc["generations"][:1]}))
+    with pytest.raises(RunError, match="history.json has 1 generations, checkpoint.npz 2"):
+        Run.open(run).train(progress=False)
+
+
+def test_resume_refuses_a_checkpoint_of_another_network(finished_run, tmp_path):
+    run = _copy(finished_run, tmp_path)
+    with np.load(run / "checkpoint.npz") as data:
+        arrays = dict(data)
+    arrays["population"] = arrays["population"][:, :-7]
+    np.savez(run / "checkpoint.npz", **arrays)
+    n = arrays["population"].shape[1] + 7
+    with pytest.raises(RunError, match=f"checkpoint.npz: genomes of {n - 7} weights, the "
+                                       f"network has {n}"):  # fmt: skip
+        Run.open(run).train(progress=False)
+
+
+def test_resume_refuses_another_out_and_fewer_generations(finished_run, tmp_path, capsys):
+    run = _copy(finished_run, tmp_path)
+    before = (run / "config.json").read_text()
+    assert main(["train", "--resume", str(run), "--out", str(tmp_path / "elsewhere")]) == 2
+    assert f"--out {tmp_path / 'elsewhere'} with --resume {run}" in capsys.readouterr().err
+    assert not (tmp_path / "elsewhere").exists()
+    assert main(["train", "--resume", str(run), "--generations", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "--generations 1 is fewer than the 2 generations the run has done" in err
+    assert (run / "config.json").read_text() == before
+
+
+def test_broken_run_files_give_clear_errors(finished_run, tmp_path, capsys):
+    run = _copy(finished_run, tmp_path)
+    good = (run / "front.npz").read_bytes()
+    (run / "front.npz").write_bytes(good[: len(good) // 2])
+    assert main(["rollout", "--run", str(run), "--video", str(tmp_path / "v.gif")]) == 2
+    assert f"{run / 'front.npz'}: unreadable front (BadZipFile" in capsys.readouterr().err
+    with np.load(io.BytesIO(good)) as data:
+        arrays = dict(data)
+    arrays["genomes"] = np.zeros((1, 10), np.float32)  # as if saved with another preset
+    np.savez(run / "front.npz", **arrays)
+    assert main(["rollout", "--run", str(run), "--video", str(tmp_path / "v.gif")]) == 2
+    assert "front.npz: genomes of 10 weights, the network has" in capsys.readouterr().err
+    (run / "config.json").write_text("[1, 2]")
+    assert main(["rollout", "--run", str(run)]) == 2
+    assert "config.json: expected an object with 'format' and 'train', got a list" in (
+        capsys.readouterr().err
+    )
