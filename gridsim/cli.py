@@ -12,6 +12,23 @@ from gridsim.errors import GridSimError
 POLICY_NAMES = ("idle", "reference", "lane-follow", "random")
 
 
+def at_least(minimum: int):
+    """An argparse type: an integer >= ``minimum``. argparse names the option in its error
+    (``argument --seed: expected an integer >= 0, got -3``) and exits with status 2."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            value = None
+        if value is None or value < minimum:
+            raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {text!r}")
+        return value
+
+    parse.__name__ = f"integer >= {minimum}"
+    return parse
+
+
 def _cmd_scenarios(args: argparse.Namespace) -> int:
     from gridsim.scenario.loader import builtin_scenarios
 
@@ -58,9 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
     s.set_defaults(func=_cmd_validate)
     s = sub.add_parser("run", help="drive a policy in GridSim-v0, print a summary, export a video")
     s.add_argument("--scenario", default="seamless", help="built-in name or YAML path")
-    s.add_argument("--steps", type=int, default=300, help="decisions to run at most")
+    s.add_argument("--steps", type=at_least(1), default=300, help="decisions to run at most")
     s.add_argument("--policy", default="reference", choices=POLICY_NAMES)
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
     s.add_argument("--video", default=None, help="write a video (.mp4, or .gif)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=_cmd_run)
@@ -69,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     s.add_argument("--scenario", default="seamless", help="built-in name or YAML path")
     s.add_argument("--seconds", type=float, default=20.0, help="simulated time [s]")
-    s.add_argument("--seed", type=int, default=0)
+    s.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
     s.add_argument("--out", default="out/drive", help="output folder")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=_cmd_drive)

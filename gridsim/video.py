@@ -90,6 +90,8 @@ def record_rollout(
     With a ``path``, the env must be made with ``render_mode="rgb_array"``; one frame per
     step (plus the first) is written at the environment's real rate. Returns the video path
     (``None`` without one) and the infos of all steps, each with its ``"reward"``."""
+    if steps < 1:
+        raise GridSimError(f"steps must be >= 1, got {steps}")
     if path is not None and getattr(env, "render_mode", None) != "rgb_array":
         raise GridSimError("record_rollout needs an environment made with render_mode='rgb_array'")
     obs, info = env.reset(seed=seed)

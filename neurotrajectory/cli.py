@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+from gridsim.cli import at_least
 from gridsim.errors import GridSimError
 from neurotrajectory.backends import BACKENDS, BackendError
 from neurotrajectory.front import PICKS
@@ -31,8 +32,6 @@ def _cmd_train(args: argparse.Namespace) -> int:
     if moved:
         raise RunError(f"--out {args.out} with --resume {args.resume}: a resumed run stays in "
                        "its folder; leave out --out (or drop --resume for a new run)")  # fmt: skip
-    if args.heldout < 0:
-        raise RunError(f"--heldout must be >= 0, got {args.heldout}")
     if args.video:
         _check_video(args.video)
     if args.resume:
@@ -164,16 +163,17 @@ def build_parser() -> argparse.ArgumentParser:
     t = sub.add_parser("train", help="evolve a population in GridSim-v0")
     t.add_argument("--scenario", default=None, help="built-in name or YAML path (default seamless)")
     t.add_argument("--preset", default=None, choices=sorted(PRESETS))
-    t.add_argument("--population", type=int, default=None)
-    t.add_argument("--generations", type=int, default=None)
-    t.add_argument("--episodes", type=int, default=None, help="evaluation episodes per individual")
+    t.add_argument("--population", type=at_least(2), default=None)
+    t.add_argument("--generations", type=at_least(1), default=None)
+    t.add_argument("--episodes", type=at_least(1), default=None,
+                   help="evaluation episodes per individual")
     t.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None)
     t.add_argument("--sigma", type=float, default=None, help="mutation noise scale")
-    t.add_argument("--seed", type=int, default=None)
+    t.add_argument("--seed", type=at_least(0), default=None)
     t.add_argument("--backend", default=None, choices=BACKENDS)
-    t.add_argument("--workers", type=int, default=None)
+    t.add_argument("--workers", type=at_least(1), default=None)
     t.add_argument("--ray-address", dest="ray_address", default=None)
-    t.add_argument("--batch", type=int, default=None,
+    t.add_argument("--batch", type=at_least(1), default=None,
                    help="individuals each worker evaluates together (default 16)")  # fmt: skip
     t.add_argument(
         "--pretrain",
@@ -184,7 +184,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument(
         "--pretrain-episodes",
         dest="pretrain_episodes",
-        type=int,
+        type=at_least(0),
         default=None,
         metavar="N",
         help="first fit the network to N episodes of the scenario recorded now (30 s each, "
@@ -193,7 +193,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument(
         "--pretrain-epochs",
         dest="pretrain_epochs",
-        type=int,
+        type=at_least(1),
         default=None,
         help="epochs of the warm start's fit (default 20)",
     )
@@ -251,7 +251,7 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument(
         "--validation-episodes",
         dest="validation_episodes",
-        type=int,
+        type=at_least(0),
         default=None,
         metavar="N",
         help="choose the final front on N more training episodes (default 8; 0: the last "
@@ -259,7 +259,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     t.add_argument(
         "--heldout",
-        type=int,
+        type=at_least(0),
         default=20,
         metavar="N",
         help="after training, drive the knee member on N held-out episodes "
@@ -271,22 +271,24 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--run", required=True)
     r.add_argument("--pick", default="knee", choices=PICKS)
     r.add_argument("--video", default="rollout.mp4")
-    r.add_argument("--seed", type=int, default=0)
-    r.add_argument("--steps", type=int, default=None)
+    r.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
+    r.add_argument("--steps", type=at_least(1), default=None,
+                   help="decisions to drive at most (default: the run's episode length)")
     r.set_defaults(func=_cmd_rollout)
     d = sub.add_parser("record", help="record labelled windows of human driving")
     d.add_argument("--scenario", required=True,
                    help=f"a scenario group ({', '.join(GROUPS)}), a built-in scenario or a "
                         "YAML path; recorded scenes drive every track once")  # fmt: skip
-    d.add_argument("--episodes", type=int, default=8, help="episodes per generated scenario")
+    d.add_argument("--episodes", type=at_least(1), default=8,
+                   help="episodes per generated scenario")
     d.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None)
     d.add_argument(
         "--stride",
-        type=int,
+        type=at_least(1),
         default=None,
         help="decisions between windows (default 1 on recorded scenes, else 5)",
     )
-    d.add_argument("--seed", type=int, default=0)
+    d.add_argument("--seed", type=at_least(0), default=0)
     d.add_argument(
         "--split",
         choices=["train", "test"],
@@ -315,19 +317,20 @@ def build_parser() -> argparse.ArgumentParser:
         help="folder with one recorded dataset per group (default: record them)",
     )
     e.add_argument("--groups", nargs="+", default=list(GROUPS), choices=list(GROUPS))
-    e.add_argument("--episodes", type=int, default=8)
+    e.add_argument("--episodes", type=at_least(1), default=8)
     e.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=30.0)
     e.add_argument("--test-fraction", dest="test_fraction", type=float, default=0.3)
     e.add_argument("--pick", default="knee", choices=PICKS)
-    e.add_argument("--e2e-epochs", dest="e2e_epochs", type=int, default=8)
-    e.add_argument("--closed-loop-episodes", dest="closed_loop_episodes", type=int, default=3)
+    e.add_argument("--e2e-epochs", dest="e2e_epochs", type=at_least(1), default=8)
+    e.add_argument("--closed-loop-episodes", dest="closed_loop_episodes", type=at_least(0),
+                   default=3)
     e.add_argument("--closed-loop-seconds", dest="closed_loop_seconds", type=float, default=20.0)
     e.add_argument(
         "--videos",
         action="store_true",
         help="export each method's first closed-loop episode to <out>/videos/",
     )
-    e.add_argument("--seed", type=int, default=0)
+    e.add_argument("--seed", type=at_least(0), default=0)
     e.add_argument("--quiet", action="store_true")
     e.set_defaults(func=_cmd_evaluate)
     return p

@@ -10,6 +10,9 @@ import gymnasium as gym
 import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 import gridsim
 from gridsim.envs import ENV_ID, register_envs
@@ -240,3 +243,61 @@ def test_gridsim_never_imports_torch():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+@pytest.mark.parametrize(
+    "action_type, action, message",
+    [
+        ("discrete", np.inf, "discrete action contains NaN or infinite values: inf"),
+        ("discrete", -np.inf, "discrete action contains NaN or infinite values: -inf"),
+        ("discrete", True, "discrete action must hold real numbers (integers or floats), got "
+                           "dtype bool"),
+        ("discrete", 2.5, "discrete action must be an integer in [0, 4], got 2.5"),
+        ("discrete", "1", "discrete action must hold real numbers"),
+        ("control", np.array([1 + 2j, 0]), "control action must hold real numbers (integers or "
+                                           "floats), got dtype complex128"),
+        ("control", np.array([True, False]), "got dtype bool"),
+        ("trajectory", np.zeros((5, 2), complex), "trajectory action must hold real numbers"),
+        ("trajectory", [[1.0, 2.0], [3.0]], "trajectory action must be an array of numbers"),
+    ],
+)  # fmt: skip
+def test_actions_of_the_wrong_kind_raise_value_errors_naming_them(action_type, action, message):
+    env = GridSimEnv(action_type=action_type, **SHORT)
+    env.reset(seed=0)
+    with pytest.raises(ValueError) as info:
+        env.step(action)
+    assert message in str(info.value)
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    data=st.data(),
+    dtype=st.sampled_from(["float32", "float64", "int8", "int64", "uint8", "bool", "complex64",
+                           "float16"]),  # fmt: skip
+    shape=st.sampled_from([(), (1,), (2,), (5, 2), (2, 5), (5, 2, 1), (0,)]),
+    action_type=st.sampled_from(["trajectory", "control", "discrete"]),
+)
+def test_actions_of_any_dtype_and_shape_step_or_raise_value_error(data, dtype, shape, action_type):
+    env = FUZZ_ENVS.setdefault(action_type, GridSimEnv(action_type=action_type, **SHORT))
+    if env.world is None:
+        env.reset(seed=0)
+    action = data.draw(hnp.arrays(np.dtype(dtype), shape))
+    try:
+        obs, r, term, trunc, info = env.step(action)
+    except ValueError as exc:
+        assert f"{action_type} action" in str(exc)
+        return
+    assert env.observation_space.contains(obs) and np.all(np.isfinite(r))
+    if term or trunc:
+        env.reset(seed=1)
+
+
+FUZZ_ENVS: dict = {}
+
+
+@pytest.mark.parametrize("scenario", [None, 123, 4.5])
+def test_a_scenario_that_is_not_a_name_or_path(scenario):
+    with pytest.raises(ScenarioError) as info:
+        gym.make(ENV_ID, scenario=scenario)
+    assert str(info.value) == (f"scenario must be a built-in name, a YAML path or a Scenario, "
+                               f"got {scenario!r} ({type(scenario).__name__})")  # fmt: skip

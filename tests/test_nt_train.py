@@ -193,6 +193,14 @@ def test_training_improves_a_tiny_problem(tmp_path):
 
 # -- run folders: nothing is written before every argument is checked ---------------------------
 
+def cli(argv):
+    """The exit status of ``neurotrajectory ARGV`` (argparse exits on bad option values)."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
 QUICK = ["--preset", "tiny", "--population", "4", "--generations", "1", "--episodes", "1",
          "--episode-seconds", "2", "--heldout", "0", "--quiet"]  # fmt: skip
 
@@ -201,28 +209,45 @@ QUICK = ["--preset", "tiny", "--population", "4", "--generations", "1", "--episo
     "bad, expected",
     [
         (["--scenario", "nope"], ["--scenario nope", "unknown scenario 'nope'"]),
-        (["--seed", "-3"], ["seed must be >= 0 (an integer), got -3"]),
+        (["--seed", "-3"], ["argument --seed: expected an integer >= 0, got '-3'"]),
+        (["--seed", "x"], ["argument --seed: expected an integer >= 0, got 'x'"]),
+        (["--population", "1"], ["argument --population: expected an integer >= 2, got '1'"]),
         (["--sigma", "nan"], ["sigma must be a finite number, got nan"]),
         (["--sigma", "-0.1"], ["sigma must be > 0, got -0.1"]),
-        (["--workers", "0"], ["workers must be >= 1 (an integer), got 0"]),
+        (["--workers", "0"], ["argument --workers: expected an integer >= 1, got '0'"]),
         (["--episode-seconds", "inf"], ["episode_seconds must be a finite number, got inf"]),
         (["--episode-seconds", "5000"], ["--episode-seconds 5000", "simulation.duration", "3600"]),
         (["--pretrain", "no-such-data"], ["--pretrain no-such-data", "not a dataset"]),
         (["--pretrain-episodes", "2", "--scenario", "us101_3_3"], ["replays a recorded scene"]),
         (["--video", "knee.avi"], ["--video knee.avi: unsupported extension '.avi'"]),
         (["--video", "knee"], ["--video knee: unsupported extension '(none)'; use .mp4 or .gif"]),
-        (["--heldout", "-1"], ["--heldout must be >= 0, got -1"]),
+        (["--heldout", "-1"], ["argument --heldout: expected an integer >= 0, got '-1'"]),
     ],
 )
 def test_bad_train_arguments_are_refused_before_the_run_folder_is_made(
     tmp_path, capsys, monkeypatch, bad, expected
 ):
     monkeypatch.chdir(tmp_path)
-    assert main(["train", *QUICK, "--out", "run", *bad]) == 2
+    assert cli(["train", *QUICK, "--out", "run", *bad]) == 2
     err = capsys.readouterr().err
     for text in expected:
         assert text in err
     assert not (tmp_path / "run").exists()  # the corrected command can use --out run
+
+
+def test_train_config_checks_every_field():
+    for bad, text in [
+        ({"seed": -3}, "seed must be >= 0 (an integer), got -3"),
+        ({"seed": 1.5}, "seed must be >= 0 (an integer), got 1.5"),
+        ({"workers": 0}, "workers must be >= 1 (an integer), got 0"),
+        ({"sigma": float("inf")}, "sigma must be a finite number, got inf"),
+        ({"episode_seconds": float("nan")}, "episode_seconds must be a finite number, got nan"),
+        ({"backend": "gpu"}, "unknown backend 'gpu'; choose from ['local', 'processes', 'ray']"),
+        ({"elite_fraction": 1.0}, "elite_fraction must be in (0, 1), got 1.0"),
+    ]:
+        with pytest.raises(RunError) as info:
+            TrainConfig(**bad)
+        assert text in str(info.value)
 
 
 def test_unusable_out_and_video_paths_are_refused_before_training(tmp_path, capsys, monkeypatch):

@@ -166,3 +166,22 @@ def test_tracking_projection_equals_full_projection():
         assert got[0] == pytest.approx(s_ref[0], abs=1e-9)
         assert got[1] == pytest.approx(d_ref[0], abs=1e-9)
         hint = got[2]
+
+
+@pytest.mark.parametrize(
+    "x, message",
+    [
+        ("1e308", r"lanelet 1 leftBound: coordinate 1e\+308 m is beyond \+-1e\+07 m"),
+        ("1e6", r"far.xml: the road spans 1e\+06 m x .* more than 1e\+08"),
+    ],
+)
+def test_far_away_map_coordinates_are_refused(tmp_path, x, message):
+    def bound(name, y):
+        pts = "".join(f"<point><x>{px}</x><y>{y}</y></point>" for px in ("0", "10", x))
+        return f"<{name}>{pts}</{name}>"
+
+    path = tmp_path / "far.xml"
+    path.write_text(f"<commonRoad><lanelet id='1'>{bound('leftBound', 3.5)}"
+                    f"{bound('rightBound', 0)}</lanelet></commonRoad>")  # fmt: skip
+    with pytest.raises(DataError, match=message):
+        load_lanelet_road(path)

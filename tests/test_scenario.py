@@ -245,3 +245,17 @@ def test_random_yaml_text_only_raises_scenario_errors(tmp_path_factory, text):
         load_scenario(p)
     except ScenarioError as exc:
         assert str(p) in str(exc)
+
+
+def test_duplicate_keys_are_refused_with_both_lines(tmp_path):
+    p = tmp_path / "twice.yaml"
+    p.write_text("name: twice\ntraffic:\n  participants: 3\nsimulation:\n  duration: 5\n"
+                 "traffic:\n  participants: 4\n")  # fmt: skip
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(p)
+    assert "twice.yaml" in str(info.value)
+    assert "duplicate key 'traffic' (first at line 2, again at line 6)" in str(info.value)
+    p.write_text("name: twice\ntraffic:\n  participants: 3\n  participants: 4\n")
+    with pytest.raises(ScenarioError, match=r"duplicate key 'participants' \(first at line 3, "
+                                            r"again at line 4\)"):  # fmt: skip
+        load_scenario(p)

@@ -237,3 +237,23 @@ def test_table_bank_lookup_matches_numpy_interp():
             [np.interp(v, tables[k][1], tables[k][2]) for k, v in zip(slot, q, strict=True)]
         )
         np.testing.assert_allclose(got, ref, atol=1e-9)
+
+
+def test_csv_not_in_utf8_names_the_file(tmp_path):
+    p = tmp_path / "latin1.csv"
+    p.write_bytes((HEADER + "\nStra\xdfe,1,0,0,0,0,10,4.5,1.8\n").encode("latin-1"))
+    with pytest.raises(DataError, match=r"latin1.csv: not a UTF-8 text file \(byte \d+"):
+        read_tracks_csv(p)
+
+
+def test_a_csv_edited_on_disk_is_read_again(tmp_path):
+    from gridsim.scenario.build import library_for
+    from gridsim.scenario.loader import load_scenario
+
+    rows = [f"s,1,{k * 0.1:.1f},{k:.1f},0,0,10,4.5,1.8" for k in range(40)]
+    write_csv(tmp_path, rows)
+    scenario = tmp_path / "mine.yaml"
+    scenario.write_text("name: mine\nroad: {type: seamless}\ntraffic:\n  library: [tracks.csv]\n")
+    assert [t.track_id for t in library_for(load_scenario(scenario)).tracks] == ["1"]
+    write_csv(tmp_path, rows + [r.replace("s,1,", "s,2,") for r in rows])
+    assert [t.track_id for t in library_for(load_scenario(scenario)).tracks] == ["1", "2"]

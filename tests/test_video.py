@@ -44,8 +44,14 @@ def test_rollout_video_is_readable_with_the_right_frame_count(tmp_path, suffix):
 
 
 def test_video_writer_rejects_bad_input(tmp_path):
-    with pytest.raises(GridSimError, match=r"\.mp4 or \.gif"):
+    with pytest.raises(GridSimError, match=r"x.avi: unsupported extension '.avi'; use \.mp4"):
         VideoWriter(tmp_path / "x.avi", 10)
+    (tmp_path / "afile").write_text("")
+    with pytest.raises(GridSimError, match=r"afile/x.gif: .*afile is a file, not a folder"):
+        VideoWriter(tmp_path / "afile" / "x.gif", 10)
+    (tmp_path / "dir.gif").mkdir()
+    with pytest.raises(GridSimError, match="dir.gif: is a folder, expected a file"):
+        VideoWriter(tmp_path / "dir.gif", 10)
     with pytest.raises(GridSimError, match="fps"):
         VideoWriter(tmp_path / "x.gif", 0)
     with VideoWriter(tmp_path / "x.gif", 10) as v, pytest.raises(GridSimError, match="uint8"):
@@ -53,6 +59,8 @@ def test_video_writer_rejects_bad_input(tmp_path):
     env = gym.make(ENV_ID)
     with pytest.raises(GridSimError, match="render_mode='rgb_array'"):
         record_rollout(env, Reference(), tmp_path / "y.gif", 3)
+    with pytest.raises(GridSimError, match="steps must be >= 1, got 0"):
+        record_rollout(env, Reference(), None, 0)
 
 
 def test_gymnasium_record_video_wrapper(tmp_path):
@@ -84,5 +92,10 @@ def test_run_command(tmp_path, capsys):
     for policy in ("idle", "random", "reference"):
         assert main(["run", "--steps", "5", "--policy", policy, "--quiet"]) == 0
     capsys.readouterr()
-    assert main(["run", "--steps", "0", "--quiet"]) == 2
-    assert "--steps must be >= 1" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as info:
+        main(["run", "--steps", "0", "--quiet"])
+    assert info.value.code == 2
+    assert "argument --steps: expected an integer >= 1, got '0'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["run", "--seed", "-3", "--quiet"])
+    assert "argument --seed: expected an integer >= 0, got '-3'" in capsys.readouterr().err

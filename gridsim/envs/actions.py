@@ -23,10 +23,20 @@ Controller = Callable[[object], tuple[float, float]]  # world -> (accel, steer r
 TRACKING_GAINS = PursuitGains(min_lookahead=2.5, lookahead_time=0.4)
 
 
-def _check_finite(action: np.ndarray) -> np.ndarray:
-    a = np.asarray(action, dtype=np.float64)
+def _real(action, kind: str) -> np.ndarray:
+    """``action`` as float64; a ``ValueError`` naming the action unless it holds finite real
+    numbers (integers or floats: not booleans, complex numbers, strings or ragged lists)."""
+    try:
+        raw = np.asarray(action)
+    except (ValueError, TypeError) as exc:  # ragged nested sequences
+        raise ValueError(f"{kind} action must be an array of numbers, got {action!r} "
+                         f"({exc})") from None  # fmt: skip
+    if raw.dtype.kind not in "iuf":
+        raise ValueError(f"{kind} action must hold real numbers (integers or floats), got dtype "
+                         f"{raw.dtype}: {raw.tolist()!r}")  # fmt: skip
+    a = raw.astype(np.float64)
     if not np.all(np.isfinite(a)):
-        raise ValueError(f"action contains NaN or infinite values: {np.asarray(action).tolist()}")
+        raise ValueError(f"{kind} action contains NaN or infinite values: {raw.tolist()}")
     return a
 
 
@@ -80,7 +90,7 @@ class TrajectoryAction(ActionType):
         return spaces.Box(-reach, reach, (self.horizon, 2), np.float32)
 
     def controller(self, world, action, rotation):
-        a = _check_finite(action)
+        a = _real(action, "trajectory")
         if a.shape != (self.horizon, 2):
             raise ValueError(
                 f"trajectory action must have shape ({self.horizon}, 2), got {a.shape}"
@@ -118,7 +128,7 @@ class ControlAction(ActionType):
         )
 
     def controller(self, world, action, rotation):
-        a = _check_finite(action)
+        a = _real(action, "control")
         if a.shape != (2,):
             raise ValueError(f"control action must have shape (2,), got {a.shape}")
         accel, rate = float(a[0]), float(a[1])
@@ -142,13 +152,9 @@ class DiscreteAction(ActionType):
         return spaces.Discrete(len(self.NAMES))
 
     def controller(self, world, action, rotation):
-        try:
-            k = int(action)
-        except (TypeError, ValueError):
-            raise ValueError(
-                f"discrete action must be an integer in [0, 4], got {action!r}"
-            ) from None
-        if not 0 <= k < len(self.NAMES) or k != action:
+        a = _real(action, "discrete")
+        k = int(a.item()) if a.size == 1 else -1
+        if not 0 <= k < len(self.NAMES) or k != a.item():
             raise ValueError(f"discrete action must be an integer in [0, 4], got {action!r}")
         p = self.params
         rate = np.deg2rad(self.STEER_STEP_DEG) / self.decision_period

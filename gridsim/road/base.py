@@ -13,7 +13,12 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from gridsim.errors import DataError
 from gridsim.road.polyline import Polyline
+
+#: The most cells of a static road's drivable-area raster (1e8: 2 km x 2 km at 0.2 m; the
+#: built-in maps have about 2e6).
+MAX_RASTER_CELLS = 10**8
 
 
 @dataclass
@@ -126,6 +131,11 @@ class StaticRoad(Road):
         margin = 2.0
         self._origin = self._poly_boxes[:, :2].min(axis=0) - margin
         extent = self._poly_boxes[:, 2:].max(axis=0) + margin - self._origin
+        cells = float(np.prod(np.ceil(extent / resolution) + 1))
+        if not cells <= MAX_RASTER_CELLS:
+            raise DataError(f"the road spans {extent[0]:.3g} m x {extent[1]:.3g} m: at "
+                            f"{resolution} m a raster of {cells:.3g} cells, more than "
+                            f"{MAX_RASTER_CELLS:.0e}; is a coordinate wrong?")  # fmt: skip
         w, h = (np.ceil(extent / resolution)).astype(int) + 1
         self._raster = np.zeros((h, w), np.uint8)
         for poly in self._polygons:  # one call per polygon: a multi-polygon call XORs overlaps

@@ -17,6 +17,9 @@ from gridsim.errors import DataError
 from gridsim.road.base import Lane, StaticRoad
 from gridsim.road.polyline import Polyline
 
+#: The largest map coordinate accepted [m] (UTM coordinates are below 1e7).
+MAX_COORDINATE = 1e7
+
 
 def _points(bound: ET.Element, where: str) -> np.ndarray:
     pts = []
@@ -30,6 +33,9 @@ def _points(bound: ET.Element, where: str) -> np.ndarray:
     arr = np.array(pts)
     if not np.all(np.isfinite(arr)):
         raise DataError(f"{where}: non-finite coordinates")
+    if np.abs(arr).max() > MAX_COORDINATE:
+        raise DataError(f"{where}: coordinate {arr.flat[np.abs(arr).argmax()]:g} m is beyond "
+                        f"+-{MAX_COORDINATE:g} m")  # fmt: skip
     return arr
 
 
@@ -71,4 +77,7 @@ def load_lanelet_road(path: str | Path) -> StaticRoad:
         lanes.append(Lane(Polyline(centre), width))
     if not polygons:
         raise DataError(f"{path}: no <lanelet> elements")
-    return StaticRoad(lanes, polygons, markings, open_ends=np.array(ends).reshape(-1, 4))
+    try:
+        return StaticRoad(lanes, polygons, markings, open_ends=np.array(ends).reshape(-1, 4))
+    except DataError as exc:
+        raise DataError(f"{path}: {exc}") from None

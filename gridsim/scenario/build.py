@@ -100,28 +100,35 @@ def _resolve(scenario: Scenario, ref: str, builtin_dir: tuple[str, ...], suffix:
     return path
 
 
+def _stamped(path: Path) -> tuple[str, int, int]:
+    """A file as a cache key: its path, modification time and size, so that a file edited
+    on disk is read again."""
+    st = path.stat()
+    return str(path), st.st_mtime_ns, st.st_size
+
+
 def library_for(scenario: Scenario) -> TrajectoryLibrary:
-    paths = []
+    files = []
     for ref in scenario.config.traffic.library:
         if ref == "builtin":
-            paths.append("builtin")
+            files.append("builtin")
         else:
-            paths.append(str(_resolve(scenario, ref, ("data", "ngsim"), ".csv")))
-    return _library(tuple(paths))
+            files.append(_stamped(_resolve(scenario, ref, ("data", "ngsim"), ".csv")))
+    return _library(tuple(files))
 
 
 @lru_cache(maxsize=8)
-def _library(paths: tuple[str, ...]) -> TrajectoryLibrary:
+def _library(files: tuple) -> TrajectoryLibrary:
     tracks = []
-    for p in paths:
-        lib = TrajectoryLibrary.builtin() if p == "builtin" else TrajectoryLibrary.from_csv(p)
+    for f in files:
+        lib = TrajectoryLibrary.builtin() if f == "builtin" else TrajectoryLibrary.from_csv(f[0])
         tracks += lib.tracks
     return TrajectoryLibrary(tracks)
 
 
 @lru_cache(maxsize=8)
-def _lanelet_road(path: str):
-    return load_lanelet_road(path)
+def _lanelet_road(file: tuple[str, int, int]):
+    return load_lanelet_road(file[0])
 
 
 @lru_cache(maxsize=4)
@@ -218,7 +225,7 @@ def _build_recorded(scenario: Scenario, seed: int) -> World:
     rc: RecordedRoadConfig = cfg.road
     _, traffic_rng, ego_rng = _seeds(seed)
     road = _lanelet_road(
-        str(_resolve(scenario, rc.map, ("data", "ngsim", "commonroad-xml"), ".xml"))
+        _stamped(_resolve(scenario, rc.map, ("data", "ngsim", "commonroad-xml"), ".xml"))
     )
     tracks = library_for(scenario).scene(rc.scene)
     ego_track = _pick_ego_track(scenario, tracks, road, ego_rng)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
@@ -16,6 +17,31 @@ from gridsim.scenario.schema import ScenarioConfig
 
 _BUILTIN_DIR = ("data", "scenarios")
 _ROAD_TAGS = ("seamless", "inner_city", "recorded")
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """YAML's safe loader, refusing a key given twice in one mapping (YAML would keep the
+    last silently, and a second ``traffic:`` block would replace the first)."""
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            first: dict = {}
+            for key_node, _ in node.value:
+                if key_node.tag == "tag:yaml.org,2002:merge":
+                    continue
+                key = self.construct_object(key_node, deep=True)
+                try:
+                    seen = first.setdefault(key, key_node.start_mark)
+                except TypeError:  # unhashable: the base loader names it
+                    continue
+                if seen is not key_node.start_mark:
+                    raise yaml.constructor.ConstructorError(
+                        None, None,
+                        f"duplicate key {key!r} (first at line {seen.line + 1}, again at line "
+                        f"{key_node.start_mark.line + 1})",
+                        key_node.start_mark,
+                    )  # fmt: skip
+        return super().construct_mapping(node, deep=deep)
 
 
 @dataclass(frozen=True)
@@ -97,7 +123,7 @@ def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None 
     """Load a built-in scenario by name (``"seamless"``) or a YAML file by path."""
     text, source, base = _read(name_or_path)
     try:
-        doc = yaml.safe_load(text)
+        doc = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a safe loader
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
@@ -107,6 +133,9 @@ def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None 
 
 
 def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
+    if not isinstance(name_or_path, str | os.PathLike):
+        raise ScenarioError(f"scenario must be a built-in name, a YAML path or a Scenario, got "
+                            f"{name_or_path!r} ({type(name_or_path).__name__})")  # fmt: skip
     p = Path(name_or_path)
     looks_like_path = p.suffix in (".yaml", ".yml") or len(p.parts) > 1
     if looks_like_path:

@@ -141,7 +141,15 @@ def read_tracks_csv(path: str | Path) -> list[Track]:
     path = Path(path)
     if not path.is_file():
         raise DataError(f"trajectory file not found: {path}")
-    with path.open(newline="") as fh:
+    try:
+        return _parse_tracks_csv(path)
+    except UnicodeDecodeError as exc:
+        raise DataError(f"{path}: not a UTF-8 text file (byte {exc.start}: {exc.reason}); "
+                        "save the CSV as UTF-8") from None
+
+
+def _parse_tracks_csv(path: Path) -> list[Track]:
+    with path.open(newline="", encoding="utf-8") as fh:
         reader = csv.DictReader(fh)
         header = reader.fieldnames or []
         missing = [c for c in REQUIRED_COLUMNS if c not in header]
