@@ -301,3 +301,28 @@ def test_a_scenario_that_is_not_a_name_or_path(scenario):
         gym.make(ENV_ID, scenario=scenario)
     assert str(info.value) == (f"scenario must be a built-in name, a YAML path or a Scenario, "
                                f"got {scenario!r} ({type(scenario).__name__})")  # fmt: skip
+
+
+def test_human_rendering_is_refused_with_the_alternatives():
+    for make_it in (lambda: gym.make(ENV_ID, render_mode="human"),
+                    lambda: GridSimEnv(render_mode="human")):  # fmt: skip
+        with pytest.raises(ValueError) as info:
+            make_it()
+        message = str(info.value)
+        assert "got 'human'" in message and "never opens a window" in message
+        assert "'rgb_array'" in message and "--video" in message
+
+
+def test_step_after_termination_is_refused_until_reset():
+    env = GridSimEnv(action_type="control", **SHORT)
+    env.reset(seed=0)
+    terminated = False
+    for _ in range(40):  # full throttle, full lock: off the road
+        *_, terminated, truncated, info = env.step(np.array([2.0, 1.0]))
+        if terminated or truncated:
+            break
+    assert terminated and (info["off_road"] or info["collision"])
+    with pytest.raises(RuntimeError, match=r"the episode has terminated .*call reset\(\)"):
+        env.step(np.zeros(2))
+    env.reset(seed=0)
+    env.step(np.zeros(2))

@@ -259,3 +259,31 @@ def test_duplicate_keys_are_refused_with_both_lines(tmp_path):
     with pytest.raises(ScenarioError, match=r"duplicate key 'participants' \(first at line 3, "
                                             r"again at line 4\)"):  # fmt: skip
         load_scenario(p)
+
+
+@pytest.mark.parametrize(
+    "patch, message",
+    [
+        ({"ego": {"speed": 1e9}}, "ego.speed (1000000000.0) must be <= ego.vehicle.v_max (13.88)"),
+        ({"simulation": {"dt": 1e-9}}, "simulation.dt: Input should be greater than or equal "
+                                       "to 0.001"),
+        ({"simulation": {"dt": 0.002, "duration": 600}},
+         "duration / dt = 600 / 0.002 = 300000 ticks, more than 100000"),
+    ],
+)  # fmt: skip
+def test_nonsense_speeds_and_time_steps_are_refused(patch, message):
+    with pytest.raises(ScenarioError) as info:
+        load_scenario("seamless", patch)
+    assert message in str(info.value)
+
+
+def test_more_participants_than_fit_are_refused():
+    sc = load_scenario("seamless", {"traffic": {"participants": 500}})
+    with pytest.raises(ScenarioError) as info:
+        build_world(sc, 0)
+    assert "traffic.participants 500 is more than the " in str(info.value)
+    assert "vehicles that fit in traffic.window [80, 160] m on 3 lane(s)" in str(info.value)
+    capacity = int(str(info.value).split("more than the ")[1].split()[0])
+    full = load_scenario("seamless", {"traffic": {"participants": capacity}})
+    for seed in range(4):
+        assert build_world(full, seed).traffic.fleet.active.sum() == capacity

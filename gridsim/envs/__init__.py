@@ -12,7 +12,9 @@ def register_envs() -> None:
     if ENV_ID not in gymnasium.registry:
         gymnasium.register(
             id=ENV_ID,
-            entry_point="gridsim.envs.gridsim_env:GridSimEnv",
+            # a function, not the class: gymnasium would wrap render_mode="human" around the
+            # class's rgb_array frames and open a pygame window; GridSimEnv refuses it
+            entry_point="gridsim.envs.gridsim_env:make_env",
             # The reward is a vector (MO-Gymnasium style); gymnasium's passive checker would
             # warn on every step. check_env is run in the test suite instead.
             disable_env_checker=True,

@@ -73,7 +73,11 @@ class GridSimEnv(gym.Env):
         else:
             self.scenario = load_scenario(scenario, overrides)
         if render_mode not in (None, "rgb_array"):
-            raise ValueError(f"render_mode must be None or 'rgb_array', got {render_mode!r}")
+            raise ValueError(
+                f"render_mode must be None or 'rgb_array', got {render_mode!r}: GridSim never "
+                "opens a window; render 'rgb_array' frames with env.render() or export a video "
+                "(gridsim.video.record_rollout, `gridsim run --video out.mp4`)"
+            )
         if action_type not in ACTION_TYPES:
             raise ValueError(
                 f"action_type must be one of {sorted(ACTION_TYPES)}, got {action_type!r}"
@@ -120,6 +124,7 @@ class GridSimEnv(gym.Env):
         self._last_accel = self._last_rate = 0.0
         self._last_plan = None
         self._travelled = 0.0
+        self._terminated = False
         grid = observe(self.sensor, self.world)
         self._grids[:] = grid[None]
         self._look_ahead()
@@ -164,6 +169,9 @@ class GridSimEnv(gym.Env):
         """
         if self.world is None:
             raise RuntimeError("call reset() before step()")
+        if self._terminated:
+            raise RuntimeError("the episode has terminated (collision, off-road or destination "
+                               "reached): call reset() before step()")  # fmt: skip
         world = self.world
         rotation = grid_rotation(self._orientation, world.ego[PSI])
         control, plan = self.action_kind.controller(world, action, rotation)
@@ -188,6 +196,7 @@ class GridSimEnv(gym.Env):
         tol = self.cfg.env.destination_tolerance
         reached = self.reference.reached(world.ego[:2], self._travelled, tol)
         terminated = bool(result.collided or result.off_road or reached)
+        self._terminated = terminated
         truncated = (not terminated) and world.time >= self.time_limit - 1e-9
         terms = np.array([l1, l2, l3], np.float32)
         info = self._info(terms, reached)
@@ -232,4 +241,9 @@ class GridSimEnv(gym.Env):
         return self.renderer.render(w, self._grids[-1], overlay)
 
 
-__all__ = ["EGO_FEATURES", "GridSimEnv"]
+def make_env(**kwargs: Any) -> GridSimEnv:
+    """The entry point of ``gym.make("GridSim-v0", ...)``."""
+    return GridSimEnv(**kwargs)
+
+
+__all__ = ["EGO_FEATURES", "GridSimEnv", "make_env"]

@@ -189,6 +189,13 @@ def _build_seamless(scenario: Scenario, seed: int) -> World:
     tracks = synthetic_tracks(scenario)
     count = cfg.traffic.participants
     traffic = SeamlessTraffic(road, tracks, count, _bounds(scenario), behind, ahead)
+    if count > traffic.capacity:
+        raise ScenarioError(
+            f"{scenario.source}: traffic.participants {count} is more than the "
+            f"{traffic.capacity} vehicles that fit in traffic.window [{behind:g}, {ahead:g}] m "
+            f"on {rc.lanes} lane(s) (one per {traffic.spacing:.1f} m): lower it or widen the "
+            "window"
+        )
     return World(
         road, traffic, ego, state, cfg.simulation.dt, partial(_lane_centre, road, lane), traffic_rng
     )

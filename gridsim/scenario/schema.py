@@ -19,9 +19,24 @@ class Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
 
 
+#: The most simulation ticks in an episode (``duration / dt``): the world and the reference
+#: are built for the whole episode at reset.
+MAX_TICKS = 100_000
+
+
 class SimulationConfig(Strict):
-    dt: Annotated[float, Field(gt=0, le=1.0, description="simulation time step [s]")] = 0.1
+    dt: Annotated[float, Field(ge=1e-3, le=1.0, description="simulation time step [s]")] = 0.1
     duration: Annotated[float, Field(gt=0, le=3600, description="episode time limit [s]")] = 60.0
+
+    @model_validator(mode="after")
+    def _ticks(self) -> SimulationConfig:
+        if self.duration / self.dt > MAX_TICKS:
+            raise ValueError(
+                f"duration / dt = {self.duration:g} / {self.dt:g} = "
+                f"{self.duration / self.dt:.0f} ticks, more than {MAX_TICKS}: raise dt or "
+                "shorten the episode"
+            )
+        return self
 
 
 class VehicleConfig(Strict):
@@ -187,6 +202,9 @@ class ScenarioConfig(Strict):
 
     @model_validator(mode="after")
     def _consistency(self) -> ScenarioConfig:
+        if self.ego.speed > self.ego.vehicle.v_max:
+            raise ValueError(f"ego.speed ({self.ego.speed}) must be <= ego.vehicle.v_max "
+                             f"({self.ego.vehicle.v_max})")  # fmt: skip
         lanes = getattr(self.road, "lanes", None)
         if lanes is not None and self.ego.lane >= lanes:
             raise ValueError(f"ego.lane ({self.ego.lane}) must be < road.lanes ({lanes})")

@@ -220,6 +220,17 @@ class SeamlessTraffic(SyntheticTraffic):
                 self.fleet.paths.set(slot, ln.centre.s, ln.centre.points)
             self._version = self.road.version
 
+    @property
+    def spacing(self) -> float:
+        """Length of lane [m] each participant is given at reset."""
+        return float(self._sizes[:, 0].max()) + _SPAWN_CLEARANCE + 2.0
+
+    @property
+    def capacity(self) -> int:
+        """The most participants that fit in the window at reset: one per :attr:`spacing` of
+        each lane, but for the (at most two) slots the ego takes."""
+        return int((self.behind + self.ahead) // self.spacing) * len(self._lane_slots) - 2
+
     def reset(self, rng: np.random.Generator, ego: EgoPose) -> None:
         self.rng = rng
         self._sync_lanes()
@@ -227,7 +238,7 @@ class SeamlessTraffic(SyntheticTraffic):
         f.deactivate(np.arange(f.capacity))
         # Shuffle evenly spaced slots over all lanes of the window, so that even a dense
         # fleet fills without overlaps; each slot is jittered within its free margin.
-        spacing = float(self._sizes[:, 0].max()) + _SPAWN_CLEARANCE + 2.0
+        spacing = self.spacing
         per_lane = int((self.behind + self.ahead) // spacing)
         n_lanes = len(self._lane_slots)
         slots = rng.permutation(per_lane * n_lanes)
