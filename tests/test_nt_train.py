@@ -1,16 +1,22 @@
 """NeuroTrajectory training runs: end to end, resume, backends, bad input, early endings."""
 
+import contextlib
 import io
 import json
+import os
 import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from neurotrajectory.backends import BackendError, WorkerSpec, make_backend
 from neurotrajectory.cli import main
@@ -336,3 +342,55 @@ def test_broken_run_files_give_clear_errors(finished_run, tmp_path, capsys):
     assert "config.json: expected an object with 'format' and 'train', got a list" in (
         capsys.readouterr().err
     )
+
+
+OPTION_VALUES = {
+    "--scenario": ["seamless", "nope", "", "no/such.yaml", "inner_city"],
+    "--preset": ["tiny", "huge"],
+    "--population": ["1", "2", "4", "x", "-5"],
+    "--generations": ["0", "1", "3", "1.5"],
+    "--episodes": ["0", "1", "2"],
+    "--episode-seconds": ["inf", "nan", "0", "-1", "3", "5000", "1e-9", "x"],
+    "--sigma": ["nan", "inf", "-1", "0", "0.01", "1e300"],
+    "--seed": ["-3", "-1", "0", "7", "x", "1e3", str(2**70)],
+    "--workers": ["0", "1", "-2"],
+    "--batch": ["0", "1", "16"],
+    "--pretrain-episodes": ["-1", "0", "1", "2"],
+    "--pretrain-epochs": ["0", "1"],
+    "--pretrain-validation": ["0", "0.5", "1", "nan"],
+    "--validation-episodes": ["-1", "0", "2"],
+    "--video": ["knee.mp4", "knee.avi", "knee", "afile/knee.mp4", "."],
+    "--out": ["run", "afile", "afile/run", "busy"],
+}
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.dictionaries(st.sampled_from(sorted(OPTION_VALUES)), st.integers(0, 7), max_size=6))
+def test_fuzzed_train_arguments_fail_cleanly_and_leave_no_run_folder(choice):
+    """Any mix of good and bad train options either starts the run (stubbed here) or exits
+    with status 2 and a message, never a traceback, with every folder as it was."""
+    args = [*QUICK]
+    for option, k in choice.items():
+        values = OPTION_VALUES[option]
+        args += [option, values[k % len(values)]]
+    if "--out" not in choice:
+        args += ["--out", "run"]
+    with tempfile.TemporaryDirectory() as tmp, contextlib.chdir(tmp):
+        Path("afile").write_text("keep")
+        Path("busy").mkdir()
+        Path("busy", "notes.txt").write_text("keep")
+        err = io.StringIO()
+        with (
+            mock.patch.object(Run, "train", lambda self, progress=True: {}),
+            mock.patch("neurotrajectory.cli._rollout"),
+            contextlib.redirect_stderr(err),
+            contextlib.redirect_stdout(io.StringIO()),
+        ):
+            code = cli(["train", *args])
+        assert Path("afile").read_text() == "keep" and os.listdir("busy") == ["notes.txt"]
+        if code == 0:
+            assert Path(args[args.index("--out", len(QUICK)) + 1], "config.json").is_file()
+            return
+        assert code == 2, err.getvalue()
+        assert "error: " in err.getvalue()
+        assert not Path("run").exists() and not Path("afile", "run").exists()

@@ -100,6 +100,19 @@ def test_a_missing_pretraining_dataset_is_a_clear_error(tmp_path, capsys):
         Run.create(tmp_path / "run", cfg).train(progress=False)
     with pytest.raises(RunError, match="pretrain_epochs must be >= 1"):
         TrainConfig(pretrain_epochs=0)
+    assert not (tmp_path / "run").exists()  # refused before the run folder is made
+
+
+def test_pretraining_data_of_another_grid_size_is_refused_before_the_run(windows_dir, tmp_path):
+    small = tmp_path / "small.yaml"
+    small.write_text("name: small\nroad: {type: seamless}\nsensor: {rows: 64, cols: 64}\n")
+    cfg = TrainConfig(scenario=str(small), preset="tiny", population=2, generations=1,
+                      episodes=1, episode_seconds=2.0, pretrain=str(windows_dir))  # fmt: skip
+    with pytest.raises(RunError) as info:
+        Run.create(tmp_path / "run", cfg)
+    assert f"--pretrain {windows_dir}: the windows have (history, grid size, horizon) = " \
+           "(5, 128, 5), the network needs (5, 64, 5)" in str(info.value)
+    assert not (tmp_path / "run").exists()
 
 
 def test_a_run_can_record_its_own_warm_start(tmp_path, capsys):
