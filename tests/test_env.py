@@ -326,3 +326,28 @@ def test_step_after_termination_is_refused_until_reset():
         env.step(np.zeros(2))
     env.reset(seed=0)
     env.step(np.zeros(2))
+
+
+@pytest.mark.parametrize("mode", [None, "async"])
+def test_make_vec_stacks_the_vector_rewards(mode):
+    # async: gymnasium's workers answer an autoreset step with a scalar reward 0 (that cannot
+    # be stacked with vectors) unless they reset in the same step
+    same_step = {"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP}
+    vector_kwargs = same_step if mode == "async" else None
+    venv = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode=mode,
+                        vector_kwargs=vector_kwargs, **SHORT)  # fmt: skip
+    try:
+        venv.reset(seed=[1, 2])
+        for _ in range(45):  # past the 4 s episodes: autoreset
+            obs, r, term, trunc, info = venv.step(venv.action_space.sample())
+            assert r.shape == (2, 3) and np.all(r >= 0)
+        assert obs["grids"].shape == (2, 5, 128, 128)
+    finally:
+        venv.close()
+
+
+def test_reward_space_is_reachable_on_the_made_env():
+    env = gym.make(ENV_ID)
+    assert env.reward_space.shape == (3,) and env.reward_space is env.unwrapped.reward_space
+    with pytest.raises(RuntimeError, match="reset"):
+        env.step(env.action_space.sample())

@@ -15,6 +15,12 @@ def register_envs() -> None:
             # a function, not the class: gymnasium would wrap render_mode="human" around the
             # class's rgb_array frames and open a pygame window; GridSimEnv refuses it
             entry_point="gridsim.envs.gridsim_env:make_env",
+            # gym.make_vec's default: rewards stacked (num_envs, 3) (gymnasium's own
+            # SyncVectorEnv, vectorization_mode="sync", holds scalar rewards only)
+            vector_entry_point="gridsim.envs.vector:make_vector_env",
+            # without OrderEnforcing, gym.make returns GridSimEnv itself: env.reward_space
+            # works (GridSimEnv refuses step() before reset() on its own)
+            order_enforce=False,
             # The reward is a vector (MO-Gymnasium style); gymnasium's passive checker would
             # warn on every step. check_env is run in the test suite instead.
             disable_env_checker=True,
