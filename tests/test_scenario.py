@@ -287,3 +287,12 @@ def test_more_participants_than_fit_are_refused():
     full = load_scenario("seamless", {"traffic": {"participants": capacity}})
     for seed in range(4):
         assert build_world(full, seed).traffic.fleet.active.sum() == capacity
+
+
+def test_validate_suggests_the_key_meant(tmp_path, capsys):
+    p = tmp_path / "typo.yaml"
+    p.write_text("name: typo\nroad:\n  type: seamless\n  lane_widht: 3.2\n")
+    assert main(["validate", str(p)]) == 2
+    assert "road.lane_widht: unknown key (did you mean 'lane_width'?) (got 3.2)" in (
+        capsys.readouterr().err
+    )

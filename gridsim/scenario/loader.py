@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import difflib
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -13,7 +14,7 @@ import yaml
 from pydantic import ValidationError
 
 from gridsim.errors import ScenarioError
-from gridsim.scenario.schema import ScenarioConfig
+from gridsim.scenario.schema import ScenarioConfig, Strict
 
 _BUILTIN_DIR = ("data", "scenarios")
 _ROAD_TAGS = ("seamless", "inner_city", "recorded")
@@ -68,6 +69,21 @@ def builtin_scenarios() -> dict[str, str]:
     return {k: (v[0] if v else "") for k, v in out.items()}
 
 
+def _known_keys() -> list[str]:
+    """Every key the schema knows, at any level."""
+    models, keys = [Strict], set()
+    while models:
+        model = models.pop()
+        models += model.__subclasses__()
+        keys |= set(getattr(model, "model_fields", {}))
+    return sorted(keys)
+
+
+def _did_you_mean(key: object) -> str:
+    close = difflib.get_close_matches(str(key), _known_keys(), n=1, cutoff=0.7)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
 def _format_validation(source: str, err: ValidationError) -> str:
     lines = [f"{source}: invalid scenario ({err.error_count()} problem(s)):"]
     for e in err.errors():
@@ -77,7 +93,7 @@ def _format_validation(source: str, err: ValidationError) -> str:
         loc = ".".join(str(p) for p in parts) or "(top level)"
         msg = e["msg"]
         if e["type"] == "extra_forbidden":
-            msg = "unknown key"
+            msg = "unknown key" + _did_you_mean(parts[-1] if parts else "")
         got = e.get("input")
         shown = repr(got) if not isinstance(got, Mapping) else "{...}"
         if len(shown) > 60:
