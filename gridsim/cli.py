@@ -76,7 +76,8 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser("run", help="drive a policy in GridSim-v0, print a summary, export a video")
     s.add_argument("--scenario", default="seamless", help="built-in name or YAML path")
     s.add_argument("--steps", type=at_least(1), default=300, help="decisions to run at most")
-    s.add_argument("--policy", default="reference", choices=POLICY_NAMES)
+    s.add_argument("--policy", default="reference", choices=POLICY_NAMES,
+                   help="the driver: the human reference, lane following, random or idle")
     s.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
     s.add_argument("--video", default=None, help="write a video (.mp4, or .gif)")
     s.add_argument("--quiet", action="store_true", help="no progress bar")

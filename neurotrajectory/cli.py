@@ -83,7 +83,12 @@ def _rollout(run_dir: str, pick: str, video: str, seed: int, steps: int | None) 
 
     run, policy, member = load_front_member(run_dir, pick)
     env = GridSimEnv(run.config.scenario, render_mode="rgb_array", **run.config.overrides)
-    max_steps = steps or int(round(env.cfg.simulation.duration / env.cfg.env.decision_period))
+    episode = int(round(env.cfg.simulation.duration / env.cfg.env.decision_period))
+    if steps and steps > episode:
+        print(f"neurotrajectory: note: --steps {steps} is more than the run's episodes of "
+              f"{episode} decisions ({env.cfg.simulation.duration:g} s): the episode ends at "
+              f"{episode}", file=sys.stderr)  # fmt: skip
+    max_steps = min(steps or episode, episode)
     path, infos = record_rollout(env, policy, video, max_steps, seed=seed)
     last = infos[-1] if infos else {}
     result = {
@@ -98,6 +103,7 @@ def _rollout(run_dir: str, pick: str, video: str, seed: int, steps: int | None) 
 
 
 def _cmd_rollout(args: argparse.Namespace) -> int:
+    _check_video(args.video)
     _rollout(args.run, args.pick, args.video, args.seed, args.steps)
     return 0
 
@@ -162,17 +168,25 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     t = sub.add_parser("train", help="evolve a population in GridSim-v0")
     t.add_argument("--scenario", default=None, help="built-in name or YAML path (default seamless)")
-    t.add_argument("--preset", default=None, choices=sorted(PRESETS))
-    t.add_argument("--population", type=at_least(2), default=None)
-    t.add_argument("--generations", type=at_least(1), default=None)
+    t.add_argument("--preset", default=None, choices=sorted(PRESETS),
+                   help="network size (default: default)")
+    t.add_argument("--population", type=at_least(2), default=None,
+                   help="networks per generation (default 16)")
+    t.add_argument("--generations", type=at_least(1), default=None,
+                   help="generations to evolve (default 10)")
     t.add_argument("--episodes", type=at_least(1), default=None,
                    help="evaluation episodes per individual")
-    t.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None)
+    t.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None,
+                   help="length of each training episode [s] (default 15)")
     t.add_argument("--sigma", type=float, default=None, help="mutation noise scale")
-    t.add_argument("--seed", type=at_least(0), default=None)
-    t.add_argument("--backend", default=None, choices=BACKENDS)
-    t.add_argument("--workers", type=at_least(1), default=None)
-    t.add_argument("--ray-address", dest="ray_address", default=None)
+    t.add_argument("--seed", type=at_least(0), default=None,
+                   help="seed of the whole run (default 0)")
+    t.add_argument("--backend", default=None, choices=BACKENDS,
+                   help="where individuals are evaluated (default local)")
+    t.add_argument("--workers", type=at_least(1), default=None,
+                   help="worker processes or Ray actors (default 2)")
+    t.add_argument("--ray-address", dest="ray_address", default=None,
+                   help="an existing Ray cluster (default: start a local one)")
     t.add_argument("--batch", type=at_least(1), default=None,
                    help="individuals each worker evaluates together (default 16)")  # fmt: skip
     t.add_argument(
@@ -265,12 +279,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="after training, drive the knee member on N held-out episodes "
         "(default 20; 0: skip) and write heldout.json",
     )
-    t.add_argument("--quiet", action="store_true")
+    t.add_argument("--quiet", action="store_true", help="no progress bars")
     t.set_defaults(func=_cmd_train)
     r = sub.add_parser("rollout", help="drive a Pareto-front member and export a video")
-    r.add_argument("--run", required=True)
-    r.add_argument("--pick", default="knee", choices=PICKS)
-    r.add_argument("--video", default="rollout.mp4")
+    r.add_argument("--run", required=True, help="a finished training run's folder")
+    r.add_argument("--pick", default="knee", choices=PICKS,
+                   help="the front member: the knee or the best on one objective")  # fmt: skip
+    r.add_argument("--video", default="rollout.mp4", help="video to write (.mp4 or .gif)")
     r.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
     r.add_argument("--steps", type=at_least(1), default=None,
                    help="decisions to drive at most (default: the run's episode length)")
@@ -281,14 +296,15 @@ def build_parser() -> argparse.ArgumentParser:
                         "YAML path; recorded scenes drive every track once")  # fmt: skip
     d.add_argument("--episodes", type=at_least(1), default=8,
                    help="episodes per generated scenario")
-    d.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None)
+    d.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None,
+                   help="length of each episode [s] (default: the scenario's)")
     d.add_argument(
         "--stride",
         type=at_least(1),
         default=None,
         help="decisions between windows (default 1 on recorded scenes, else 5)",
     )
-    d.add_argument("--seed", type=at_least(0), default=0)
+    d.add_argument("--seed", type=at_least(0), default=0, help="seed of the episodes and split")
     d.add_argument(
         "--split",
         choices=["train", "test"],
@@ -296,9 +312,10 @@ def build_parser() -> argparse.ArgumentParser:
         help="keep only this side of the split by track that `evaluate` with the same --seed "
         "and --test-fraction makes (e.g. train data for a group's run)",
     )
-    d.add_argument("--test-fraction", dest="test_fraction", type=float, default=0.3)
+    d.add_argument("--test-fraction", dest="test_fraction", type=float, default=0.3,
+                   help="share of the tracks on the test side of --split")
     d.add_argument("--out", required=True, help="dataset folder (created)")
-    d.add_argument("--quiet", action="store_true")
+    d.add_argument("--quiet", action="store_true", help="no progress bar")
     d.set_defaults(func=_cmd_record)
     e = sub.add_parser("evaluate", help="compare with DWA, End2End and constant velocity")
     e.add_argument("--run", required=True, help="a finished training run")
@@ -316,22 +333,29 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="folder with one recorded dataset per group (default: record them)",
     )
-    e.add_argument("--groups", nargs="+", default=list(GROUPS), choices=list(GROUPS))
-    e.add_argument("--episodes", type=at_least(1), default=8)
-    e.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=30.0)
-    e.add_argument("--test-fraction", dest="test_fraction", type=float, default=0.3)
-    e.add_argument("--pick", default="knee", choices=PICKS)
-    e.add_argument("--e2e-epochs", dest="e2e_epochs", type=at_least(1), default=8)
+    e.add_argument("--groups", nargs="+", default=list(GROUPS), choices=list(GROUPS),
+                   help="scenario groups to evaluate (default: all)")
+    e.add_argument("--episodes", type=at_least(1), default=8,
+                   help="episodes recorded per generated scenario")
+    e.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=30.0,
+                   help="length of each recorded episode [s]")
+    e.add_argument("--test-fraction", dest="test_fraction", type=float, default=0.3,
+                   help="share of each group's tracks held out for testing")
+    e.add_argument("--pick", default="knee", choices=PICKS,
+                   help="the front member compared (picked without test data)")
+    e.add_argument("--e2e-epochs", dest="e2e_epochs", type=at_least(1), default=8,
+                   help="training epochs of the End2End baseline")
     e.add_argument("--closed-loop-episodes", dest="closed_loop_episodes", type=at_least(0),
-                   default=3)
-    e.add_argument("--closed-loop-seconds", dest="closed_loop_seconds", type=float, default=20.0)
+                   default=3, help="closed-loop episodes per scenario (0: skip)")
+    e.add_argument("--closed-loop-seconds", dest="closed_loop_seconds", type=float, default=20.0,
+                   help="length of each closed-loop episode [s]")
     e.add_argument(
         "--videos",
         action="store_true",
         help="export each method's first closed-loop episode to <out>/videos/",
     )
-    e.add_argument("--seed", type=at_least(0), default=0)
-    e.add_argument("--quiet", action="store_true")
+    e.add_argument("--seed", type=at_least(0), default=0, help="seed of the split and episodes")
+    e.add_argument("--quiet", action="store_true", help="no progress messages")
     e.set_defaults(func=_cmd_evaluate)
     return p
 

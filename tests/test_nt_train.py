@@ -394,3 +394,25 @@ def test_fuzzed_train_arguments_fail_cleanly_and_leave_no_run_folder(choice):
         assert code == 2, err.getvalue()
         assert "error: " in err.getvalue()
         assert not Path("run").exists() and not Path("afile", "run").exists()
+
+
+def test_every_option_has_help_text():
+    from gridsim.cli import build_parser as gridsim_parser
+    from neurotrajectory.cli import build_parser
+
+    for parser in (build_parser(), gridsim_parser()):
+        for name, sub in parser._subparsers._group_actions[0].choices.items():
+            bare = [a.option_strings for a in sub._actions if a.option_strings and not a.help]
+            assert not bare, (name, bare)
+
+
+def test_rollout_says_when_steps_exceed_the_episode(finished_run, tmp_path, capsys):
+    video = str(tmp_path / "v.gif")
+    assert main(["rollout", "--run", str(finished_run), "--video", video, "--steps", "300"]) == 0
+    out, err = capsys.readouterr()
+    assert "--steps 300 is more than the run's episodes of 40 decisions (4 s)" in err
+    assert json.loads(out)["steps"] <= 40
+    assert cli(["rollout", "--run", str(finished_run), "--steps", "-5"]) == 2
+    assert "argument --steps: expected an integer >= 1, got '-5'" in capsys.readouterr().err
+    assert main(["rollout", "--run", str(finished_run), "--video", "x.avi"]) == 2
+    assert "--video x.avi: unsupported extension '.avi'" in capsys.readouterr().err
