@@ -11,10 +11,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+#: The objectives as plotted: a member's fitness is the mean over its episodes of each
+#: episode's sum of the per-step terms (l2 and l3 add one value per simulation tick).
 NAMES = (
-    "l1: set-point error [m^2] (min)",
-    "l2: steering rate [rad/s] (min)",
-    "l3: speed [m/s] (max)",
+    "l1: episode sum of set-point errors [m^2] (min)",
+    "l2: episode sum of |steering rate| per tick [rad/s] (min)",
+    "l3: episode sum of speed per tick [m/s] (max)",
 )
 
 
@@ -38,13 +40,23 @@ def plot_run(out: str | Path, history: list[dict]) -> list[Path]:
     fig.tight_layout()
     paths.append(_save(fig, folder / "objectives.png"))
 
+    from neurotrajectory.front import pick_member
+
     last, rank = fit[-1], np.array(history[-1]["rank"])
+    lost = np.array(history[-1].get("violation", np.zeros(len(last)))) > 0
+    front = np.flatnonzero(rank == 0)
+    knee = front[pick_member(last[front], "knee")]
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for ax, (i, j) in zip(axes, [(0, 1), (0, 2), (1, 2)], strict=True):
         ax.scatter(last[rank > 0, i], last[rank > 0, j], s=10, color="0.6", label="dominated")
         ax.scatter(
             last[rank == 0, i], last[rank == 0, j], s=18, color="tab:red", label="Pareto front"
         )
+        if lost.any():
+            ax.scatter(last[lost, i], last[lost, j], s=40, marker="x", color="black",
+                       label="an episode ended in a collision or off-road")  # fmt: skip
+        ax.scatter(last[knee, i], last[knee, j], s=120, facecolors="none", edgecolors="tab:green",
+                   linewidths=2, label="knee")  # fmt: skip
         ax.set_xlabel(NAMES[i], fontsize=8)
         ax.set_ylabel(NAMES[j], fontsize=8)
     axes[0].legend(fontsize=8)

@@ -416,3 +416,20 @@ def test_rollout_says_when_steps_exceed_the_episode(finished_run, tmp_path, caps
     assert "argument --steps: expected an integer >= 1, got '-5'" in capsys.readouterr().err
     assert main(["rollout", "--run", str(finished_run), "--video", "x.avi"]) == 2
     assert "--video x.avi: unsupported extension '.avi'" in capsys.readouterr().err
+
+
+def test_front_plot_marks_the_knee_and_lost_members(tmp_path, monkeypatch):
+    from neurotrajectory import plots
+
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig) or path)
+    fitness = [[1.0, 2.0, 30.0], [2.0, 1.0, 20.0], [3.0, 3.0, 10.0], [1.5, 1.5, 25.0]]
+    history = [{"generation": 0, "fitness": fitness, "rank": [0, 0, 1, 0],
+                "violation": [0.0, 0.5, 0.0, 0.0], "hypervolume": 0.5}]  # fmt: skip
+    plots.plot_run(tmp_path, history)
+    objectives, front, _ = figures
+    assert "episode sum" in objectives.axes[0].get_title()
+    labels = front.axes[0].get_legend_handles_labels()[1]
+    assert "knee" in labels and "an episode ended in a collision or off-road" in labels
+    knee = front.axes[0].collections[labels.index("knee")].get_offsets()
+    assert knee.tolist() == [[1.5, 1.5]]  # the member closest to the ideal point
