@@ -59,8 +59,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from gridsim.run import run_policy
 
     summary = run_policy(
-        args.scenario, args.policy, args.steps, args.seed, video=args.video, progress=not args.quiet
-    )
+        args.scenario, args.policy, args.steps, args.seed, video=args.video,
+        progress=not args.quiet, overlay=args.overlay,
+    )  # fmt: skip
     print(json.dumps(summary, indent=2))
     return 0
 
@@ -80,6 +81,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="the driver: the human reference, lane following, random or idle")
     s.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
     s.add_argument("--video", default=None, help="write a video (.mp4, or .gif)")
+    s.add_argument("--overlay", action="store_true",
+                   help="caption the video: time, speed and what the dots are")  # fmt: skip
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=_cmd_run)
     s = sub.add_parser(

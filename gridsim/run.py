@@ -18,6 +18,7 @@ def run_policy(
     seed: int = 0,
     video: str | None = None,
     progress: bool = True,
+    overlay: bool = False,
 ) -> dict:
     """Run ``policy`` for up to ``steps`` decisions; optionally write a video. Returns a
     summary: distance driven, collisions, off-road, fitness sums and the episode outcome."""
@@ -33,7 +34,8 @@ def run_policy(
     bar = tqdm(
         total=steps, desc=f"{policy} on {env.scenario.name}", unit="step", disable=not progress
     )
-    path, infos = record_rollout(env, pol, video, steps, seed, on_step=lambda _: bar.update())
+    path, infos = record_rollout(env, pol, video, steps, seed, on_step=lambda _: bar.update(),
+                                 overlay=overlay)  # fmt: skip
     bar.close()
     poses = np.array([i["pose"][:2] for i in infos])
     fitness = np.sum([i["reward"] for i in infos], axis=0) if infos else np.zeros(3)

@@ -84,12 +84,14 @@ def record_rollout(
     steps: int,
     seed: int | None = None,
     on_step: Callable | None = None,
+    overlay: bool = False,
 ) -> tuple[Path | None, list[dict]]:
     """Run ``policy(env, obs, info) -> action`` for up to ``steps`` steps (one episode).
 
     With a ``path``, the env must be made with ``render_mode="rgb_array"``; one frame per
     step (plus the first) is written at the environment's real rate. Returns the video path
-    (``None`` without one) and the infos of all steps, each with its ``"reward"``."""
+    (``None`` without one) and the infos of all steps, each with its ``"reward"``. With
+    ``overlay``, each frame shows the time, the ego's speed and what the dots are."""
     if steps < 1:
         raise GridSimError(f"steps must be >= 1, got {steps}")
     if path is not None and getattr(env, "render_mode", None) != "rgb_array":
@@ -100,15 +102,30 @@ def record_rollout(
         video = None
         if path is not None:
             video = stack.enter_context(VideoWriter(path, env.metadata.get("render_fps", 10)))
-            video.write(env.render())
+            video.write(_frame(env, info, overlay))
         for _ in range(steps):
             obs, reward, terminated, truncated, info = env.step(policy(env, obs, info))
             info = {**info, "reward": np.asarray(reward)}
             infos.append(info)
             if video is not None:
-                video.write(env.render())
+                video.write(_frame(env, info, overlay))
             if on_step is not None:
                 on_step(info)
             if terminated or truncated:
                 break
     return (video.path if video is not None else None), infos
+
+
+def _frame(env, info: dict, overlay: bool) -> np.ndarray:
+    """``env.render()``, with a caption (time, speed, legend) if ``overlay``."""
+    from gridsim.envs.gridsim_env import PLAN_COLOUR, REFERENCE_COLOUR
+    from gridsim.render.topdown import caption
+
+    frame = env.render()
+    if not overlay:
+        return frame
+    return caption(frame, [
+        (f"t {info['time']:.1f} s   speed {info['pose'][3]:.1f} m/s", None),
+        ("human reference set-points", REFERENCE_COLOUR),
+        ("commanded set-points", PLAN_COLOUR),
+    ])  # fmt: skip

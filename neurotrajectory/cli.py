@@ -76,7 +76,8 @@ def _heldout(run: Run, episodes: int) -> None:
           f"mean l1 {net['l1']:.0f} m^2 (destination curve {curve['l1']:.0f})")  # fmt: skip
 
 
-def _rollout(run_dir: str, pick: str, video: str, seed: int, steps: int | None) -> dict:
+def _rollout(run_dir: str, pick: str, video: str, seed: int, steps: int | None,
+             overlay: bool = False) -> dict:
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.video import record_rollout
     from neurotrajectory.front import load_front_member
@@ -89,7 +90,7 @@ def _rollout(run_dir: str, pick: str, video: str, seed: int, steps: int | None) 
               f"{episode} decisions ({env.cfg.simulation.duration:g} s): the episode ends at "
               f"{episode}", file=sys.stderr)  # fmt: skip
     max_steps = min(steps or episode, episode)
-    path, infos = record_rollout(env, policy, video, max_steps, seed=seed)
+    path, infos = record_rollout(env, policy, video, max_steps, seed=seed, overlay=overlay)
     last = infos[-1] if infos else {}
     result = {
         "video": str(path),
@@ -104,7 +105,7 @@ def _rollout(run_dir: str, pick: str, video: str, seed: int, steps: int | None) 
 
 def _cmd_rollout(args: argparse.Namespace) -> int:
     _check_video(args.video)
-    _rollout(args.run, args.pick, args.video, args.seed, args.steps)
+    _rollout(args.run, args.pick, args.video, args.seed, args.steps, args.overlay)
     return 0
 
 
@@ -286,6 +287,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--pick", default="knee", choices=PICKS,
                    help="the front member: the knee or the best on one objective")  # fmt: skip
     r.add_argument("--video", default="rollout.mp4", help="video to write (.mp4 or .gif)")
+    r.add_argument("--overlay", action="store_true",
+                   help="caption the video: time, speed and what the dots are")  # fmt: skip
     r.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
     r.add_argument("--steps", type=at_least(1), default=None,
                    help="decisions to drive at most (default: the run's episode length)")

@@ -99,3 +99,16 @@ def test_run_command(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["run", "--seed", "-3", "--quiet"])
     assert "argument --seed: expected an integer >= 0, got '-3'" in capsys.readouterr().err
+
+
+def test_optional_overlay_captions_the_frames(tmp_path):
+    from gridsim.video import _frame
+
+    env = gym.make(ENV_ID, render_mode="rgb_array", simulation={"duration": 2.0})
+    obs, info = env.reset(seed=0)
+    plain, captioned = _frame(env, info, False), _frame(env, info, True)
+    differs = np.any(plain != captioned, axis=2)
+    assert differs[:60, :260].mean() > 0.05  # the caption at the top left
+    assert not differs[70:, :].any() and not differs[:, 300:].any()  # nothing else
+    path, infos = record_rollout(env, Reference(), tmp_path / "o.gif", 3, seed=0, overlay=True)
+    assert len(iio.imread(path, index=None)) == 4

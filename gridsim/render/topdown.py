@@ -100,3 +100,18 @@ class TopDownRenderer:
         x0 = img.shape[1] - tw - 8
         img[8 : 8 + th, x0 : x0 + tw] = tile
         cv2.rectangle(img, (x0 - 1, 7), (x0 + tw, 8 + th), (255, 255, 255), 1)
+
+
+def caption(img: np.ndarray, lines: list[tuple[str, tuple[int, int, int] | None]]) -> np.ndarray:
+    """Write ``lines`` of text at the top left of ``img`` (in place, on a dark band); a line
+    with a colour gets a dot of that colour before it (a legend entry). Returns ``img``."""
+    font, scale, step = cv2.FONT_HERSHEY_SIMPLEX, 0.45, 18
+    width = max(cv2.getTextSize(t, font, scale, 1)[0][0] for t, _ in lines) + 30
+    band = img[: step * len(lines) + 8, :width]
+    band[:] = (band * 0.4).astype(np.uint8)
+    for k, (text, colour) in enumerate(lines):
+        y = 18 + step * k
+        if colour is not None:
+            cv2.circle(img, (12, y - 4), 4, colour, -1, cv2.LINE_AA)
+        cv2.putText(img, text, (24, y), font, scale, (255, 255, 255), 1, cv2.LINE_AA)
+    return img
