@@ -10,6 +10,7 @@ import numpy as np
 from tqdm import tqdm
 
 from gridsim.errors import GridSimError
+from gridsim.paths import output_problem
 from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.loader import load_scenario
@@ -23,6 +24,9 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     into ``out``. Returns the summary."""
     if not seconds > 0:
         raise GridSimError(f"--seconds must be > 0, got {seconds}")
+    problem = output_problem(out, directory=True)
+    if problem:
+        raise GridSimError(f"--out {out}: {problem}")
     sc = load_scenario(scenario)
     world = build_world(sc, seed)
     sensor = build_sensor(sc)

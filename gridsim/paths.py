@@ -25,3 +25,12 @@ def output_problem(path: str | Path, directory: bool) -> str | None:
     if not os.access(target, os.W_OK | os.X_OK):
         return f"{target} is not writable"
     return None
+
+
+def new_folder_problem(path: str | Path) -> str | None:
+    """Why ``path`` cannot become a new output folder (one that can be created, or an empty
+    one), or None if it can."""
+    problem = output_problem(path, directory=True)
+    if problem is None and Path(path).is_dir() and any(Path(path).iterdir()):
+        problem = "exists and is not empty: choose another --out"
+    return problem

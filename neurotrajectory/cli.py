@@ -112,8 +112,15 @@ def _cmd_rollout(args: argparse.Namespace) -> int:
 def _cmd_record(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from neurotrajectory.windows import Dataset, record_group, save_dataset, split_by_track
+    from neurotrajectory.windows import (
+        Dataset,
+        check_new_folder,
+        record_group,
+        save_dataset,
+        split_by_track,
+    )
 
+    check_new_folder(args.out)  # before recording, not after
     with tqdm(desc=f"record {args.scenario}", unit="episode", disable=args.quiet) as bar:
         ds = record_group(args.scenario, args.episodes, args.seed, args.stride,
                           args.episode_seconds, progress=bar.update)  # fmt: skip

@@ -41,6 +41,7 @@ from neurotrajectory.windows import (
     GROUPS,
     Dataset,
     DatasetError,
+    check_new_folder,
     load_dataset,
     record_group,
     save_dataset,
@@ -187,8 +188,7 @@ def evaluate(
     from neurotrajectory.report import write_report
 
     out = Path(out)
-    if out.exists() and any(out.iterdir()):
-        raise DatasetError(f"{out} exists and is not empty: choose another --out")
+    check_new_folder(out)
     group_runs = dict(group_runs or {})
     unknown = sorted(set(group_runs) - set(cfg.groups))
     if unknown:

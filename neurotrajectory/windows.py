@@ -282,11 +282,19 @@ def split_by_track(
 
 
 # -- storage --------------------------------------------------------------------------------
+def check_new_folder(out: str | Path) -> None:
+    """A :class:`DatasetError` unless ``out`` can become a new output folder."""
+    from gridsim.paths import new_folder_problem
+
+    problem = new_folder_problem(out)
+    if problem:
+        raise DatasetError(f"{out}: {problem}")
+
+
 def save_dataset(dataset: Dataset, out: str | Path) -> Path:
     """Write ``dataset`` into the folder ``out`` (created; must be empty if it exists)."""
     out = Path(out)
-    if out.exists() and any(out.iterdir()):
-        raise DatasetError(f"{out} exists and is not empty: choose another --out")
+    check_new_folder(out)
     out.mkdir(parents=True, exist_ok=True)
     w = dataset.windows
     shards = []

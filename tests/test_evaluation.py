@@ -184,3 +184,11 @@ def test_bad_input_gives_clear_errors(tiny_run, tmp_path, capsys):
     assert main(["evaluate", "--run", str(tiny_run), "--out", str(tmp_path / "full")]) == 2
     assert "not empty" in capsys.readouterr().err
     assert (tmp_path / "full" / "keep.txt").read_text() == "mine"
+    for command in ("record", "evaluate"):  # refused before any recording
+        args = ["--scenario", "seamless"] if command == "record" else ["--run", str(tiny_run)]
+        assert main([command, *args, "--out", str(tmp_path / "full" / "keep.txt")]) == 2
+        assert "keep.txt: is a file, expected a folder" in capsys.readouterr().err
+        assert main([command, *args, "--out", str(tmp_path / "full"), "--quiet"]) == 2
+        assert "full: exists and is not empty: choose another --out" in (
+            capsys.readouterr().err
+        )

@@ -96,6 +96,9 @@ def test_drive_rejects_bad_arguments(tmp_path, capsys):
     assert "--seconds must be > 0" in capsys.readouterr().err
     assert main(["drive", "--scenario", "nowhere", "--out", str(tmp_path / "x"), "--quiet"]) == 2
     assert "unknown scenario 'nowhere'" in capsys.readouterr().err
+    (tmp_path / "afile").write_text("")
+    assert main(["drive", "--out", str(tmp_path / "afile" / "x"), "--quiet"]) == 2
+    assert f"{tmp_path / 'afile'} is a file, not a folder" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("scenario", ["seamless", "inner_city", "us101_3_3"])
