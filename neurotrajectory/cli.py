@@ -164,7 +164,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         if not sep or not path:
             raise RunError(f"--group-run takes GROUP=RUN_DIR, got {item!r}")
         group_runs[group] = path
-    evaluate(args.run, args.out, cfg, data_dir=args.data, log=log, group_runs=group_runs)
+    evaluate(args.run, args.out, cfg, data_dir=args.data, log=log, group_runs=group_runs,
+             progress=not args.quiet)  # fmt: skip
     print((Path(args.out) / "table2.md").read_text())
     return 0
 

@@ -89,7 +89,9 @@ class GroupResult:
     best_member: int
 
 
-def _dataset(group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log) -> Dataset:
+def _dataset(
+    group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log, progress: bool = True
+) -> Dataset:
     """The group's windows: from ``data_dir/<group>`` if given, else recorded into ``out``."""
     if data_dir is not None:
         ds = load_dataset(data_dir / group)
@@ -100,7 +102,7 @@ def _dataset(group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log)
             )
         return ds
     log(f"{group}: recording windows")
-    with tqdm(desc=f"record {group}", unit="episode", leave=False) as bar:
+    with tqdm(desc=f"record {group}", unit="episode", leave=False, disable=not progress) as bar:
         ds = record_group(group, cfg.episodes, cfg.seed, duration=cfg.episode_seconds,
                           progress=bar.update)  # fmt: skip
     save_dataset(ds, out / "data" / group)
@@ -137,7 +139,7 @@ def _load_fronts(runs: dict[str, str | Path], pick: str) -> dict[str, Front]:
 
 
 def _evaluate_group(
-    group: str, ds: Dataset, front: Front, cfg: EvalConfig, out: Path, log
+    group: str, ds: Dataset, front: Front, cfg: EvalConfig, out: Path, log, progress: bool = True
 ) -> GroupResult:
     train, test = split_by_track(ds.windows, cfg.test_fraction, cfg.seed)
     setting = Setting.from_manifest(ds.manifest)
@@ -163,7 +165,9 @@ def _evaluate_group(
         policies |= {"End2End": CommandPolicy(e2e), NT_PICKED: TrajectoryPolicy(nt)}
         rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0xC10]))
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
-        for name, policy in tqdm(policies.items(), desc=f"closed loop {group}", leave=False):
+        bar = tqdm(policies.items(), desc=f"closed loop {group} ({len(seeds)} episodes each)",
+                   unit="method", leave=False, disable=not progress)  # fmt: skip
+        for name, policy in bar:
             slug = name.lower().replace(" ", "-")
             per = [closed_loop(sc, policy, seeds, cfg.closed_loop_seconds,
                                 out / "videos" / f"{group}-{sc}-{slug}.mp4" if cfg.videos else None)
@@ -181,6 +185,7 @@ def evaluate(
     data_dir: str | Path | None = None,
     log=print,
     group_runs: dict[str, str | Path] | None = None,
+    progress: bool = True,
 ) -> list[GroupResult]:
     """Run the whole comparison; writes tables, plots and models into ``out``.
     NeuroTrajectory is the run in ``run_dir``, or for the groups in ``group_runs`` the run
@@ -203,8 +208,8 @@ def evaluate(
     results = []
     for group in cfg.groups:
         t0 = time.perf_counter()
-        ds = _dataset(group, cfg, data_dir, out, log)
-        result = _evaluate_group(group, ds, fronts[group], cfg, out, log)
+        ds = _dataset(group, cfg, data_dir, out, log, progress)
+        result = _evaluate_group(group, ds, fronts[group], cfg, out, log, progress)
         results.append(result)
         log(f"{group}: done in {time.perf_counter() - t0:.0f} s; RMSE "
             + ", ".join(f"{k} {v.rmse:.2f}" for k, v in result.accuracy.items()))  # fmt: skip

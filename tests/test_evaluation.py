@@ -108,12 +108,13 @@ def _table(path):
         return list(csv.DictReader(fh))
 
 
-def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_path):
+def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_path, capsys):
     out = tmp_path / "eval"
     args = ["evaluate", "--run", str(tiny_run), "--data", str(data), "--out", str(out),
             "--groups", "seamless", "urban", "--e2e-epochs", "1", "--closed-loop-episodes", "1",
             "--closed-loop-seconds", "2", "--videos", "--quiet"]  # fmt: skip
     assert main(args) == 0
+    assert "closed loop" not in capsys.readouterr().err  # --quiet: no progress bars
     import imageio.v3 as iio
 
     videos = sorted(p.name for p in (out / "videos").iterdir())
