@@ -492,17 +492,24 @@ def _json_kind(doc) -> str:
 def _checked(config: TrainConfig):
     """``(config, windows)``: the configuration checked against its scenario, network and
     pre-training data (the data's windows, or None), with :func:`_with_training_tracks`."""
+    from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.scenario.loader import load_scenario
+    from neurotrajectory.rollout import net_config_for
 
     try:
         load_scenario(config.scenario)
     except GridSimError as exc:
         raise RunError(f"--scenario {config.scenario}: {exc}") from None
     try:
-        probe = _probe_net(config.net, config.scenario, config.overrides)
+        env = GridSimEnv(config.scenario, **config.overrides)
     except GridSimError as exc:
         raise RunError(f"--episode-seconds {config.episode_seconds:g} on {config.scenario}: "
                        f"{exc}") from None
+    try:
+        env.reset(seed=0)  # builds a world: the map, the traffic and its library
+    except GridSimError as exc:
+        raise RunError(f"--scenario {config.scenario}: {exc}") from None
+    probe = TrajectoryNet(net_config_for(env, config.net))
     windows = None
     if config.pretrain:
         windows = _pretrain_data(config.pretrain)

@@ -433,3 +433,12 @@ def test_front_plot_marks_the_knee_and_lost_members(tmp_path, monkeypatch):
     assert "knee" in labels and "an episode ended in a collision or off-road" in labels
     knee = front.axes[0].collections[labels.index("knee")].get_offsets()
     assert knee.tolist() == [[1.5, 1.5]]  # the member closest to the ideal point
+
+
+def test_a_scenario_whose_world_cannot_be_built_is_refused_before_the_run(tmp_path, capsys):
+    crowded = tmp_path / "crowded.yaml"
+    crowded.write_text("name: crowded\nroad: {type: seamless}\ntraffic: {participants: 500}\n")
+    assert main(["train", *QUICK, "--scenario", str(crowded), "--out", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err
+    assert f"--scenario {crowded}: {crowded}: traffic.participants 500 is more than the" in err
+    assert not (tmp_path / "run").exists()
