@@ -1,11 +1,17 @@
 """Headless rendering and video export."""
 
+import contextlib
+import io
 import json
+import tempfile
+from pathlib import Path
 
 import gymnasium as gym
 import imageio.v3 as iio
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from gridsim.cli import main
 from gridsim.envs import ENV_ID
@@ -112,3 +118,32 @@ def test_optional_overlay_captions_the_frames(tmp_path):
     assert not differs[70:, :].any() and not differs[:, 300:].any()  # nothing else
     path, infos = record_rollout(env, Reference(), tmp_path / "o.gif", 3, seed=0, overlay=True)
     assert len(iio.imread(path, index=None)) == 4
+
+
+RUN_VALUES = {
+    "--scenario": ["seamless", "nope", "", "afile", "afile/x.yaml"],
+    "--steps": ["0", "-5", "1", "2", "x", "1e3"],
+    "--seed": ["-1", "0", "3", "x"],
+    "--policy": ["idle", "random", "reference", "lane-follow", "bad"],
+    "--video": ["v.gif", "v.avi", "afile/v.gif", "v", "."],
+}
+
+
+@settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.dictionaries(st.sampled_from(sorted(RUN_VALUES)), st.integers(0, 5), max_size=5))
+def test_fuzzed_run_arguments_run_or_exit_2_with_a_message(choice):
+    args = ["run", "--quiet", "--steps", "2"]
+    for option, k in choice.items():
+        args += [option, RUN_VALUES[option][k % len(RUN_VALUES[option])]]
+    with tempfile.TemporaryDirectory() as tmp, contextlib.chdir(tmp):
+        Path("afile").write_text("keep")
+        err = io.StringIO()
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+            try:
+                code = main(args)
+            except SystemExit as exc:
+                code = exc.code
+        assert code in (0, 2), err.getvalue()
+        assert Path("afile").read_text() == "keep"
+        if code == 2:
+            assert "error: " in err.getvalue()
