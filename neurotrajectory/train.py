@@ -329,9 +329,9 @@ class Run:
             raise RunError(f"{self.out}: history.json has {len(history)} generations but "
                            "checkpoint.npz is missing: restore it, or start a new run "
                            "with another --out")  # fmt: skip
-        if ckpt is not None and genome_mismatch(probe, ckpt[1].shape[1]):
-            raise RunError(f"{self.out / 'checkpoint.npz'}: "
-                           f"{genome_mismatch(probe, ckpt[1].shape[1])}")  # fmt: skip
+        problem = genome_mismatch(probe, ckpt[1].shape[1]) if ckpt is not None else None
+        if problem:
+            raise RunError(f"{self.out / 'checkpoint.npz'}: {problem}")
         if ckpt is None and (cfg.pretrain or cfg.pretrain_episodes):
             start, population = 0, self._pretrained_population(probe, table)
             backend.load(population)
