@@ -22,7 +22,7 @@ _TRAIN_KEYS = (
     "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_episodes", "pretrain_epochs",
     "batch", "prior",
     "resample_episodes", "constrained", "validation_episodes", "frame", "skip",
-    "pretrain_validation",
+    "pretrain_validation", "dagger_rounds",
 )  # fmt: skip
 
 
@@ -228,6 +228,16 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SHARE",
         help="share of the warm start's tracks held out to pick its epoch (default 0.2; 0: "
         "keep the last epoch)",
+    )
+    t.add_argument(
+        "--dagger-rounds",
+        dest="dagger_rounds",
+        type=at_least(0),
+        default=None,
+        metavar="N",
+        help="after the warm start, N rounds of driving the fitted network on its episodes and "
+        "refitting it to the states it visited, labelled with the human's set-points "
+        "(default 0)",
     )
     t.add_argument("--out", default=None, help=f"run directory (created; default {DEFAULT_OUT})")
     t.add_argument("--resume", default=None, help="continue the run in this directory")

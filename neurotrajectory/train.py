@@ -30,6 +30,7 @@ from neurotrajectory.genome import (
     genome_mismatch,
     initial_genome,
     noise_table,
+    set_genome,
     table_size,
 )
 from neurotrajectory.model import PRESETS, PRIORS, NetConfig, TrajectoryNet, size_mismatch
@@ -73,6 +74,9 @@ class TrainConfig:
     #: recorded scenes: the tracks the episodes drive as the ego (empty: any; with pretrain
     #: data on a recorded scene, Run.create sets the data's tracks of that scene)
     ego_tracks: tuple[str, ...] = ()
+    #: after the warm start: rounds of driving the fitted network on the warm start's episodes
+    #: and refitting it to all windows so far, labelled with the human's set-points (DAgger)
+    dagger_rounds: int = 0
 
     #: What format-1 configurations (saved before the fields above existed) meant.
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0}
@@ -84,7 +88,7 @@ class TrainConfig:
     #: The smallest value of each integer field.
     MINIMUM = {"population": 2, "generations": 1, "episodes": 1, "workers": 1, "batch": 1,
                "seed": 0, "validation_episodes": 0, "pretrain_episodes": 0,
-               "pretrain_epochs": 1}  # fmt: skip
+               "pretrain_epochs": 1, "dagger_rounds": 0}  # fmt: skip
 
     def _check(self) -> None:
         if self.preset not in PRESETS:
@@ -107,6 +111,8 @@ class TrainConfig:
             raise RunError(f"unknown backend {self.backend!r}; choose from {list(BACKENDS)}")
         if self.pretrain and self.pretrain_episodes:
             raise RunError("give either pretrain (a dataset) or pretrain_episodes, not both")
+        if self.dagger_rounds and not (self.pretrain or self.pretrain_episodes):
+            raise RunError("dagger_rounds refit the warm start: give pretrain or pretrain_episodes")
         if self.pretrain_episodes == 1 and self.pretrain_validation > 0:
             raise RunError("pretrain_episodes 1 leaves no episode to validate the warm start on: "
                            "record >= 2 or set pretrain_validation to 0")  # fmt: skip
@@ -381,15 +387,10 @@ class Run:
 
     def _pretrained_population(self, probe: TrajectoryNet, table: np.ndarray) -> np.ndarray:
         """Generation 0 of a warm-started run: the network fitted to the pre-training windows
-        (individual 0) and ``sigma``-mutations of it; writes ``pretrain.json``."""
-        from neurotrajectory.pretrain import pretrain_genome
-
+        (and, with ``dagger_rounds``, to the windows of its own drives; see :meth:`_warm_start`)
+        as individual 0 and ``sigma``-mutations of it."""
         cfg = self.config
-        windows, source = self._pretrain_windows()
-        start = initial_genome(probe, initial_recipes(cfg.ga, cfg.seed)[0].init_seed)
-        base, stats = pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed,
-                                      validation=cfg.pretrain_validation)  # fmt: skip
-        _write_json(self.out / "pretrain.json", {**source, **stats})
+        base = self._warm_start(probe)
         n = len(base)
         rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x9E7A]))
         offsets = rng.integers(0, len(table) - n, size=cfg.population)
@@ -397,22 +398,69 @@ class Run:
         population[0] = base
         return population
 
+    def _warm_start(self, probe: TrajectoryNet) -> np.ndarray:
+        """The warm start's genome; writes ``pretrain.json``. Fits the network to the
+        pre-training windows; each DAgger round then drives the fitted network on the
+        pre-training episodes, labels every state it visits with the human's next set-points
+        from there, and fits a fresh start to all windows so far (same seed, same held-out
+        tracks), so that the network learns to recover from its own mistakes."""
+        from neurotrajectory.front import NetPolicy
+        from neurotrajectory.pretrain import pretrain_genome
+        from neurotrajectory.windows import (
+            GENERATED_STRIDE,
+            RECORDED_STRIDE,
+            Windows,
+            drive_windows,
+            is_recorded,
+        )
+
+        cfg = self.config
+        windows, source, episodes = self._pretrain_windows()
+        start = initial_genome(probe, initial_recipes(cfg.ga, cfg.seed)[0].init_seed)
+
+        def fit(data):
+            return pretrain_genome(probe, start, data, cfg.pretrain_epochs, cfg.seed,
+                                   validation=cfg.pretrain_validation)  # fmt: skip
+
+        base, stats = fit(windows)
+        rounds = []
+        stride = RECORDED_STRIDE if is_recorded(cfg.scenario) else GENERATED_STRIDE
+        for _ in range(cfg.dagger_rounds):
+            set_genome(probe, base.copy())
+            visited = drive_windows(cfg.scenario, episodes, stride, NetPolicy(probe))
+            if visited is not None:
+                windows = Windows.concat([windows, visited])
+            base, stats = fit(windows)
+            rounds.append({"visited_windows": 0 if visited is None else len(visited),
+                           **{k: stats[k] for k in ("windows", "validation_windows",
+                                                    "best_epoch", "validation_mse")
+                              if k in stats}})  # fmt: skip
+        if rounds:
+            stats["dagger"] = rounds
+        _write_json(self.out / "pretrain.json", {**source, **stats})
+        return base
+
     def _pretrain_windows(self):
-        """The warm start's windows and where they came from: the dataset ``pretrain``, or
+        """The warm start's windows, where they came from, and the episodes of the training
+        scenario they were recorded on (to drive again): the dataset ``pretrain``, or
         ``pretrain_episodes`` episodes of the training scenario recorded now (training seeds,
         :data:`PRETRAIN_EPISODE_SECONDS` each)."""
-        from neurotrajectory.windows import record_scenario
+        from neurotrajectory.windows import GENERATED_STRIDE, drive_windows, scenario_episodes
 
         cfg = self.config
         if cfg.pretrain:
             if self._windows is None:
                 self._windows = _pretrain_data(cfg.pretrain)
-            return self._windows, {"data": str(cfg.pretrain)}
+            return self._windows, {"data": str(cfg.pretrain)}, _dagger_episodes(cfg, self._windows)
         _check_pretrain_episodes(cfg)
         seeds = list(cfg.pretrain_seeds)
-        windows, _ = record_scenario(cfg.scenario, len(seeds), seeds=seeds,
-                                     duration=PRETRAIN_EPISODE_SECONDS)  # fmt: skip
-        return windows, {"recorded_episodes": seeds, "episode_seconds": PRETRAIN_EPISODE_SECONDS}
+        episodes, _ = scenario_episodes(cfg.scenario, seeds=seeds,
+                                        duration=PRETRAIN_EPISODE_SECONDS)  # fmt: skip
+        windows = drive_windows(cfg.scenario, episodes, GENERATED_STRIDE)
+        if windows is None:
+            raise RunError(f"--pretrain-episodes: no windows were recorded on {cfg.scenario!r}")
+        source = {"recorded_episodes": seeds, "episode_seconds": PRETRAIN_EPISODE_SECONDS}
+        return windows, source, episodes
 
     def _record(self, gen, fitness, violation, rank, stats, seconds, history) -> dict:
         f = minimised(fitness)
@@ -516,6 +564,7 @@ def _checked(config: TrainConfig):
         problem = size_mismatch(probe.cfg, windows)
         if problem:
             raise RunError(f"--pretrain {config.pretrain}: {problem}")
+        _dagger_episodes(config, windows)
     elif config.pretrain_episodes:
         _check_pretrain_episodes(config)
     return _with_training_tracks(config, windows), windows
@@ -528,6 +577,18 @@ def _pretrain_data(folder: str):
         return load_dataset(folder).windows
     except DatasetError as exc:
         raise RunError(f"--pretrain {folder}: {exc}") from None
+
+
+def _dagger_episodes(config: TrainConfig, windows) -> list:
+    """The episodes of the training scenario the pre-training ``windows`` were recorded on
+    (to drive again); a :class:`RunError` if DAgger rounds need them and there are none."""
+    from neurotrajectory.windows import episodes_of
+
+    episodes = episodes_of(windows, config.scenario, PRETRAIN_EPISODE_SECONDS)
+    if config.dagger_rounds and not episodes:
+        raise RunError(f"--dagger-rounds: --pretrain {config.pretrain} holds no episode of the "
+                       f"training scenario {config.scenario!r} to drive again")  # fmt: skip
+    return episodes
 
 
 def _check_pretrain_episodes(config: TrainConfig) -> None:

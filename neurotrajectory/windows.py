@@ -111,9 +111,102 @@ class Dataset:
 
 
 # -- recording ------------------------------------------------------------------------------
-def _episode_windows(env: GridSimEnv, seed: int, stride: int, track: str) -> Windows | None:
-    """Drive the reference for one episode; a window every ``stride`` decisions while the
-    reference covers the whole horizon."""
+#: Windows are taken every decision on recorded scenes (few tracks), every fifth elsewhere.
+RECORDED_STRIDE, GENERATED_STRIDE = 1, 5
+
+
+@dataclass(frozen=True)
+class Episode:
+    """One episode to record: the track label its windows carry, its reset seed and the
+    :class:`GridSimEnv` overrides that select it (the ego track, the duration)."""
+
+    track: str  # "scene/track_id" on recorded scenes, "scenario/seedN" on generated ones
+    seed: int
+    overrides: dict
+
+
+def scenario_episodes(
+    scenario: str,
+    episodes: int = 0,
+    seed: int = 0,
+    duration: float | None = None,
+    seeds: list[int] | None = None,
+    tracks: Iterable[str] | None = None,
+) -> tuple[list[Episode], dict]:
+    """The episodes of ``scenario`` to record and their provenance. On a recorded scene, every
+    track (or the ids in ``tracks``) is driven once as the ego for its recorded duration
+    (``episodes`` and ``seed`` do not apply); elsewhere ``episodes`` episodes with seeds drawn
+    from ``seed`` (or the episode ``seeds`` given), ``duration`` [s] long if given."""
+    base = load_scenario(scenario)
+    if isinstance(base.config.road, RecordedRoadConfig):
+        scene = base.config.road.scene
+        wanted = None if tracks is None else {str(t) for t in tracks}
+        chosen = [t for t in library_for(base).scene(scene)
+                  if wanted is None or t.track_id in wanted]  # fmt: skip
+        out = [Episode(f"{scene}/{t.track_id}", 0,
+                       {"ego": {"track": t.track_id},
+                        "simulation": {"duration": max(float(t.duration), 0.1)}})
+               for t in chosen]  # fmt: skip
+        return out, {"scene": scene, "tracks": len(out)}
+    if seeds is None:
+        if episodes < 1:
+            raise DatasetError(f"episodes must be >= 1, got {episodes}")
+        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xDA7A]))
+        seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=episodes)]
+    overrides = {"simulation": {"duration": duration}} if duration else {}
+    out = [Episode(f"{scenario}/seed{s}", int(s), overrides) for s in seeds]
+    return out, {"episodes": len(out), "episode_seeds": [int(s) for s in seeds]}
+
+
+def episodes_of(windows: Windows, scenario: str, duration: float | None = None) -> list[Episode]:
+    """The episodes of ``scenario`` that ``windows`` were recorded from (by their track
+    labels, in order; windows of other scenarios are ignored), to drive them again;
+    ``duration`` [s] for generated scenarios (recorded tracks keep their own)."""
+    base = load_scenario(scenario)
+    labels = list(dict.fromkeys(windows.track.tolist()))  # in the order they were recorded
+    if isinstance(base.config.road, RecordedRoadConfig):
+        prefix = base.config.road.scene + "/"
+        ids = [t[len(prefix) :] for t in labels if t.startswith(prefix)]
+        return scenario_episodes(scenario, tracks=ids)[0] if ids else []
+    prefix = f"{scenario}/seed"
+    seeds = [int(t[len(prefix) :]) for t in labels if t.startswith(prefix)]
+    return scenario_episodes(scenario, seeds=seeds, duration=duration)[0] if seeds else []
+
+
+def drive_windows(
+    scenario: str,
+    episodes: list[Episode],
+    stride: int,
+    policy=None,
+    progress: Callable[[int], None] | None = None,
+) -> Windows | None:
+    """The windows of ``episodes`` of ``scenario``, one every ``stride`` decisions while the
+    reference covers the whole horizon. The ego drives the reference, or follows ``policy``
+    (a trajectory-action policy ``(env, obs, info) -> set-points``); the label is always the
+    reference's next set-points from the ego's pose (with a policy: where the human is going
+    from where the policy brought the ego, as in DAgger). ``None`` if no window was taken."""
+    if stride < 1:
+        raise DatasetError(f"stride must be >= 1, got {stride}")
+    if policy is not None and getattr(policy, "action_type", "trajectory") != "trajectory":
+        raise DatasetError(f"windows are driven with trajectory actions, got a policy with "
+                           f"action_type {policy.action_type!r}")  # fmt: skip
+    envs: dict[str, GridSimEnv] = {}
+    parts = []
+    for episode in episodes:
+        key = json.dumps(episode.overrides, sort_keys=True)
+        if key not in envs:
+            envs[key] = GridSimEnv(scenario, **episode.overrides)
+        parts.append(_episode_windows(envs[key], episode.seed, stride, episode.track, policy))
+        if progress:
+            progress(1)
+    parts = [p for p in parts if p is not None]
+    return Windows.concat(parts) if parts else None
+
+
+def _episode_windows(
+    env: GridSimEnv, seed: int, stride: int, track: str, policy=None
+) -> Windows | None:
+    """One episode of :func:`drive_windows`."""
     obs, info = env.reset(seed=seed)
     horizon_time = env.cfg.env.horizon * env.cfg.env.setpoint_period
     end = env.reference.end_time
@@ -124,7 +217,8 @@ def _episode_windows(env: GridSimEnv, seed: int, stride: int, track: str) -> Win
         t = env.world.time
         if step % stride == 0 and t + horizon_time <= end + 1e-6:
             rows.append((obs, info["reference_setpoints"], t))
-        obs, _, terminated, truncated, info = env.step(info["reference_setpoints"])
+        action = info["reference_setpoints"] if policy is None else policy(env, obs, info)
+        obs, _, terminated, truncated, info = env.step(action)
         step += 1
         if terminated or truncated:
             break
@@ -159,45 +253,18 @@ def record_scenario(
     scenario: str,
     episodes: int,
     seed: int = 0,
-    stride: int = 5,
+    stride: int = GENERATED_STRIDE,
     duration: float | None = None,
     progress: Callable[[int], None] | None = None,
     seeds: list[int] | None = None,
 ) -> tuple[Windows, dict]:
-    """Windows of one scenario and its provenance. On a recorded scene, every track of the
-    scene is driven once as the ego (``episodes`` and ``seed`` do not apply); elsewhere
-    ``episodes`` episodes with seeds drawn from ``seed`` (or the episode ``seeds`` given).
-    ``duration`` [s] shortens generated episodes."""
-    if stride < 1:
-        raise DatasetError(f"stride must be >= 1, got {stride}")
-    parts = []
-    base = load_scenario(scenario)
-    cfg = base.config
-    if isinstance(cfg.road, RecordedRoadConfig):
-        scene = cfg.road.scene
-        tracks = library_for(base).scene(scene)
-        for track in tracks:
-            overrides = {"ego": {"track": track.track_id},
-                         "simulation": {"duration": max(float(track.duration), 0.1)}}  # fmt: skip
-            env = GridSimEnv(scenario, **overrides)
-            parts.append(_episode_windows(env, 0, stride, f"{scene}/{track.track_id}"))
-            if progress:
-                progress(1)
-        source = {"scene": scene, "tracks": len(tracks)}
-    else:
-        if episodes < 1:
-            raise DatasetError(f"episodes must be >= 1, got {episodes}")
-        overrides = {"simulation": {"duration": duration}} if duration else {}
-        env = GridSimEnv(scenario, **overrides)
-        if seeds is None:
-            rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xDA7A]))
-            seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=episodes)]
-        for s in seeds:
-            parts.append(_episode_windows(env, s, stride, f"{scenario}/seed{s}"))
-            if progress:
-                progress(1)
-        source = {"episodes": episodes, "episode_seeds": seeds}
-    windows = Windows.concat(p for p in parts if p is not None)
+    """Windows of one scenario (the ego drives the reference; see :func:`scenario_episodes`
+    for the episodes) and their provenance."""
+    plan, source = scenario_episodes(scenario, episodes, seed, duration, seeds)
+    windows = drive_windows(scenario, plan, stride, progress=progress)
+    if windows is None:
+        raise DatasetError("no windows were recorded")
+    cfg = load_scenario(scenario).config
     meta = {"scenario": scenario, **source, "horizon": cfg.env.horizon,
             "history": cfg.env.history, "setpoint_period": cfg.env.setpoint_period,
             "decision_period": cfg.env.decision_period, "stride": stride,
@@ -221,7 +288,7 @@ def record_group(
     recorded = {scenario: is_recorded(scenario) for scenario in scenarios}
     parts, metas = [], []
     for scenario in scenarios:
-        s = stride or (1 if recorded[scenario] else 5)
+        s = stride or (RECORDED_STRIDE if recorded[scenario] else GENERATED_STRIDE)
         w, meta = record_scenario(scenario, episodes, seed, s, duration, progress)
         parts.append(w)
         metas.append(meta)

@@ -1,6 +1,7 @@
 """Warm-starting neuroevolution by fitting the network to recorded windows."""
 
 import json
+from dataclasses import fields
 
 import numpy as np
 import pytest
@@ -12,9 +13,14 @@ from neurotrajectory.pretrain import PretrainError, pretrain_genome, setpoint_ms
 from neurotrajectory.train import Run, RunError, TrainConfig
 from neurotrajectory.windows import (
     DatasetError,
+    Windows,
+    drive_windows,
+    episodes_of,
     load_dataset,
     record_group,
+    record_scenario,
     save_dataset,
+    scenario_episodes,
     split_by_track,
 )
 
@@ -165,3 +171,69 @@ def test_a_recorded_scene_run_drives_only_the_tracks_of_its_training_data(tmp_pa
     data.rename(tmp_path / "data" / "highway")
     with pytest.raises(DatasetError, match="holds only the train side"):
         _dataset("highway", EvalConfig(), tmp_path / "data", tmp_path, print)
+
+
+class _Lagging:
+    """Follows the human's set-points at 80 % of their reach: falls behind, as a network
+    that has not learnt enough would."""
+
+    action_type = "trajectory"
+
+    def __call__(self, env, obs, info):
+        return 0.8 * info["reference_setpoints"]
+
+
+def _reach(w: Windows) -> np.ndarray:
+    """Distance [m] from the ego to the label's last set-point, per window."""
+    return np.hypot(w.target[:, -1, 0], w.target[:, -1, 1])
+
+
+def test_driven_windows_are_the_visited_states_labelled_with_the_human_future():
+    episodes, _ = scenario_episodes("seamless", 2, seed=5, duration=6.0)
+    human = drive_windows("seamless", episodes, 5)
+    recorded, _ = record_scenario("seamless", 2, seed=5, duration=6.0)
+    for f in fields(Windows):  # recording is driving the reference
+        np.testing.assert_array_equal(getattr(human, f.name), getattr(recorded, f.name))
+    assert episodes_of(human, "seamless", 6.0) == episodes
+    assert episodes_of(human, "inner_city") == []  # windows of another scenario
+    visited = drive_windows("seamless", episodes, 5, _Lagging())
+    assert list(np.unique(visited.track)) == list(np.unique(human.track))
+    first = [np.flatnonzero(visited.track == t)[0] for t in np.unique(visited.track)]
+    np.testing.assert_array_equal(visited.ego[first], human.take(first).ego)  # same start
+    # the lagging ego is behind the human, so the human's last set-point is further ahead of
+    # it than of the human at the same time of the same episode
+    reach = {(t, k): d for t, k, d in zip(human.track, human.time, _reach(human), strict=True)}
+    lagging = [(t, k, d) for t, k, d in zip(visited.track, visited.time, _reach(visited),
+                                             strict=True) if k > 2.0]  # fmt: skip
+    assert lagging and all(d > reach[(t, k)] + 0.5 for t, k, d in lagging)
+    with pytest.raises(DatasetError, match="trajectory actions.*'control'"):
+        from gridsim.policies import Idle
+
+        drive_windows("seamless", episodes, 5, Idle())
+
+
+def test_dagger_rounds_refit_the_warm_start_on_the_states_it_visits(windows_dir, tmp_path):
+    out = tmp_path / "run"
+    args = ["train", "--preset", "tiny", "--population", "2", "--generations", "1",
+            "--episodes", "1", "--episode-seconds", "2", "--pretrain", str(windows_dir),
+            "--pretrain-epochs", "1", "--validation-episodes", "0", "--heldout", "0",
+            "--dagger-rounds", "2", "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(args) == 0
+    stats = json.loads((out / "pretrain.json").read_text())
+    human = len(load_dataset(windows_dir).windows)
+    rounds = stats["dagger"]
+    assert len(rounds) == 2 and all(r["visited_windows"] > 0 for r in rounds)
+    # every round refits on the human windows and all visited so far
+    total = human + sum(r["visited_windows"] for r in rounds)
+    assert rounds[-1]["windows"] + rounds[-1]["validation_windows"] == total
+    assert stats["windows"] + stats["validation_windows"] == total
+    again = tmp_path / "again"
+    assert main([*args[:-3], "--out", str(again), "--quiet"]) == 0
+    assert json.loads((again / "pretrain.json").read_text()) == stats
+    with pytest.raises(RunError, match="dagger_rounds refit the warm start"):
+        TrainConfig(dagger_rounds=1)
+    with pytest.raises(RunError, match="no episode of the training scenario 'inner_city'"):
+        cfg = TrainConfig(scenario="inner_city", preset="tiny", population=2, generations=1,
+                          pretrain=str(windows_dir), dagger_rounds=1)  # fmt: skip
+        Run.create(tmp_path / "city", cfg).train(progress=False)
+    assert not (tmp_path / "city").exists()  # refused before the run folder is made

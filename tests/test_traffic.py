@@ -131,6 +131,40 @@ def test_recorded_vehicle_hands_over_to_idm_behind_a_stopped_ego_and_back():
     assert src.fleet.mode[0] == REPLAY or not src.fleet.active[0]
 
 
+def _crossing(geometric: bool, ego_speed: float):
+    """One participant at 10 m/s on a straight path along x, and an ego standing (or
+    driving at ``ego_speed``) across that path at 115 degrees, 30 m ahead of it. Returns the
+    fleet after 8 s and whether their footprints ever overlapped."""
+    f = Fleet(1)
+    path = f.paths.add_path(np.array([[0.0, 0.0], [400.0, 0.0]]), np.array([0.0, 400.0]))
+    prof = f.profiles.add(np.array([0.0, 40.0]), np.array([[0, 10, 0, 0], [400, 10, 0, 0]]))
+    f.place(0, path=path, s=10.0, profile=prof, tau=0.0, geometric=geometric)
+    psi = 2.0
+    start = 4.0 if ego_speed else 0.0  # a moving ego starts 4 m before the path
+    x, y = 40.0 - start * np.cos(psi), -start * np.sin(psi)
+    hit = False
+    for _ in range(80):
+        ego = EgoPose(x, y, psi, ego_speed, 4.5, 1.8)
+        f.tick(0.1, ego)
+        x, y = x + 0.1 * ego_speed * np.cos(psi), y + 0.1 * ego_speed * np.sin(psi)
+        ego_box = box_corners(x, y, psi, 4.5, 1.8)
+        hit |= overlap(box_corners(f.x[0], f.y[0], f.psi[0], f.length[0], f.width[0]), ego_box)
+    return f, hit
+
+
+def test_generated_traffic_stops_for_an_ego_standing_across_its_path():
+    f, hit = _crossing(geometric=False, ego_speed=0.0)
+    assert not hit and f.mode[0] == IDM and f.v[0] < 0.05 and f.leader[0] == -2
+    assert 0.5 < f.gap[0] < 3.0  # stopped short of the ego
+    # an ego that clears the path before the participant gets there is not waited for
+    f, hit = _crossing(geometric=False, ego_speed=8.0)
+    assert not hit and f.mode[0] == REPLAY and f.v[0] == pytest.approx(10.0)
+    # a recorded vehicle replays its recording exactly (as before): it only follows an ego
+    # heading its way
+    f, hit = _crossing(geometric=True, ego_speed=0.0)
+    assert hit and f.mode[0] == REPLAY
+
+
 def brute_force_leaders(f: Fleet, ego: EgoPose):
     """O(N^2) reference for Fleet.find_leaders on straight parallel lanes."""
     idx = np.flatnonzero(f.active)

@@ -52,6 +52,9 @@ class FleetParams:
     resume_factor: float = 1.3
     resume_speed_tol: float = 0.5
     lateral_margin: float = 0.2
+    #: s: an ego crossing a synthetic participant's path (or coming the other way) is its
+    #: leader once the participant would reach it within this time (see ``ego_ahead``)
+    crossing_horizon: float = 2.0
     #: Bounds applied to synthetic (non-recorded) participants in replay.
     v_min: float = 0.0
     v_max: float = np.inf
@@ -172,9 +175,11 @@ class Fleet:
         if ego is not None:
             pose = (ego.x, ego.y, ego.v, ego.length, ego.width, math.cos(ego.psi),
                     math.sin(ego.psi))  # fmt: skip
-            fleet = (self.x, self.y, self.s, self.d, self.path, self.length, self.width)
+            fleet = (self.x, self.y, self.s, self.d, self.path, self.length, self.width, self.v,
+                     self.geometric)  # fmt: skip
             paths = self.paths.kernel_data()
-            found.append(ego_ahead(idx, fleet, c, sn, pose, paths, p.lookahead, p.lateral_margin))
+            found.append(ego_ahead(idx, fleet, c, sn, pose, paths, p.lookahead, p.lateral_margin,
+                                   p.crossing_horizon))  # fmt: skip
         a = np.concatenate([f[0] for f in found])  # follower (index into idx)
         b = np.concatenate([f[1] for f in found])  # leader index into idx, or -2 for the ego
         gap = np.concatenate([f[2] for f in found])

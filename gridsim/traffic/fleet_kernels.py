@@ -97,12 +97,17 @@ def same_path(idx, path, s, length, v, psi, lookahead):
 
 
 @kernel
-def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin):
+def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin, crossing_horizon):
     """Candidates ``(a, b = -2, gap, lead_v)`` of participants that have the ego ahead on
-    their path. ``fleet``: the arrays ``(x, y, s, d, path, length, width)``; ``c``, ``sn``:
-    the participants' heading cosines and sines; ``ego``: ``(x, y, v, length, width,
-    cos psi, sin psi)``; ``paths``: :meth:`PathBank.kernel_data`."""
-    x, y, s, d, path_id, length, width = fleet
+    their path. ``fleet``: the arrays ``(x, y, s, d, path, length, width, v, geometric)``;
+    ``c``, ``sn``: the participants' heading cosines and sines; ``ego``: ``(x, y, v, length,
+    width, cos psi, sin psi)``; ``paths``: :meth:`PathBank.kernel_data`. An ego heading the
+    same way is a leader wherever it is on the path. For synthetic participants (not
+    replaying a recorded track's exact pose) so is an ego crossing the path or coming the
+    other way (its footprint taken across the path), within ``crossing_horizon`` [s] at the
+    participant's speed (at least 1 m/s) and only if it would not have cleared the path by
+    the time the participant got there: generated traffic does not drive into the ego."""
+    x, y, s, d, path_id, length, width, v, recorded = fleet
     ex, ey, ev, e_len, e_wid, e_c, e_s = ego
     m = len(idx)
     near = np.empty(m, np.int64)
@@ -112,7 +117,7 @@ def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin):
         i = idx[q]
         dx, dy = ex - x[i], ey - y[i]
         lon[q] = dx * c[q] + dy * sn[q]
-        if lon[q] > 0 and np.hypot(dx, dy) <= lookahead and c[q] * e_c + sn[q] * e_s > 0:
+        if lon[q] > 0 and np.hypot(dx, dy) <= lookahead:
             near[n] = q
             n += 1
     buckets = n > SMALL_QUERY
@@ -120,11 +125,30 @@ def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin):
     k = 0
     for q in near[:n]:
         i = idx[q]
-        px, py, _ = frenet_one(paths, path_id[i], s[i] + lon[q], d[i], buckets)
-        if np.hypot(ex - px, ey - py) < 0.5 * (width[i] + e_wid) + margin:
-            a[k], gap[k] = q, lon[q] - 0.5 * (length[i] + e_len)
-            lead_v[k] = ev * (c[q] * e_c + sn[q] * e_s)
-            k += 1
+        dot = c[q] * e_c + sn[q] * e_s
+        px, py, h = frenet_one(paths, path_id[i], s[i] + lon[q], d[i], buckets)
+        off = np.hypot(ex - px, ey - py)
+        if dot > 0:
+            if off < 0.5 * (width[i] + e_wid) + margin:
+                a[k], gap[k] = q, lon[q] - 0.5 * (length[i] + e_len)
+                lead_v[k] = ev * dot
+                k += 1
+        elif not recorded[i]:
+            cross = abs(c[q] * e_s - sn[q] * e_c)
+            g = lon[q] - 0.5 * (length[i] + e_len * -dot + e_wid * cross)
+            reach = 0.5 * (width[i] + e_len * cross + e_wid * -dot) + margin
+            if off < reach and g < max(v[i], 1.0) * crossing_horizon:
+                # only if the ego is still across the path when the participant gets there
+                nx, ny = -np.sin(h), np.cos(h)  # the path's left normal
+                side = (ex - px) * nx + (ey - py) * ny
+                drift = ev * (e_c * nx + e_s * ny)  # the ego's speed across the path
+                clear = np.inf
+                if abs(drift) > 1e-9:
+                    clear = (reach - side * np.sign(drift)) / abs(drift)
+                if clear * max(v[i], 1e-9) > g:
+                    a[k], gap[k] = q, g
+                    lead_v[k] = ev * dot
+                    k += 1
     return a[:k], np.full(k, -2, np.int64), gap[:k], lead_v[:k]
 
 
