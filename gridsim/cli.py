@@ -21,11 +21,19 @@ def _cmd_scenarios(args: argparse.Namespace) -> int:
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
+    from gridsim.errors import DataError
     from gridsim.scenario.build import build_world
+    from gridsim.scenario.checks import scenario_problems
     from gridsim.scenario.loader import load_scenario
 
     sc = load_scenario(args.path)
     build_world(sc, seed=0)  # also resolves maps and libraries
+    problems = scenario_problems(sc)
+    if problems:
+        lines = "\n".join(f"  - {p}" for p in problems)
+        raise DataError(
+            f"{args.path}: implausible recorded scene ({len(problems)} problem(s)):\n{lines}"
+        )
     print(f"{args.path}: OK (scenario {sc.name!r}, road type {sc.config.road.type})")
     return 0
 
@@ -53,7 +61,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     s = sub.add_parser("scenarios", help="list the built-in scenarios")
     s.set_defaults(func=_cmd_scenarios)
-    s = sub.add_parser("validate", help="check a scenario YAML file and print precise errors")
+    s = sub.add_parser(
+        "validate",
+        help="check a scenario YAML file (and a recorded scene's data) and print precise errors",
+    )
     s.add_argument("path")
     s.set_defaults(func=_cmd_validate)
     s = sub.add_parser("run", help="drive a policy in GridSim-v0, print a summary, export a video")

@@ -213,14 +213,21 @@ def _build_city(scenario: Scenario, seed: int) -> World:
     return World(road, traffic, ego, state, cfg.simulation.dt, partial(_fixed, route), traffic_rng)
 
 
+def map_path(scenario: Scenario) -> Path:
+    """The CommonRoad file of a recorded scenario's ``road.map``."""
+    return _resolve(scenario, scenario.config.road.map, ("data", "ngsim", "commonroad-xml"), ".xml")
+
+
+def recorded_scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
+    """The map and the tracks of a recorded scenario (cached)."""
+    road = _lanelet_road(str(map_path(scenario)))
+    return road, library_for(scenario).scene(scenario.config.road.scene)
+
+
 def _build_recorded(scenario: Scenario, seed: int) -> World:
     cfg = scenario.config
-    rc: RecordedRoadConfig = cfg.road
     _, traffic_rng, ego_rng = _seeds(seed)
-    road = _lanelet_road(
-        str(_resolve(scenario, rc.map, ("data", "ngsim", "commonroad-xml"), ".xml"))
-    )
-    tracks = library_for(scenario).scene(rc.scene)
+    road, tracks = recorded_scene(scenario)
     ego_track = _pick_ego_track(scenario, tracks, road, ego_rng)
     ego = vehicle_params(cfg.ego.vehicle, ego_track.length, ego_track.width)
     u = np.array([np.cos(ego_track.heading[0]), np.sin(ego_track.heading[0])])

@@ -47,6 +47,8 @@ class Track:
     speed: np.ndarray
     length: float
     width: float
+    #: Where the track was read from (a file path), for messages.
+    source: str = ""
 
     @property
     def duration(self) -> float:
@@ -194,6 +196,7 @@ def read_tracks_csv(path: str | Path) -> list[Track]:
                 a[:, 4],
                 float(a[0, 5]),
                 float(a[0, 6]),
+                str(path),
             )
         )
     return tracks
