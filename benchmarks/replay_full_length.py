@@ -18,7 +18,7 @@ import json
 from collections import Counter
 
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.scenario.build import library_for
+from gridsim.scenario.build import library_for, scene_of
 from gridsim.scenario.loader import load_scenario
 
 RECORDED = ("us101_3_3", "us101_4_1", "lankershim_1_1", "peachtree_4_8")
@@ -51,7 +51,7 @@ def main() -> None:
     total: Counter = Counter()
     for name in args.scenarios:
         sc = load_scenario(name)
-        tracks = library_for(sc).scene(sc.config.road.scene)
+        tracks = library_for(sc).scene(scene_of(sc))
         counts = Counter(outcome(name, t) for t in tracks)
         total += counts
         print(json.dumps({"scenario": name, "tracks": len(tracks), **dict(sorted(counts.items()))}))

@@ -451,8 +451,9 @@ def _with_training_tracks(config: TrainConfig) -> TrainConfig:
     if config.ego_tracks or not config.pretrain or not is_recorded(config.scenario):
         return config
     from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.scenario.build import scene_of
 
-    scene = GridSimEnv(config.scenario).cfg.road.scene
+    scene = scene_of(GridSimEnv(config.scenario).scenario)
     try:
         tracks = load_dataset(config.pretrain).windows.track
     except DatasetError as exc:

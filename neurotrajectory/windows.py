@@ -28,7 +28,7 @@ import numpy as np
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError
-from gridsim.scenario.build import library_for
+from gridsim.scenario.build import library_for, scene_of
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.schema import RecordedRoadConfig
 from neurotrajectory.commands import implied_commands
@@ -174,7 +174,7 @@ def record_scenario(
     base = load_scenario(scenario)
     cfg = base.config
     if isinstance(cfg.road, RecordedRoadConfig):
-        scene = cfg.road.scene
+        scene = scene_of(base)
         tracks = library_for(base).scene(scene)
         for track in tracks:
             overrides = {"ego": {"track": track.track_id},

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import ScenarioError
+from gridsim.errors import DataError, ScenarioError
 from gridsim.road.base import StaticRoad
 from gridsim.road.city import CityParams, CityRoad
 from gridsim.road.lanelet import load_lanelet_road
@@ -29,6 +29,7 @@ from gridsim.scenario.schema import (
     VehicleConfig,
 )
 from gridsim.sensors.occupancy import GridSpec, OccupancyGridSensor, SensorMount
+from gridsim.traffic.commonroad import scene_id
 from gridsim.traffic.library import Track, TrajectoryLibrary
 from gridsim.traffic.sources import (
     CityTraffic,
@@ -101,10 +102,19 @@ def _resolve(scenario: Scenario, ref: str, builtin_dir: tuple[str, ...], suffix:
 
 
 def library_for(scenario: Scenario) -> TrajectoryLibrary:
+    """The tracks of ``traffic.library``: ``builtin``, ``scene`` (the recorded map file's
+    dynamic obstacles) and trajectory files (CSV or CommonRoad XML)."""
     paths = []
     for ref in scenario.config.traffic.library:
         if ref == "builtin":
             paths.append("builtin")
+        elif ref == "scene":
+            if not isinstance(scenario.config.road, RecordedRoadConfig):
+                raise ScenarioError(
+                    f"{scenario.source}: traffic.library 'scene' needs road.type recorded (the "
+                    "tracks of its CommonRoad map file)"
+                )
+            paths.append(str(map_path(scenario)))
         else:
             paths.append(str(_resolve(scenario, ref, ("data", "ngsim"), ".csv")))
     return _library(tuple(paths))
@@ -114,7 +124,7 @@ def library_for(scenario: Scenario) -> TrajectoryLibrary:
 def _library(paths: tuple[str, ...]) -> TrajectoryLibrary:
     tracks = []
     for p in paths:
-        lib = TrajectoryLibrary.builtin() if p == "builtin" else TrajectoryLibrary.from_csv(p)
+        lib = TrajectoryLibrary.builtin() if p == "builtin" else TrajectoryLibrary.from_files(p)
         tracks += lib.tracks
     return TrajectoryLibrary(tracks)
 
@@ -218,10 +228,23 @@ def map_path(scenario: Scenario) -> Path:
     return _resolve(scenario, scenario.config.road.map, ("data", "ngsim", "commonroad-xml"), ".xml")
 
 
+def scene_of(scenario: Scenario) -> str:
+    """The scene a recorded scenario replays: ``road.scene``, or its map file's scene id."""
+    return scenario.config.road.scene or scene_id(map_path(scenario))
+
+
 def recorded_scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
     """The map and the tracks of a recorded scenario (cached)."""
     road = _lanelet_road(str(map_path(scenario)))
-    return road, library_for(scenario).scene(scenario.config.road.scene)
+    try:
+        return road, library_for(scenario).scene(scene_of(scenario))
+    except DataError as exc:
+        if "scene" in scenario.config.traffic.library:
+            raise
+        raise DataError(
+            f"{scenario.source}: {exc}; to replay the vehicles of the CommonRoad file itself, "
+            "set traffic.library: [scene] (or give the .xml file as the scenario)"
+        ) from None
 
 
 def _build_recorded(scenario: Scenario, seed: int) -> World:
@@ -245,15 +268,14 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
     """The ego's track: ``ego.track`` by id, or drawn from the seed among the fit tracks (at
     least 2 s long, not too long a vehicle, inside the road) of the scene (``"random"``) or of
     a list of ids."""
-    cfg, rc = scenario.config, scenario.config.road
+    cfg, scene = scenario.config, scene_of(scenario)
     wanted = cfg.ego.track
     if isinstance(wanted, str) and wanted != "random":
         match = [t for t in tracks if t.track_id == wanted]
         if not match:
             ids = ", ".join(t.track_id for t in tracks)
             raise ScenarioError(
-                f"{scenario.source}: ego.track {wanted!r} is not in scene {rc.scene!r}; "
-                f"tracks: {ids}"
+                f"{scenario.source}: ego.track {wanted!r} is not in scene {scene!r}; tracks: {ids}"
             )
         return match[0]
     if isinstance(wanted, list):
@@ -261,9 +283,9 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
         if missing:
             raise ScenarioError(
                 f"{scenario.source}: ego.track lists {len(missing)} track(s) not in scene "
-                f"{rc.scene!r}: {', '.join(missing[:10])}"
+                f"{scene!r}: {', '.join(missing[:10])}"
             )
-    unfit = unfit_experts(rc.scene, tuple(tracks), road)
+    unfit = unfit_experts(scene, tuple(tracks), road)
     listed = set(wanted) if isinstance(wanted, list) else {t.track_id for t in tracks}
     fit = [
         t
@@ -274,7 +296,7 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
         and t.track_id not in unfit
     ]
     if not fit:
-        which = "the listed tracks" if isinstance(wanted, list) else f"scene {rc.scene!r}"
+        which = "the listed tracks" if isinstance(wanted, list) else f"scene {scene!r}"
         raise ScenarioError(f"{scenario.source}: {which} have no track >= 2 s to use as ego")
     return fit[int(rng.integers(len(fit)))]
 

@@ -1,4 +1,5 @@
-"""A library of recorded vehicle trajectories loaded from CSV.
+"""A library of recorded vehicle trajectories loaded from CSV (or CommonRoad XML, see
+:mod:`gridsim.traffic.commonroad`).
 
 The CSV format is that of the shipped NGSIM file (see ``gridsim/data/ngsim/README.md``): one
 row per state, columns ``scenario_id, track_id, time_s, x_m, y_m, heading_rad, speed_mps,
@@ -102,9 +103,14 @@ class TrajectoryLibrary:
 
     @classmethod
     def from_csv(cls, *paths: str | Path) -> TrajectoryLibrary:
+        return cls.from_files(*paths)
+
+    @classmethod
+    def from_files(cls, *paths: str | Path) -> TrajectoryLibrary:
+        """Tracks of trajectory CSV files and CommonRoad XML files (by suffix)."""
         tracks: list[Track] = []
         for p in paths:
-            tracks += read_tracks_csv(p)
+            tracks += read_tracks(p)
         return cls(tracks)
 
     def scene(self, scenario_id: str) -> list[Track]:
@@ -136,6 +142,15 @@ def _builtin() -> TrajectoryLibrary:
         with resources.as_file(ref) as path:
             _BUILTIN = TrajectoryLibrary.from_csv(path)
     return _BUILTIN
+
+
+def read_tracks(path: str | Path) -> list[Track]:
+    """Tracks of a trajectory CSV, or of a CommonRoad XML file's dynamic obstacles."""
+    if Path(path).suffix.lower() == ".xml":
+        from gridsim.traffic.commonroad import read_tracks_commonroad  # it imports Track
+
+        return read_tracks_commonroad(path)
+    return read_tracks_csv(path)
 
 
 def read_tracks_csv(path: str | Path) -> list[Track]:
