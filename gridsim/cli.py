@@ -13,29 +13,58 @@ POLICY_NAMES = ("idle", "reference", "lane-follow", "random")
 
 
 def _cmd_scenarios(args: argparse.Namespace) -> int:
+    from gridsim.scenario.collection import load_collection
     from gridsim.scenario.loader import builtin_scenarios
 
-    for name, desc in builtin_scenarios().items():
-        print(f"{name:16s} {desc}")
+    if args.path is None:
+        for name, desc in builtin_scenarios().items():
+            print(f"{name:16s} {desc}")
+        return 0
+    for sc in load_collection(args.path):
+        print(f"{sc.source}: {sc.name} ({sc.config.road.type}) {sc.config.description}")
     return 0
 
 
-def _cmd_validate(args: argparse.Namespace) -> int:
-    from gridsim.errors import DataError
+def _problems(path: str) -> tuple[str, list[str]]:
+    """``(summary, problems)`` of one scenario file: it loads, builds, and its recorded data
+    (if any) is plausible."""
     from gridsim.scenario.build import build_world
     from gridsim.scenario.checks import scenario_problems
     from gridsim.scenario.loader import load_scenario
 
-    sc = load_scenario(args.path)
+    sc = load_scenario(path)
     build_world(sc, seed=0)  # also resolves maps and libraries
-    problems = scenario_problems(sc)
-    if problems:
-        lines = "\n".join(f"  - {p}" for p in problems)
-        raise DataError(
-            f"{args.path}: implausible recorded scene ({len(problems)} problem(s)):\n{lines}"
-        )
-    print(f"{args.path}: OK (scenario {sc.name!r}, road type {sc.config.road.type})")
-    return 0
+    return f"scenario {sc.name!r}, road type {sc.config.road.type}", scenario_problems(sc)
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from gridsim.errors import DataError
+    from gridsim.scenario.collection import scenario_files
+
+    files = scenario_files(args.path)
+    if files is None:  # one file: its problems are the error
+        summary, problems = _problems(args.path)
+        if problems:
+            lines = "\n".join(f"  - {p}" for p in problems)
+            raise DataError(
+                f"{args.path}: implausible recorded scene ({len(problems)} problem(s)):\n{lines}"
+            )
+        print(f"{args.path}: OK ({summary})")
+        return 0
+    failed = 0
+    for f in files:  # a collection: one line per file, its problems below it
+        try:
+            summary, problems = _problems(str(f))
+        except GridSimError as exc:
+            summary, problems = "error", str(exc).splitlines()
+        if problems:
+            failed += 1
+            print(f"{f}: {len(problems)} problem(s)")
+            print("\n".join(f"  - {p.strip().removeprefix('- ')}" for p in problems))
+        else:
+            print(f"{f}: OK ({summary})")
+    print(f"{len(files) - failed} of {len(files)} scenario files OK")
+    return 2 if failed else 0
 
 
 def _cmd_drive(args: argparse.Namespace) -> int:
@@ -59,16 +88,22 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gridsim", description="Headless GridSim driving simulator.")
     sub = p.add_subparsers(dest="command", required=True)
-    s = sub.add_parser("scenarios", help="list the built-in scenarios")
+    s = sub.add_parser(
+        "scenarios", help="list the built-in scenarios, or the scenarios of a folder or glob"
+    )
+    s.add_argument("path", nargs="?", default=None, help="a folder or glob of scenario files")
     s.set_defaults(func=_cmd_scenarios)
     s = sub.add_parser(
         "validate",
-        help="check a scenario YAML file (and a recorded scene's data) and print precise errors",
+        help="check a scenario file (YAML or CommonRoad XML; and a recorded scene's data), or "
+        "each file of a folder or glob, and print precise errors",
     )
     s.add_argument("path")
     s.set_defaults(func=_cmd_validate)
     s = sub.add_parser("run", help="drive a policy in GridSim-v0, print a summary, export a video")
-    s.add_argument("--scenario", default="seamless", help="built-in name or YAML path")
+    s.add_argument(
+        "--scenario", default="seamless", help="built-in name, YAML/XML path, folder or glob"
+    )
     s.add_argument("--steps", type=int, default=300, help="decisions to run at most")
     s.add_argument("--policy", default="reference", choices=POLICY_NAMES)
     s.add_argument("--seed", type=int, default=0)
@@ -78,7 +113,9 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser(
         "drive", help="drive the lane-following ego; write grids and a top-down frame"
     )
-    s.add_argument("--scenario", default="seamless", help="built-in name or YAML path")
+    s.add_argument(
+        "--scenario", default="seamless", help="built-in name, YAML/XML path, folder or glob"
+    )
     s.add_argument("--seconds", type=float, default=20.0, help="simulated time [s]")
     s.add_argument("--seed", type=int, default=0)
     s.add_argument("--out", default="out/drive", help="output folder")

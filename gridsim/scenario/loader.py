@@ -139,6 +139,11 @@ def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None 
 def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
     p = Path(name_or_path)
     looks_like_path = p.suffix in (".yaml", ".yml") or len(p.parts) > 1
+    if p.is_dir():
+        raise ScenarioError(
+            f"{p} is a folder: a scenario collection, not one scenario file (gym.make and the "
+            "commands that accept collections take it; see gridsim.scenario.collection)"
+        )
     if looks_like_path:
         if not p.is_file():
             raise ScenarioError(f"scenario file not found: {p}")
