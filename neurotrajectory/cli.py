@@ -91,9 +91,10 @@ def _cmd_record(args: argparse.Namespace) -> int:
 
     from neurotrajectory.windows import Dataset, record_group, save_dataset, split_by_track
 
-    with tqdm(desc=f"record {args.scenario}", unit="episode", disable=args.quiet) as bar:
-        ds = record_group(args.scenario, args.episodes, args.seed, args.stride,
-                          args.episode_seconds, progress=bar.update)  # fmt: skip
+    name, source = (args.group, args.scenario) if args.group else (args.scenario, None)
+    with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:
+        ds = record_group(name, args.episodes, args.seed, args.stride, args.episode_seconds,
+                          progress=bar.update, source=source)  # fmt: skip
     if args.split:  # the side evaluate --seed S --test-fraction F uses
         sides = dict(zip(("train", "test"), split_by_track(ds.windows, args.test_fraction,
                                                            args.seed), strict=True))  # fmt: skip
@@ -120,8 +121,17 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from neurotrajectory.baselines.end2end import TrainSettings
     from neurotrajectory.evaluation import EvalConfig, evaluate
 
+    sources = {}
+    for item in args.group:
+        group, sep, path = item.partition("=")
+        if not sep or not group or not path:
+            raise RunError(f"--group takes NAME=FOLDER (or a glob), got {item!r}")
+        sources[group] = path
+    groups = args.groups if args.groups is not None else ([] if sources else list(GROUPS))
+    groups = [*groups, *(g for g in sources if g not in groups)]
     cfg = EvalConfig(
-        groups=tuple(args.groups), episodes=args.episodes, episode_seconds=args.episode_seconds,
+        groups=tuple(groups), episodes=args.episodes, episode_seconds=args.episode_seconds,
+        sources=sources,
         test_fraction=args.test_fraction, seed=args.seed, pick=args.pick,
         end2end=TrainSettings(epochs=args.e2e_epochs, seed=args.seed),
         closed_loop_episodes=args.closed_loop_episodes,
@@ -259,8 +269,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.set_defaults(func=_cmd_rollout)
     d = sub.add_parser("record", help="record labelled windows of human driving")
     d.add_argument("--scenario", required=True,
-                   help=f"a scenario group ({', '.join(GROUPS)}), a built-in scenario or a "
-                        "YAML path; recorded scenes drive every track once")  # fmt: skip
+                   help=f"a scenario group ({', '.join(GROUPS)}), a built-in scenario, a YAML "
+                        "or CommonRoad XML path, or a folder or glob of them; recorded scenes "
+                        "drive every track once")  # fmt: skip
+    d.add_argument("--group", default=None, metavar="NAME",
+                   help="the group name the dataset records (default: --scenario)")  # fmt: skip
     d.add_argument("--episodes", type=int, default=8, help="episodes per generated scenario")
     d.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None)
     d.add_argument(
@@ -297,7 +310,16 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="folder with one recorded dataset per group (default: record them)",
     )
-    e.add_argument("--groups", nargs="+", default=list(GROUPS), choices=list(GROUPS))
+    e.add_argument(
+        "--groups",
+        nargs="+",
+        default=None,
+        choices=list(GROUPS),
+        help="built-in groups (default: all, or none when --group is given)",
+    )
+    e.add_argument("--group", action="append", default=[], metavar="NAME=FOLDER",
+                   help="a group of your scenarios: a folder or glob of scenario files "
+                        "(repeatable)")  # fmt: skip
     e.add_argument("--episodes", type=int, default=8)
     e.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=30.0)
     e.add_argument("--test-fraction", dest="test_fraction", type=float, default=0.3)

@@ -29,6 +29,7 @@ import numpy as np
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError
 from gridsim.scenario.build import library_for, scene_of
+from gridsim.scenario.collection import scenario_files
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.schema import RecordedRoadConfig
 from neurotrajectory.commands import implied_commands
@@ -207,6 +208,17 @@ def record_scenario(
     return windows, meta
 
 
+def group_scenarios(name: str, source: str | None = None) -> tuple[str, ...]:
+    """The scenarios of group ``name``: the files of ``source`` (a folder or glob) if given;
+    else a group of :data:`GROUPS`, the files of ``name`` if it is a folder or glob, or the
+    one scenario ``name`` (built-in name, YAML or CommonRoad XML path)."""
+    if source is None and name in GROUPS:
+        return GROUPS[name]
+    ref = name if source is None else source
+    files = scenario_files(ref)
+    return (ref,) if files is None else tuple(str(f) for f in files)
+
+
 def record_group(
     name: str,
     episodes: int,
@@ -214,10 +226,12 @@ def record_group(
     stride: int | None = None,
     duration: float | None = None,
     progress: Callable[[int], None] | None = None,
+    source: str | None = None,
 ) -> Dataset:
-    """Windows of a scenario group of :data:`GROUPS`, or of one scenario (name or YAML path).
-    ``stride`` defaults to every decision on recorded scenes, every fifth elsewhere."""
-    scenarios = GROUPS.get(name, (name,))
+    """Windows of a scenario group (see :func:`group_scenarios`: of :data:`GROUPS`, or the
+    files of the folder or glob ``source``), or of one scenario. ``stride`` defaults to every
+    decision on recorded scenes, every fifth elsewhere."""
+    scenarios = group_scenarios(name, source)
     recorded = {scenario: is_recorded(scenario) for scenario in scenarios}
     parts, metas = [], []
     for scenario in scenarios:

@@ -66,3 +66,22 @@ def test_validate_and_scenarios_print_one_line_per_file(folder, capsys):
     out = capsys.readouterr().out
     assert f"{folder / 'broken.yaml'}: 2 problem(s)" in out
     assert "road.map: Field required" in out and "2 of 3 scenario files OK" in out
+
+
+def test_record_a_folder_as_a_named_group(folder, tmp_path):
+    from neurotrajectory.cli import main as nt_main
+    from neurotrajectory.evaluation import EvalConfig
+    from neurotrajectory.windows import DatasetError, group_scenarios, load_dataset
+
+    assert group_scenarios("urban") == ("lankershim_1_1", "peachtree_4_8")
+    assert len(group_scenarios("mine", str(folder))) == 2
+    out = tmp_path / "ds"
+    code = nt_main(["record", "--scenario", str(folder), "--group", "mine", "--out", str(out),
+                    "--stride", "5", "--quiet"])  # fmt: skip
+    assert code == 0
+    ds = load_dataset(out)
+    assert ds.manifest["group"] == "mine"
+    assert len(set(ds.windows.track.tolist())) == 6  # 3 tracks in each file, each the ego once
+    EvalConfig(groups=("mine",), sources={"mine": str(folder)})
+    with pytest.raises(DatasetError, match="unknown scenario groups"):
+        EvalConfig(groups=("mine",))
