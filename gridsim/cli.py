@@ -67,6 +67,19 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return 2 if failed else 0
 
 
+def _cmd_import(args: argparse.Namespace) -> int:
+    from gridsim.scenario.collection import scenario_files
+    from gridsim.scenario.importer import import_commonroad
+
+    files = []
+    for src in args.sources:
+        found = scenario_files(src)
+        files += [Path(src)] if found is None else [f for f in found if f.suffix == ".xml"]
+    for f in files:
+        print(f"{f}: wrote {import_commonroad(f, args.out)}")
+    return 0
+
+
 def _cmd_drive(args: argparse.Namespace) -> int:
     from gridsim.drive import drive
 
@@ -100,6 +113,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     s.add_argument("path")
     s.set_defaults(func=_cmd_validate)
+    s = sub.add_parser(
+        "import",
+        help="write scenario YAML and trajectory CSV files from CommonRoad files, to edit",
+    )
+    s.add_argument("sources", nargs="+", help="CommonRoad .xml files, folders or globs")
+    s.add_argument("--out", required=True, help="output folder (YAML, CSV and maps/)")
+    s.set_defaults(func=_cmd_import)
     s = sub.add_parser("run", help="drive a policy in GridSim-v0, print a summary, export a video")
     s.add_argument(
         "--scenario", default="seamless", help="built-in name, YAML/XML path, folder or glob"

@@ -133,3 +133,31 @@ def test_a_map_without_its_tracks_says_what_to_do(tmp_path):
     with pytest.raises(DataError, match=r"no tracks for scene 'ZAM_Straight-1_1_T-1'.*"
                                         r"set traffic.library: \[scene\]"):  # fmt: skip
         build_world(load_scenario(tmp_path / "y.yaml"))
+
+
+def test_import_writes_yaml_and_csv_that_give_the_same_worlds(tmp_path, capsys):
+    from gridsim.cli import main
+
+    src = tmp_path / "src"
+    src.mkdir()
+    for f in DATA.glob("*.xml"):
+        (src / f.name).write_bytes(f.read_bytes())
+    assert main(["import", str(src), "--out", str(tmp_path / "out")]) == 0
+    assert capsys.readouterr().out.count("wrote") == 2
+    out = tmp_path / "out"
+    assert (out / "maps" / "straight_2020a.xml").is_file()
+    doc = yaml.safe_load((out / "straight_2020a.yaml").read_text())
+    assert doc["traffic"]["library"] == ["straight_2020a.csv"]
+    assert doc["road"]["scene"] == "ZAM_Straight-1_2_T-1"
+    imported, original = (
+        load_scenario(out / "straight_2020a.yaml"),
+        load_scenario(src / "straight_2020a.xml"),
+    )
+    for seed in range(3):
+        a, b = build_world(imported, seed), build_world(original, seed)
+        assert a.ego_track.track_id == b.ego_track.track_id
+        np.testing.assert_array_equal(a.ego, b.ego)
+        for ta, tb in zip(a.traffic.tracks, b.traffic.tracks, strict=True):
+            for k in ("t", "x", "y", "heading", "speed"):
+                np.testing.assert_array_equal(getattr(ta, k), getattr(tb, k))
+    assert main(["validate", str(out)]) == 0

@@ -215,3 +215,19 @@ def read_tracks_csv(path: str | Path) -> list[Track]:
             )
         )
     return tracks
+
+
+def write_tracks_csv(tracks: list[Track], path: str | Path) -> Path:
+    """Write ``tracks`` as a trajectory CSV (:data:`REQUIRED_COLUMNS`) that
+    :func:`read_tracks_csv` reads back exactly (floats in full precision)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as fh:
+        out = csv.writer(fh)
+        out.writerow(REQUIRED_COLUMNS)
+        for tr in tracks:
+            for k in range(len(tr.t)):
+                values = (tr.t[k], tr.x[k], tr.y[k], tr.heading[k], tr.speed[k])
+                out.writerow([tr.scenario_id, tr.track_id, *(repr(float(v)) for v in values),
+                              repr(tr.length), repr(tr.width)])  # fmt: skip
+    return path
