@@ -452,7 +452,12 @@ def _with_training_tracks(config: TrainConfig) -> TrainConfig:
         return config
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.scenario.build import scene_of
+    from gridsim.scenario.collection import is_collection
 
+    if is_collection(config.scenario):
+        raise RunError(f"--pretrain on the recorded collection {config.scenario!r}: the tracks "
+                       "held out of the data cannot be excluded per scene; train on one scene "
+                       "file")  # fmt: skip
     scene = scene_of(GridSimEnv(config.scenario).scenario)
     try:
         tracks = load_dataset(config.pretrain).windows.track

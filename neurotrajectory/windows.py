@@ -29,7 +29,7 @@ import numpy as np
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError
 from gridsim.scenario.build import library_for, scene_of
-from gridsim.scenario.collection import scenario_files
+from gridsim.scenario.collection import load_collection, scenario_files
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.schema import RecordedRoadConfig
 from neurotrajectory.commands import implied_commands
@@ -152,8 +152,9 @@ def _episode_windows(env: GridSimEnv, seed: int, stride: int, track: str) -> Win
 
 
 def is_recorded(name: str) -> bool:
-    """Whether scenario ``name`` (built-in or YAML path) replays a recorded scene."""
-    return isinstance(load_scenario(name).config.road, RecordedRoadConfig)
+    """Whether scenario ``name`` (built-in, YAML or XML path; of a folder or glob, every
+    file) replays a recorded scene."""
+    return all(isinstance(sc.config.road, RecordedRoadConfig) for sc in load_collection(name))
 
 
 def record_scenario(
