@@ -30,20 +30,70 @@ def at_least(minimum: int):
 
 
 def _cmd_scenarios(args: argparse.Namespace) -> int:
+    from gridsim.scenario.collection import load_collection
     from gridsim.scenario.loader import builtin_scenarios
 
-    for name, desc in builtin_scenarios().items():
-        print(f"{name:16s} {desc}")
+    if args.path is None:
+        for name, desc in builtin_scenarios().items():
+            print(f"{name:16s} {desc}")
+        return 0
+    for sc in load_collection(args.path):
+        print(f"{sc.source}: {sc.name} ({sc.config.road.type}) {sc.config.description}")
     return 0
 
 
-def _cmd_validate(args: argparse.Namespace) -> int:
+def _problems(path: str) -> tuple[str, list[str]]:
+    """``(summary, problems)`` of one scenario file: it loads, builds, and its recorded data
+    (if any) is plausible."""
     from gridsim.scenario.build import build_world
+    from gridsim.scenario.checks import scenario_problems
     from gridsim.scenario.loader import load_scenario
 
-    sc = load_scenario(args.path)
+    sc = load_scenario(path)
     build_world(sc, seed=0)  # also resolves maps and libraries
-    print(f"{args.path}: OK (scenario {sc.name!r}, road type {sc.config.road.type})")
+    return f"scenario {sc.name!r}, road type {sc.config.road.type}", scenario_problems(sc)
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from gridsim.errors import DataError
+    from gridsim.scenario.collection import scenario_files
+
+    files = scenario_files(args.path)
+    if files is None:  # one file: its problems are the error
+        summary, problems = _problems(args.path)
+        if problems:
+            lines = "\n".join(f"  - {p}" for p in problems)
+            raise DataError(
+                f"{args.path}: implausible recorded scene ({len(problems)} problem(s)):\n{lines}"
+            )
+        print(f"{args.path}: OK ({summary})")
+        return 0
+    failed = 0
+    for f in files:  # a collection: one line per file, its problems below it
+        try:
+            summary, problems = _problems(str(f))
+        except GridSimError as exc:
+            summary, problems = "error", str(exc).splitlines()
+        if problems:
+            failed += 1
+            print(f"{f}: {len(problems)} problem(s)")
+            print("\n".join(f"  - {p.strip().removeprefix('- ')}" for p in problems))
+        else:
+            print(f"{f}: OK ({summary})")
+    print(f"{len(files) - failed} of {len(files)} scenario files OK")
+    return 2 if failed else 0
+
+
+def _cmd_import(args: argparse.Namespace) -> int:
+    from gridsim.scenario.collection import scenario_files
+    from gridsim.scenario.importer import import_commonroad
+
+    files = []
+    for src in args.sources:
+        found = scenario_files(src)
+        files += [Path(src)] if found is None else [f for f in found if f.suffix == ".xml"]
+    for f in files:
+        print(f"{f}: wrote {import_commonroad(f, args.out)}")
     return 0
 
 
@@ -69,16 +119,36 @@ def _cmd_run(args: argparse.Namespace) -> int:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gridsim", description="Headless GridSim driving simulator.")
     sub = p.add_subparsers(dest="command", required=True)
-    s = sub.add_parser("scenarios", help="list the built-in scenarios")
+    s = sub.add_parser(
+        "scenarios", help="list the built-in scenarios, or the scenarios of a folder or glob"
+    )
+    s.add_argument("path", nargs="?", default=None, help="a folder or glob of scenario files")
     s.set_defaults(func=_cmd_scenarios)
-    s = sub.add_parser("validate", help="check a scenario YAML file and print precise errors")
+    s = sub.add_parser(
+        "validate",
+        help="check a scenario file (YAML or CommonRoad XML; and a recorded scene's data), or "
+        "each file of a folder or glob, and print precise errors",
+    )
     s.add_argument("path")
     s.set_defaults(func=_cmd_validate)
+    s = sub.add_parser(
+        "import",
+        help="write scenario YAML and trajectory CSV files from CommonRoad files, to edit",
+    )
+    s.add_argument("sources", nargs="+", help="CommonRoad .xml files, folders or globs")
+    s.add_argument("--out", required=True, help="output folder (YAML, CSV and maps/)")
+    s.set_defaults(func=_cmd_import)
     s = sub.add_parser("run", help="drive a policy in GridSim-v0, print a summary, export a video")
-    s.add_argument("--scenario", default="seamless", help="built-in name or YAML path")
+    s.add_argument(
+        "--scenario", default="seamless", help="built-in name, YAML/XML path, folder or glob"
+    )
     s.add_argument("--steps", type=at_least(1), default=300, help="decisions to run at most")
-    s.add_argument("--policy", default="reference", choices=POLICY_NAMES,
-                   help="the driver: the human reference, lane following, random or idle")
+    s.add_argument(
+        "--policy",
+        default="reference",
+        choices=POLICY_NAMES,
+        help="the driver: the human reference, lane following, random or idle",
+    )
     s.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
     s.add_argument("--video", default=None, help="write a video (.mp4, or .gif)")
     s.add_argument("--overlay", action="store_true",
@@ -88,7 +158,9 @@ def build_parser() -> argparse.ArgumentParser:
     s = sub.add_parser(
         "drive", help="drive the lane-following ego; write grids and a top-down frame"
     )
-    s.add_argument("--scenario", default="seamless", help="built-in name or YAML path")
+    s.add_argument(
+        "--scenario", default="seamless", help="built-in name, YAML/XML path, folder or glob"
+    )
     s.add_argument("--seconds", type=float, default=20.0, help="simulated time [s]")
     s.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
     s.add_argument("--out", default="out/drive", help="output folder")

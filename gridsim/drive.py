@@ -13,7 +13,7 @@ from gridsim.errors import GridSimError
 from gridsim.paths import output_problem
 from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
-from gridsim.scenario.loader import load_scenario
+from gridsim.scenario.collection import load_collection, pick
 from gridsim.sensors.occupancy import colourise, observe
 from gridsim.world.driver import LaneFollower
 
@@ -27,7 +27,7 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     problem = output_problem(out, directory=True)
     if problem:
         raise GridSimError(f"--out {out}: {problem}")
-    sc = load_scenario(scenario)
+    sc = pick(load_collection(scenario), seed)  # of a folder or glob: drawn from the seed
     world = build_world(sc, seed)
     sensor = build_sensor(sc)
     # On recorded scenes drive at the human's mean speed; elsewhere near the speed limit.

@@ -76,8 +76,9 @@ def _heldout(run: Run, episodes: int) -> None:
           f"mean l1 {net['l1']:.0f} m^2 (destination curve {curve['l1']:.0f})")  # fmt: skip
 
 
-def _rollout(run_dir: str, pick: str, video: str, seed: int, steps: int | None,
-             overlay: bool = False) -> dict:
+def _rollout(
+    run_dir: str, pick: str, video: str, seed: int, steps: int | None, overlay: bool = False
+) -> dict:
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.video import record_rollout
     from neurotrajectory.front import load_front_member
@@ -121,9 +122,10 @@ def _cmd_record(args: argparse.Namespace) -> int:
     )
 
     check_new_folder(args.out)  # before recording, not after
-    with tqdm(desc=f"record {args.scenario}", unit="episode", disable=args.quiet) as bar:
-        ds = record_group(args.scenario, args.episodes, args.seed, args.stride,
-                          args.episode_seconds, progress=bar.update)  # fmt: skip
+    name, source = (args.group, args.scenario) if args.group else (args.scenario, None)
+    with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:
+        ds = record_group(name, args.episodes, args.seed, args.stride, args.episode_seconds,
+                          progress=bar.update, source=source)  # fmt: skip
     if args.split:  # the side evaluate --seed S --test-fraction F uses
         sides = dict(zip(("train", "test"), split_by_track(ds.windows, args.test_fraction,
                                                            args.seed), strict=True))  # fmt: skip
@@ -150,8 +152,17 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from neurotrajectory.baselines.end2end import TrainSettings
     from neurotrajectory.evaluation import EvalConfig, evaluate
 
+    sources = {}
+    for item in args.group:
+        group, sep, path = item.partition("=")
+        if not sep or not group or not path:
+            raise RunError(f"--group takes NAME=FOLDER (or a glob), got {item!r}")
+        sources[group] = path
+    groups = args.groups if args.groups is not None else ([] if sources else list(GROUPS))
+    groups = [*groups, *(g for g in sources if g not in groups)]
     cfg = EvalConfig(
-        groups=tuple(args.groups), episodes=args.episodes, episode_seconds=args.episode_seconds,
+        groups=tuple(groups), episodes=args.episodes, episode_seconds=args.episode_seconds,
+        sources=sources,
         test_fraction=args.test_fraction, seed=args.seed, pick=args.pick,
         end2end=TrainSettings(epochs=args.e2e_epochs, seed=args.seed),
         closed_loop_episodes=args.closed_loop_episodes,
@@ -177,25 +188,47 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     t = sub.add_parser("train", help="evolve a population in GridSim-v0")
     t.add_argument("--scenario", default=None, help="built-in name or YAML path (default seamless)")
-    t.add_argument("--preset", default=None, choices=sorted(PRESETS),
-                   help="network size (default: default)")
-    t.add_argument("--population", type=at_least(2), default=None,
-                   help="networks per generation (default 16)")
-    t.add_argument("--generations", type=at_least(1), default=None,
-                   help="generations to evolve (default 10)")
-    t.add_argument("--episodes", type=at_least(1), default=None,
-                   help="evaluation episodes per individual")
-    t.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None,
-                   help="length of each training episode [s] (default 15)")
+    t.add_argument(
+        "--preset", default=None, choices=sorted(PRESETS), help="network size (default: default)"
+    )
+    t.add_argument(
+        "--population", type=at_least(2), default=None, help="networks per generation (default 16)"
+    )
+    t.add_argument(
+        "--generations", type=at_least(1), default=None, help="generations to evolve (default 10)"
+    )
+    t.add_argument(
+        "--episodes", type=at_least(1), default=None, help="evaluation episodes per individual"
+    )
+    t.add_argument(
+        "--episode-seconds",
+        dest="episode_seconds",
+        type=float,
+        default=None,
+        help="length of each training episode [s] (default 15)",
+    )
     t.add_argument("--sigma", type=float, default=None, help="mutation noise scale")
-    t.add_argument("--seed", type=at_least(0), default=None,
-                   help="seed of the whole run (default 0)")
-    t.add_argument("--backend", default=None, choices=BACKENDS,
-                   help="where individuals are evaluated (default local)")
-    t.add_argument("--workers", type=at_least(1), default=None,
-                   help="worker processes or Ray actors (default 2)")
-    t.add_argument("--ray-address", dest="ray_address", default=None,
-                   help="an existing Ray cluster (default: start a local one)")
+    t.add_argument(
+        "--seed", type=at_least(0), default=None, help="seed of the whole run (default 0)"
+    )
+    t.add_argument(
+        "--backend",
+        default=None,
+        choices=BACKENDS,
+        help="where individuals are evaluated (default local)",
+    )
+    t.add_argument(
+        "--workers",
+        type=at_least(1),
+        default=None,
+        help="worker processes or Ray actors (default 2)",
+    )
+    t.add_argument(
+        "--ray-address",
+        dest="ray_address",
+        default=None,
+        help="an existing Ray cluster (default: start a local one)",
+    )
     t.add_argument("--batch", type=at_least(1), default=None,
                    help="individuals each worker evaluates together (default 16)")  # fmt: skip
     t.add_argument(
@@ -308,17 +341,30 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--overlay", action="store_true",
                    help="caption the video: time, speed and what the dots are")  # fmt: skip
     r.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
-    r.add_argument("--steps", type=at_least(1), default=None,
-                   help="decisions to drive at most (default: the run's episode length)")
+    r.add_argument(
+        "--steps",
+        type=at_least(1),
+        default=None,
+        help="decisions to drive at most (default: the run's episode length)",
+    )
     r.set_defaults(func=_cmd_rollout)
     d = sub.add_parser("record", help="record labelled windows of human driving")
     d.add_argument("--scenario", required=True,
-                   help=f"a scenario group ({', '.join(GROUPS)}), a built-in scenario or a "
-                        "YAML path; recorded scenes drive every track once")  # fmt: skip
-    d.add_argument("--episodes", type=at_least(1), default=8,
-                   help="episodes per generated scenario")
-    d.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None,
-                   help="length of each episode [s] (default: the scenario's)")
+                   help=f"a scenario group ({', '.join(GROUPS)}), a built-in scenario, a YAML "
+                        "or CommonRoad XML path, or a folder or glob of them; recorded scenes "
+                        "drive every track once")  # fmt: skip
+    d.add_argument("--group", default=None, metavar="NAME",
+                   help="the group name the dataset records (default: --scenario)")  # fmt: skip
+    d.add_argument(
+        "--episodes", type=at_least(1), default=8, help="episodes per generated scenario"
+    )
+    d.add_argument(
+        "--episode-seconds",
+        dest="episode_seconds",
+        type=float,
+        default=None,
+        help="length of each episode [s] (default: the scenario's)",
+    )
     d.add_argument(
         "--stride",
         type=at_least(1),
@@ -333,8 +379,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="keep only this side of the split by track that `evaluate` with the same --seed "
         "and --test-fraction makes (e.g. train data for a group's run)",
     )
-    d.add_argument("--test-fraction", dest="test_fraction", type=float, default=0.3,
-                   help="share of the tracks on the test side of --split")
+    d.add_argument(
+        "--test-fraction",
+        dest="test_fraction",
+        type=float,
+        default=0.3,
+        help="share of the tracks on the test side of --split",
+    )
     d.add_argument("--out", required=True, help="dataset folder (created)")
     d.add_argument("--quiet", action="store_true", help="no progress bar")
     d.set_defaults(func=_cmd_record)
@@ -354,22 +405,60 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="folder with one recorded dataset per group (default: record them)",
     )
-    e.add_argument("--groups", nargs="+", default=list(GROUPS), choices=list(GROUPS),
-                   help="scenario groups to evaluate (default: all)")
-    e.add_argument("--episodes", type=at_least(1), default=8,
-                   help="episodes recorded per generated scenario")
-    e.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=30.0,
-                   help="length of each recorded episode [s]")
-    e.add_argument("--test-fraction", dest="test_fraction", type=float, default=0.3,
-                   help="share of each group's tracks held out for testing")
-    e.add_argument("--pick", default="knee", choices=PICKS,
-                   help="the front member compared (picked without test data)")
-    e.add_argument("--e2e-epochs", dest="e2e_epochs", type=at_least(1), default=8,
-                   help="training epochs of the End2End baseline")
-    e.add_argument("--closed-loop-episodes", dest="closed_loop_episodes", type=at_least(0),
-                   default=3, help="closed-loop episodes per scenario (0: skip)")
-    e.add_argument("--closed-loop-seconds", dest="closed_loop_seconds", type=float, default=20.0,
-                   help="length of each closed-loop episode [s]")
+    e.add_argument(
+        "--groups",
+        nargs="+",
+        default=None,
+        choices=list(GROUPS),
+        help="built-in groups (default: all, or none when --group is given)",
+    )
+    e.add_argument("--group", action="append", default=[], metavar="NAME=FOLDER",
+                   help="a group of your scenarios: a folder or glob of scenario files "
+                        "(repeatable)")  # fmt: skip
+    e.add_argument(
+        "--episodes", type=at_least(1), default=8, help="episodes recorded per generated scenario"
+    )
+    e.add_argument(
+        "--episode-seconds",
+        dest="episode_seconds",
+        type=float,
+        default=30.0,
+        help="length of each recorded episode [s]",
+    )
+    e.add_argument(
+        "--test-fraction",
+        dest="test_fraction",
+        type=float,
+        default=0.3,
+        help="share of each group's tracks held out for testing",
+    )
+    e.add_argument(
+        "--pick",
+        default="knee",
+        choices=PICKS,
+        help="the front member compared (picked without test data)",
+    )
+    e.add_argument(
+        "--e2e-epochs",
+        dest="e2e_epochs",
+        type=at_least(1),
+        default=8,
+        help="training epochs of the End2End baseline",
+    )
+    e.add_argument(
+        "--closed-loop-episodes",
+        dest="closed_loop_episodes",
+        type=at_least(0),
+        default=3,
+        help="closed-loop episodes per scenario (0: skip)",
+    )
+    e.add_argument(
+        "--closed-loop-seconds",
+        dest="closed_loop_seconds",
+        type=float,
+        default=20.0,
+        help="length of each closed-loop episode [s]",
+    )
     e.add_argument(
         "--videos",
         action="store_true",

@@ -42,6 +42,7 @@ from neurotrajectory.windows import (
     Dataset,
     DatasetError,
     check_new_folder,
+    group_scenarios,
     load_dataset,
     record_group,
     save_dataset,
@@ -66,11 +67,15 @@ class EvalConfig:
     closed_loop_episodes: int = 3  # per scenario of a group
     closed_loop_seconds: float = 20.0
     videos: bool = False  # export the first closed-loop episode of each method and scenario
+    #: Groups of the user's scenarios: name -> folder or glob of scenario files.
+    sources: dict[str, str] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        unknown = [g for g in self.groups if g not in GROUPS]
+        unknown = [g for g in self.groups if g not in GROUPS and g not in self.sources]
         if unknown:
-            raise DatasetError(f"unknown scenario groups {unknown}; choose from {list(GROUPS)}")
+            raise DatasetError(
+                f"unknown scenario groups {unknown}; choose from {list(GROUPS)} or give NAME=FOLDER"
+            )
         if self.episodes < 1 or self.closed_loop_episodes < 0:
             raise DatasetError("need episodes >= 1 and closed_loop_episodes >= 0")
         if not self.episode_seconds > 0 or not self.closed_loop_seconds > 0:
@@ -104,7 +109,7 @@ def _dataset(
     log(f"{group}: recording windows")
     with tqdm(desc=f"record {group}", unit="episode", leave=False, disable=not progress) as bar:
         ds = record_group(group, cfg.episodes, cfg.seed, duration=cfg.episode_seconds,
-                          progress=bar.update)  # fmt: skip
+                          progress=bar.update, source=cfg.sources.get(group))  # fmt: skip
     save_dataset(ds, out / "data" / group)
     return ds
 
@@ -170,8 +175,9 @@ def _evaluate_group(
         for name, policy in bar:
             slug = name.lower().replace(" ", "-")
             per = [closed_loop(sc, policy, seeds, cfg.closed_loop_seconds,
-                                out / "videos" / f"{group}-{sc}-{slug}.mp4" if cfg.videos else None)
-                   for sc in GROUPS[group]]  # fmt: skip
+                                out / "videos" / f"{group}-{Path(sc).stem}-{slug}.mp4"
+                                if cfg.videos else None)
+                   for sc in group_scenarios(group, cfg.sources.get(group))]  # fmt: skip
             loop[name] = {k: float(np.mean([p[k] for p in per])) for k in per[0]}
             loop[name]["episodes"] = int(sum(p["episodes"] for p in per))
     return GroupResult(group, ds.manifest["source"], len(train), len(test),

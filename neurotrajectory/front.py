@@ -141,11 +141,11 @@ def heldout(run_dir: str | Path, episodes: int, pick: str = "knee") -> dict:
 
 def _other_tracks(scenario: str, trained: tuple[str, ...]) -> list[str]:
     """The track ids of ``scenario``'s recorded scene that are not in ``trained``."""
-    from gridsim.scenario.build import library_for
+    from gridsim.scenario.build import library_for, scene_of
     from gridsim.scenario.loader import load_scenario
 
     base = load_scenario(scenario)
-    ids = [t.track_id for t in library_for(base).scene(base.config.road.scene)]
+    ids = [t.track_id for t in library_for(base).scene(scene_of(base))]
     others = [t for t in ids if t not in set(trained)]
     if not others:
         raise RunError(f"{scenario}: every track of the scene was trained on; none is held out")

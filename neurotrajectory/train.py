@@ -551,8 +551,9 @@ def _checked(config: TrainConfig):
     try:
         env = GridSimEnv(config.scenario, **config.overrides)
     except GridSimError as exc:
-        raise RunError(f"--episode-seconds {config.episode_seconds:g} on {config.scenario}: "
-                       f"{exc}") from None
+        raise RunError(
+            f"--episode-seconds {config.episode_seconds:g} on {config.scenario}: {exc}"
+        ) from None
     try:
         env.reset(seed=0)  # builds a world: the map, the traffic and its library
     except GridSimError as exc:
@@ -609,8 +610,14 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
     if config.ego_tracks or windows is None or not is_recorded(config.scenario):
         return config
     from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.scenario.build import scene_of
+    from gridsim.scenario.collection import is_collection
 
-    scene = GridSimEnv(config.scenario).cfg.road.scene
+    if is_collection(config.scenario):
+        raise RunError(f"--pretrain on the recorded collection {config.scenario!r}: the tracks "
+                       "held out of the data cannot be excluded per scene; train on one scene "
+                       "file")  # fmt: skip
+    scene = scene_of(GridSimEnv(config.scenario).scenario)
     tracks = windows.track
     ids = sorted({t.split("/", 1)[1] for t in np.unique(tracks) if t.startswith(scene + "/")})
     if not ids:

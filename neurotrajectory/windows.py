@@ -28,7 +28,8 @@ import numpy as np
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError
-from gridsim.scenario.build import library_for
+from gridsim.scenario.build import library_for, scene_of
+from gridsim.scenario.collection import load_collection, scenario_files
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.schema import RecordedRoadConfig
 from neurotrajectory.commands import implied_commands
@@ -139,7 +140,7 @@ def scenario_episodes(
     from ``seed`` (or the episode ``seeds`` given), ``duration`` [s] long if given."""
     base = load_scenario(scenario)
     if isinstance(base.config.road, RecordedRoadConfig):
-        scene = base.config.road.scene
+        scene = scene_of(base)
         wanted = None if tracks is None else {str(t) for t in tracks}
         chosen = [t for t in library_for(base).scene(scene)
                   if wanted is None or t.track_id in wanted]  # fmt: skip
@@ -165,7 +166,7 @@ def episodes_of(windows: Windows, scenario: str, duration: float | None = None) 
     base = load_scenario(scenario)
     labels = list(dict.fromkeys(windows.track.tolist()))  # in the order they were recorded
     if isinstance(base.config.road, RecordedRoadConfig):
-        prefix = base.config.road.scene + "/"
+        prefix = scene_of(base) + "/"
         ids = [t[len(prefix) :] for t in labels if t.startswith(prefix)]
         return scenario_episodes(scenario, tracks=ids)[0] if ids else []
     prefix = f"{scenario}/seed"
@@ -245,8 +246,9 @@ def _episode_windows(
 
 
 def is_recorded(name: str) -> bool:
-    """Whether scenario ``name`` (built-in or YAML path) replays a recorded scene."""
-    return isinstance(load_scenario(name).config.road, RecordedRoadConfig)
+    """Whether scenario ``name`` (built-in, YAML or XML path; of a folder or glob, every
+    file) replays a recorded scene."""
+    return all(isinstance(sc.config.road, RecordedRoadConfig) for sc in load_collection(name))
 
 
 def record_scenario(
@@ -274,6 +276,17 @@ def record_scenario(
     return windows, meta
 
 
+def group_scenarios(name: str, source: str | None = None) -> tuple[str, ...]:
+    """The scenarios of group ``name``: the files of ``source`` (a folder or glob) if given;
+    else a group of :data:`GROUPS`, the files of ``name`` if it is a folder or glob, or the
+    one scenario ``name`` (built-in name, YAML or CommonRoad XML path)."""
+    if source is None and name in GROUPS:
+        return GROUPS[name]
+    ref = name if source is None else source
+    files = scenario_files(ref)
+    return (ref,) if files is None else tuple(str(f) for f in files)
+
+
 def record_group(
     name: str,
     episodes: int,
@@ -281,10 +294,12 @@ def record_group(
     stride: int | None = None,
     duration: float | None = None,
     progress: Callable[[int], None] | None = None,
+    source: str | None = None,
 ) -> Dataset:
-    """Windows of a scenario group of :data:`GROUPS`, or of one scenario (name or YAML path).
-    ``stride`` defaults to every decision on recorded scenes, every fifth elsewhere."""
-    scenarios = GROUPS.get(name, (name,))
+    """Windows of a scenario group (see :func:`group_scenarios`: of :data:`GROUPS`, or the
+    files of the folder or glob ``source``), or of one scenario. ``stride`` defaults to every
+    decision on recorded scenes, every fifth elsewhere."""
+    scenarios = group_scenarios(name, source)
     recorded = {scenario: is_recorded(scenario) for scenario in scenarios}
     parts, metas = [], []
     for scenario in scenarios:

@@ -272,8 +272,9 @@ def test_actions_of_the_wrong_kind_raise_value_errors_naming_them(action_type, a
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(
     data=st.data(),
-    dtype=st.sampled_from(["float32", "float64", "int8", "int64", "uint8", "bool", "complex64",
-                           "float16"]),  # fmt: skip
+    dtype=st.sampled_from(
+        ["float32", "float64", "int8", "int64", "uint8", "bool", "complex64", "float16"]
+    ),  # fmt: skip
     shape=st.sampled_from([(), (1,), (2,), (5, 2), (2, 5), (5, 2, 1), (0,)]),
     action_type=st.sampled_from(["trajectory", "control", "discrete"]),
 )

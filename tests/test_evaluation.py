@@ -190,6 +190,4 @@ def test_bad_input_gives_clear_errors(tiny_run, tmp_path, capsys):
         assert main([command, *args, "--out", str(tmp_path / "full" / "keep.txt")]) == 2
         assert "keep.txt: is a file, expected a folder" in capsys.readouterr().err
         assert main([command, *args, "--out", str(tmp_path / "full"), "--quiet"]) == 2
-        assert "full: exists and is not empty: choose another --out" in (
-            capsys.readouterr().err
-        )
+        assert "full: exists and is not empty: choose another --out" in (capsys.readouterr().err)

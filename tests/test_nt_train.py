@@ -199,6 +199,7 @@ def test_training_improves_a_tiny_problem(tmp_path):
 
 # -- run folders: nothing is written before every argument is checked ---------------------------
 
+
 def cli(argv):
     """The exit status of ``neurotrajectory ARGV`` (argparse exits on bad option values)."""
     try:

@@ -116,8 +116,10 @@ def test_pretraining_data_of_another_grid_size_is_refused_before_the_run(windows
                       episodes=1, episode_seconds=2.0, pretrain=str(windows_dir))  # fmt: skip
     with pytest.raises(RunError) as info:
         Run.create(tmp_path / "run", cfg)
-    assert f"--pretrain {windows_dir}: the windows have (history, grid size, horizon) = " \
-           "(5, 128, 5), the network needs (5, 64, 5)" in str(info.value)
+    assert (
+        f"--pretrain {windows_dir}: the windows have (history, grid size, horizon) = "
+        "(5, 128, 5), the network needs (5, 64, 5)" in str(info.value)
+    )
     assert not (tmp_path / "run").exists()
 
 

@@ -6,7 +6,7 @@ import pytest
 from gridsim.errors import DataError
 from gridsim.road.seamless import SeamlessParams, SeamlessRoad
 from gridsim.traffic.fleet import IDM, REPLAY, EgoPose, Fleet
-from gridsim.traffic.library import REQUIRED_COLUMNS, TrajectoryLibrary, read_tracks_csv
+from gridsim.traffic.library import REQUIRED_COLUMNS, Track, TrajectoryLibrary, read_tracks_csv
 from gridsim.traffic.sources import RecordedSceneTraffic, SeamlessTraffic, SpeedBounds
 from gridsim.vehicle.kinematics import box_corners
 
@@ -291,3 +291,37 @@ def test_a_csv_edited_on_disk_is_read_again(tmp_path):
     assert [t.track_id for t in library_for(load_scenario(scenario)).tracks] == ["1"]
     write_csv(tmp_path, rows + [r.replace("s,1,", "s,2,") for r in rows])
     assert [t.track_id for t in library_for(load_scenario(scenario)).tracks] == ["1", "2"]
+
+
+def waiting_track(seed: int = 0, heading: float = 0.5, wait: float = 3.0) -> Track:
+    """A car that waits ``wait`` s at the origin (positions with sub-centimetre noise, the
+    recorded heading steady), then pulls away along its heading at 2 m/s^2."""
+    t = np.round(np.arange(0.0, wait + 3.0 + 1e-9, 0.1), 6)
+    along = np.where(t > wait, (t - wait) ** 2, 0.0)
+    noise = np.random.default_rng(seed).uniform(-0.004, 0.004, (2, len(t)))
+    x = along * np.cos(heading) + noise[0]
+    y = along * np.sin(heading) + noise[1]
+    speed = np.where(t > wait, 2.0 * (t - wait), 0.0)
+    return Track("crafted", "1", t, x, y, np.full(len(t), heading), speed, 4.5, 1.8)
+
+
+def test_recorded_vehicle_handed_over_while_standing_keeps_its_recorded_heading():
+    """Sub-centimetre position noise of a standing car must not steer it: in IDM mode (behind
+    a stopped ego) it keeps the recorded heading, and it pulls away along it."""
+    tr = waiting_track()
+    src = RecordedSceneTraffic([tr])
+    src.reset(np.random.default_rng(0), FAR)
+    h = tr.heading[0]
+    ahead = 4.5 + 1.0  # bumper to bumper 1 m: closer than the IDM gap s0
+    ego = EgoPose(ahead * np.cos(h), ahead * np.sin(h), h, 0.0, 4.5, 1.8)
+    modes = []
+    for _ in range(40):
+        src.tick(0.1, ego)
+        f = src.fleet
+        modes.append(int(f.mode[0]))
+        assert abs(f.psi[0] - h) < 1e-9
+    assert modes[-1] == IDM
+    for _ in range(20):  # the ego leaves; the car resumes its recorded motion
+        src.tick(0.1, FAR)
+        if src.fleet.active[0]:
+            assert abs(src.fleet.psi[0] - h) < 1e-9

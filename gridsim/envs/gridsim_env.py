@@ -32,7 +32,8 @@ from gridsim.envs.reference import ReferenceTrajectory, human_reference, referen
 from gridsim.errors import ScenarioError
 from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world, vehicle_params
-from gridsim.scenario.loader import Scenario, load_scenario
+from gridsim.scenario.collection import load_collection, pick
+from gridsim.scenario.loader import Scenario
 from gridsim.sensors.occupancy import observe
 from gridsim.vehicle.kinematics import DELTA, PSI, V
 
@@ -51,7 +52,9 @@ EGO_FEATURES = (
 class GridSimEnv(gym.Env):
     """Drive the ego of a GridSim scenario from occupancy grids.
 
-    ``scenario``: a built-in name or a YAML path (or a loaded :class:`Scenario`);
+    ``scenario``: a built-in name, a YAML or CommonRoad XML path, a folder or glob of such
+    files (a collection: one scenario per reset, drawn from the seed), or a loaded
+    :class:`Scenario`;
     ``action_type``: ``"trajectory"`` (default), ``"control"`` or ``"discrete"``;
     further keyword arguments are scenario overrides (nested dicts), validated by the
     scenario schema, e.g. ``traffic={"participants": 20}``.
@@ -69,9 +72,11 @@ class GridSimEnv(gym.Env):
         if isinstance(scenario, Scenario):
             if overrides:
                 raise ScenarioError("overrides need a scenario name or path, not a Scenario object")
-            self.scenario = scenario
+            self.scenarios = [scenario]
         else:
-            self.scenario = load_scenario(scenario, overrides)
+            self.scenarios = load_collection(scenario, overrides)
+        #: The scenario of the current episode (of a collection: drawn at each reset).
+        self.scenario = self.scenarios[0]
         if render_mode not in (None, "rgb_array"):
             raise ValueError(
                 f"render_mode must be None or 'rgb_array', got {render_mode!r}: GridSim never "
@@ -119,6 +124,9 @@ class GridSimEnv(gym.Env):
         super().reset(seed=seed)
         episode_seed = int(self.np_random.integers(2**31 - 1))
         self.episode_seed = episode_seed
+        if len(self.scenarios) > 1:
+            self.scenario = pick(self.scenarios, episode_seed)
+            self.cfg = self.scenario.config
         self.world = build_world(self.scenario, episode_seed)
         self.reference = self._reference(episode_seed)
         self._last_accel = self._last_rate = 0.0

@@ -43,6 +43,7 @@ class ReferenceTrajectory:
         self._ready = len(t)  # samples known so far (all of them here)
         self._destination: np.ndarray | None = None
         self._length: float | None = None
+        self._reach: float | None = None
 
     # -- samples -------------------------------------------------------------------------------
     def _advance(self, ready: int) -> None:
@@ -105,16 +106,30 @@ class ReferenceTrajectory:
             self._length = float(np.sum(np.hypot(*np.diff(self.xy, axis=0).T)))
         return self._length
 
+    @property
+    def reach(self) -> float:
+        """How far [m] the reference ever gets from its first position (completes a lazy
+        reference). Unlike :attr:`length`, position noise of a standing vehicle does not add
+        up in it."""
+        if self._reach is None:
+            self._reach = float(np.max(np.hypot(*(self.xy - self.xy[0]).T)))
+        return self._reach
+
     def reached(self, xy: np.ndarray, travelled: float, tolerance: float) -> bool:
         """Whether a vehicle at ``xy`` [m, world] that has driven ``travelled`` metres has
         reached the destination: within ``tolerance`` [m] of the last position, having driven
         :data:`REACHED_SHARE` of the length (so that a route passing the same place twice does
-        not end on the first pass). A lazy reference is advanced only as far as needed to
-        rule this out."""
+        not end on the first pass). A reference that never leaves ``tolerance`` of its start
+        (a human who waited the whole time) is never reached: its episode runs for its
+        duration. A lazy reference is advanced only as far as needed to rule this out."""
         if not self._could_reach(travelled, tolerance):
             return False
         near_end = np.hypot(*(xy - self.destination)) <= tolerance
-        return bool(near_end and travelled >= REACHED_SHARE * self.length - tolerance)
+        return bool(
+            near_end
+            and travelled >= REACHED_SHARE * self.length - tolerance
+            and self.reach > tolerance
+        )
 
     def _could_reach(self, travelled: float, tolerance: float) -> bool:
         return True

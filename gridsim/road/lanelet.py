@@ -44,15 +44,25 @@ def _resample(pts: np.ndarray, n: int) -> np.ndarray:
     return line.point_at(np.linspace(line.s[0], line.s[-1], n))[0]
 
 
-def load_lanelet_road(path: str | Path) -> StaticRoad:
-    """Build a :class:`StaticRoad` from the lanelets of a CommonRoad XML file."""
+def parse_commonroad(path: str | Path) -> ET.Element:
+    """The root element of a CommonRoad XML file; :class:`DataError` if it is missing or
+    malformed."""
     path = Path(path)
     if not path.is_file():
-        raise DataError(f"CommonRoad map file not found: {path}")
+        raise DataError(f"CommonRoad file not found: {path}")
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as exc:
         raise DataError(f"{path}: not well-formed XML ({exc})") from exc
+    if root.tag != "commonRoad":
+        raise DataError(f"{path}: not a CommonRoad file (root element <{root.tag}>)")
+    return root
+
+
+def load_lanelet_road(path: str | Path) -> StaticRoad:
+    """Build a :class:`StaticRoad` from the lanelets of a CommonRoad XML file."""
+    path = Path(path)
+    root = parse_commonroad(path)
     lanes, polygons, markings, ends = [], [], [], []
     has_pred = {r.get("ref") for ll in root.findall("lanelet") for r in ll.findall("successor")}
     has_succ = {r.get("ref") for ll in root.findall("lanelet") for r in ll.findall("predecessor")}

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import ScenarioError
+from gridsim.errors import DataError, ScenarioError
 from gridsim.road.base import StaticRoad
 from gridsim.road.city import CityParams, CityRoad
 from gridsim.road.lanelet import load_lanelet_road
@@ -29,6 +29,7 @@ from gridsim.scenario.schema import (
     VehicleConfig,
 )
 from gridsim.sensors.occupancy import GridSpec, OccupancyGridSensor, SensorMount
+from gridsim.traffic.commonroad import scene_id
 from gridsim.traffic.library import Track, TrajectoryLibrary
 from gridsim.traffic.sources import (
     CityTraffic,
@@ -108,10 +109,19 @@ def _stamped(path: Path) -> tuple[str, int, int]:
 
 
 def library_for(scenario: Scenario) -> TrajectoryLibrary:
+    """The tracks of ``traffic.library``: ``builtin``, ``scene`` (the recorded map file's
+    dynamic obstacles) and trajectory files (CSV or CommonRoad XML)."""
     files = []
     for ref in scenario.config.traffic.library:
         if ref == "builtin":
             files.append("builtin")
+        elif ref == "scene":
+            if not isinstance(scenario.config.road, RecordedRoadConfig):
+                raise ScenarioError(
+                    f"{scenario.source}: traffic.library 'scene' needs road.type recorded (the "
+                    "tracks of its CommonRoad map file)"
+                )
+            files.append(_stamped(map_path(scenario)))
         else:
             files.append(_stamped(_resolve(scenario, ref, ("data", "ngsim"), ".csv")))
     return _library(tuple(files))
@@ -121,7 +131,7 @@ def library_for(scenario: Scenario) -> TrajectoryLibrary:
 def _library(files: tuple) -> TrajectoryLibrary:
     tracks = []
     for f in files:
-        lib = TrajectoryLibrary.builtin() if f == "builtin" else TrajectoryLibrary.from_csv(f[0])
+        lib = TrajectoryLibrary.builtin() if f == "builtin" else TrajectoryLibrary.from_files(f[0])
         tracks += lib.tracks
     return TrajectoryLibrary(tracks)
 
@@ -227,14 +237,34 @@ def _build_city(scenario: Scenario, seed: int) -> World:
     return World(road, traffic, ego, state, cfg.simulation.dt, partial(_fixed, route), traffic_rng)
 
 
+def map_path(scenario: Scenario) -> Path:
+    """The CommonRoad file of a recorded scenario's ``road.map``."""
+    return _resolve(scenario, scenario.config.road.map, ("data", "ngsim", "commonroad-xml"), ".xml")
+
+
+def scene_of(scenario: Scenario) -> str:
+    """The scene a recorded scenario replays: ``road.scene``, or its map file's scene id."""
+    return scenario.config.road.scene or scene_id(map_path(scenario))
+
+
+def recorded_scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
+    """The map and the tracks of a recorded scenario (cached)."""
+    road = _lanelet_road(_stamped(map_path(scenario)))
+    try:
+        return road, library_for(scenario).scene(scene_of(scenario))
+    except DataError as exc:
+        if "scene" in scenario.config.traffic.library:
+            raise
+        raise DataError(
+            f"{scenario.source}: {exc}; to replay the vehicles of the CommonRoad file itself, "
+            "set traffic.library: [scene] (or give the .xml file as the scenario)"
+        ) from None
+
+
 def _build_recorded(scenario: Scenario, seed: int) -> World:
     cfg = scenario.config
-    rc: RecordedRoadConfig = cfg.road
     _, traffic_rng, ego_rng = _seeds(seed)
-    road = _lanelet_road(
-        _stamped(_resolve(scenario, rc.map, ("data", "ngsim", "commonroad-xml"), ".xml"))
-    )
-    tracks = library_for(scenario).scene(rc.scene)
+    road, tracks = recorded_scene(scenario)
     ego_track = _pick_ego_track(scenario, tracks, road, ego_rng)
     ego = vehicle_params(cfg.ego.vehicle, ego_track.length, ego_track.width)
     u = np.array([np.cos(ego_track.heading[0]), np.sin(ego_track.heading[0])])
@@ -252,15 +282,14 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
     """The ego's track: ``ego.track`` by id, or drawn from the seed among the fit tracks (at
     least 2 s long, not too long a vehicle, inside the road) of the scene (``"random"``) or of
     a list of ids."""
-    cfg, rc = scenario.config, scenario.config.road
+    cfg, scene = scenario.config, scene_of(scenario)
     wanted = cfg.ego.track
     if isinstance(wanted, str) and wanted != "random":
         match = [t for t in tracks if t.track_id == wanted]
         if not match:
             ids = ", ".join(t.track_id for t in tracks)
             raise ScenarioError(
-                f"{scenario.source}: ego.track {wanted!r} is not in scene {rc.scene!r}; "
-                f"tracks: {ids}"
+                f"{scenario.source}: ego.track {wanted!r} is not in scene {scene!r}; tracks: {ids}"
             )
         return match[0]
     if isinstance(wanted, list):
@@ -268,9 +297,9 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
         if missing:
             raise ScenarioError(
                 f"{scenario.source}: ego.track lists {len(missing)} track(s) not in scene "
-                f"{rc.scene!r}: {', '.join(missing[:10])}"
+                f"{scene!r}: {', '.join(missing[:10])}"
             )
-    unfit = unfit_experts(rc.scene, tuple(tracks), road)
+    unfit = unfit_experts(scene, tuple(tracks), road)
     listed = set(wanted) if isinstance(wanted, list) else {t.track_id for t in tracks}
     fit = [
         t
@@ -281,7 +310,7 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
         and t.track_id not in unfit
     ]
     if not fit:
-        which = "the listed tracks" if isinstance(wanted, list) else f"scene {rc.scene!r}"
+        which = "the listed tracks" if isinstance(wanted, list) else f"scene {scene!r}"
         raise ScenarioError(f"{scenario.source}: {which} have no track >= 2 s to use as ego")
     return fit[int(rng.integers(len(fit)))]
 

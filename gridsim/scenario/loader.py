@@ -1,4 +1,5 @@
-"""Load scenarios by built-in name or by YAML path, with validated overrides."""
+"""Load scenarios by built-in name, by YAML path or from a CommonRoad XML file, with validated
+overrides."""
 
 from __future__ import annotations
 
@@ -135,8 +136,37 @@ def parse_scenario(
     return Scenario(cfg, source, base_dir)
 
 
+#: The scenario of a CommonRoad file given as is (see :func:`commonroad_scenario`): like the
+#: built-in recorded scenes, with the scene's own tracks and an episode as long as the ego's.
+COMMONROAD_DEFAULTS: dict[str, Any] = {
+    "simulation": {"dt": 0.1, "duration": 3600.0},
+    "traffic": {"library": ["scene"]},
+    "ego": {"track": "random", "vehicle": {"v_max": 25.0, "a_max": 3.0}},
+    "env": {"speed_range": [0.0, 30.0]},
+}
+
+
+def commonroad_scenario(path: Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+    """A CommonRoad scenario file as it is: its lanelet map and its dynamic obstacles, one
+    of them the ego (drawn from the seed), with :data:`COMMONROAD_DEFAULTS` and ``overrides``."""
+    if not path.is_file():
+        raise ScenarioError(f"scenario file not found: {path}")
+    doc = deep_merge(
+        COMMONROAD_DEFAULTS,
+        {
+            "name": path.stem[:80],
+            "description": f"CommonRoad scene {path.name}; one recorded vehicle is the ego",
+            "road": {"type": "recorded", "map": str(path.resolve())},
+        },
+    )
+    return parse_scenario(doc, str(path), path.resolve().parent, overrides)
+
+
 def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
-    """Load a built-in scenario by name (``"seamless"``) or a YAML file by path."""
+    """Load a built-in scenario by name (``"seamless"``), a YAML file by path, or a
+    CommonRoad XML file (``.xml``, see :func:`commonroad_scenario`)."""
+    if Path(name_or_path).suffix.lower() == ".xml":
+        return commonroad_scenario(Path(name_or_path), overrides)
     text, source, base = _read(name_or_path)
     try:
         doc = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a safe loader
@@ -154,6 +184,11 @@ def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
                             f"{name_or_path!r} ({type(name_or_path).__name__})")  # fmt: skip
     p = Path(name_or_path)
     looks_like_path = p.suffix in (".yaml", ".yml") or len(p.parts) > 1
+    if p.is_dir():
+        raise ScenarioError(
+            f"{p} is a folder: a scenario collection, not one scenario file (gym.make and the "
+            "commands that accept collections take it; see gridsim.scenario.collection)"
+        )
     if looks_like_path:
         if not p.is_file():
             raise ScenarioError(f"scenario file not found: {p}")
@@ -166,6 +201,6 @@ def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
         known = ", ".join(builtin_scenarios())
         raise ScenarioError(
             f"unknown scenario {str(name_or_path)!r}; built-in scenarios: {known} "
-            "(or give a path to a .yaml file)"
+            "(or give a path to a .yaml or a CommonRoad .xml file)"
         )
     return entry.read_text(encoding="utf-8"), f"builtin:{name_or_path}", None

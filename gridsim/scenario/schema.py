@@ -88,7 +88,14 @@ class TrafficConfig(Strict):
     v_max: PositiveFloat = 13.88
     a_max: PositiveFloat = 2.0
     max_vehicle_length: Annotated[float, Field(gt=2, le=25)] = 6.0
-    library: Annotated[list[str], Field(min_length=1)] = ["builtin"]
+    library: Annotated[
+        list[str],
+        Field(
+            min_length=1,
+            description="trajectory files (.csv, CommonRoad .xml), 'builtin' (the shipped "
+            "NGSIM tracks) or 'scene' (the dynamic obstacles of the recorded road.map)",
+        ),
+    ] = ["builtin"]
     window: Annotated[
         tuple[PositiveFloat, PositiveFloat],
         Field(description="[behind, ahead] metres of road around the ego kept populated"),
@@ -151,7 +158,14 @@ class CityRoadConfig(Strict):
 class RecordedRoadConfig(Strict):
     type: Literal["recorded"]
     map: Annotated[str, Field(min_length=1, description="CommonRoad XML: builtin:NAME or a path")]
-    scene: Annotated[str, Field(min_length=1, description="scenario_id of the tracks to replay")]
+    scene: Annotated[
+        str | None,
+        Field(
+            min_length=1,
+            description="scenario_id of the tracks to replay; default: the map file's "
+            "benchmarkID (or its file name without .xml)",
+        ),
+    ] = None
 
 
 RoadConfig = Annotated[

@@ -11,7 +11,9 @@ cumulative distance ``S``, speed ``V``, lateral offset ``D`` and heading ``H``):
 - *IDM*: when replay would close in on the vehicle ahead (gap below the IDM desired gap
   ``s*``), the vehicle follows the IDM with the replay speed as desired speed, and its profile
   time advances in proportion to its progress. It hands back to replay once the gap exceeds
-  ``resume_factor * s*`` and its speed has caught up with the profile.
+  ``resume_factor * s*`` and its speed has caught up with the profile. A recorded vehicle
+  keeps the recorded heading at its profile time in both modes (never the tangent of its
+  recorded path, which is position noise where it stood still).
 
 Leaders are found without O(N^2) work (see :meth:`Fleet.find_leaders`): the next vehicle on
 the same path, the ego, and for vehicles outside lane corridors, k-d tree pairs whose other
@@ -141,7 +143,10 @@ class Fleet:
     def _update_pose(self, idx: np.ndarray) -> None:
         p, h = self.paths.frenet_to_world(self.path[idx], self.s[idx], self.d[idx])
         self.x[idx], self.y[idx] = p[:, 0], p[:, 1]
-        geo = self.geometric[idx] & (self.mode[idx] == REPLAY)
+        # Recorded vehicles keep their recorded heading at their profile time, in IDM mode
+        # too (its time advances with their progress): the tangent of a recorded path is
+        # noise where the vehicle stood still.
+        geo = self.geometric[idx]
         if np.any(geo):
             vals = self.profiles.lookup(self.profile[idx[geo]], self.tau[idx[geo]])
             h = h.copy()

@@ -1,4 +1,5 @@
-"""A library of recorded vehicle trajectories loaded from CSV.
+"""A library of recorded vehicle trajectories loaded from CSV (or CommonRoad XML, see
+:mod:`gridsim.traffic.commonroad`).
 
 The CSV format is that of the shipped NGSIM file (see ``gridsim/data/ngsim/README.md``): one
 row per state, columns ``scenario_id, track_id, time_s, x_m, y_m, heading_rad, speed_mps,
@@ -47,6 +48,8 @@ class Track:
     speed: np.ndarray
     length: float
     width: float
+    #: Where the track was read from (a file path), for messages.
+    source: str = ""
 
     @property
     def duration(self) -> float:
@@ -100,9 +103,14 @@ class TrajectoryLibrary:
 
     @classmethod
     def from_csv(cls, *paths: str | Path) -> TrajectoryLibrary:
+        return cls.from_files(*paths)
+
+    @classmethod
+    def from_files(cls, *paths: str | Path) -> TrajectoryLibrary:
+        """Tracks of trajectory CSV files and CommonRoad XML files (by suffix)."""
         tracks: list[Track] = []
         for p in paths:
-            tracks += read_tracks_csv(p)
+            tracks += read_tracks(p)
         return cls(tracks)
 
     def scene(self, scenario_id: str) -> list[Track]:
@@ -136,6 +144,15 @@ def _builtin() -> TrajectoryLibrary:
     return _BUILTIN
 
 
+def read_tracks(path: str | Path) -> list[Track]:
+    """Tracks of a trajectory CSV, or of a CommonRoad XML file's dynamic obstacles."""
+    if Path(path).suffix.lower() == ".xml":
+        from gridsim.traffic.commonroad import read_tracks_commonroad  # it imports Track
+
+        return read_tracks_commonroad(path)
+    return read_tracks_csv(path)
+
+
 def read_tracks_csv(path: str | Path) -> list[Track]:
     """Parse a trajectory CSV; raise :class:`DataError` naming the file, row and column."""
     path = Path(path)
@@ -144,8 +161,9 @@ def read_tracks_csv(path: str | Path) -> list[Track]:
     try:
         return _parse_tracks_csv(path)
     except UnicodeDecodeError as exc:
-        raise DataError(f"{path}: not a UTF-8 text file (byte {exc.start}: {exc.reason}); "
-                        "save the CSV as UTF-8") from None
+        raise DataError(
+            f"{path}: not a UTF-8 text file (byte {exc.start}: {exc.reason}); save the CSV as UTF-8"
+        ) from None
 
 
 def _parse_tracks_csv(path: Path) -> list[Track]:
@@ -202,6 +220,23 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
                 a[:, 4],
                 float(a[0, 5]),
                 float(a[0, 6]),
+                str(path),
             )
         )
     return tracks
+
+
+def write_tracks_csv(tracks: list[Track], path: str | Path) -> Path:
+    """Write ``tracks`` as a trajectory CSV (:data:`REQUIRED_COLUMNS`) that
+    :func:`read_tracks_csv` reads back exactly (floats in full precision)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as fh:
+        out = csv.writer(fh)
+        out.writerow(REQUIRED_COLUMNS)
+        for tr in tracks:
+            for k in range(len(tr.t)):
+                values = (tr.t[k], tr.x[k], tr.y[k], tr.heading[k], tr.speed[k])
+                out.writerow([tr.scenario_id, tr.track_id, *(repr(float(v)) for v in values),
+                              repr(tr.length), repr(tr.width)])  # fmt: skip
+    return path

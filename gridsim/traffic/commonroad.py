@@ -1,0 +1,146 @@
+"""Recorded vehicles from CommonRoad scenario XML: the dynamic obstacles as :class:`Track`.
+
+Both layouts are read: 2018 (``<obstacle>`` with ``<role>dynamic</role>``) and 2020a
+(``<dynamicObstacle>``). A state's ``<time>`` is a step index; times in seconds are steps
+times the root's ``timeStepSize``. Values are ``<exact>`` or the middle of
+``<intervalStart>``/``<intervalEnd>``; a missing ``<velocity>`` is derived from the positions.
+Shapes: ``<rectangle>`` (length, width) or ``<circle>`` (a square of its diameter).
+Obstacles with a single state (nothing to replay) and static obstacles are left out.
+
+The scene id of a file (:func:`scene_id`) is the root's ``benchmarkID`` attribute, else the
+file's stem; tracks read from it carry it as ``scenario_id``.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+
+from gridsim.errors import DataError
+from gridsim.road.lanelet import parse_commonroad
+from gridsim.traffic.library import Track
+
+
+def _scene_id(root: ET.Element, path: Path) -> str:
+    return root.get("benchmarkID") or path.stem
+
+
+def scene_id(path: str | Path) -> str:
+    """The scene id of a CommonRoad file: its root's ``benchmarkID`` (or the file's stem).
+    Reads only the root element."""
+    path = Path(path)
+    if not path.is_file():
+        raise DataError(f"CommonRoad file not found: {path}")
+    try:
+        _, root = next(ET.iterparse(path, events=("start",)))
+    except (ET.ParseError, StopIteration) as exc:
+        raise DataError(f"{path}: not well-formed XML ({exc})") from None
+    return _scene_id(root, path)
+
+
+def _value(el: ET.Element | None, where: str) -> float | None:
+    """``<exact>`` or the middle of an interval under ``el`` (``None`` if ``el`` is)."""
+    if el is None:
+        return None
+    try:
+        exact = el.findtext("exact")
+        if exact is not None:
+            return float(exact)
+        lo, hi = el.findtext("intervalStart"), el.findtext("intervalEnd")
+        if lo is not None and hi is not None:
+            return 0.5 * (float(lo) + float(hi))
+    except ValueError as exc:
+        raise DataError(f"{where}: <{el.tag}> is not a number ({exc})") from None
+    raise DataError(f"{where}: <{el.tag}> has neither <exact> nor an interval")
+
+
+def _state(st: ET.Element, where: str) -> tuple[float, float, float, float, float | None]:
+    """``(step, x, y, orientation, velocity or None)`` of a ``<state>``/``<initialState>``."""
+    point = st.find("position/point")
+    if point is None:
+        raise DataError(f"{where}: a state has no <position><point> (shapes are not supported)")
+    try:
+        x, y = float(point.findtext("x")), float(point.findtext("y"))
+    except (TypeError, ValueError):
+        raise DataError(f"{where}: a state's <point> lacks a numeric <x> or <y>") from None
+    step = _value(st.find("time"), where)
+    heading = _value(st.find("orientation"), where)
+    if step is None or heading is None:
+        raise DataError(f"{where}: a state lacks <time> or <orientation>")
+    return step, x, y, heading, _value(st.find("velocity"), where)
+
+
+def _size(obstacle: ET.Element, where: str) -> tuple[float, float]:
+    rect, circle = obstacle.find("shape/rectangle"), obstacle.find("shape/circle")
+    if rect is None and circle is None:
+        raise DataError(f"{where}: <shape> must be a <rectangle> or a <circle>")
+    try:
+        if rect is not None:
+            length, width = float(rect.findtext("length")), float(rect.findtext("width"))
+        else:
+            length = width = 2.0 * float(circle.findtext("radius"))
+    except (TypeError, ValueError):
+        raise DataError(f"{where}: the shape's size is missing or not a number") from None
+    if not (length > 0 and width > 0):
+        raise DataError(f"{where}: shape size must be > 0, got {length} x {width}")
+    return length, width
+
+
+def _dynamic_obstacles(root: ET.Element) -> list[ET.Element]:
+    old = [o for o in root.findall("obstacle") if (o.findtext("role") or "").strip() == "dynamic"]
+    return old + root.findall("dynamicObstacle")
+
+
+def read_tracks_commonroad(path: str | Path) -> list[Track]:
+    """The dynamic obstacles of a CommonRoad file as tracks (file order); raise
+    :class:`DataError` naming the file and the obstacle."""
+    path = Path(path)
+    root = parse_commonroad(path)
+    try:
+        dt = float(root.get("timeStepSize", ""))
+    except ValueError:
+        raise DataError(f"{path}: the root lacks a numeric timeStepSize") from None
+    if not dt > 0:
+        raise DataError(f"{path}: timeStepSize must be > 0, got {dt}")
+    sid = _scene_id(root, path)
+    tracks = []
+    for ob in _dynamic_obstacles(root):
+        where = f"{path}: obstacle {ob.get('id')}"
+        states = [ob.find("initialState"), *ob.findall("trajectory/state")]
+        states = [_state(s, where) for s in states if s is not None]
+        if len(states) < 2:
+            continue
+        a = np.array([s[:4] for s in states])
+        order = np.argsort(a[:, 0], kind="stable")
+        a = a[order]
+        if np.any(np.diff(a[:, 0]) <= 0):
+            raise DataError(f"{where}: repeated time steps")
+        if not np.all(np.isfinite(a)):
+            raise DataError(f"{where}: non-finite values")
+        t = a[:, 0] * dt
+        v = np.array([states[k][4] for k in order], dtype=object)
+        if any(s is None for s in v):  # derive from the positions
+            seg = np.hypot(np.diff(a[:, 1]), np.diff(a[:, 2])) / np.diff(t)
+            speed = np.append(seg, seg[-1])
+        else:
+            speed = v.astype(float)
+        if np.any(speed < 0):
+            raise DataError(f"{where}: negative velocity (reversing is not supported)")
+        length, width = _size(ob, where)
+        tracks.append(
+            Track(
+                sid,
+                str(ob.get("id")),
+                t,
+                a[:, 1],
+                a[:, 2],
+                np.unwrap(a[:, 3]),
+                speed,
+                length,
+                width,
+                str(path),
+            )  # fmt: skip
+        )
+    return tracks

@@ -1,0 +1,163 @@
+"""CommonRoad XML as a scenario: lanelet map and dynamic obstacles (2018 and 2020a layouts)."""
+
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import pytest
+import yaml
+
+from gridsim.envs import ENV_ID
+from gridsim.errors import DataError, ScenarioError
+from gridsim.scenario.build import build_world, scene_of
+from gridsim.scenario.loader import load_scenario
+from gridsim.traffic.commonroad import read_tracks_commonroad, scene_id
+from gridsim.traffic.library import TrajectoryLibrary
+
+DATA = Path(__file__).parent / "data" / "commonroad"
+SHIPPED = Path(__file__).parents[1] / "gridsim" / "data" / "ngsim" / "commonroad-xml"
+OBSTACLE = (
+    '<dynamicObstacle id="5"><type>car</type><shape>{shape}</shape>'
+    "<initialState><position><point><x>10</x><y>-1.75</y></point></position>"
+    "<orientation><exact>0</exact></orientation><time><exact>0</exact></time>{v}"
+    "</initialState><trajectory><state><position><point><x>11</x><y>-1.75</y></point>"
+    "</position><orientation><exact>0</exact></orientation><time><exact>1</exact></time>{v}"
+    "</state></trajectory></dynamicObstacle>"
+)
+RECT = "<rectangle><length>4</length><width>2</width></rectangle>"
+VELOCITY = "<velocity><exact>5</exact></velocity>"
+
+
+def write_xml(tmp_path, body: str, root: str = 'timeStepSize="0.1"') -> Path:
+    p = tmp_path / "scene.xml"
+    p.write_text(f"<commonRoad {root}>{body}</commonRoad>")
+    return p
+
+
+@pytest.mark.parametrize("path", sorted(SHIPPED.glob("*.xml")), ids=lambda p: p.stem)
+def test_shipped_files_give_the_shipped_tracks(path):
+    """Both layouts (US-101 3_3 and Lankershim are 2018b, the others 2020a) give the tracks of
+    the shipped CSV, which was made from them (rounded to 1e-4)."""
+    tracks = read_tracks_commonroad(path)
+    expected = TrajectoryLibrary.builtin().scene(scene_id(path))
+    assert [t.track_id for t in tracks] == [t.track_id for t in expected]
+    for a, b in zip(tracks, expected, strict=True):
+        for k in ("t", "x", "y", "heading", "speed"):
+            np.testing.assert_allclose(getattr(a, k), getattr(b, k), atol=1e-4, err_msg=k)
+        assert (a.length, a.width) == (b.length, b.width)
+        assert a.source == str(path)
+
+
+def test_both_layouts_and_time_step_sizes_agree():
+    old = read_tracks_commonroad(DATA / "straight_2018b.xml")  # <obstacle>, 0.1 s
+    new = read_tracks_commonroad(DATA / "straight_2020a.xml")  # <dynamicObstacle>, 0.2 s
+    assert [t.track_id for t in old] == [t.track_id for t in new] == ["10", "11", "12"]
+    for a, b in zip(old, new, strict=True):
+        assert (a.scenario_id, b.scenario_id) == ("ZAM_Straight-1_1_T-1", "ZAM_Straight-1_2_T-1")
+        np.testing.assert_allclose(b.t, a.t[::2], atol=1e-12)
+        np.testing.assert_allclose(b.x, a.x[::2])
+        assert b.t[-1] == pytest.approx(4.0)
+
+
+def test_a_commonroad_file_is_a_scenario():
+    env = gym.make(ENV_ID, scenario=str(DATA / "straight_2020a.xml"))
+    seen = set()
+    for seed in range(4):
+        _, info = env.reset(seed=seed)
+        world = env.unwrapped.world
+        seen.add(world.ego_track.track_id)
+        assert world.ego_track.track_id not in {t.track_id for t in world.traffic.tracks}
+        assert len(world.traffic.tracks) == 2
+        while True:
+            _, _, terminated, truncated, info = env.step(info["reference_setpoints"])
+            if terminated or truncated:
+                break
+        assert not info["collision"] and not info["off_road"]
+    assert len(seen) > 1  # drawn from the seed
+
+
+def test_keyword_overrides_and_the_same_scene_from_yaml(tmp_path):
+    xml = DATA / "straight_2018b.xml"
+    env = gym.make(ENV_ID, scenario=str(xml), ego={"track": "10"}, simulation={"duration": 2})
+    env.reset(seed=0)
+    assert env.unwrapped.world.ego_track.track_id == "10"
+    assert env.unwrapped.time_limit == 2.0
+    doc = {"name": "y", "road": {"type": "recorded", "map": str(xml)},
+           "traffic": {"library": ["scene"]}, "ego": {"track": "10"}}  # fmt: skip
+    (tmp_path / "y.yaml").write_text(yaml.safe_dump(doc))
+    sc = load_scenario(tmp_path / "y.yaml")
+    assert scene_of(sc) == "ZAM_Straight-1_1_T-1"
+    a, b = build_world(sc, 3), build_world(load_scenario(xml, {"ego": {"track": "10"}}), 3)
+    np.testing.assert_array_equal(a.ego, b.ego)
+
+
+def test_scene_library_needs_a_recorded_road():
+    with pytest.raises(ScenarioError, match="'scene' needs road.type recorded"):
+        build_world(load_scenario("seamless", {"traffic": {"library": ["scene"]}}))
+
+
+def test_missing_velocity_is_derived_from_positions(tmp_path):
+    (tr,) = read_tracks_commonroad(write_xml(tmp_path, OBSTACLE.format(shape=RECT, v="")))
+    np.testing.assert_allclose(tr.speed, [10.0, 10.0])
+    (tr,) = read_tracks_commonroad(write_xml(tmp_path, OBSTACLE.format(shape=RECT, v=VELOCITY)))
+    np.testing.assert_allclose(tr.speed, [5.0, 5.0])
+
+
+@pytest.mark.parametrize(
+    ("body", "root", "message"),
+    [
+        (OBSTACLE.format(shape=RECT, v=VELOCITY), "", "lacks a numeric timeStepSize"),
+        (OBSTACLE.format(shape="<polygon/>", v=VELOCITY), 'timeStepSize="0.1"',
+         "obstacle 5: <shape> must be a <rectangle> or a <circle>"),
+        (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<x>11</x>", "<x>a</x>"),
+         'timeStepSize="0.1"', "obstacle 5: a state's <point> lacks a numeric <x>"),
+        (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<exact>1</exact>", "<exact>0</exact>"),
+         'timeStepSize="0.1"', "obstacle 5: repeated time steps"),
+    ],
+)  # fmt: skip
+def test_bad_obstacles_name_the_file_and_the_obstacle(tmp_path, body, root, message):
+    with pytest.raises(DataError, match=message):
+        read_tracks_commonroad(write_xml(tmp_path, body, root))
+
+
+def test_not_a_commonroad_file(tmp_path):
+    p = tmp_path / "other.xml"
+    p.write_text("<osm/>")
+    with pytest.raises(DataError, match="other.xml: not a CommonRoad file"):
+        read_tracks_commonroad(p)
+
+
+def test_a_map_without_its_tracks_says_what_to_do(tmp_path):
+    doc = {"name": "y", "road": {"type": "recorded", "map": str(DATA / "straight_2018b.xml")}}
+    (tmp_path / "y.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.raises(DataError, match=r"no tracks for scene 'ZAM_Straight-1_1_T-1'.*"
+                                        r"set traffic.library: \[scene\]"):  # fmt: skip
+        build_world(load_scenario(tmp_path / "y.yaml"))
+
+
+def test_import_writes_yaml_and_csv_that_give_the_same_worlds(tmp_path, capsys):
+    from gridsim.cli import main
+
+    src = tmp_path / "src"
+    src.mkdir()
+    for f in DATA.glob("*.xml"):
+        (src / f.name).write_bytes(f.read_bytes())
+    assert main(["import", str(src), "--out", str(tmp_path / "out")]) == 0
+    assert capsys.readouterr().out.count("wrote") == 2
+    out = tmp_path / "out"
+    assert (out / "maps" / "straight_2020a.xml").is_file()
+    doc = yaml.safe_load((out / "straight_2020a.yaml").read_text())
+    assert doc["traffic"]["library"] == ["straight_2020a.csv"]
+    assert doc["road"]["scene"] == "ZAM_Straight-1_2_T-1"
+    imported, original = (
+        load_scenario(out / "straight_2020a.yaml"),
+        load_scenario(src / "straight_2020a.xml"),
+    )
+    for seed in range(3):
+        a, b = build_world(imported, seed), build_world(original, seed)
+        assert a.ego_track.track_id == b.ego_track.track_id
+        np.testing.assert_array_equal(a.ego, b.ego)
+        for ta, tb in zip(a.traffic.tracks, b.traffic.tracks, strict=True):
+            for k in ("t", "x", "y", "heading", "speed"):
+                np.testing.assert_array_equal(getattr(ta, k), getattr(tb, k))
+    assert main(["validate", str(out)]) == 0

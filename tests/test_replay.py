@@ -1,0 +1,43 @@
+"""Recorded episodes as the human drove them: an ego track that waits is not "reached" at
+once, but runs for its recorded duration."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scenes import track, waiting, write_scene
+
+from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.envs.reference import reference_from_track
+
+
+def drive_reference(path: Path) -> tuple[GridSimEnv, dict, bool]:
+    env = GridSimEnv(str(path))
+    _, info = env.reset(seed=0)
+    while True:
+        _, _, terminated, truncated, info = env.step(info["reference_setpoints"])
+        if terminated or truncated:
+            return env, info, truncated
+
+
+def test_a_reference_that_never_moves_is_never_reached():
+    ref = reference_from_track(waiting(), 1.35)
+    assert ref.length > 0.1  # the noise adds up along the path...
+    assert ref.reach < 0.02  # ...but not away from the start
+    assert not ref.reached(ref.xy[0], 0.0, 2.0)
+    assert not ref.reached(ref.destination, 50.0, 2.0)
+    moving = reference_from_track(track("m", np.linspace(0.0, 30.0, 31), np.zeros(31)), 1.35)
+    assert moving.reached(moving.destination, 30.0, 2.0)
+    assert not moving.reached(moving.destination, 10.0, 2.0)  # not without driving its length
+
+
+def test_an_ego_that_waits_the_whole_time_runs_for_the_recorded_duration(tmp_path):
+    env, info, truncated = drive_reference(write_scene(tmp_path, [waiting()]))
+    assert truncated and not info["destination_reached"]
+    assert env.world.time == pytest.approx(4.0)
+
+
+def test_an_ego_that_waits_then_drives_off_is_reached_only_at_the_end(tmp_path):
+    env, info, _ = drive_reference(write_scene(tmp_path, [waiting(61, moving_after=30)]))
+    assert not info["collision"] and not info["off_road"]
+    assert env.world.time >= 6.0 - 0.5  # within the tolerance of the end, not at the start

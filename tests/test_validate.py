@@ -1,0 +1,63 @@
+"""Plausibility checks of recorded scenes (``gridsim validate``): crafted mistakes are named
+with the file, the track and the numbers; the shipped scenes pass."""
+
+import numpy as np
+import pytest
+from scenes import track, write_scene
+
+from gridsim.cli import main
+from gridsim.scenario.checks import scenario_problems, track_problems
+from gridsim.scenario.loader import load_scenario
+
+X = np.linspace(20.0, 60.0, 41)  # 10 m/s along the right lane for 4 s
+
+
+def validate(capsys, path) -> tuple[int, str]:
+    code = main(["validate", str(path)])
+    out = capsys.readouterr()
+    return code, out.out + out.err
+
+
+@pytest.mark.parametrize("name", ["us101_3_3", "us101_4_1", "lankershim_1_1", "peachtree_4_8"])
+def test_shipped_scenes_are_plausible(name):
+    assert scenario_problems(load_scenario(name)) == []
+
+
+def test_a_good_crafted_scene_passes(tmp_path, capsys):
+    code, out = validate(capsys, write_scene(tmp_path, [track("ego", X, np.full(41, -1.75))]))
+    assert code == 0 and "OK" in out
+
+
+def test_tracks_of_another_map_are_named(tmp_path, capsys):
+    off = track("far", X + 500.0, np.full(41, 40.0))  # 500 m beyond the map's end
+    path = write_scene(tmp_path, [track("ego", X, np.full(41, -1.75)), off])
+    code, out = validate(capsys, path)
+    assert code == 2
+    assert "tracks.csv: track far of scene crafted: 41 of its 41 positions (100%) are off" in out
+    assert "track ego" not in out
+
+
+def test_time_in_steps_instead_of_seconds_is_caught(tmp_path, capsys):
+    tr = track("ego", X, np.full(41, -1.75), dt=1.0)  # time stamps 0, 1, 2, ...: steps
+    tr.speed[:] = 10.0  # the recorded speed is right
+    code, out = validate(capsys, write_scene(tmp_path, [tr]))
+    assert code == 2
+    assert "track ego of scene crafted: positions and time stamps imply 1 m/s where" in out
+    assert "speed_mps says 10 m/s (median, ratio 0.1)" in out
+
+
+def test_implausible_speeds_and_accelerations_are_caught():
+    x = np.cumsum(np.full(41, 10.0))  # 100 m/s, consistent with its speed column
+    problems = track_problems(track("fast", x, np.zeros(41)))
+    assert len(problems) == 1 and "imply 100 m/s (95th percentile; at most 70)" in problems[0]
+    jerky = np.cumsum(np.tile([0.1, 0.5], 20))  # 1 <-> 5 m/s every 0.1 s: 40 m/s^2
+    problems = track_problems(track("jerky", jerky, np.zeros(40)))
+    assert any("accelerations of 40 m/s^2 (median; at most 15)" in p for p in problems)
+
+
+def test_a_scene_too_short_for_the_horizon_is_caught(tmp_path, capsys):
+    short = track("ego", X[:21], np.full(21, -1.75))  # 2 s; the horizon needs 5 x 0.5 s
+    code, out = validate(capsys, write_scene(tmp_path, [short]))
+    assert code == 2
+    assert "scene crafted lasts 2 s (its longest track, ego); the horizon needs 2.5 s" in out
+    assert "ego.track ego lasts 2 s" in out
