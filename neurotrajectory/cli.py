@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import sys
 import time
 from pathlib import Path
 
 from gridsim.cli import at_least
 from gridsim.errors import GridSimError
+from gridsim.paths import output_problem
 from neurotrajectory.backends import BACKENDS, BackendError
 from neurotrajectory.front import PICKS
 from neurotrajectory.model import PRESETS, PRIORS
@@ -55,6 +57,16 @@ def _cmd_train(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_heldout(args: argparse.Namespace) -> int:
+    if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
+        raise RunError(f"--seconds must be a finite number > 0, got {args.seconds}")
+    problem = output_problem(Path(args.out), directory=False)
+    if problem:
+        raise RunError(f"--out {args.out}: {problem}")
+    _heldout(Run.open(args.run), args.episodes, args.seconds, args.pick, args.out)
+    return 0
+
+
 def _check_video(path: str) -> None:
     from gridsim.video import video_problem
 
@@ -63,14 +75,19 @@ def _check_video(path: str) -> None:
         raise RunError(f"--video {path}: {problem}")
 
 
-def _heldout(run: Run, episodes: int) -> None:
-    """Drive the knee member on held-out episodes; write ``heldout.json``, print a summary."""
+def _heldout(
+    run: Run, episodes: int, seconds: float | None = None, pick: str = "knee", out=None
+) -> None:
+    """Drive a front member on held-out episodes; write ``out`` (default the run's
+    ``heldout.json``), print a summary."""
     from neurotrajectory.front import heldout
 
-    report = heldout(run.out, episodes)
-    (run.out / "heldout.json").write_text(json.dumps(report, indent=1))
+    report = heldout(run.out, episodes, pick, seconds)
+    path = Path(out) if out else run.out / "heldout.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(report, indent=1))
     net, curve = report["network"], report["destination curve"]
-    print(f"knee member on {episodes} held-out episodes of {report['episode_seconds']:g} s: "
+    print(f"{pick} member on {episodes} held-out episodes of {report['episode_seconds']:g} s: "
           f"completed {net['completed']:.0%} (destination curve {curve['completed']:.0%}), "
           f"progress {net['progress']:.0%} of the human's, "
           f"mean l1 {net['l1']:.0f} m^2 (destination curve {curve['l1']:.0f})")  # fmt: skip
@@ -348,6 +365,19 @@ def build_parser() -> argparse.ArgumentParser:
         help="decisions to drive at most (default: the run's episode length)",
     )
     r.set_defaults(func=_cmd_rollout)
+    h = sub.add_parser("heldout", help="drive a front member on episodes no generation saw")
+    h.add_argument("--run", required=True, help="a finished training run's folder")
+    h.add_argument("--pick", default="knee", choices=PICKS,
+                   help="the front member: the knee or the best on one objective")  # fmt: skip
+    h.add_argument("--episodes", type=at_least(1), default=20, help="held-out episodes")
+    h.add_argument(
+        "--seconds",
+        type=float,
+        default=None,
+        help="length of each episode [s] (default: the run's episode length)",
+    )
+    h.add_argument("--out", required=True, help="JSON report to write")
+    h.set_defaults(func=_cmd_heldout)
     d = sub.add_parser("record", help="record labelled windows of human driving")
     d.add_argument("--scenario", required=True,
                    help=f"a scenario group ({', '.join(GROUPS)}), a built-in scenario, a YAML "

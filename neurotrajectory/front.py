@@ -111,11 +111,14 @@ def load_front_member(run_dir: str | Path, pick: str) -> tuple[Run, NetPolicy, d
     return run, NetPolicy(nets[k]), member
 
 
-def heldout(run_dir: str | Path, episodes: int, pick: str = "knee") -> dict:
+def heldout(
+    run_dir: str | Path, episodes: int, pick: str = "knee", seconds: float | None = None
+) -> dict:
     """Closed-loop statistics of the picked front member on ``episodes`` episodes that no
     generation trained on (:meth:`~neurotrajectory.train.TrainConfig.heldout_seeds`; on a
-    recorded scene trained on some ``ego_tracks``, the scene's other tracks), each as long as
-    the training episodes, beside the destination curve's on the same episodes."""
+    recorded scene trained on some ``ego_tracks``, the scene's other tracks), each
+    ``seconds`` long (default: as long as the training episodes), beside the destination
+    curve's on the same episodes."""
     from neurotrajectory.baselines.destination_curve import DestinationCurve
     from neurotrajectory.closed_loop import drive_episodes, summarise
     from neurotrajectory.predictors import Setting, TrajectoryPolicy
@@ -123,14 +126,15 @@ def heldout(run_dir: str | Path, episodes: int, pick: str = "knee") -> dict:
     run, policy, member = load_front_member(run_dir, pick)
     cfg = run.config
     seeds = list(cfg.heldout_seeds(episodes))
+    seconds = cfg.episode_seconds if seconds is None else float(seconds)
     ego = {"track": _other_tracks(cfg.scenario, cfg.ego_tracks)} if cfg.ego_tracks else None
-    rows = drive_episodes(cfg.scenario, policy, seeds, cfg.episode_seconds, ego=ego)
+    rows = drive_episodes(cfg.scenario, policy, seeds, seconds, ego=ego)
     env = GridSimEnv(cfg.scenario, **cfg.overrides)
     curve = TrajectoryPolicy(DestinationCurve(Setting.from_env(env)))
-    baseline = drive_episodes(cfg.scenario, curve, seeds, cfg.episode_seconds, ego=ego)
+    baseline = drive_episodes(cfg.scenario, curve, seeds, seconds, ego=ego)
     return {
         "member": member,
-        "episode_seconds": cfg.episode_seconds,
+        "episode_seconds": seconds,
         **({"ego_tracks": ego["track"]} if ego else {}),
         "seeds": seeds,
         "network": summarise(rows),

@@ -300,8 +300,10 @@ FUZZ_ENVS: dict = {}
 def test_a_scenario_that_is_not_a_name_or_path(scenario):
     with pytest.raises(ScenarioError) as info:
         gym.make(ENV_ID, scenario=scenario)
-    assert str(info.value) == (f"scenario must be a built-in name, a YAML path or a Scenario, "
-                               f"got {scenario!r} ({type(scenario).__name__})")  # fmt: skip
+    assert str(info.value) == (
+        "scenario must be a built-in name, a YAML or XML path, a folder or glob of them, or a "
+        f"Scenario, got {scenario!r} ({type(scenario).__name__})"
+    )
 
 
 def test_human_rendering_is_refused_with_the_alternatives():

@@ -239,3 +239,23 @@ def test_dagger_rounds_refit_the_warm_start_on_the_states_it_visits(windows_dir,
                           pretrain=str(windows_dir), dagger_rounds=1)  # fmt: skip
         Run.create(tmp_path / "city", cfg).train(progress=False)
     assert not (tmp_path / "city").exists()  # refused before the run folder is made
+
+
+def test_heldout_drives_a_finished_run_on_longer_unseen_episodes(windows_dir, tmp_path, capsys):
+    out = tmp_path / "run"
+    args = ["train", "--preset", "tiny", "--population", "2", "--generations", "1",
+            "--episodes", "1", "--episode-seconds", "2", "--pretrain", str(windows_dir),
+            "--pretrain-epochs", "1", "--validation-episodes", "0", "--heldout", "0",
+            "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(args) == 0
+    report = tmp_path / "reports" / "h.json"
+    cmd = ["heldout", "--run", str(out), "--episodes", "2", "--seconds", "3", "--out"]
+    assert main([*cmd, str(report)]) == 0
+    doc = json.loads(report.read_text())
+    seeds = list(Run.open(out).config.heldout_seeds(2))
+    assert doc["episode_seconds"] == 3.0 and doc["seeds"] == seeds
+    assert [e["seed"] for e in doc["episodes"]] == seeds
+    assert all(e["seconds"] <= 3.0 + 1e-9 for e in doc["episodes"])
+    assert "knee member on 2 held-out episodes of 3 s" in capsys.readouterr().out
+    assert main(["heldout", "--run", str(out), "--seconds", "nan", "--out", str(report)]) == 2
+    assert "--seconds must be a finite number > 0, got nan" in capsys.readouterr().err

@@ -8,6 +8,7 @@ seed (:func:`pick`). Its scenarios must agree on what fixes the spaces and the t
 from __future__ import annotations
 
 import glob
+import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -24,7 +25,10 @@ SHARED_KEYS = ("sensor", "env", "ego.vehicle", "simulation.dt")
 
 def scenario_files(ref: str | Path) -> list[Path] | None:
     """The scenario files of a folder (sorted by name) or of a glob pattern (sorted);
-    ``None`` if ``ref`` is neither (a built-in name or a single file)."""
+    ``None`` if ``ref`` is neither (a built-in name or a single file, or not a name or
+    path at all: :func:`load_scenario` then says so)."""
+    if not isinstance(ref, str | os.PathLike):
+        return None
     text = str(ref)
     path = Path(text)
     if path.is_dir():

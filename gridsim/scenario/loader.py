@@ -165,7 +165,7 @@ def commonroad_scenario(path: Path, overrides: Mapping[str, Any] | None = None) 
 def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
     """Load a built-in scenario by name (``"seamless"``), a YAML file by path, or a
     CommonRoad XML file (``.xml``, see :func:`commonroad_scenario`)."""
-    if Path(name_or_path).suffix.lower() == ".xml":
+    if isinstance(name_or_path, str | os.PathLike) and Path(name_or_path).suffix.lower() == ".xml":
         return commonroad_scenario(Path(name_or_path), overrides)
     text, source, base = _read(name_or_path)
     try:
@@ -180,7 +180,8 @@ def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None 
 
 def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
     if not isinstance(name_or_path, str | os.PathLike):
-        raise ScenarioError(f"scenario must be a built-in name, a YAML path or a Scenario, got "
+        raise ScenarioError(f"scenario must be a built-in name, a YAML or XML path, a folder or "
+                            f"glob of them, or a Scenario, got "
                             f"{name_or_path!r} ({type(name_or_path).__name__})")  # fmt: skip
     p = Path(name_or_path)
     looks_like_path = p.suffix in (".yaml", ".yml") or len(p.parts) > 1
