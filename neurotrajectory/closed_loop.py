@@ -2,7 +2,8 @@
 
 Per episode: ``completed`` (ran to its time limit or destination without collision or
 leaving the road), ``progress`` (distance driven over the distance the human reference drove
-in the same time), collision, off-road, time driven [s], mean speed [m/s], mean steering rate
+in the same time; NaN when the human drove less than :data:`MIN_HUMAN_PATH`, and left out
+of the mean), collision, off-road, time driven [s], mean speed [m/s], mean steering rate
 [rad/s] and the episode's fitness vector ``[l1, l2, l3]``.
 """
 
@@ -14,6 +15,9 @@ import numpy as np
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.video import record_rollout
+
+#: m: below this the human's path (a car waiting at a light) is no yardstick for progress.
+MIN_HUMAN_PATH = 1.0
 
 
 def _length(points: np.ndarray) -> float:
@@ -48,7 +52,7 @@ def drive_episodes(
         rows.append({
             "seed": int(seed),
             "completed": float(not failed),
-            "progress": _length(driven) / max(_length(human), 1e-6),
+            "progress": _progress(_length(driven), _length(human)),
             "collision": float(last["collision"]),
             "off_road": float(last["off_road"]), "seconds": float(last["time"]),
             "mean_speed": float(np.mean(speeds)),
@@ -58,10 +62,21 @@ def drive_episodes(
     return rows
 
 
+def _progress(driven: float, human: float) -> float:
+    return driven / human if human >= MIN_HUMAN_PATH else float("nan")
+
+
 def summarise(rows: list[dict]) -> dict:
-    """The mean of every statistic over ``rows``, and the number of episodes."""
+    """The mean of every statistic over ``rows`` (NaN entries left out; NaN if all are),
+    and the number of episodes."""
     keys = [k for k in rows[0] if k != "seed"]
-    return {k: float(np.mean([r[k] for r in rows])) for k in keys} | {"episodes": len(rows)}
+    out = {}
+    for k in keys:
+        values = np.array([r[k] for r in rows], dtype=np.float64)
+        out[k] = (
+            float(np.mean(values[~np.isnan(values)])) if (~np.isnan(values)).any() else float("nan")
+        )
+    return out | {"episodes": len(rows)}
 
 
 def closed_loop(

@@ -191,3 +191,15 @@ def test_bad_input_gives_clear_errors(tiny_run, tmp_path, capsys):
         assert "keep.txt: is a file, expected a folder" in capsys.readouterr().err
         assert main([command, *args, "--out", str(tmp_path / "full"), "--quiet"]) == 2
         assert "full: exists and is not empty: choose another --out" in (capsys.readouterr().err)
+
+
+def test_progress_is_left_out_when_the_human_did_not_move():
+    from neurotrajectory.closed_loop import MIN_HUMAN_PATH, _progress, summarise
+
+    assert _progress(12.0, 10.0) == pytest.approx(1.2)
+    assert np.isnan(_progress(12.0, 0.5 * MIN_HUMAN_PATH))  # a car waiting at a light
+    rows = [{"seed": 1, "progress": 1.2, "completed": 1.0},
+            {"seed": 2, "progress": float("nan"), "completed": 0.0}]  # fmt: skip
+    out = summarise(rows)
+    assert out["progress"] == pytest.approx(1.2) and out["completed"] == 0.5
+    assert out["episodes"] == 2
