@@ -111,44 +111,50 @@ def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin, crossing_horizon
     ex, ey, ev, e_len, e_wid, e_c, e_s = ego
     m = len(idx)
     near = np.empty(m, np.int64)
-    lon = np.empty(m)
+    lon, dot, cross, crossing_gap = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
     n = 0
-    for q in range(m):
+    for q in range(m):  # candidates, before any path look-up
         i = idx[q]
         dx, dy = ex - x[i], ey - y[i]
         lon[q] = dx * c[q] + dy * sn[q]
         if lon[q] > 0 and np.hypot(dx, dy) <= lookahead:
-            near[n] = q
-            n += 1
+            dot[q] = c[q] * e_c + sn[q] * e_s
+            if dot[q] > 0:
+                near[n] = q
+                n += 1
+            elif not recorded[i]:
+                cross[q] = abs(c[q] * e_s - sn[q] * e_c)
+                crossing_gap[q] = lon[q] - 0.5 * (length[i] + e_len * -dot[q] + e_wid * cross[q])
+                if crossing_gap[q] < max(v[i], 1.0) * crossing_horizon:
+                    near[n] = q
+                    n += 1
     buckets = n > SMALL_QUERY
     a, gap, lead_v = np.empty(n, np.int64), np.empty(n), np.empty(n)
     k = 0
     for q in near[:n]:
         i = idx[q]
-        dot = c[q] * e_c + sn[q] * e_s
         px, py, h = frenet_one(paths, path_id[i], s[i] + lon[q], d[i], buckets)
         off = np.hypot(ex - px, ey - py)
-        if dot > 0:
+        if dot[q] > 0:
             if off < 0.5 * (width[i] + e_wid) + margin:
                 a[k], gap[k] = q, lon[q] - 0.5 * (length[i] + e_len)
-                lead_v[k] = ev * dot
+                lead_v[k] = ev * dot[q]
                 k += 1
-        elif not recorded[i]:
-            cross = abs(c[q] * e_s - sn[q] * e_c)
-            g = lon[q] - 0.5 * (length[i] + e_len * -dot + e_wid * cross)
-            reach = 0.5 * (width[i] + e_len * cross + e_wid * -dot) + margin
-            if off < reach and g < max(v[i], 1.0) * crossing_horizon:
-                # only if the ego is still across the path when the participant gets there
-                nx, ny = -np.sin(h), np.cos(h)  # the path's left normal
-                side = (ex - px) * nx + (ey - py) * ny
-                drift = ev * (e_c * nx + e_s * ny)  # the ego's speed across the path
-                clear = np.inf
-                if abs(drift) > 1e-9:
-                    clear = (reach - side * np.sign(drift)) / abs(drift)
-                if clear * max(v[i], 1e-9) > g:
-                    a[k], gap[k] = q, g
-                    lead_v[k] = ev * dot
-                    k += 1
+            continue
+        g = crossing_gap[q]
+        reach = 0.5 * (width[i] + e_len * cross[q] + e_wid * -dot[q]) + margin
+        if off < reach:
+            # only if the ego is still across the path when the participant gets there
+            nx, ny = -np.sin(h), np.cos(h)  # the path's left normal
+            side = (ex - px) * nx + (ey - py) * ny
+            drift = ev * (e_c * nx + e_s * ny)  # the ego's speed across the path
+            clear = np.inf
+            if abs(drift) > 1e-9:
+                clear = (reach - side * np.sign(drift)) / abs(drift)
+            if clear * max(v[i], 1e-9) > g:
+                a[k], gap[k] = q, g
+                lead_v[k] = ev * dot[q]
+                k += 1
     return a[:k], np.full(k, -2, np.int64), gap[:k], lead_v[:k]
 
 
