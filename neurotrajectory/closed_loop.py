@@ -73,9 +73,8 @@ def summarise(rows: list[dict]) -> dict:
     out = {}
     for k in keys:
         values = np.array([r[k] for r in rows], dtype=np.float64)
-        out[k] = (
-            float(np.mean(values[~np.isnan(values)])) if (~np.isnan(values)).any() else float("nan")
-        )
+        kept = values[~np.isnan(values)]
+        out[k] = float(kept.mean()) if len(kept) else float("nan")
     return out | {"episodes": len(rows)}
 
 
