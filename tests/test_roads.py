@@ -185,3 +185,46 @@ def test_far_away_map_coordinates_are_refused(tmp_path, x, message):
                     f"{bound('rightBound', 0)}</lanelet></commonRoad>")  # fmt: skip
     with pytest.raises(DataError, match=message):
         load_lanelet_road(path)
+
+
+# -- the compiled polyline queries against the NumPy code they replaced -------------------------
+def _numpy_project(line: Polyline, xy, lo, hi):
+    a, seg = line.points[lo:hi], np.diff(line.points, axis=0)[lo:hi]
+    seg_len = np.hypot(seg[:, 0], seg[:, 1])
+    rel = xy[:, None, :] - a[None, :, :]
+    t = np.clip(np.einsum("nmk,mk->nm", rel, seg) / seg_len**2, 0.0, 1.0)
+    dist2 = np.sum((xy[:, None, :] - (a[None] + t[..., None] * seg[None])) ** 2, axis=-1)
+    j = np.argmin(dist2, axis=1)
+    rows = np.arange(len(xy))
+    gi = j + lo
+    s = line.s[gi] + t[rows, j] * seg_len[j]
+    cross = seg[j, 0] * rel[rows, j, 1] - seg[j, 1] * rel[rows, j, 0]
+    return s, np.sign(cross) * np.sqrt(dist2[rows, j]), gi
+
+
+def _numpy_frenet(line: Polyline, s, d):
+    seg = np.diff(line.points, axis=0)
+    i = np.clip(np.searchsorted(line.s, s, side="right") - 1, 0, len(seg) - 1)
+    h = np.arctan2(seg[i, 1], seg[i, 0])
+    p = line.points[i] + ((s - line.s[i]) / np.hypot(*seg[i].T))[..., None] * seg[i]
+    return p + d[..., None] * np.stack([-np.sin(h), np.cos(h)], axis=-1), h
+
+
+def test_compiled_polyline_queries_are_bit_identical_to_numpy():
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        m = int(rng.integers(2, 300))
+        line = Polyline(np.cumsum(rng.normal(size=(m, 2)) * rng.uniform(0.1, 20), axis=0))
+        xy = line.points[rng.integers(0, m, 50)] + rng.normal(size=(50, 2)) * 5
+        hint = int(rng.integers(0, m - 1))
+        lo, hi = max(0, hint - 16), min(m - 1, hint + 16)
+        for args, (a, b) in [((), (0, m - 1)), ((hint, 16), (lo, hi))]:
+            got = line.project(xy, *args)
+            want = _numpy_project(line, xy, a, b)
+            for g, w in zip(got, want, strict=True):
+                assert np.array_equal(g, w)
+        s = rng.uniform(line.s[0] - 10, line.s[-1] + 10, 50)
+        d = rng.normal(size=50) * 3
+        want_xy, want_h = _numpy_frenet(line, s, d)
+        got = np.array([line.frenet_one(a, b) for a, b in zip(s, d, strict=True)])
+        assert np.array_equal(got[:, :2], want_xy) and np.array_equal(got[:, 2], want_h)

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from gridsim.road import polyline_kernels as kernels
+
 
 class Polyline:
     """A piecewise-linear curve through ``points`` ``(M, 2)`` with cumulative arc length ``s``.
@@ -56,6 +58,16 @@ class Polyline:
         p = self.points[i] + t[..., None] * self._seg[i]
         return p, self._heading[i]
 
+    def kernel_data(self) -> tuple[np.ndarray, ...]:
+        """``(points, segments, segment lengths, cumulative arc length)`` for compiled code
+        (:mod:`gridsim.road.polyline_kernels`)."""
+        return self.points, self._seg, self._seg_len, self.s
+
+    def frenet_one(self, s: float, d: float) -> tuple[float, float, float]:
+        """:meth:`frenet_to_world` of one point: ``(x, y, heading)`` as floats."""
+        return kernels.frenet_one(self.points, self._seg, self._seg_len, self.s, self._heading,
+                                  float(s), float(d))  # fmt: skip
+
     def frenet_to_world(self, s, d) -> tuple[np.ndarray, np.ndarray]:
         """World points and path headings for lane coordinates ``(s, d)``."""
         p, h = self.point_at(s)
@@ -69,25 +81,14 @@ class Polyline:
         Returns ``(s, d, segment_index)``; ``d`` is positive to the left. ``hint`` limits the
         search to ``window`` segments around a previous segment index (fast tracking).
         """
-        xy = np.atleast_2d(np.asarray(xy, dtype=np.float64))
+        xy = np.ascontiguousarray(np.atleast_2d(np.asarray(xy, dtype=np.float64)))
         lo, hi = 0, len(self._seg)
         if hint is not None:
             lo, hi = max(0, hint - window), min(len(self._seg), hint + window)
-        a = self.points[lo:hi]
-        seg = self._seg[lo:hi]
-        seg_len2 = self._seg_len[lo:hi] ** 2
-        rel = xy[:, None, :] - a[None, :, :]
-        t = np.clip(np.einsum("nmk,mk->nm", rel, seg) / seg_len2, 0.0, 1.0)
-        closest = a[None] + t[..., None] * seg[None]
-        dist2 = np.sum((xy[:, None, :] - closest) ** 2, axis=-1)
-        j = np.argmin(dist2, axis=1)
-        rows = np.arange(len(xy))
-        tj = t[rows, j]
-        gi = j + lo
-        s = self.s[gi] + tj * self._seg_len[gi]
-        cross = seg[j, 0] * rel[rows, j, 1] - seg[j, 1] * rel[rows, j, 0]
-        d = np.sign(cross) * np.sqrt(dist2[rows, j])
-        return s, d, gi
+        n = len(xy)
+        s, d, seg = np.empty(n), np.empty(n), np.empty(n, np.int64)
+        kernels.project(self.points, self._seg, self._seg_len, self.s, xy, lo, hi, s, d, seg)
+        return s, d, seg
 
     def track(self, x: float, y: float, hint: int) -> tuple[float, float, int]:
         """Project one point, walking from segment ``hint`` to the nearest local segment.
@@ -96,33 +97,9 @@ class Polyline:
         :meth:`project`, and the same result while the point stays within a few metres of
         the curve. Returns ``(s, d, segment_index)``.
         """
-        n = len(self._seg)
-        i = min(max(int(hint), 0), n - 1)
-        step = 0
-        while True:  # walk to a segment whose foot point parameter is inside [0, 1]
-            t = self._foot(i, x, y)
-            if t > 1.0 and i < n - 1 and step >= 0:
-                i, step = i + 1, 1
-            elif t < 0.0 and i > 0 and step <= 0:
-                i, step = i - 1, -1
-            else:
-                break
-        best = None
-        for j in (i - 1, i, i + 1):  # inside a bend the point may project onto neighbours too
-            if 0 <= j < n:
-                t = min(max(self._foot(j, x, y), 0.0), 1.0)
-                ax, ay = self.points[j]
-                sx, sy = self._seg[j]
-                dist = float(np.hypot(x - ax - t * sx, y - ay - t * sy))
-                if best is None or dist < best[0]:
-                    best = (dist, j, t, float(sx * (y - ay) - sy * (x - ax)))
-        dist, j, t, cross = best
-        return float(self.s[j] + t * self._seg_len[j]), float(np.copysign(dist, cross)), j
-
-    def _foot(self, i: int, x: float, y: float) -> float:
-        ax, ay = self.points[i]
-        sx, sy = self._seg[i]
-        return float(((x - ax) * sx + (y - ay) * sy) / (self._seg_len[i] ** 2))
+        s, d, j = kernels.track(self.points, self._seg, self._seg_len, self.s, float(x),
+                                float(y), int(hint))  # fmt: skip
+        return float(s), float(d), int(j)
 
     def offset(self, d: float) -> np.ndarray:
         """Points of the curve offset by ``d`` to the left (vertex normals averaged)."""

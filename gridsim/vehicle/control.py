@@ -28,7 +28,7 @@ class PursuitGains:
 
 def pursuit_inputs(
     state: np.ndarray,
-    target_xy: np.ndarray,
+    target_xy: tuple[float, float] | np.ndarray,
     target_speed: float,
     params: BicycleParams,
     gains: PursuitGains = PursuitGains(),
@@ -67,5 +67,5 @@ def follow_path(
     if s is None:
         s = float(path.project(state[None, :2])[0][0])
     look = gains.min_lookahead + gains.lookahead_time * max(state[V], 0.0)
-    target, _ = path.frenet_to_world(s + look, offset)
-    return pursuit_inputs(state, target, target_speed, params, gains)
+    x, y, _ = path.frenet_one(s + look, offset)
+    return pursuit_inputs(state, (x, y), target_speed, params, gains)

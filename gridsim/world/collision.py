@@ -150,9 +150,9 @@ class CollisionChecker:
             for hit in (self.space.shape_query(self._ego_shape) if placed else ())
             if hit.shape.body.body_type == pymunk.Body.KINEMATIC and hit.shape.body is not ego
         ]
-        edges = [
+        edges = [  # none unless road edges are loaded
             hit.shape.gridsim_index
-            for hit in self.space.shape_query(self._ego_core)
+            for hit in (self.space.shape_query(self._ego_core) if self._boundary_shapes else ())
             if hit.shape.body.body_type == pymunk.Body.STATIC
         ]
         return Contact(tuple(sorted(vehicles)), tuple(sorted(edges)))

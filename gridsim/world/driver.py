@@ -10,6 +10,7 @@ from gridsim.traffic.profiles import ProfileChain
 from gridsim.vehicle.control import PursuitGains, follow_path
 from gridsim.vehicle.idm import IDMParams, idm_acceleration
 from gridsim.vehicle.kinematics import V
+from gridsim.world.driver_kernels import route_leader
 
 
 class LaneFollower:
@@ -67,24 +68,13 @@ class LaneFollower:
         return accel, steer_rate
 
     def _leader(self, world, route, s_rear: float) -> tuple[float, float]:
-        f = world.traffic.fleet
-        ego_p = world.ego_params
-        x, y, psi = world.ego[0], world.ego[1], world.ego[2]
-        lon = (f.x - x) * np.cos(psi) + (f.y - y) * np.sin(psi)
-        near = f.active & (lon > 0) & (np.hypot(f.x - x, f.y - y) < self.lookahead)
-        idx = np.flatnonzero(near)
-        if len(idx) == 0:
-            return np.inf, 0.0
-        s, d, _ = route.project(np.stack([f.x[idx], f.y[idx]], axis=1), hint=self._hint, window=96)
-        ahead = (s > s_rear) & (np.abs(d) < 0.5 * (f.width[idx] + ego_p.width) + 0.3)
-        if not np.any(ahead):
-            return np.inf, 0.0
-        k = np.argmin(np.where(ahead, s, np.inf))
-        j = idx[k]
-        # Centre to centre along the route, less half of both lengths (the ego's centre is
-        # center_offset ahead of its rear axle).
-        gap = s[k] - (s_rear + ego_p.center_offset) - 0.5 * (f.length[j] + ego_p.length)
-        return float(gap), float(f.v[j])
+        """Gap [m] to the vehicle ahead on ``route`` and its speed [m/s] (``inf, 0``: none)."""
+        f, p = world.traffic.fleet, world.ego_params
+        ego = (float(world.ego[0]), float(world.ego[1]), float(world.ego[2]), float(s_rear),
+               p.length, p.width, p.center_offset)  # fmt: skip
+        gap, lead_v = route_leader((f.x, f.y, f.active, f.length, f.width, f.v), ego,
+                                   route.kernel_data(), self._hint, 96, self.lookahead)  # fmt: skip
+        return float(gap), float(lead_v)
 
 
 #: Prediction horizon [s] and step [s] of :func:`conflict_free_accel`.
