@@ -23,22 +23,13 @@ class Polyline:
         pts = np.asarray(points, dtype=np.float64)
         if pts.ndim != 2 or pts.shape[1] != 2 or len(pts) < 2:
             raise ValueError(f"a polyline needs at least 2 points of shape (M, 2), got {pts.shape}")
-        if not np.all(np.isfinite(pts)):
+        if not np.isfinite(pts).all():
             raise ValueError("polyline points must be finite")
-        seg = np.diff(pts, axis=0)
-        seg_len = np.hypot(seg[:, 0], seg[:, 1])
-        keep = np.concatenate([[True], seg_len > 1e-9])
-        if not keep.all():
-            pts = pts[keep]
-            if len(pts) < 2:
-                raise ValueError("a polyline needs at least 2 distinct points")
-            seg = np.diff(pts, axis=0)
-            seg_len = np.hypot(seg[:, 0], seg[:, 1])
-        self.points = pts
-        self._seg = seg
-        self._seg_len = seg_len
-        self._heading = np.arctan2(seg[:, 1], seg[:, 0])
-        self.s = s_start + np.concatenate([[0.0], np.cumsum(seg_len)])
+        self.points, self._seg, self._seg_len, self._heading, self.s = kernels.segments(
+            np.ascontiguousarray(pts), float(s_start)
+        )
+        if len(self.points) < 2:
+            raise ValueError("a polyline needs at least 2 distinct points")
 
     @property
     def length(self) -> float:

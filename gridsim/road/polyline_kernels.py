@@ -93,3 +93,29 @@ def track(points, seg, seg_len, s_cum, x, y, hint) -> tuple[float, float, int]:
             if bj < 0 or dist < best:
                 best, bj, bt, bcross = dist, j, t, sx * (y - ay) - sy * (x - ax)
     return s_cum[bj] + bt * seg_len[bj], math.copysign(best, bcross), bj
+
+
+@kernel
+def segments(pts, s_start) -> tuple:
+    """The arrays of a polyline through ``pts`` ``(M, 2)``: ``(points, seg, seg_len, heading,
+    s_cum)``, points closer than 1e-9 m to the one before dropped (fewer than 2 points left
+    means the curve has no length)."""
+    m = len(pts)
+    keep = np.zeros(m, np.bool_)
+    keep[0] = True
+    for i in range(1, m):
+        keep[i] = np.hypot(pts[i, 0] - pts[i - 1, 0], pts[i, 1] - pts[i - 1, 1]) > 1e-9
+    points = pts[keep]
+    n = len(points) - 1
+    seg, seg_len, heading = np.empty((max(n, 0), 2)), np.empty(max(n, 0)), np.empty(max(n, 0))
+    s_cum = np.empty(len(points))
+    s_cum[0] = s_start + 0.0
+    total = 0.0
+    for i in range(n):
+        sx, sy = points[i + 1, 0] - points[i, 0], points[i + 1, 1] - points[i, 1]
+        seg[i, 0], seg[i, 1] = sx, sy
+        seg_len[i] = np.hypot(sx, sy)
+        heading[i] = math.atan2(sy, sx)
+        total += seg_len[i]
+        s_cum[i + 1] = s_start + total
+    return points, seg, seg_len, heading, s_cum

@@ -83,8 +83,10 @@ class World:
         p = self.ego_params
         return EgoPose(cx, cy, float(self.ego[PSI]), float(self.ego[V]), p.length, p.width)
 
-    def tick(self, accel: float, steer_rate: float) -> TickResult:
-        """Advance the world by ``dt``: ego kinematics, road generation, traffic, collisions."""
+    def tick(self, accel: float, steer_rate: float, check: bool = True) -> TickResult:
+        """Advance the world by ``dt``: ego kinematics, road generation, traffic, collisions.
+        ``check=False`` skips the ego's contact and road-edge tests (the result then reports
+        none), for a caller that tests what it needs itself (the reference's shadow world)."""
         step = step_bicycle(self.ego, accel, steer_rate, self.ego_params, self.dt)
         moved = float(np.hypot(*(step.state[:2] - self.ego[:2])))
         self.ego = step.state
@@ -92,6 +94,9 @@ class World:
         pose = self.ego_pose()
         self.traffic.tick(self.dt, pose)
         self.time += self.dt
+        if not check:
+            self.last = TickResult(float(step.accel), float(step.steer_rate), Contact(), False)
+            return self.last
         contact = self.check_contacts()
         if contact.boundaries:
             off_road = True
