@@ -141,6 +141,8 @@ class CollisionChecker:
             body.position = _PARK
             self.space.reindex_shapes_for_body(body)
         self._placed = placed
+        if not placed and not self._boundary_shapes:
+            return Contact()  # nothing loaded the ego could touch
         self._ego_body.position = (float(ego_center[0]), float(ego_center[1]))
         self._ego_body.angle = float(ego_psi)
         self.space.reindex_shapes_for_body(self._ego_body)
