@@ -17,6 +17,7 @@ from hypothesis.extra import numpy as hnp
 import gridsim
 from gridsim.envs import ENV_ID, register_envs
 from gridsim.envs.gridsim_env import EGO_FEATURES, GridSimEnv
+from gridsim.envs.vector import mo_async_worker
 from gridsim.envs.wrappers import LinearScalarization
 from gridsim.errors import ScenarioError
 from gridsim.policies import LaneFollow
@@ -331,22 +332,105 @@ def test_step_after_termination_is_refused_until_reset():
     env.step(np.zeros(2))
 
 
-@pytest.mark.parametrize("mode", [None, "async"])
-def test_make_vec_stacks_the_vector_rewards(mode):
-    # async: gymnasium's workers answer an autoreset step with a scalar reward 0 (that cannot
-    # be stacked with vectors) unless they reset in the same step
-    same_step = {"autoreset_mode": gym.vector.AutoresetMode.SAME_STEP}
-    vector_kwargs = same_step if mode == "async" else None
-    venv = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode=mode,
-                        vector_kwargs=vector_kwargs, **SHORT)  # fmt: skip
+NEXT, SAME, OFF = (gym.vector.AutoresetMode.NEXT_STEP, gym.vector.AutoresetMode.SAME_STEP,
+                   gym.vector.AutoresetMode.DISABLED)  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("make_vec_kwargs", "autoreset"),
+    [
+        ({}, NEXT),  # the defaults: MOSyncVectorEnv
+        ({"autoreset_mode": SAME}, SAME),
+        ({"autoreset_mode": "Disabled"}, OFF),
+        ({"asynchronous": True}, NEXT),  # MOAsyncVectorEnv
+        ({"asynchronous": True, "autoreset_mode": SAME}, SAME),
+        ({"asynchronous": True, "autoreset_mode": OFF}, OFF),
+        # gymnasium's own AsyncVectorEnv
+        ({"vectorization_mode": "async", "vector_kwargs": {"worker": mo_async_worker}}, NEXT),
+        ({"vectorization_mode": "async", "vector_kwargs": {"autoreset_mode": SAME}}, SAME),
+        ({"vectorization_mode": "async", "vector_kwargs": {"autoreset_mode": OFF}}, OFF),
+    ],
+)
+def test_make_vec_stacks_the_vector_rewards(make_vec_kwargs, autoreset):
+    # env 0 leaves the road after 9 steps, env 1 is truncated after 40: env 0 restarts while
+    # env 1 is mid-episode; the single envs on the same seeds give the expected rewards
+    actions = np.array([[2.0, 1.0], [0.0, 0.0]], np.float32)
+    venv = gym.make_vec(ENV_ID, num_envs=2, action_type="control", **SHORT, **make_vec_kwargs)
+    singles = [GridSimEnv(action_type="control", **SHORT) for _ in range(2)]
     try:
+        assert venv.metadata["autoreset_mode"] is autoreset
         venv.reset(seed=[1, 2])
-        for _ in range(45):  # past the 4 s episodes: autoreset
-            obs, r, term, trunc, info = venv.step(venv.action_space.sample())
-            assert r.shape == (2, 3) and np.all(r >= 0)
+        for env, seed in zip(singles, [1, 2], strict=True):
+            env.reset(seed=seed)
+        due = np.zeros(2, bool)  # NEXT_STEP: the next step resets
+        ends = np.zeros(2, int)
+        for _ in range(42):
+            obs, r, term, trunc, info = venv.step(actions)
+            assert r.shape == (2, 3) and r.dtype == np.float64
+            for i, env in enumerate(singles):
+                if due[i]:  # the autoreset step: a zero vector
+                    env.reset()
+                    reward, ended = np.zeros(3), False
+                    assert not (term[i] or trunc[i])
+                else:
+                    _, reward, te, tr, _ = env.step(actions[i])
+                    assert (te, tr) == (term[i], trunc[i])
+                    ended = te or tr
+                    if ended and autoreset is SAME:
+                        env.reset()
+                np.testing.assert_array_equal(r[i], reward)
+                due[i] = ended and autoreset is NEXT
+                ends[i] += ended
+            if autoreset is OFF and (term | trunc).any():
+                venv.reset(options={"reset_mask": term | trunc})
+                for env in np.array(singles)[term | trunc]:
+                    env.reset()
         assert obs["grids"].shape == (2, 5, 128, 128)
+        assert ends[0] >= 3 and ends[1] == 1
     finally:
         venv.close()
+
+
+@pytest.mark.parametrize(
+    ("mode", "vector_kwargs"),
+    [
+        ("sync", None),
+        ("sync", {"autoreset_mode": SAME}),
+        ("async", None),  # NEXT_STEP, the default
+        ("async", {"autoreset_mode": "NextStep"}),
+    ],
+)
+def test_make_vec_refuses_gymnasium_vector_envs_that_drop_the_reward_vector(mode, vector_kwargs):
+    with pytest.raises(ValueError) as info:
+        gym.make_vec(ENV_ID, num_envs=2, vectorization_mode=mode, vector_kwargs=vector_kwargs,
+                     **SHORT)  # fmt: skip
+    message = str(info.value)
+    assert f"builds gymnasium's {mode.capitalize()}VectorEnv" in message
+    assert "leave vectorization_mode unset" in message and "asynchronous=True" in message
+    assert "LinearScalarization" in message
+
+
+def test_make_vec_with_gymnasiums_sync_vector_env_and_a_scalarising_wrapper():
+    venv = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="sync",
+                        wrappers=[LinearScalarization], **SHORT)  # fmt: skip
+    try:
+        venv.reset(seed=[1, 2])
+        assert venv.step(venv.action_space.sample())[1].shape == (2,)
+    finally:
+        venv.close()
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "match"),
+    [
+        ({"num_envs": 0}, "num_envs must be an integer >= 1, got 0"),
+        ({"asynchronous": "yes"}, "asynchronous must be True or False, got 'yes'"),
+        ({"autoreset_mode": "next"}, r"autoreset_mode must be one of .*'SameStep'.*got 'next'"),
+    ],
+)
+def test_make_vec_arguments_are_checked(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        gym.make_vec(ENV_ID, **{"num_envs": 2, **kwargs})
 
 
 def test_reward_space_is_reachable_on_the_made_env():

@@ -29,6 +29,7 @@ from gymnasium import spaces
 from gridsim.envs.actions import ACTION_TYPES
 from gridsim.envs.frames import grid_rotation, world_to_grid
 from gridsim.envs.reference import ReferenceTrajectory, human_reference, reference_from_track
+from gridsim.envs.vector import refuse_scalar_reward_vectorization
 from gridsim.errors import ScenarioError
 from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world, vehicle_params
@@ -250,7 +251,9 @@ class GridSimEnv(gym.Env):
 
 
 def make_env(**kwargs: Any) -> GridSimEnv:
-    """The entry point of ``gym.make("GridSim-v0", ...)``."""
+    """The entry point of ``gym.make("GridSim-v0", ...)`` (and of ``gym.make_vec``'s
+    ``"sync"``/``"async"`` modes, which it refuses when they cannot hold the reward vector)."""
+    refuse_scalar_reward_vectorization()
     return GridSimEnv(**kwargs)
 
 

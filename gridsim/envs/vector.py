@@ -1,23 +1,38 @@
-"""A synchronous vector GridSim-v0 with vector rewards: ``gym.make_vec("GridSim-v0", n)``.
+"""Vector GridSim-v0 with vector rewards: ``gym.make_vec("GridSim-v0", n)``.
 
-gymnasium's ``SyncVectorEnv`` keeps one float reward per environment and cannot hold the
-fitness vector ``[l1, l2, l3]``; :class:`MOSyncVectorEnv` stacks them as ``(num_envs, 3)``
-(as MO-Gymnasium's vector environment of the same name does). ``AsyncVectorEnv`` stacks
-them already.
+gymnasium's vector environments cannot hold the fitness vector ``[l1, l2, l3]``:
+``SyncVectorEnv`` keeps one float reward per environment, and ``AsyncVectorEnv``'s workers
+answer the step after an episode end (``AutoresetMode.NEXT_STEP``, the default) with the
+scalar reward 0, which does not stack with the vectors (gymnasium issue #1445).
+:class:`MOSyncVectorEnv` and :class:`MOAsyncVectorEnv` stack them as ``(num_envs, 3)``, with
+a zero vector on that autoreset step, in every autoreset mode (like MO-Gymnasium's
+``MOSyncVectorEnv``).
+
+``gym.make_vec(..., vectorization_mode="sync" | "async")`` builds gymnasium's own classes and
+never calls :func:`make_vector_env`; :func:`refuse_scalar_reward_vectorization` turns the
+combinations that would fail mid-rollout into an error at construction.
 """
 
 from __future__ import annotations
 
+import sys
+from collections.abc import Callable, Sequence
+from multiprocessing.connection import Connection
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium.envs.registration import VectorizeMode
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.async_vector_env import _async_worker  # the documented default worker
+
+EnvFns = Sequence[Callable[[], gym.Env]]
 
 
 class MOSyncVectorEnv(gym.vector.SyncVectorEnv):
     """``SyncVectorEnv`` whose rewards have the shape of the environments' ``reward_space``."""
 
-    def __init__(self, env_fns, **kwargs: Any) -> None:
+    def __init__(self, env_fns: EnvFns, **kwargs: Any) -> None:
         super().__init__(env_fns, **kwargs)
         space = getattr(self.envs[0].unwrapped, "reward_space", None)
         shape = space.shape if space is not None else ()
@@ -25,11 +40,127 @@ class MOSyncVectorEnv(gym.vector.SyncVectorEnv):
         self.reward_space = space
 
 
-def make_vector_env(num_envs: int = 1, **kwargs: Any) -> MOSyncVectorEnv:
-    """The vector entry point of GridSim-v0 (``gym.make_vec``'s default mode)."""
+class MOAsyncVectorEnv(gym.vector.AsyncVectorEnv):
+    """``AsyncVectorEnv`` whose NEXT_STEP autoreset steps answer a zero reward vector.
+
+    It runs :func:`mo_async_worker` in its subprocesses (unless given another ``worker``).
+    """
+
+    def __init__(self, env_fns: EnvFns, **kwargs: Any) -> None:
+        super().__init__(env_fns, **{"worker": mo_async_worker, **kwargs})
+        self.reward_space = self.get_attr("reward_space")[0]
+
+
+class _ZeroRewardOnAutoresetPipe:
+    """The worker's end of the pipe; a step answered with a scalar reward where the
+    environment's last reward was an array (gymnasium's autoreset ``0``) gets zeros instead."""
+
+    def __init__(self, pipe: Connection) -> None:
+        self._pipe = pipe
+        self._command: str | None = None
+        self._last_reward: Any = None
+
+    def recv(self) -> Any:
+        message = self._pipe.recv()
+        self._command = message[0]
+        return message
+
+    def send(self, message: Any) -> None:
+        if self._command == "step" and message[1]:  # a successful step's answer
+            obs, reward, terminated, truncated, info = message[0]
+            if np.ndim(reward) < np.ndim(self._last_reward):
+                reward = np.zeros_like(self._last_reward)
+                message = ((obs, reward, terminated, truncated, info), True)
+            else:
+                self._last_reward = reward
+        self._pipe.send(message)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._pipe, name)
+
+
+def mo_async_worker(
+    index: int, env_fn: Callable[[], gym.Env], pipe: Connection, *args: Any
+) -> None:
+    """gymnasium's ``AsyncVectorEnv`` worker, answering a zero reward vector on autoreset.
+
+    gymnasium's ``_async_worker`` hard-codes the reward 0 of a NEXT_STEP autoreset step; rather
+    than copy its loop, this runs it on a pipe that swaps that 0 for zeros shaped like the
+    environment's rewards. Also usable as ``AsyncVectorEnv(..., worker=mo_async_worker)``.
+    """
+    _async_worker(index, env_fn, _ZeroRewardOnAutoresetPipe(pipe), *args)
+
+
+def make_vector_env(
+    num_envs: int = 1,
+    *,
+    asynchronous: bool = False,
+    autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+    **kwargs: Any,
+) -> MOSyncVectorEnv | MOAsyncVectorEnv:
+    """The vector entry point of GridSim-v0 (``gym.make_vec``'s default mode).
+
+    Args:
+        num_envs: number of environments.
+        asynchronous: one subprocess per environment (:class:`MOAsyncVectorEnv`) instead of
+            stepping them in turn (:class:`MOSyncVectorEnv`).
+        autoreset_mode: gymnasium's ``AutoresetMode`` (or its value, e.g. ``"SameStep"``).
+        **kwargs: the arguments of ``GridSimEnv``.
+    """
     from gridsim.envs.gridsim_env import GridSimEnv
 
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
         raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    if not isinstance(asynchronous, bool):
+        raise ValueError(f"asynchronous must be True or False, got {asynchronous!r}")
+    try:
+        autoreset_mode = AutoresetMode(autoreset_mode)
+    except ValueError:
+        valid = ", ".join(f"AutoresetMode.{m.name} ({m.value!r})" for m in AutoresetMode)
+        raise ValueError(f"autoreset_mode must be one of {valid}, got {autoreset_mode!r}") from None
     kwargs.pop("max_episode_steps", None)  # the scenario's duration ends episodes
-    return MOSyncVectorEnv([lambda: GridSimEnv(**kwargs) for _ in range(num_envs)])
+    vector_env = MOAsyncVectorEnv if asynchronous else MOSyncVectorEnv
+    env_fns = [lambda: GridSimEnv(**kwargs) for _ in range(num_envs)]
+    return vector_env(env_fns, autoreset_mode=autoreset_mode)
+
+
+def refuse_scalar_reward_vectorization() -> None:
+    """Raise if ``gym.make_vec`` is building a vector env that cannot hold the reward vector.
+
+    With ``vectorization_mode="sync"`` or ``"async"``, ``make_vec`` builds gymnasium's own
+    ``SyncVectorEnv`` or ``AsyncVectorEnv`` and never calls :func:`make_vector_env`: the
+    single-env entry point, which calls this, is the only GridSim code it runs. So the call's
+    arguments are read from ``make_vec``'s frame on the stack (nothing is raised elsewhere).
+    ``wrappers`` are trusted to scalarise the reward (e.g. ``LinearScalarization``).
+    """
+    frame = sys._getframe(1)
+    while frame is not None and frame.f_code is not gym.make_vec.__code__:
+        frame = frame.f_back
+    if frame is None or frame.f_locals.get("wrappers"):
+        return
+    mode = frame.f_locals.get("vectorization_mode")
+    vector_kwargs = frame.f_locals.get("vector_kwargs") or {}
+    fixes = (
+        "leave vectorization_mode unset (GridSim's own vector env: rewards (num_envs, 3) in "
+        "every autoreset mode; asynchronous=True for subprocesses, autoreset_mode=... to choose "
+        "the mode), or pass wrappers=[gridsim.envs.wrappers.LinearScalarization] for scalar "
+        "rewards"
+    )
+    if mode == VectorizeMode.SYNC:
+        raise ValueError(
+            "gym.make_vec('GridSim-v0', vectorization_mode='sync') builds gymnasium's "
+            "SyncVectorEnv, which stores one float reward per environment and cannot hold "
+            f"GridSim's reward vector [l1, l2, l3]: {fixes}"
+        )
+    if mode != VectorizeMode.ASYNC or vector_kwargs.get("worker") is not None:
+        return
+    autoreset = AutoresetMode(vector_kwargs.get("autoreset_mode", AutoresetMode.NEXT_STEP))
+    if autoreset is AutoresetMode.NEXT_STEP:
+        raise ValueError(
+            "gym.make_vec('GridSim-v0', vectorization_mode='async') builds gymnasium's "
+            "AsyncVectorEnv, whose workers answer the step after an episode end (autoreset_mode "
+            "NEXT_STEP, the default) with a scalar reward 0 that cannot be stacked with GridSim's "
+            f"reward vectors [l1, l2, l3]: {fixes}; or keep vectorization_mode='async' with "
+            "vector_kwargs={'worker': gridsim.envs.vector.mo_async_worker} or "
+            "vector_kwargs={'autoreset_mode': gym.vector.AutoresetMode.SAME_STEP}"
+        )
