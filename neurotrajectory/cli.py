@@ -13,7 +13,7 @@ from gridsim.cli import at_least
 from gridsim.errors import GridSimError
 from gridsim.paths import output_problem
 from neurotrajectory.backends import BACKENDS, BackendError
-from neurotrajectory.front import PICKS
+from neurotrajectory.front import PICKS, heldout_problem
 from neurotrajectory.model import PRESETS, PRIORS
 from neurotrajectory.train import Run, RunError, TrainConfig
 from neurotrajectory.windows import GROUPS
@@ -46,6 +46,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
             **{k: (v if v is not None else getattr(defaults, k)) for k, v in given.items()}
         )
         run = Run.create(args.out or DEFAULT_OUT, config)
+    if args.heldout and (problem := heldout_problem(run.config)):
+        print(f"neurotrajectory: note: {problem}: no held-out report", file=sys.stderr)
+        args.heldout = 0
     summary = run.train(progress=not args.quiet)
     print(json.dumps({"run": str(run.out), **summary}, indent=1))
     if args.heldout:

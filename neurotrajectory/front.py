@@ -143,14 +143,27 @@ def heldout(
     }
 
 
+def heldout_problem(config) -> str | None:
+    """Why a run of ``config`` (a :class:`~neurotrajectory.train.TrainConfig`) has no held-out
+    episodes (a recorded scene all of whose usable tracks it trains on), or None."""
+    if not config.ego_tracks:
+        return None
+    try:
+        _other_tracks(config.scenario, config.ego_tracks)
+    except RunError as exc:
+        return str(exc)
+    return None
+
+
 def _other_tracks(scenario: str, trained: tuple[str, ...]) -> list[str]:
-    """The track ids of ``scenario``'s recorded scene that are not in ``trained``."""
-    from gridsim.scenario.build import library_for, scene_of
+    """The ids of ``scenario``'s tracks that can be the ego and are not in ``trained``."""
+    from gridsim.scenario.build import ego_candidates
     from gridsim.scenario.loader import load_scenario
 
-    base = load_scenario(scenario)
-    ids = [t.track_id for t in library_for(base).scene(scene_of(base))]
-    others = [t for t in ids if t not in set(trained)]
+    others = [t.track_id for t in ego_candidates(load_scenario(scenario))
+              if t.track_id not in set(trained)]  # fmt: skip
     if not others:
-        raise RunError(f"{scenario}: every track of the scene was trained on; none is held out")
+        raise RunError(f"{scenario}: every track of the scene that can be the ego was trained "
+                       "on; none is held out (evaluate the run on another scene: "
+                       "`neurotrajectory evaluate --group NAME=FOLDER`)")  # fmt: skip
     return others

@@ -443,3 +443,19 @@ def test_a_scenario_whose_world_cannot_be_built_is_refused_before_the_run(tmp_pa
     err = capsys.readouterr().err
     assert f"--scenario {crowded}: {crowded}: traffic.participants 500 is more than the" in err
     assert not (tmp_path / "run").exists()
+
+
+def test_heldout_tracks_are_the_usable_tracks_a_run_did_not_train_on():
+    from gridsim.scenario.build import ego_candidates, library_for, scene_of
+    from gridsim.scenario.loader import load_scenario
+    from neurotrajectory.front import _other_tracks, heldout_problem
+
+    base = load_scenario("us101_4_1")
+    usable = [t.track_id for t in ego_candidates(base)]
+    every = [t.track_id for t in library_for(base).scene(scene_of(base))]
+    assert 0 < len(usable) < len(every)  # the scene has tracks too short to be the ego
+    assert _other_tracks("us101_4_1", tuple(usable[1:])) == usable[:1]
+    assert heldout_problem(TrainConfig(scenario="us101_4_1", ego_tracks=tuple(usable[1:]))) is None
+    problem = heldout_problem(TrainConfig(scenario="us101_4_1", ego_tracks=tuple(every)))
+    assert "us101_4_1: every track of the scene that can be the ego was trained on" in problem
+    assert "--group NAME=FOLDER" in problem

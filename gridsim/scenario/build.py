@@ -278,6 +278,19 @@ def _build_recorded(scenario: Scenario, seed: int) -> World:
     )
 
 
+def ego_candidates(
+    scenario: Scenario, tracks: list[Track] | None = None, road: StaticRoad | None = None
+) -> list[Track]:
+    """The tracks of a recorded scene that can be the ego: at least 2 s long, not too long a
+    vehicle, and inside the road (``tracks`` and ``road``: the scene's, if already loaded)."""
+    if tracks is None or road is None:
+        road, tracks = recorded_scene(scenario)
+    unfit = unfit_experts(scene_of(scenario), tuple(tracks), road)
+    longest = scenario.config.traffic.max_vehicle_length
+    return [t for t in tracks
+            if t.duration >= 2.0 and t.length <= longest and t.track_id not in unfit]  # fmt: skip
+
+
 def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
     """The ego's track: ``ego.track`` by id, or drawn from the seed among the fit tracks (at
     least 2 s long, not too long a vehicle, inside the road) of the scene (``"random"``) or of
@@ -299,16 +312,8 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
                 f"{scenario.source}: ego.track lists {len(missing)} track(s) not in scene "
                 f"{scene!r}: {', '.join(missing[:10])}"
             )
-    unfit = unfit_experts(scene, tuple(tracks), road)
     listed = set(wanted) if isinstance(wanted, list) else {t.track_id for t in tracks}
-    fit = [
-        t
-        for t in tracks
-        if t.track_id in listed
-        and t.duration >= 2.0
-        and t.length <= cfg.traffic.max_vehicle_length
-        and t.track_id not in unfit
-    ]
+    fit = [t for t in ego_candidates(scenario, tracks, road) if t.track_id in listed]
     if not fit:
         which = "the listed tracks" if isinstance(wanted, list) else f"scene {scene!r}"
         raise ScenarioError(f"{scenario.source}: {which} have no track >= 2 s to use as ego")
