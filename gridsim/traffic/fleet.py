@@ -32,7 +32,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from gridsim.traffic.fleet_kernels import IDM as IDM  # the modes, re-exported
-from gridsim.traffic.fleet_kernels import REPLAY, advance, ego_ahead, nearest_leaders, same_path
+from gridsim.traffic.fleet_kernels import (
+    REPLAY,
+    advance,
+    ego_ahead,
+    nearest_leaders,
+    poses,
+    same_path,
+)
 from gridsim.traffic.tables import PathBank, TableBank
 from gridsim.vehicle.idm import IDMParams
 
@@ -141,17 +148,13 @@ class Fleet:
         self.leader[idx] = -1
 
     def _update_pose(self, idx: np.ndarray) -> None:
-        p, h = self.paths.frenet_to_world(self.path[idx], self.s[idx], self.d[idx])
-        self.x[idx], self.y[idx] = p[:, 0], p[:, 1]
+        poses(idx, self.path, self.s, self.d, self.paths.kernel_data(), self.x, self.y, self.psi)
         # Recorded vehicles keep their recorded heading at their profile time, in IDM mode
         # too (its time advances with their progress): the tangent of a recorded path is
         # noise where the vehicle stood still.
-        geo = self.geometric[idx]
-        if np.any(geo):
-            vals = self.profiles.lookup(self.profile[idx[geo]], self.tau[idx[geo]])
-            h = h.copy()
-            h[geo] = vals[:, _H]
-        self.psi[idx] = h
+        geo = idx[self.geometric[idx]]
+        if len(geo):
+            self.psi[geo] = self.profiles.lookup(self.profile[geo], self.tau[geo])[:, _H]
 
     # -- leaders ----------------------------------------------------------------------------------
     def find_leaders(self, ego: EgoPose | None) -> None:

@@ -174,3 +174,12 @@ def nearest_leaders(idx, a, b, gap, lead_v, gap_out, leader_out, lead_v_out) -> 
             i = idx[f]
             gap_out[i], lead_v_out[i] = gap[q], lead_v[q]
             leader_out[i] = idx[b[q]] if b[q] >= 0 else -2
+
+
+@kernel
+def poses(idx, path, s, d, paths, x, y, psi) -> None:
+    """World pose of participants ``idx`` from their path coordinates: ``x, y`` [m] at
+    ``(s, d)`` on their path and the path heading [rad] (:func:`frenet_one`)."""
+    buckets = len(idx) > SMALL_QUERY
+    for i in idx:
+        x[i], y[i], psi[i] = frenet_one(paths, path[i], s[i], d[i], buckets)

@@ -12,6 +12,7 @@ from functools import lru_cache
 import numpy as np
 
 from gridsim.traffic.library import Track
+from gridsim.traffic.profile_kernels import chain_samples
 
 
 @dataclass(frozen=True)
@@ -107,17 +108,15 @@ class ProfileChain:
         """Compute the samples up to index ``n`` (exclusive; capped at the end)."""
         hp, b, dt = self.profiles, self.profiles.bounds, self.dt
         i, k, start, v_prev, d_bias = self._i, self._k, self._start, self._v_prev, self._d_bias
-        speeds, offsets = self.speeds, self.offsets
-        for m in range(self.ready, min(n, len(self.times))):
-            t = self.times[m]
-            tau = t - start
-            if tau > hp.t[i][-1]:
-                v_end, d_end = speeds[m - 1], offsets[m - 1]
+        out, limits = (self.times, self.speeds, self.offsets), (b.v_min, b.v_max, b.a_max, dt)
+        m, end = self.ready, min(n, len(self.times))
+        while m < end:
+            m, v_prev = chain_samples(out, m, end, (hp.t[i], hp.v[i], hp.d[i]),
+                                      (k, start, d_bias, v_prev), limits)  # fmt: skip
+            if m < end:  # the profile ran out before sample m: chain the next one
+                v_end, d_end = self.speeds[m - 1], self.offsets[m - 1]
                 i, k = hp.continue_from(self.rng, v_end)
-                start, tau = t, 0.0
+                start = float(self.times[m])
                 d_bias = d_end - hp.d[i][0]
-            v = np.clip(k * np.interp(tau, hp.t[i], hp.v[i]), b.v_min, b.v_max)
-            speeds[m] = v_prev = np.clip(v, v_prev - b.a_max * dt, v_prev + b.a_max * dt)
-            offsets[m] = np.interp(tau, hp.t[i], hp.d[i]) + d_bias * np.exp(-tau / 2.0)
-            self.ready = m + 1
+        self.ready = max(self.ready, end)
         self._i, self._k, self._start, self._v_prev, self._d_bias = i, k, start, v_prev, d_bias
