@@ -8,9 +8,9 @@ import numpy as np
 
 from gridsim.traffic.profiles import ProfileChain
 from gridsim.vehicle.control import PursuitGains, follow_path
-from gridsim.vehicle.idm import IDMParams, idm_acceleration
+from gridsim.vehicle.idm import IDMParams
 from gridsim.vehicle.kinematics import V
-from gridsim.world.driver_kernels import route_leader
+from gridsim.world.driver_kernels import idm_one, route_leader
 
 
 class LaneFollower:
@@ -58,11 +58,9 @@ class LaneFollower:
         gap, lead_v = self._leader(world, route, s_rear)
         if np.isfinite(gap):
             v = world.ego[V]
-            a_idm = idm_acceleration(
-                np.array(v), np.array(speed), np.array(gap), np.array(v - lead_v), self.idm
-            )
-            accel = min(accel, float(a_idm))
-        accel = float(np.clip(accel, -p.b_max, p.a_max))
+            a_idm = idm_one(float(v), float(speed), gap, float(v - lead_v), self.idm.values)
+            accel = min(accel, a_idm)
+        accel = min(max(accel, -p.b_max), p.a_max)
         if len(yield_to):
             accel = conflict_free_accel(world, route, s_rear, d_rear, accel, yield_to)
         return accel, steer_rate

@@ -1,5 +1,6 @@
-"""Compiled part of the scripted drivers (:mod:`gridsim.world.driver`): the leader on the
-route. Same operations, in the same order, as the NumPy code it replaced (same bits)."""
+"""Compiled parts of the scripted drivers (:mod:`gridsim.world.driver`): the leader on the
+route and the IDM of one vehicle. Same operations, in the same order, as the NumPy code they
+replaced (same bits)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import numpy as np
 
 from gridsim.jit import kernel
 from gridsim.road.polyline_kernels import project
+from gridsim.vehicle.idm import idm_accel
 
 
 @kernel
@@ -52,3 +54,10 @@ def route_leader(fleet, ego, route, hint, window, lookahead) -> tuple[float, flo
     j = idx[best]
     gap = s[best] - (s_rear + center_offset) - 0.5 * (length[j] + ego_length)
     return gap, v[j]
+
+
+@kernel
+def idm_one(v, v_desired, gap, dv, params) -> float:
+    """:func:`~gridsim.vehicle.idm.idm_accel` of one vehicle (floats; ``params``:
+    :attr:`~gridsim.vehicle.idm.IDMParams.values`)."""
+    return idm_accel(v, v_desired, gap, dv, *params)
