@@ -172,14 +172,12 @@ class Fleet:
         idx = np.flatnonzero(self.active)
         if len(idx) == 0:
             return
-        corridor, offset = self.paths.corridors(self.path[idx])
-        lateral = offset + self.d[idx]
+        corridor, _ = self.paths.corridors(self.path[idx])
         c, sn = np.cos(self.psi[idx]), np.sin(self.psi[idx])
         p = self.p
-        found = [
-            same_path(idx, self.path, self.s, self.length, self.v, self.psi, p.lookahead),
-            self._cross_path(idx, corridor, lateral, c, sn),
-        ]
+        found = [same_path(idx, self.path, self.s, self.length, self.v, self.psi, p.lookahead)]
+        if not np.all(corridor >= 0):  # vehicles outside lane corridors
+            found.append(self._cross_path(idx, corridor, c, sn))
         if ego is not None:
             pose = (ego.x, ego.y, ego.v, ego.length, ego.width, math.cos(ego.psi),
                     math.sin(ego.psi))  # fmt: skip
@@ -188,19 +186,15 @@ class Fleet:
             paths = self.paths.kernel_data()
             found.append(ego_ahead(idx, fleet, c, sn, pose, paths, p.lookahead, p.lateral_margin,
                                    p.crossing_horizon))  # fmt: skip
-        a = np.concatenate([f[0] for f in found])  # follower (index into idx)
-        b = np.concatenate([f[1] for f in found])  # leader index into idx, or -2 for the ego
-        gap = np.concatenate([f[2] for f in found])
-        lead_v = np.concatenate([f[3] for f in found])  # leader speed along a's heading
+        # follower (index into idx), leader (index into idx, or -2 for the ego), gap, and
+        # leader speed along the follower's heading
+        a, b, gap, lead_v = (np.concatenate(part) for part in zip(*found, strict=True))
         nearest_leaders(idx, a, b, gap, lead_v, self.gap, self.leader, self._lead_v)
 
-    def _cross_path(self, idx, corridor, lateral, c, sn):
+    def _cross_path(self, idx, corridor, c, sn):
         """Leaders on another path: pairs from a k-d tree (or all pairs when few), kept if
         the other vehicle lies on the follower's path as far ahead as it is. Pairs inside
         one corridor are left to :func:`~gridsim.traffic.fleet_kernels.same_path`."""
-        empty = (np.zeros(0, np.int64),) * 2 + (np.zeros(0),) * 2
-        if np.all(corridor >= 0):
-            return empty
         px, py = self.x[idx], self.y[idx]
         i, j = self._pairs(px, py)
         dx, dy = px[j] - px[i], py[j] - py[i]
