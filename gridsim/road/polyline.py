@@ -15,6 +15,7 @@ class Polyline:
     """A piecewise-linear curve through ``points`` ``(M, 2)`` with cumulative arc length ``s``.
 
     ``s`` starts at ``s_start`` so that a curve trimmed at its back keeps its coordinates.
+    Immutable (its arrays are read-only), so copies of a world share it.
     """
 
     __slots__ = ("points", "s", "_seg", "_seg_len", "_heading")
@@ -30,6 +31,11 @@ class Polyline:
         )
         if len(self.points) < 2:
             raise ValueError("a polyline needs at least 2 distinct points")
+        for a in (self.points, self._seg, self._seg_len, self._heading, self.s):
+            a.flags.writeable = False  # immutable: copies of a world share it
+
+    def __deepcopy__(self, memo) -> Polyline:
+        return self
 
     @property
     def length(self) -> float:
