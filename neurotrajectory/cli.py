@@ -47,7 +47,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         )
         run = Run.create(args.out or DEFAULT_OUT, config)
     if args.heldout and (problem := heldout_problem(run.config)):
-        print(f"neurotrajectory: note: {problem}: no held-out report", file=sys.stderr)
+        print(f"neurotrajectory: note: no held-out report: {problem}", file=sys.stderr)
         args.heldout = 0
     summary = run.train(progress=not args.quiet)
     print(json.dumps({"run": str(run.out), **summary}, indent=1))

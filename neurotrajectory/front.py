@@ -116,7 +116,8 @@ def heldout(
 ) -> dict:
     """Closed-loop statistics of the picked front member on ``episodes`` episodes that no
     generation trained on (:meth:`~neurotrajectory.train.TrainConfig.heldout_seeds`; on a
-    recorded scene trained on some ``ego_tracks``, the scene's other tracks), each
+    recorded scene trained on some ``ego_tracks``, the scene's other tracks that can be the
+    ego), each
     ``seconds`` long (default: as long as the training episodes), beside the destination
     curve's on the same episodes."""
     from neurotrajectory.baselines.destination_curve import DestinationCurve
@@ -164,6 +165,6 @@ def _other_tracks(scenario: str, trained: tuple[str, ...]) -> list[str]:
               if t.track_id not in set(trained)]  # fmt: skip
     if not others:
         raise RunError(f"{scenario}: every track of the scene that can be the ego was trained "
-                       "on; none is held out (evaluate the run on another scene: "
-                       "`neurotrajectory evaluate --group NAME=FOLDER`)")  # fmt: skip
+                       "on, none is held out; evaluate the run on another scene with "
+                       "`neurotrajectory evaluate --group NAME=FOLDER`")  # fmt: skip
     return others

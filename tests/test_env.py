@@ -410,6 +410,19 @@ def test_make_vec_refuses_gymnasium_vector_envs_that_drop_the_reward_vector(mode
     assert "LinearScalarization" in message
 
 
+def test_make_vec_does_not_refuse_another_env_that_wraps_gridsim():
+    # a scalar-reward env registered under its own id may build GridSim-v0 inside
+    env_id = "ScalarGridSimForTests-v0"
+    if env_id not in gym.registry:
+        gym.register(env_id, entry_point=lambda **kw: LinearScalarization(make(**kw)))
+    venv = gym.make_vec(env_id, num_envs=2, vectorization_mode="sync")
+    try:
+        venv.reset(seed=[1, 2])
+        assert venv.step(venv.action_space.sample())[1].shape == (2,)
+    finally:
+        venv.close()
+
+
 def test_make_vec_with_gymnasiums_sync_vector_env_and_a_scalarising_wrapper():
     venv = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="sync",
                         wrappers=[LinearScalarization], **SHORT)  # fmt: skip

@@ -210,6 +210,80 @@ def _numpy_frenet(line: Polyline, s, d):
     return p + d[..., None] * np.stack([-np.sin(h), np.cos(h)], axis=-1), h
 
 
+def _numpy_arrays(points, s_start):
+    pts = np.asarray(points, dtype=np.float64)
+    seg = np.diff(pts, axis=0)
+    keep = np.concatenate([[True], np.hypot(seg[:, 0], seg[:, 1]) > 1e-9])
+    pts = pts[keep]
+    seg = np.diff(pts, axis=0)
+    seg_len = np.hypot(seg[:, 0], seg[:, 1])
+    s = s_start + np.concatenate([[0.0], np.cumsum(seg_len)])
+    return pts, seg, seg_len, np.arctan2(seg[:, 1], seg[:, 0]), s
+
+
+def _numpy_track(line: Polyline, x, y, hint):
+    """The Python walk that ``Polyline.track`` compiled (its scalar ``** 2`` is libm's pow)."""
+    pts, seg, seg_len, _, s = _numpy_arrays(line.points, line.s[0])
+    n = len(seg)
+
+    def foot(i):
+        return float(
+            ((x - pts[i, 0]) * seg[i, 0] + (y - pts[i, 1]) * seg[i, 1]) / (seg_len[i] ** 2)
+        )
+
+    i, step = min(max(int(hint), 0), n - 1), 0
+    while True:
+        t = foot(i)
+        if t > 1.0 and i < n - 1 and step >= 0:
+            i, step = i + 1, 1
+        elif t < 0.0 and i > 0 and step <= 0:
+            i, step = i - 1, -1
+        else:
+            break
+    best = None
+    for j in (i - 1, i, i + 1):
+        if 0 <= j < n:
+            t = min(max(foot(j), 0.0), 1.0)
+            (ax, ay), (sx, sy) = pts[j], seg[j]
+            dist = float(np.hypot(x - ax - t * sx, y - ay - t * sy))
+            if best is None or dist < best[0]:
+                best = (dist, j, t, float(sx * (y - ay) - sy * (x - ax)))
+    dist, j, t, cross = best
+    return float(s[j] + t * seg_len[j]), float(np.copysign(dist, cross)), j
+
+
+def test_compiled_polyline_construction_and_walk_are_bit_identical_to_numpy():
+    rng = np.random.default_rng(3)
+    for _ in range(30):
+        m = int(rng.integers(2, 200))
+        raw = np.cumsum(rng.normal(size=(m, 2)) * rng.uniform(0.1, 40), axis=0)
+        raw[rng.integers(1, m, size=m // 5)] = raw[0]  # some repeated points
+        if len(np.unique(raw, axis=0)) < 2:
+            continue
+        start = float(rng.uniform(-50, 50))
+        line = Polyline(raw, start)
+        want = _numpy_arrays(raw, start)
+        got = (line.points, line._seg, line._seg_len, line._heading, line.s)
+        for g, w in zip(got, want, strict=True):
+            assert np.array_equal(g, w)
+        for _ in range(100):
+            k = int(rng.integers(0, len(line.points)))
+            x, y = line.points[k] + rng.normal(size=2) * 3
+            hint = int(rng.integers(0, len(line.points) - 1))
+            assert line.track(x, y, hint) == _numpy_track(line, float(x), float(y), hint)
+
+
+def test_projection_hints_out_of_range_are_clamped_and_bad_input_refused():
+    line = Polyline(np.array([[0.0, 0.0], [1.0, 0.0], [2.0, 0.0]]))
+    for hint in (10, 500_000, -7):
+        s, d, seg = line.project(np.array([[0.5, 0.2]]), hint=hint, window=4)
+        assert (s[0], d[0], seg[0]) == (0.5, 0.2, 0)
+    with pytest.raises(ValueError, match="window must be >= 1 segment, got 0"):
+        line.project(np.array([[0.5, 0.2]]), hint=0, window=0)
+    with pytest.raises(ValueError, match=r"shape \(N, 2\), got \(1, 3\)"):
+        line.project(np.zeros((1, 3)))
+
+
 def test_compiled_polyline_queries_are_bit_identical_to_numpy():
     rng = np.random.default_rng(7)
     for _ in range(20):

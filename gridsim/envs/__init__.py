@@ -16,8 +16,9 @@ def register_envs() -> None:
             # class's rgb_array frames and open a pygame window; GridSimEnv refuses it
             entry_point="gridsim.envs.gridsim_env:make_env",
             # gym.make_vec's default: rewards stacked (num_envs, 3), sync or asynchronous=True
-            # (gymnasium's own vector envs, vectorization_mode="sync"/"async", cannot hold
-            # them; make_env refuses the combinations that would fail mid-rollout)
+            # (gymnasium's own vector envs, vectorization_mode="sync"/"async", hold them only
+            # in some autoreset modes; make_env refuses the combinations that would fail
+            # mid-rollout)
             vector_entry_point="gridsim.envs.vector:make_vector_env",
             # without OrderEnforcing, gym.make returns GridSimEnv itself: env.reward_space
             # works (GridSimEnv refuses step() before reset() on its own)

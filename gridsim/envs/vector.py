@@ -24,7 +24,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.envs.registration import VectorizeMode
 from gymnasium.vector import AutoresetMode
-from gymnasium.vector.async_vector_env import _async_worker  # the documented default worker
+
+from gridsim.envs import ENV_ID
 
 EnvFns = Sequence[Callable[[], gym.Env]]
 
@@ -88,6 +89,8 @@ def mo_async_worker(
     than copy its loop, this runs it on a pipe that swaps that 0 for zeros shaped like the
     environment's rewards. Also usable as ``AsyncVectorEnv(..., worker=mo_async_worker)``.
     """
+    from gymnasium.vector.async_vector_env import _async_worker  # gymnasium's default worker
+
     _async_worker(index, env_fn, _ZeroRewardOnAutoresetPipe(pipe), *args)
 
 
@@ -137,6 +140,9 @@ def refuse_scalar_reward_vectorization() -> None:
     while frame is not None and frame.f_code is not gym.make_vec.__code__:
         frame = frame.f_back
     if frame is None or frame.f_locals.get("wrappers"):
+        return
+    env_id = frame.f_locals.get("id")
+    if getattr(env_id, "id", env_id) != ENV_ID:  # another env that wraps GridSim-v0
         return
     mode = frame.f_locals.get("vectorization_mode")
     vector_kwargs = frame.f_locals.get("vector_kwargs") or {}

@@ -18,7 +18,7 @@ class Polyline:
     Immutable (its arrays are read-only), so copies of a world share it.
     """
 
-    __slots__ = ("points", "s", "_seg", "_seg_len", "_heading")
+    __slots__ = ("points", "s", "_seg", "_seg_len", "_seg_len_pow2", "_heading")
 
     def __init__(self, points: np.ndarray, s_start: float = 0.0) -> None:
         pts = np.asarray(points, dtype=np.float64)
@@ -31,7 +31,8 @@ class Polyline:
         )
         if len(self.points) < 2:
             raise ValueError("a polyline needs at least 2 distinct points")
-        for a in (self.points, self._seg, self._seg_len, self._heading, self.s):
+        self._seg_len_pow2 = np.float_power(self._seg_len, 2.0)  # libm's pow (see track)
+        for a in (self.points, self._seg, self._seg_len, self._seg_len_pow2, self._heading, self.s):
             a.flags.writeable = False  # immutable: copies of a world share it
 
     def __deepcopy__(self, memo) -> Polyline:
@@ -79,9 +80,14 @@ class Polyline:
         search to ``window`` segments around a previous segment index (fast tracking).
         """
         xy = np.ascontiguousarray(np.atleast_2d(np.asarray(xy, dtype=np.float64)))
+        if xy.ndim != 2 or xy.shape[1] != 2:
+            raise ValueError(f"points to project must have shape (N, 2), got {xy.shape}")
         lo, hi = 0, len(self._seg)
         if hint is not None:
-            lo, hi = max(0, hint - window), min(len(self._seg), hint + window)
+            if window < 1:
+                raise ValueError(f"window must be >= 1 segment, got {window}")
+            hint = min(max(int(hint), 0), hi - 1)
+            lo, hi = max(0, hint - window), min(hi, hint + window)
         n = len(xy)
         s, d, seg = np.empty(n), np.empty(n), np.empty(n, np.int64)
         kernels.project(self.points, self._seg, self._seg_len, self.s, xy, lo, hi, s, d, seg)
@@ -94,8 +100,8 @@ class Polyline:
         :meth:`project`, and the same result while the point stays within a few metres of
         the curve. Returns ``(s, d, segment_index)``.
         """
-        s, d, j = kernels.track(self.points, self._seg, self._seg_len, self.s, float(x),
-                                float(y), int(hint))  # fmt: skip
+        s, d, j = kernels.track(self.points, self._seg, self._seg_len, self._seg_len_pow2, self.s,
+                                float(x), float(y), int(hint))  # fmt: skip
         return float(s), float(d), int(j)
 
     def offset(self, d: float) -> np.ndarray:

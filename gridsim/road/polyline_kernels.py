@@ -1,7 +1,7 @@
 """Compiled queries on the arrays of a :class:`~gridsim.road.polyline.Polyline`.
 
 Each kernel does the operations of the NumPy expressions it replaced, in the same order, so
-its results are the same bits (``tests/test_polyline.py`` keeps the NumPy versions as the
+its results are the same bits (``tests/test_roads.py`` keeps the NumPy versions as the
 reference; ``tests/test_golden.py`` replays whole episodes against recorded digests).
 Coordinates are metres in the world frame; ``d`` is positive to the left.
 """
@@ -64,20 +64,23 @@ def project(points, seg, seg_len, s_cum, xy, lo, hi, s_out, d_out, seg_out) -> N
 
 
 @kernel
-def _foot(points, seg, seg_len, i, x, y) -> float:
-    """Parameter of the foot of ``(x, y)`` on the line through segment ``i``."""
-    return ((x - points[i, 0]) * seg[i, 0] + (y - points[i, 1]) * seg[i, 1]) / (seg_len[i] ** 2)
+def _foot(points, seg, seg_len_pow2, i, x, y) -> float:
+    """Parameter of the foot of ``(x, y)`` on the line through segment ``i``
+    (``seg_len_pow2``: squared segment lengths computed by libm's ``pow``, as the NumPy scalar
+    code this replaced did; ``project`` divides by ``seg_len * seg_len`` instead, as its array
+    code did)."""
+    return ((x - points[i, 0]) * seg[i, 0] + (y - points[i, 1]) * seg[i, 1]) / seg_len_pow2[i]
 
 
 @kernel
-def track(points, seg, seg_len, s_cum, x, y, hint) -> tuple[float, float, int]:
+def track(points, seg, seg_len, seg_len_pow2, s_cum, x, y, hint) -> tuple[float, float, int]:
     """Project ``(x, y)`` walking from segment ``hint`` to the nearest local segment (see
     :meth:`~gridsim.road.polyline.Polyline.track`): ``(s, d, segment index)``."""
     n = len(seg)
     i = min(max(hint, 0), n - 1)
     step = 0
     while True:  # walk to a segment whose foot point parameter is inside [0, 1]
-        t = _foot(points, seg, seg_len, i, x, y)
+        t = _foot(points, seg, seg_len_pow2, i, x, y)
         if t > 1.0 and i < n - 1 and step >= 0:
             i, step = i + 1, 1
         elif t < 0.0 and i > 0 and step <= 0:
@@ -87,7 +90,7 @@ def track(points, seg, seg_len, s_cum, x, y, hint) -> tuple[float, float, int]:
     best, bj, bt, bcross = np.inf, -1, 0.0, 0.0
     for j in range(i - 1, i + 2):  # inside a bend the point may project onto neighbours too
         if 0 <= j < n:
-            t = min(max(_foot(points, seg, seg_len, j, x, y), 0.0), 1.0)
+            t = min(max(_foot(points, seg, seg_len_pow2, j, x, y), 0.0), 1.0)
             ax, ay, sx, sy = points[j, 0], points[j, 1], seg[j, 0], seg[j, 1]
             dist = np.hypot(x - ax - t * sx, y - ay - t * sy)
             if bj < 0 or dist < best:

@@ -172,7 +172,7 @@ class Fleet:
         idx = np.flatnonzero(self.active)
         if len(idx) == 0:
             return
-        corridor, _ = self.paths.corridors(self.path[idx])
+        corridor = self.paths.corridors(self.path[idx])
         c, sn = np.cos(self.psi[idx]), np.sin(self.psi[idx])
         p = self.p
         found = [same_path(idx, self.path, self.s, self.length, self.v, self.psi, p.lookahead)]

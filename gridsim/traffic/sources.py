@@ -209,8 +209,8 @@ class SeamlessTraffic(SyntheticTraffic):
         self.road = road
         self.behind, self.ahead = behind, ahead
         self._lane_slots = [
-            self.fleet.paths.add_path(ln.centre.points, ln.centre.s, corridor=0, offset=off)
-            for ln, off in zip(road.lanes, road.lane_offsets, strict=True)
+            self.fleet.paths.add_path(ln.centre.points, ln.centre.s, corridor=0)
+            for ln in road.lanes
         ]
         self._version = road.version
 

@@ -135,31 +135,25 @@ class TableBank:
 class PathBank(TableBank):
     """Vehicle paths: polylines parameterised by arc length ``s`` [m].
 
-    Paths may belong to a *corridor*: parallel lanes of one road, each at a fixed lateral
-    ``offset`` [m] from a common reference line. Vehicles in one corridor compare lateral
-    positions as ``offset + d`` without any geometry look-up. Corridor ``-1`` means none.
+    Paths may belong to a *corridor*: parallel lanes of one road, whose vehicles keep their
+    lane (their leader is the next vehicle on their own lane). Corridor ``-1`` means none.
     """
 
     def __init__(self) -> None:
         super().__init__(width=2)
         self._corridor: list[int] = []
-        self._offset: list[float] = []
 
-    def add_path(
-        self, points: np.ndarray, s: np.ndarray, corridor: int = -1, offset: float = 0.0
-    ) -> int:
+    def add_path(self, points: np.ndarray, s: np.ndarray, corridor: int = -1) -> int:
         slot = self.add(s, points)
         while len(self._corridor) <= slot:
             self._corridor.append(-1)
-            self._offset.append(0.0)
-        self._corridor[slot], self._offset[slot] = corridor, offset
+        self._corridor[slot] = corridor
         self._corridor_arr = np.array(self._corridor)
-        self._offset_arr = np.array(self._offset)
         return slot
 
-    def corridors(self, slots: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Corridor id and lateral offset [m] of each path in ``slots`` (``-1`` for none)."""
-        return self._corridor_arr[slots], self._offset_arr[slots]
+    def corridors(self, slots: np.ndarray) -> np.ndarray:
+        """Corridor id of each path in ``slots`` (``-1`` for none)."""
+        return self._corridor_arr[slots]
 
     def _on_rebuild(self) -> None:
         self._heading = np.arctan2(self._slope[:, 1], self._slope[:, 0])

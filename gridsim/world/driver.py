@@ -8,9 +8,9 @@ import numpy as np
 
 from gridsim.traffic.profiles import ProfileChain
 from gridsim.vehicle.control import PursuitGains, follow_path
-from gridsim.vehicle.idm import IDMParams
+from gridsim.vehicle.idm import IDMParams, idm_accel
 from gridsim.vehicle.kinematics import V
-from gridsim.world.driver_kernels import idm_one, route_leader
+from gridsim.world.driver_kernels import route_leader
 
 
 class LaneFollower:
@@ -30,18 +30,20 @@ class LaneFollower:
         self.speed, self.lookahead = speed, lookahead
         self.idm = idm or IDMParams()
         self.gains = gains or PursuitGains()
-        self._route = None  # the route tracked (held, so that a new one is never mistaken for it)
+        # the world and route tracked (held, so that new ones are never mistaken for them:
+        # copies of a world share their immutable routes)
+        self._world = self._route = None
         self._hint = 0
 
     def __call__(self, world) -> tuple[float, float]:
         """Inputs ``(acceleration [m/s^2], steering rate [rad/s])`` for the current state."""
         return self.inputs(world, self.speed, 0.0)
 
-    def _track(self, route, xy: np.ndarray) -> tuple[float, float]:
+    def _track(self, world, route, xy: np.ndarray) -> tuple[float, float]:
         """Arc length and lateral offset [m] of the rear axle on ``route``."""
-        if route is not self._route:  # a new (or regenerated) route: search all of it
+        if route is not self._route or world is not self._world:  # search all of a new route
             _, _, seg = route.project(xy[None])
-            self._route, self._hint = route, int(seg[0])
+            self._world, self._route, self._hint = world, route, int(seg[0])
         s, d, self._hint = route.track(float(xy[0]), float(xy[1]), self._hint)
         return s, d
 
@@ -53,13 +55,14 @@ class LaneFollower:
         (:func:`conflict_free_accel`)."""
         route = world.route
         p = world.ego_params
-        s_rear, d_rear = self._track(route, world.ego[:2])
+        s_rear, d_rear = self._track(world, route, world.ego[:2])
         accel, steer_rate = follow_path(world.ego, route, speed, p, self.gains, offset, s_rear)
         gap, lead_v = self._leader(world, route, s_rear)
         if np.isfinite(gap):
             v = world.ego[V]
-            a_idm = idm_one(float(v), float(speed), gap, float(v - lead_v), self.idm.values)
-            accel = min(accel, a_idm)
+            # the shared formula on floats (NumPy scalars: its powers are libm's pow, as before)
+            a_idm = idm_accel(float(v), float(speed), gap, float(v - lead_v), *self.idm.values)
+            accel = min(accel, float(a_idm))
         accel = min(max(accel, -p.b_max), p.a_max)
         if len(yield_to):
             accel = conflict_free_accel(world, route, s_rear, d_rear, accel, yield_to)

@@ -1,6 +1,5 @@
-"""Compiled parts of the scripted drivers (:mod:`gridsim.world.driver`): the leader on the
-route and the IDM of one vehicle. Same operations, in the same order, as the NumPy code they
-replaced (same bits)."""
+"""Compiled part of the scripted drivers (:mod:`gridsim.world.driver`): the leader on the
+route. Same operations, in the same order, as the NumPy code it replaced (same bits)."""
 
 from __future__ import annotations
 
@@ -10,7 +9,6 @@ import numpy as np
 
 from gridsim.jit import kernel
 from gridsim.road.polyline_kernels import project
-from gridsim.vehicle.idm import idm_accel
 
 
 @kernel
@@ -41,6 +39,7 @@ def route_leader(fleet, ego, route, hint, window, lookahead) -> tuple[float, flo
     for k in range(n):
         xy[k, 0], xy[k, 1] = fx[idx[k]], fy[idx[k]]
     s, d, segment = np.empty(n), np.empty(n), np.empty(n, np.int64)
+    hint = min(max(hint, 0), len(seg) - 1)
     lo, hi = max(0, hint - window), min(len(seg), hint + window)
     project(points, seg, seg_len, s_cum, xy, lo, hi, s, d, segment)
     best = -1
@@ -54,10 +53,3 @@ def route_leader(fleet, ego, route, hint, window, lookahead) -> tuple[float, flo
     j = idx[best]
     gap = s[best] - (s_rear + center_offset) - 0.5 * (length[j] + ego_length)
     return gap, v[j]
-
-
-@kernel
-def idm_one(v, v_desired, gap, dv, params) -> float:
-    """:func:`~gridsim.vehicle.idm.idm_accel` of one vehicle (floats; ``params``:
-    :attr:`~gridsim.vehicle.idm.IDMParams.values`)."""
-    return idm_accel(v, v_desired, gap, dv, *params)
