@@ -24,7 +24,7 @@ _TRAIN_KEYS = (
     "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_episodes", "pretrain_epochs",
     "batch", "prior",
     "resample_episodes", "constrained", "validation_episodes", "frame", "skip",
-    "pretrain_validation", "dagger_rounds",
+    "pretrain_validation", "dagger_rounds", "dagger_weight",
 )  # fmt: skip
 
 
@@ -291,6 +291,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="after the warm start, N rounds of driving the fitted network on its episodes and "
         "refitting it to the states it visited, labelled with the human's set-points "
         "(default 0)",
+    )
+    t.add_argument(
+        "--dagger-weight",
+        dest="dagger_weight",
+        type=float,
+        default=None,
+        metavar="SHARE",
+        help="the DAgger windows' total weight in the refit as a share of the human windows' "
+        "(default: every window weighs alike, however many were visited)",
     )
     t.add_argument("--out", default=None, help=f"run directory (created; default {DEFAULT_OUT})")
     t.add_argument("--resume", default=None, help="continue the run in this directory")

@@ -63,20 +63,26 @@ def _skip_problem(net: TrajectoryNet, windows: Windows) -> tuple[np.ndarray, np.
     return feats.double().numpy(), residual.reshape(len(windows), -1).double().numpy()
 
 
-def fit_skip(net: TrajectoryNet, fit: Windows, held_out: Windows | None) -> dict:
+def fit_skip(
+    net: TrajectoryNet, fit: Windows, held_out: Windows | None, weights: np.ndarray | None = None
+) -> dict:
     """Set the skip read-out (and the branches' output bias) to the ridge regression of the
-    residual on the kinematic features over ``fit``, the penalty chosen on ``held_out``
-    (the smallest of :data:`RIDGE_PENALTIES` without it); the branches' read-out weights must
-    be 0. Returns ``{"ridge_penalty", "ridge_validation_mse"}``."""
+    residual on the kinematic features over ``fit`` (each window weighted by ``weights``, none:
+    alike), the penalty chosen on ``held_out`` (the smallest of :data:`RIDGE_PENALTIES` without
+    it); the branches' read-out weights must be 0. Returns ``{"ridge_penalty",
+    "ridge_validation_mse"}``."""
     x, y = _skip_problem(net, fit)
-    mu, sd = x.mean(axis=0), x.std(axis=0)
+    mu = np.average(x, axis=0, weights=weights)
+    sd = np.sqrt(np.average((x - mu) ** 2, axis=0, weights=weights))
     sd = np.where(sd > 1e-9, sd, 1.0)
     z = (x - mu) / sd
-    ym = y.mean(axis=0)
-    gram, rhs = z.T @ z, z.T @ (y - ym)
+    ym = np.average(y, axis=0, weights=weights)
+    wz = z if weights is None else z * weights[:, None]
+    gram, rhs = wz.T @ z, wz.T @ (y - ym)
+    total = len(z) if weights is None else float(weights.sum())
     best = None
     for penalty in RIDGE_PENALTIES if held_out is not None else RIDGE_PENALTIES[:1]:
-        coef = np.linalg.solve(gram + penalty * len(z) * np.eye(len(gram)), rhs) / sd[:, None]
+        coef = np.linalg.solve(gram + penalty * total * np.eye(len(gram)), rhs) / sd[:, None]
         bias = ym - mu @ coef
         score = None
         if held_out is not None:
@@ -92,6 +98,17 @@ def fit_skip(net: TrajectoryNet, fit: Windows, held_out: Windows | None) -> dict
     return {"ridge_penalty": penalty, "ridge_validation_mse": score}
 
 
+def visited_weights(human: int, visited: int, share: float | None) -> np.ndarray | None:
+    """Per-window weights (mean 1) of ``human`` human windows followed by ``visited`` visited
+    ones (DAgger): each human window weighs 1 and the visited windows together ``share`` times
+    the human windows' total. None (every window alike) if ``share`` is None or there is no
+    visited window."""
+    if share is None or not visited:
+        return None
+    weights = np.concatenate([np.ones(human), np.full(visited, share * human / visited)])
+    return weights / weights.mean()
+
+
 def pretrain_genome(
     net: TrajectoryNet,
     genome: np.ndarray,
@@ -101,11 +118,18 @@ def pretrain_genome(
     batch_size: int = 32,
     learning_rate: float = 1e-3,
     validation: float = 0.0,
+    visited: Windows | None = None,
+    visited_share: float | None = None,
 ) -> tuple[np.ndarray, dict]:
     """Fit ``net`` (starting from ``genome``) to ``windows``, holding out ``validation`` of
     the tracks to pick the epoch (see the module docstring); returns the new genome and
     ``{"mse_before", "mse_after", "windows", "epochs"}`` [m^2] (on the fitted windows), with
-    ``validation_mse`` per epoch (from 0), ``best_epoch`` and ``validation_windows``."""
+    ``validation_mse`` per epoch (from 0), ``best_epoch`` and ``validation_windows``.
+
+    ``visited`` (DAgger: the states the network drove to, labelled with the human's next
+    set-points) are fitted too, weighted by :func:`visited_weights` with ``visited_share``, but
+    never validated on: the epoch is picked on the held-out tracks' human windows, and the
+    visited windows of those tracks are left out."""
     problem = size_mismatch(net.cfg, windows)
     if problem:
         raise PretrainError(f"pre-training: {problem}")
@@ -119,23 +143,31 @@ def pretrain_genome(
                 f"{len(np.unique(windows.track))}; record more episodes or set it to 0"
             )
         windows, held_out = split_by_track(windows, validation, seed)
+    weights = None
+    if visited is not None and len(visited):
+        if held_out is not None:
+            visited = visited.take(np.flatnonzero(~np.isin(visited.track, held_out.track)))
+        weights = visited_weights(len(windows), len(visited), visited_share)
+        windows = Windows.concat([windows, visited])
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
         set_genome(net, np.array(genome, dtype=np.float32, copy=True))  # params alias it
         before = setpoint_mse(net, windows)
-        ridge = fit_skip(net, windows, held_out) if net.cfg.skip else {}
+        ridge = fit_skip(net, windows, held_out, weights) if net.cfg.skip else {}
         scores = [setpoint_mse(net, held_out)] if held_out is not None else []
         best = get_genome(net).copy()
         opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
         target = torch.from_numpy(windows.target.astype(np.float32))
+        weight = None if weights is None else torch.from_numpy(weights.astype(np.float32))
         rng = np.random.default_rng(np.random.SeedSequence([seed, 0x9E7]))
         for _ in range(epochs):
             net.train()
             order = rng.permutation(len(windows))
             for start in range(0, len(order), batch_size):
                 idx = order[start : start + batch_size]
-                loss = ((net(*window_inputs(windows, idx)) - target[idx]) ** 2).mean()
+                error = (net(*window_inputs(windows, idx)) - target[idx]) ** 2
+                loss = (error if weight is None else error * weight[idx, None, None]).mean()
                 opt.zero_grad()
                 loss.backward()
                 opt.step()

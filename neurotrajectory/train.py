@@ -77,6 +77,9 @@ class TrainConfig:
     #: after the warm start: rounds of driving the fitted network on the warm start's episodes
     #: and refitting it to all windows so far, labelled with the human's set-points (DAgger)
     dagger_rounds: int = 0
+    #: the DAgger windows' total weight in the refit as a share of the human windows' (each
+    #: human window weighs 1); None: every window weighs 1, however many were visited
+    dagger_weight: float | None = None
 
     #: What format-1 configurations (saved before the fields above existed) meant.
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0}
@@ -113,6 +116,15 @@ class TrainConfig:
             raise RunError("give either pretrain (a dataset) or pretrain_episodes, not both")
         if self.dagger_rounds and not (self.pretrain or self.pretrain_episodes):
             raise RunError("dagger_rounds refit the warm start: give pretrain or pretrain_episodes")
+        if self.dagger_weight is not None:
+            w = self.dagger_weight
+            if isinstance(w, bool) or not isinstance(w, int | float | np.number):
+                raise RunError(f"dagger_weight must be a number, got {w!r}")
+            if not (math.isfinite(w) and w > 0):
+                raise RunError(f"dagger_weight must be a finite number > 0, got {w}")
+            if not self.dagger_rounds:
+                raise RunError(f"dagger_weight {w:g} weighs the DAgger rounds' windows: give "
+                               "dagger_rounds >= 1")  # fmt: skip
         if self.pretrain_episodes == 1 and self.pretrain_validation > 0:
             raise RunError("pretrain_episodes 1 leaves no episode to validate the warm start on: "
                            "record >= 2 or set pretrain_validation to 0")  # fmt: skip
@@ -403,7 +415,8 @@ class Run:
         pre-training windows; each DAgger round then drives the fitted network on the
         pre-training episodes, labels every state it visits with the human's next set-points
         from there, and fits a fresh start to all windows so far (same seed, same held-out
-        tracks), so that the network learns to recover from its own mistakes."""
+        tracks, validated on human windows only; ``dagger_weight`` weighs the visited windows),
+        so that the network learns to recover from its own mistakes."""
         from neurotrajectory.front import NetPolicy
         from neurotrajectory.pretrain import pretrain_genome
         from neurotrajectory.windows import (
@@ -418,25 +431,25 @@ class Run:
         windows, source, episodes = self._pretrain_windows()
         start = initial_genome(probe, initial_recipes(cfg.ga, cfg.seed)[0].init_seed)
 
-        def fit(data):
-            return pretrain_genome(probe, start, data, cfg.pretrain_epochs, cfg.seed,
-                                   validation=cfg.pretrain_validation)  # fmt: skip
+        def fit(visited):
+            return pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed,
+                                   validation=cfg.pretrain_validation, visited=visited,
+                                   visited_share=cfg.dagger_weight)  # fmt: skip
 
-        base, stats = fit(windows)
-        rounds = []
+        base, stats = fit(None)
+        visited, rounds = [], []
         stride = RECORDED_STRIDE if is_recorded(cfg.scenario) else GENERATED_STRIDE
         for _ in range(cfg.dagger_rounds):
             set_genome(probe, base.copy())
-            visited = drive_windows(cfg.scenario, episodes, stride, NetPolicy(probe))
-            if visited is not None:
-                windows = Windows.concat([windows, visited])
-            base, stats = fit(windows)
-            rounds.append({"visited_windows": 0 if visited is None else len(visited),
+            driven = drive_windows(cfg.scenario, episodes, stride, NetPolicy(probe))
+            visited += [] if driven is None else [driven]
+            base, stats = fit(Windows.concat(visited) if visited else None)
+            rounds.append({"visited_windows": 0 if driven is None else len(driven),
                            **{k: stats[k] for k in ("windows", "validation_windows",
                                                     "best_epoch", "validation_mse")
                               if k in stats}})  # fmt: skip
         if rounds:
-            stats["dagger"] = rounds
+            stats |= {"dagger": rounds, "dagger_weight": cfg.dagger_weight}
         _write_json(self.out / "pretrain.json", {**source, **stats})
         return base
 

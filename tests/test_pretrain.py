@@ -9,7 +9,13 @@ import pytest
 from neurotrajectory.cli import main
 from neurotrajectory.genome import initial_genome
 from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
-from neurotrajectory.pretrain import PretrainError, pretrain_genome, setpoint_mse
+from neurotrajectory.pretrain import (
+    PretrainError,
+    fit_skip,
+    pretrain_genome,
+    setpoint_mse,
+    visited_weights,
+)
 from neurotrajectory.train import Run, RunError, TrainConfig
 from neurotrajectory.windows import (
     DatasetError,
@@ -225,13 +231,24 @@ def test_dagger_rounds_refit_the_warm_start_on_the_states_it_visits(windows_dir,
     human = len(load_dataset(windows_dir).windows)
     rounds = stats["dagger"]
     assert len(rounds) == 2 and all(r["visited_windows"] > 0 for r in rounds)
-    # every round refits on the human windows and all visited so far
-    total = human + sum(r["visited_windows"] for r in rounds)
-    assert rounds[-1]["windows"] + rounds[-1]["validation_windows"] == total
-    assert stats["windows"] + stats["validation_windows"] == total
+    # every round refits on the human windows and all visited so far, less the visited
+    # windows of the held-out tracks: the epoch is picked on held-out human windows only
+    held_out = len(split_by_track(load_dataset(windows_dir).windows, 0.2, 0)[1])
+    visited = [r["visited_windows"] for r in rounds]
+    assert all(r["validation_windows"] == held_out for r in rounds)
+    assert human - held_out < rounds[0]["windows"] < human - held_out + visited[0]
+    assert rounds[0]["windows"] < rounds[1]["windows"] < human - held_out + sum(visited)
+    assert stats["windows"] == rounds[1]["windows"] and stats["dagger_weight"] is None
     again = tmp_path / "again"
     assert main([*args[:-3], "--out", str(again), "--quiet"]) == 0
     assert json.loads((again / "pretrain.json").read_text()) == stats
+    weighted = tmp_path / "weighted"
+    assert main([*args[:-3], "--dagger-weight", "0.25", "--out", str(weighted), "--quiet"]) == 0
+    doc = json.loads((weighted / "pretrain.json").read_text())
+    assert doc["dagger_weight"] == 0.25
+    assert doc["dagger"][0]["visited_windows"] == visited[0]  # the same first drive
+    assert doc["dagger"][1]["validation_mse"] != rounds[1]["validation_mse"]
+    assert json.loads((weighted / "config.json").read_text())["train"]["dagger_weight"] == 0.25
     with pytest.raises(RunError, match="dagger_rounds refit the warm start"):
         TrainConfig(dagger_rounds=1)
     with pytest.raises(RunError, match="no episode of the training scenario 'inner_city'"):
@@ -239,6 +256,63 @@ def test_dagger_rounds_refit_the_warm_start_on_the_states_it_visits(windows_dir,
                           pretrain=str(windows_dir), dagger_rounds=1)  # fmt: skip
         Run.create(tmp_path / "city", cfg).train(progress=False)
     assert not (tmp_path / "city").exists()  # refused before the run folder is made
+
+
+def test_visited_windows_weigh_their_share_of_the_fit(windows_dir):
+    w = visited_weights(30, 10, 0.25)
+    assert w.mean() == pytest.approx(1.0) and w[0] == pytest.approx(w[-1] * 10 / 0.25 / 30)
+    assert w[30:].sum() == pytest.approx(0.25 * w[:30].sum())
+    assert visited_weights(30, 10, None) is None and visited_weights(30, 0, 0.5) is None
+    human = load_dataset(windows_dir).windows
+    shifted = human.take(np.arange(len(human)))
+    shifted.target = shifted.target + np.float32(2.0)  # labels that pull elsewhere
+
+    def ridge(fit, weights=None):
+        net = _tiny_net()
+        fit_skip(net, fit, None, weights)
+        return net.skip_weight.detach().numpy().copy()
+
+    both = Windows.concat([human, shifted])
+    alike = ridge(both)
+    np.testing.assert_allclose(ridge(both, np.ones(len(both))), alike, rtol=1e-5, atol=1e-6)
+    nearly_none = ridge(both, visited_weights(len(human), len(shifted), 1e-9))
+    np.testing.assert_allclose(nearly_none, ridge(human), rtol=1e-4, atol=1e-5)
+    assert np.abs(nearly_none - alike).max() > 1e-3
+    # in the whole fit: a smaller share of visited windows keeps the human windows better fitted
+    net = _tiny_net()
+    start = initial_genome(net, 3)
+    errors = {}
+    for share in (None, 0.05):
+        fit = {"visited": shifted, "visited_share": share, "validation": 0.5}
+        _, stats = pretrain_genome(net, start, human, 3, 0, learning_rate=1e-2, **fit)
+        errors[share] = min(stats["validation_mse"])
+        assert stats["validation_windows"] == len(split_by_track(human, 0.5, 0)[1])
+    assert errors[0.05] < errors[None]
+
+
+@pytest.mark.parametrize(
+    ("weight", "message"),
+    [(0, "dagger_weight must be a finite number > 0, got 0"),
+     (-0.5, "dagger_weight must be a finite number > 0, got -0.5"),
+     (float("nan"), "dagger_weight must be a finite number > 0, got nan"),
+     ("half", "dagger_weight must be a number, got 'half'"),
+     (True, "dagger_weight must be a number, got True")],
+)  # fmt: skip
+def test_the_dagger_weight_is_checked(weight, message):
+    with pytest.raises(RunError, match=message):
+        TrainConfig(pretrain_episodes=2, dagger_rounds=1, dagger_weight=weight)
+
+
+def test_a_dagger_weight_without_rounds_is_refused_before_the_run(tmp_path, capsys):
+    with pytest.raises(RunError, match=r"dagger_weight 0.5 weighs the DAgger rounds' windows"):
+        TrainConfig(pretrain_episodes=2, dagger_weight=0.5)
+    out = tmp_path / "run"
+    args = ["train", "--pretrain-episodes", "2", "--dagger-rounds", "1", "--out", str(out)]
+    assert main([*args, "--dagger-weight", "-1"]) == 2
+    assert "dagger_weight must be a finite number > 0, got -1.0" in capsys.readouterr().err
+    assert main([*args[:3], *args[5:], "--dagger-weight", "0.5"]) == 2
+    assert "give dagger_rounds >= 1" in capsys.readouterr().err
+    assert not out.exists()
 
 
 def test_heldout_drives_a_finished_run_on_longer_unseen_episodes(windows_dir, tmp_path, capsys):
