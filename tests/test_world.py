@@ -117,3 +117,15 @@ def test_worlds_copied_from_the_pristine_one_tick_like_a_fresh_build(scenario):
             assert np.array_equal(w.traffic.fleet.x, fresh.traffic.fleet.x)
             assert w.last == fresh.last
     assert copies[0].road is copies[1].road or scenario == "seamless"  # static maps shared
+
+
+def test_a_checked_tick_after_unchecked_ones_tests_the_road_itself():
+    # unchecked ticks report "on the road"; the next checked tick must not trust that
+    sc = load_scenario("seamless")
+    world = build_world(sc, 0)
+    world.ego[3] = 0.0  # standing: a tick moves it less than the shortcut's half width
+    for _ in range(3):
+        world.ego[1] += 40.0  # far off the road while nothing is checked
+        assert not world.tick(0.0, 0.0, check=False).off_road
+    world.ego[1] += 0.01
+    assert world.tick(0.0, 0.0).off_road

@@ -64,6 +64,7 @@ class World:
         traffic.reset(rng, self.ego_pose())
         on_road = bool(road.is_drivable(self.ego_center()[None])[0])
         self.last = TickResult(0.0, 0.0, self.check_contacts(), not on_road)
+        self._checked = True  # whether ``last`` was tested (see :meth:`tick`)
 
     @property
     def route(self) -> Polyline:
@@ -96,11 +97,13 @@ class World:
         self.time += self.dt
         if not check:
             self.last = TickResult(float(step.accel), float(step.steer_rate), Contact(), False)
+            self._checked = False  # the next checked tick cannot trust last.off_road
             return self.last
         contact = self.check_contacts()
+        trusted, self._checked = self._checked, True
         if contact.boundaries:
             off_road = True
-        elif not self.last.off_road and moved < 0.5 * self.ego_params.width:
+        elif trusted and not self.last.off_road and moved < 0.5 * self.ego_params.width:
             # Still on the road: the footprint cannot have crossed an edge without touching it.
             off_road = False
         else:
