@@ -31,3 +31,18 @@ def kernel(fn: Callable) -> Callable:
 def jitable(fn: Callable) -> Callable:
     """``fn`` unchanged for Python callers, compiled inline when a kernel calls it."""
     return register_jitable(fn)
+
+
+@jitable
+def search_right(keys, k) -> int:
+    """``searchsorted(keys, k, side="right") - 1`` in the sorted array ``keys`` (binary
+    search; -1 when ``k`` is below every key): the segment look-up that the compiled table and
+    polyline queries share."""
+    lo, hi = 0, len(keys)
+    while lo < hi:
+        mid = (lo + hi) >> 1
+        if keys[mid] <= k:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo - 1

@@ -12,21 +12,14 @@ import math
 
 import numpy as np
 
-from gridsim.jit import kernel
+from gridsim.jit import kernel, search_right
 
 
 @kernel
 def segment_at(s_cum: np.ndarray, s: float) -> int:
     """The segment holding arc length ``s`` [m]: ``searchsorted(s_cum, s, "right") - 1``,
     clipped to the segments (beyond the ends: the end segments, extended)."""
-    lo, hi = 0, len(s_cum)
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if s_cum[mid] <= s:
-            lo = mid + 1
-        else:
-            hi = mid
-    return min(max(lo - 1, 0), len(s_cum) - 2)
+    return min(max(search_right(s_cum, s), 0), len(s_cum) - 2)
 
 
 @kernel

@@ -9,23 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from gridsim.jit import kernel
+from gridsim.jit import kernel, search_right
 
 #: Up to this many queries, plain binary search; more use the bucket index.
 SMALL_QUERY = 128
-
-
-@kernel
-def _search_right(keys: np.ndarray, k: float) -> int:
-    """``searchsorted(keys, k, side="right") - 1``."""
-    lo, hi = 0, len(keys)
-    while lo < hi:
-        mid = (lo + hi) >> 1
-        if keys[mid] <= k:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo - 1
 
 
 @kernel
@@ -40,11 +27,11 @@ def _segment(bank: tuple, t: int, x: float, clamp: bool, buckets: bool) -> tuple
         b = min(max(np.int64((k - keys[0]) / width), 0), len(counts) - 2)
         c0, c1 = counts[b], counts[b + 1]
         if c1 - c0 > 1 or k < keys[0] or k > keys[n - 1]:
-            i = _search_right(keys, k)
+            i = search_right(keys, k)
         else:  # at most one key inside the bucket: one comparison decides
             i = c0 - 1 + (1 if keys[min(c0, n - 1)] <= k else 0)
     else:
-        i = _search_right(keys, k)
+        i = search_right(keys, k)
     return min(max(i, first[t]), last[t]), k
 
 
