@@ -16,7 +16,7 @@ from neurotrajectory.backends import BACKENDS, BackendError
 from neurotrajectory.front import PICKS, heldout_problem
 from neurotrajectory.model import PRESETS, PRIORS
 from neurotrajectory.train import Run, RunError, TrainConfig
-from neurotrajectory.windows import GROUPS
+from neurotrajectory.windows import DAGGER_LABELS, GROUPS
 
 DEFAULT_OUT = "runs/default"
 _TRAIN_KEYS = (
@@ -24,7 +24,7 @@ _TRAIN_KEYS = (
     "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_episodes", "pretrain_epochs",
     "batch", "prior",
     "resample_episodes", "constrained", "validation_episodes", "frame", "skip",
-    "pretrain_validation", "dagger_rounds", "dagger_weight",
+    "pretrain_validation", "dagger_rounds", "dagger_weight", "dagger_labels",
 )  # fmt: skip
 
 
@@ -289,7 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="N",
         help="after the warm start, N rounds of driving the fitted network on its episodes and "
-        "refitting it to the states it visited, labelled with the human's set-points "
+        "refitting it to the states it visited, labelled as --dagger-labels says "
         "(default 0)",
     )
     t.add_argument(
@@ -300,6 +300,15 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="SHARE",
         help="the DAgger windows' total weight in the refit as a share of the human windows' "
         "(default: every window weighs alike, however many were visited)",
+    )
+    t.add_argument(
+        "--dagger-labels",
+        dest="dagger_labels",
+        choices=DAGGER_LABELS,
+        default=None,
+        help="how the DAgger windows are labelled: 'rejoin' (default), the human's path "
+        "shifted by the ego's offset from the human, the shift fading out over the horizon; "
+        "'human', the human's next set-points from there",
     )
     t.add_argument("--out", default=None, help=f"run directory (created; default {DEFAULT_OUT})")
     t.add_argument("--resume", default=None, help="continue the run in this directory")

@@ -35,6 +35,7 @@ from neurotrajectory.genome import (
 )
 from neurotrajectory.model import PRESETS, PRIORS, NetConfig, TrajectoryNet, size_mismatch
 from neurotrajectory.pareto import hypervolume, non_dominated_sort
+from neurotrajectory.windows import DAGGER_LABELS
 
 FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
 PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
@@ -80,9 +81,12 @@ class TrainConfig:
     #: the DAgger windows' total weight in the refit as a share of the human windows' (each
     #: human window weighs 1); None: every window weighs 1, however many were visited
     dagger_weight: float | None = None
+    #: how the DAgger windows are labelled (see :data:`neurotrajectory.windows.DAGGER_LABELS`)
+    dagger_labels: str = "rejoin"
 
-    #: What format-1 configurations (saved before the fields above existed) meant.
-    LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0}
+    #: What configurations saved before these fields existed meant (a stored config without
+    #: the field).
+    LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human"}
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
@@ -125,6 +129,9 @@ class TrainConfig:
             if not self.dagger_rounds:
                 raise RunError(f"dagger_weight {w:g} weighs the DAgger rounds' windows: give "
                                "dagger_rounds >= 1")  # fmt: skip
+        if self.dagger_labels not in DAGGER_LABELS:
+            raise RunError(f"unknown dagger_labels {self.dagger_labels!r}; choose from "
+                           f"{sorted(DAGGER_LABELS)}")  # fmt: skip
         if self.pretrain_episodes == 1 and self.pretrain_validation > 0:
             raise RunError("pretrain_episodes 1 leaves no episode to validate the warm start on: "
                            "record >= 2 or set pretrain_validation to 0")  # fmt: skip
@@ -254,7 +261,7 @@ class Run:
                     f"{cfg_path}: format {doc.get('format')!r}, expected {FORMAT_VERSION}"
                 )
             known = {f.name for f in fields(TrainConfig)}
-            legacy = TrainConfig.LEGACY if doc["format"] == 1 else {}
+            legacy = TrainConfig.LEGACY
             stored = TrainConfig(
                 **{**legacy, **{k: v for k, v in doc["train"].items() if k in known}}
             )
@@ -441,7 +448,8 @@ class Run:
         stride = RECORDED_STRIDE if is_recorded(cfg.scenario) else GENERATED_STRIDE
         for _ in range(cfg.dagger_rounds):
             set_genome(probe, base.copy())
-            driven = drive_windows(cfg.scenario, episodes, stride, NetPolicy(probe))
+            driven = drive_windows(cfg.scenario, episodes, stride, NetPolicy(probe),
+                                   labels=cfg.dagger_labels)  # fmt: skip
             visited += [] if driven is None else [driven]
             base, stats = fit(Windows.concat(visited) if visited else None)
             rounds.append({"visited_windows": 0 if driven is None else len(driven),

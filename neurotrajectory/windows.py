@@ -174,20 +174,43 @@ def episodes_of(windows: Windows, scenario: str, duration: float | None = None) 
     return scenario_episodes(scenario, seeds=seeds, duration=duration)[0] if seeds else []
 
 
+#: How the states a policy drove to are labelled (DAgger): ``human``, the human's next
+#: set-points from there (the ego must close its whole offset from the human by the first
+#: set-point); ``rejoin`` (:func:`rejoin_labels`), the human's path shifted by the ego's
+#: offset from the human now, the shift fading out smoothly by the end of the horizon.
+DAGGER_LABELS = ("rejoin", "human")
+
+
+def rejoin_labels(target: np.ndarray, offset: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Set-points ``(N, tau_o, 2)`` that lead from the ego back onto the human's path:
+    ``target`` (the human's next set-points, ego frame) minus ``offset`` ``(N, 2)`` (where
+    the human is now, same frame) times ``1 - b(t / t_end)`` at set-point ``times`` [s], with
+    the smooth step ``b(s) = 3 s^2 - 2 s^3``: the label starts at the ego, keeps its offset
+    at first and merges with the human's path at the end of the horizon (the destination).
+    With the ego on the human's path (offset 0) it is the human's set-points."""
+    s = np.asarray(times, np.float64) / times[-1]
+    remaining = 1.0 - s * s * (3.0 - 2.0 * s)
+    shift = remaining[None, :, None] * np.asarray(offset, np.float64)[:, None, :]
+    return (target - shift).astype(target.dtype)
+
+
 def drive_windows(
     scenario: str,
     episodes: list[Episode],
     stride: int,
     policy=None,
     progress: Callable[[int], None] | None = None,
+    labels: str = "rejoin",
 ) -> Windows | None:
     """The windows of ``episodes`` of ``scenario``, one every ``stride`` decisions while the
     reference covers the whole horizon. The ego drives the reference, or follows ``policy``
-    (a trajectory-action policy ``(env, obs, info) -> set-points``); the label is always the
-    reference's next set-points from the ego's pose (with a policy: where the human is going
-    from where the policy brought the ego, as in DAgger). ``None`` if no window was taken."""
+    (a trajectory-action policy ``(env, obs, info) -> set-points``), as in DAgger; the label
+    is the reference's next set-points from the ego's pose, with a policy as ``labels`` says
+    (:data:`DAGGER_LABELS`). ``None`` if no window was taken."""
     if stride < 1:
         raise DatasetError(f"stride must be >= 1, got {stride}")
+    if labels not in DAGGER_LABELS:
+        raise DatasetError(f"labels must be one of {DAGGER_LABELS}, got {labels!r}")
     if policy is not None and getattr(policy, "action_type", "trajectory") != "trajectory":
         raise DatasetError(f"windows are driven with trajectory actions, got a policy with "
                            f"action_type {policy.action_type!r}")  # fmt: skip
@@ -197,7 +220,8 @@ def drive_windows(
         key = json.dumps(episode.overrides, sort_keys=True)
         if key not in envs:
             envs[key] = GridSimEnv(scenario, **episode.overrides)
-        parts.append(_episode_windows(envs[key], episode.seed, stride, episode.track, policy))
+        parts.append(_episode_windows(envs[key], episode.seed, stride, episode.track, policy,
+                                      labels))  # fmt: skip
         if progress:
             progress(1)
     parts = [p for p in parts if p is not None]
@@ -205,19 +229,23 @@ def drive_windows(
 
 
 def _episode_windows(
-    env: GridSimEnv, seed: int, stride: int, track: str, policy=None
+    env: GridSimEnv, seed: int, stride: int, track: str, policy=None, labels: str = "rejoin"
 ) -> Windows | None:
     """One episode of :func:`drive_windows`."""
     obs, info = env.reset(seed=seed)
-    horizon_time = env.cfg.env.horizon * env.cfg.env.setpoint_period
+    times = env.cfg.env.setpoint_period * np.arange(1, env.cfg.env.horizon + 1)
     end = env.reference.end_time
     p = env.world.ego_params
+    rejoin = policy is not None and labels == "rejoin"
     rows: list[tuple] = []
     step = 0
     while True:
         t = env.world.time
-        if step % stride == 0 and t + horizon_time <= end + 1e-6:
-            rows.append((obs, info["reference_setpoints"], t))
+        if step % stride == 0 and t + times[-1] <= end + 1e-6:
+            label = info["reference_setpoints"]
+            if rejoin:
+                label = rejoin_labels(label[None], env.reference_in_grid([t]), times)[0]
+            rows.append((obs, label, t))
         action = info["reference_setpoints"] if policy is None else policy(env, obs, info)
         obs, _, terminated, truncated, info = env.step(action)
         step += 1
@@ -228,7 +256,6 @@ def _episode_windows(
     ego = np.stack([r[0]["ego"] for r in rows]).astype(np.float32)
     target = np.stack([r[1] for r in rows]).astype(np.float32)
     heading = np.arctan2(ego[:, 5], ego[:, 4]).astype(np.float64)
-    times = env.cfg.env.setpoint_period * np.arange(1, env.cfg.env.horizon + 1)
     steer, longitudinal, accel = implied_commands(target, ego[:, 0], heading, times)
     n = len(rows)
     return Windows(

@@ -98,6 +98,7 @@ def test_runs_saved_before_the_ego_frame_keep_their_network(tmp_path):
     (run.out / "config.json").write_text(json.dumps({**doc, "format": 1}))
     old = Run.open(run.out).config
     assert (old.frame, old.skip, old.pretrain_validation) == ("grid", False, 0.0)
+    assert old.dagger_labels == "human"  # DAgger's labels before rejoin_labels
     assert (old.net.frame, old.net.skip) == ("grid", False)
     assert NetConfig.from_dict({"history": 5}).skip is False
     new = Run.open(Run.create(tmp_path / "new", TrainConfig(preset="tiny")).out).config

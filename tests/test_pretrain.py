@@ -25,6 +25,7 @@ from neurotrajectory.windows import (
     load_dataset,
     record_group,
     record_scenario,
+    rejoin_labels,
     save_dataset,
     scenario_episodes,
     split_by_track,
@@ -204,7 +205,7 @@ def test_driven_windows_are_the_visited_states_labelled_with_the_human_future():
         np.testing.assert_array_equal(getattr(human, f.name), getattr(recorded, f.name))
     assert episodes_of(human, "seamless", 6.0) == episodes
     assert episodes_of(human, "inner_city") == []  # windows of another scenario
-    visited = drive_windows("seamless", episodes, 5, _Lagging())
+    visited = drive_windows("seamless", episodes, 5, _Lagging(), labels="human")
     assert list(np.unique(visited.track)) == list(np.unique(human.track))
     first = [np.flatnonzero(visited.track == t)[0] for t in np.unique(visited.track)]
     np.testing.assert_array_equal(visited.ego[first], human.take(first).ego)  # same start
@@ -218,6 +219,36 @@ def test_driven_windows_are_the_visited_states_labelled_with_the_human_future():
         from gridsim.policies import Idle
 
         drive_windows("seamless", episodes, 5, Idle())
+
+
+def test_rejoin_labels_lead_from_the_ego_back_onto_the_human_path():
+    times = 0.5 * np.arange(1, 6)
+    rng = np.random.default_rng(0)
+    target = (10 * rng.normal(size=(4, 5, 2))).astype(np.float32)
+    on_path = rejoin_labels(target, np.zeros((4, 2)), times)
+    np.testing.assert_array_equal(on_path, target)  # the ego on the human's path: unchanged
+    offset = rng.normal(size=(4, 2))
+    label = rejoin_labels(target, offset, times)
+    assert label.dtype == target.dtype
+    np.testing.assert_array_equal(label[:, -1], target[:, -1])  # same destination
+    fading = np.array([0.896, 0.648, 0.352, 0.104, 0.0])  # 1 - (3 s^2 - 2 s^3), s = t / 2.5 s
+    np.testing.assert_allclose(target - label, fading[None, :, None] * offset[:, None, :],
+                               atol=1e-5)  # fmt: skip
+
+
+def test_rejoin_labels_bring_a_lagging_ego_back_gently():
+    episodes, _ = scenario_episodes("seamless", 1, seed=5, duration=6.0)
+    human = drive_windows("seamless", episodes, 5, _Lagging(), labels="human")
+    rejoin = drive_windows("seamless", episodes, 5, _Lagging())  # the default labels
+    for f in fields(Windows):  # the same states: only the labels differ
+        if f.name not in ("target", "steer", "longitudinal", "accel"):
+            np.testing.assert_array_equal(getattr(human, f.name), getattr(rejoin, f.name))
+    np.testing.assert_allclose(rejoin.target[:, -1], human.target[:, -1], atol=1e-5)
+    behind = rejoin.time > 2.0  # the lagging ego is metres behind the human by then
+    first = np.hypot(*rejoin.target[behind, 0].T), np.hypot(*human.target[behind, 0].T)
+    assert behind.any() and np.all(first[0] < first[1] - 0.3)  # no leap to the human at 0.5 s
+    with pytest.raises(DatasetError, match="labels must be one of"):
+        drive_windows("seamless", episodes, 5, _Lagging(), labels="expert")
 
 
 def test_dagger_rounds_refit_the_warm_start_on_the_states_it_visits(windows_dir, tmp_path):
@@ -301,6 +332,12 @@ def test_visited_windows_weigh_their_share_of_the_fit(windows_dir):
 def test_the_dagger_weight_is_checked(weight, message):
     with pytest.raises(RunError, match=message):
         TrainConfig(pretrain_episodes=2, dagger_rounds=1, dagger_weight=weight)
+
+
+def test_unknown_dagger_labels_are_refused():
+    with pytest.raises(RunError, match=r"unknown dagger_labels 'expert'; choose from \['human', "
+                                       r"'rejoin'\]"):  # fmt: skip
+        TrainConfig(pretrain_episodes=2, dagger_rounds=1, dagger_labels="expert")
 
 
 def test_a_dagger_weight_without_rounds_is_refused_before_the_run(tmp_path, capsys):

@@ -143,10 +143,19 @@ class GridSimEnv(gym.Env):
         """Reference positions at the coming set-point times, world and grid frames."""
         w = self.world
         self._ref_future = self.reference.positions(w.time + self._setpoint_times)
-        rotation = grid_rotation(self._orientation, w.ego[PSI])
-        self._ref_future_grid = world_to_grid(self._ref_future, w.ego[:2], rotation).astype(
-            np.float32
-        )
+        self._ref_future_grid = self._to_grid(self._ref_future).astype(np.float32)
+
+    def _to_grid(self, points: np.ndarray) -> np.ndarray:
+        """World points ``(N, 2)`` [m] in the ego's grid frame (rear axle at the origin)."""
+        w = self.world
+        return world_to_grid(points, w.ego[:2], grid_rotation(self._orientation, w.ego[PSI]))
+
+    def reference_in_grid(self, times: np.ndarray) -> np.ndarray:
+        """The reference's positions ``(N, 2)`` [m] at absolute episode ``times`` [s] (within
+        the look-ahead), in the ego's grid frame like ``info["reference_setpoints"]``."""
+        if self.world is None:
+            raise RuntimeError("call reset() before reference_in_grid()")
+        return self._to_grid(self.reference.positions(np.asarray(times, np.float64)))
 
     def _reference(self, seed: int) -> ReferenceTrajectory:
         cfg = self.cfg
