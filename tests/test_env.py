@@ -88,6 +88,21 @@ def test_spaces_and_documented_observation():
     assert info["reference_setpoints"].shape == (5, 2)
 
 
+def test_reference_in_grid_is_the_reference_at_any_time_of_the_look_ahead():
+    env = make()
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.unwrapped.reference_in_grid([0.0])
+    obs, info = env.reset(seed=3)
+    for _ in range(7):
+        obs, _, _, _, info = env.step(info["reference_setpoints"])
+    u = env.unwrapped
+    times = info["time"] + 0.5 * np.arange(1, 6)
+    got = u.reference_in_grid(times)
+    np.testing.assert_array_equal(got.astype(np.float32), info["reference_setpoints"])
+    now = u.reference_in_grid([info["time"]])[0]  # the human now, seen from the ego
+    assert np.hypot(*now) < 1.0  # following the human's set-points keeps the ego near it
+
+
 def rollout_digest(scenario, seed, steps, action_type="trajectory"):
     env = GridSimEnv(scenario, action_type=action_type, **SHORT)
     env.action_space.seed(seed)
