@@ -326,6 +326,49 @@ def test_resume_refuses_another_out_and_fewer_generations(finished_run, tmp_path
     assert (run / "config.json").read_text() == before
 
 
+#: A value of every ``train`` flag that differs from ``TrainConfig(preset="tiny")`` (None:
+#: a switch).
+_OTHER_VALUES = {
+    "--scenario": "inner_city", "--preset": "default", "--population": "3",
+    "--generations": "5", "--episodes": "1", "--episode-seconds": "4", "--sigma": "0.1",
+    "--seed": "5", "--backend": "processes", "--workers": "3", "--ray-address": "auto",
+    "--batch": "4", "--pretrain": "data", "--pretrain-episodes": "2", "--pretrain-epochs": "3",
+    "--pretrain-validation": "0.5", "--dagger-rounds": "1", "--dagger-weight": "0.5",
+    "--dagger-labels": "human", "--prior": "none", "--frame": "grid", "--no-skip": None,
+    "--fixed-episodes": None, "--unconstrained": None, "--validation-episodes": "3",
+}  # fmt: skip
+#: ``train`` flags that are about the command, not the run's configuration.
+_COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quiet"}
+
+
+def test_resume_applies_or_refuses_every_training_flag(tmp_path, capsys):
+    from neurotrajectory.cli import _TRAIN_KEYS, build_parser
+
+    train = next(a for a in build_parser()._actions if a.dest == "command").choices["train"]
+    dest = {a.option_strings[-1]: a.dest for a in train._actions}
+    assert set(dest) == set(_OTHER_VALUES) | _COMMAND_FLAGS  # a new flag is tested here
+    assert {dest[f] for f in _OTHER_VALUES} == set(_TRAIN_KEYS)
+    run = Run.create(tmp_path / "run", TrainConfig(preset="tiny"))
+    before = (run.out / "config.json").read_text()
+    for flag, value in _OTHER_VALUES.items():
+        if dest[flag] in TrainConfig.RESUMABLE:
+            continue
+        argv = ["train", "--resume", str(run.out), flag, *([value] if value else []), "--quiet"]
+        assert main(argv) == 2, flag
+        err = capsys.readouterr().err
+        assert f"cannot resume with a different configuration ({dest[flag]}: run has" in err
+        assert (run.out / "config.json").read_text() == before  # nothing changed
+    resumable = {dest[f]: _OTHER_VALUES[f] for f in _OTHER_VALUES
+                 if dest[f] in TrainConfig.RESUMABLE}  # fmt: skip
+    assert set(resumable) == set(TrainConfig.RESUMABLE)
+    changes = {"generations": 5, "backend": "processes", "workers": 3, "ray_address": "auto",
+               "batch": 4}  # fmt: skip
+    assert set(changes) == set(resumable)
+    Run.open(run.out, **changes)  # applied, and kept for the next resume
+    stored = Run.open(run.out).config
+    assert {k: getattr(stored, k) for k in changes} == changes
+
+
 def test_broken_run_files_give_clear_errors(finished_run, tmp_path, capsys):
     run = _copy(finished_run, tmp_path)
     good = (run / "front.npz").read_bytes()
