@@ -4,7 +4,9 @@ import hashlib
 import multiprocessing as mp
 import subprocess
 import sys
+import tomllib
 import warnings
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -250,6 +252,44 @@ def test_vector_envs():
         assert obs["ego"].shape == (2, len(EGO_FEATURES))
     finally:
         venv.close()
+
+
+#: Run first in a subprocess: the trainer's extra cannot be imported, as if not installed.
+_WITHOUT_TRAIN_EXTRA = """
+import sys
+import tomllib
+class NotInstalled:
+    def find_spec(self, name, path=None, target=None):
+        if name.split(".")[0] in ("torch", "matplotlib", "moocore"):
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+sys.meta_path.insert(0, NotInstalled())
+"""
+
+
+def test_the_simulator_works_without_the_trainers_extra(tmp_path):
+    code = _WITHOUT_TRAIN_EXTRA + (
+        "import gymnasium as gym, gridsim\n"
+        "from gridsim.video import record_rollout\n"
+        "e = gym.make('GridSim-v0', render_mode='rgb_array', simulation={'duration': 1.0})\n"
+        "e.reset(seed=0)\n"
+        f"record_rollout(e, lambda e, o, i: i['reference_setpoints'], {str(tmp_path / 'a.gif')!r},"
+        " steps=5, seed=0)\n"
+        "from gridsim.cli import main\n"
+        "assert main(['validate', 'seamless']) == 0\n"
+        "from neurotrajectory.__main__ import main\n"
+        "sys.exit(main(['--help']))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 2, out.stderr
+    assert (tmp_path / "a.gif").stat().st_size > 0
+    message = ("neurotrajectory: error: the trainer needs torch, matplotlib, moocore, which the "
+               'simulator alone does not install: pip install "gridsim[train]"')  # fmt: skip
+    assert message in out.stderr
+    project = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"]
+    base = " ".join(project["dependencies"])
+    assert not any(m in base for m in ("torch", "matplotlib", "moocore"))
+    assert {d.split("=")[0].split(">")[0] for d in project["optional-dependencies"]["train"]} == {
+        "torch", "matplotlib", "moocore"}  # fmt: skip
 
 
 def test_gridsim_never_imports_torch():
