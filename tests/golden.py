@@ -7,7 +7,13 @@ does the same for bare :meth:`World.tick` calls driven by a :class:`LaneFollower
 recorded digests live in ``tests/data/golden_digests.json``; re-record them (only from a
 commit whose results are known to be right) with::
 
-    python tests/golden.py
+    python tests/golden.py                      # every section
+    python tests/golden.py training datasets    # only these sections
+
+:func:`training_digests` and :func:`dataset_digests` guard the trainer the same way: a
+short warm-started training run (its history without timings, front and checkpoint) and
+recorded window datasets. The training digests involve torch's CPU kernels and hold for
+this machine type (single-threaded torch, same instruction set).
 """
 
 from __future__ import annotations
@@ -110,6 +116,51 @@ def world_digests(scenario: str, overrides: dict, ticks: int, seed: int = 0) -> 
     return d.hexdigests()
 
 
+#: Datasets recorded for :func:`dataset_digests`: (scenario, episodes, seed, duration [s]).
+DATASET_CASES = (("seamless", 2, 9, 6.0), ("inner_city", 2, 4, 6.0), ("us101_3_3", 2, 0, None))
+#: History fields that measure time, not results.
+TIMING_FIELDS = ("seconds", "individual_steps_per_s")
+
+
+def _windows_digests(d: _Digests, prefix: str, windows) -> None:
+    from dataclasses import fields
+
+    for f in fields(windows):
+        d.add(f"{prefix}{f.name}", getattr(windows, f.name))
+
+
+def dataset_digests(scenario: str, episodes: int, seed: int, duration) -> dict[str, str]:
+    """Digests of every array of the windows ``record_scenario`` records."""
+    from neurotrajectory.windows import record_scenario
+
+    d = _Digests()
+    _windows_digests(d, "", record_scenario(scenario, episodes, seed=seed, duration=duration)[0])
+    return d.hexdigests()
+
+
+def training_digests(out: Path) -> dict[str, str]:
+    """Digests of a short run in ``out``: a warm start on 2 recorded episodes with a DAgger
+    round, then 2 generations of 4 tiny networks (local backend, batched)."""
+    from neurotrajectory.train import Run, TrainConfig
+
+    config = TrainConfig(preset="tiny", population=4, generations=2, episodes=1,
+                         episode_seconds=3.0, seed=3, pretrain_episodes=2, pretrain_epochs=2,
+                         dagger_rounds=1, validation_episodes=2, batch=3)  # fmt: skip
+    Run.create(out, config).train(progress=False)
+    d = _Digests()
+    for gen in json.loads((out / "history.json").read_text())["generations"]:
+        for key, value in sorted(gen.items()):
+            if key not in TIMING_FIELDS:
+                d.add(f"history_{key}", value)
+    for name in ("front.npz", "checkpoint.npz"):
+        with np.load(out / name) as arrays:
+            for key in sorted(arrays.files):
+                d.add(f"{name}_{key}", arrays[key])
+    pretrain = json.loads((out / "pretrain.json").read_text())
+    d.add("pretrain", json.dumps(pretrain, sort_keys=True))
+    return d.hexdigests()
+
+
 def env_cases() -> list[tuple[str, int, str]]:
     """Every policy on the first seed, the reference policy on the others."""
     return [
@@ -121,16 +172,30 @@ def env_cases() -> list[tuple[str, int, str]]:
     ]
 
 
-def record() -> dict:
-    out = {"env": {}, "world": {}}
-    for sc, seed, pol in env_cases():
-        out["env"][f"{sc}/{seed}/{pol}"] = env_digests(sc, seed, pol)
-        print(sc, seed, pol, flush=True)
-    for name, sc, overrides, ticks in WORLD_CASES:
-        out["world"][name] = world_digests(sc, overrides, ticks)
-        print(name, flush=True)
+def record(sections: tuple[str, ...]) -> dict:
+    import tempfile
+
+    out = json.loads(GOLDEN_PATH.read_text()) if GOLDEN_PATH.exists() else {}
+    if "env" in sections:
+        out["env"] = {}
+        for sc, seed, pol in env_cases():
+            out["env"][f"{sc}/{seed}/{pol}"] = env_digests(sc, seed, pol)
+            print(sc, seed, pol, flush=True)
+    if "world" in sections:
+        out["world"] = {}
+        for name, sc, overrides, ticks in WORLD_CASES:
+            out["world"][name] = world_digests(sc, overrides, ticks)
+            print(name, flush=True)
+    if "datasets" in sections:
+        out["datasets"] = {f"{c[0]}/{c[2]}": dataset_digests(*c) for c in DATASET_CASES}
+    if "training" in sections:
+        with tempfile.TemporaryDirectory() as tmp:
+            out["training"] = training_digests(Path(tmp) / "run")
     return out
 
 
 if __name__ == "__main__":
-    GOLDEN_PATH.write_text(json.dumps(record(), indent=1, sort_keys=True) + "\n")
+    import sys
+
+    sections = tuple(sys.argv[1:]) or ("env", "world", "datasets", "training")
+    GOLDEN_PATH.write_text(json.dumps(record(sections), indent=1, sort_keys=True) + "\n")

@@ -1,10 +1,20 @@
-"""Bit-identity: rollouts reproduce the digests recorded from the reference implementation
-(see ``tests/golden.py``), so that speed-ups of the step path cannot change any result."""
+"""Bit-identity: rollouts, recorded datasets and a short training run reproduce the digests
+recorded from the reference implementation (see ``tests/golden.py``), so that speed-ups and
+restructuring cannot change any result."""
 
 import json
 
 import pytest
-from golden import GOLDEN_PATH, WORLD_CASES, env_cases, env_digests, world_digests
+from golden import (
+    DATASET_CASES,
+    GOLDEN_PATH,
+    WORLD_CASES,
+    dataset_digests,
+    env_cases,
+    env_digests,
+    training_digests,
+    world_digests,
+)
 
 GOLDEN = json.loads(GOLDEN_PATH.read_text())
 
@@ -17,3 +27,12 @@ def test_env_rollout_is_bit_identical_to_golden(scenario, seed, policy):
 @pytest.mark.parametrize(("name", "scenario", "overrides", "ticks"), WORLD_CASES)
 def test_world_ticks_are_bit_identical_to_golden(name, scenario, overrides, ticks):
     assert world_digests(scenario, overrides, ticks) == GOLDEN["world"][name]
+
+
+@pytest.mark.parametrize("case", DATASET_CASES, ids=lambda c: f"{c[0]}/{c[2]}")
+def test_recorded_datasets_are_bit_identical_to_golden(case):
+    assert dataset_digests(*case) == GOLDEN["datasets"][f"{case[0]}/{case[2]}"]
+
+
+def test_a_short_training_run_is_bit_identical_to_golden(tmp_path):
+    assert training_digests(tmp_path / "run") == GOLDEN["training"]
