@@ -17,13 +17,13 @@ import time
 import numpy as np
 import torch
 
-from neurotrajectory.baselines.constant_velocity import ConstantVelocity
-from neurotrajectory.baselines.dwa import DWA
-from neurotrajectory.baselines.end2end import End2End, TrainSettings
-from neurotrajectory.front import NetPredictor
+from neurotrajectory.compare.baselines.constant_velocity import ConstantVelocity
+from neurotrajectory.compare.baselines.dwa import DWA
+from neurotrajectory.compare.baselines.end2end import End2End, TrainSettings
+from neurotrajectory.compare.front import NetPredictor
+from neurotrajectory.compare.predictors import Setting
+from neurotrajectory.data.windows import record_group
 from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
-from neurotrajectory.predictors import Setting
-from neurotrajectory.windows import record_group
 
 
 def _per_window_ms(fn, batch, one_at_a_time: bool) -> float:

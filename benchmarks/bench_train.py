@@ -14,8 +14,8 @@ import argparse
 import json
 import time
 
-from neurotrajectory.backends import WorkerSpec, make_backend
-from neurotrajectory.evolution import GAConfig, initial_recipes
+from neurotrajectory.evolve.backends import WorkerSpec, make_backend
+from neurotrajectory.evolve.evolution import GAConfig, initial_recipes
 from neurotrajectory.model import PRESETS
 
 TARGETS = {"default": 1500.0, "paper": 300.0, "tiny": 1500.0}

@@ -35,12 +35,12 @@ from pathlib import Path
 
 import numpy as np
 
-from neurotrajectory.baselines.constant_velocity import ConstantVelocity
-from neurotrajectory.baselines.dwa import DWA, DWAConfig
-from neurotrajectory.evaluation import EvalConfig
-from neurotrajectory.metrics import accuracy
-from neurotrajectory.predictors import Setting
-from neurotrajectory.windows import (
+from neurotrajectory.compare.baselines.constant_velocity import ConstantVelocity
+from neurotrajectory.compare.baselines.dwa import DWA, DWAConfig
+from neurotrajectory.compare.evaluation import EvalConfig
+from neurotrajectory.compare.metrics import accuracy
+from neurotrajectory.compare.predictors import Setting
+from neurotrajectory.data.windows import (
     GROUPS,
     Windows,
     load_dataset,

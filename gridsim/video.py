@@ -11,7 +11,7 @@ import imageio.v2 as imageio
 import numpy as np
 
 from gridsim.errors import GridSimError
-from gridsim.paths import output_problem
+from gridsim.outputs import output_problem
 
 log = logging.getLogger(__name__)
 

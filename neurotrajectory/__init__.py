@@ -1,8 +1,18 @@
 """NeuroTrajectory: the perception-planning network and its neuroevolution trainer.
 
-Pipeline: :mod:`neurotrajectory.model` (the network) -> :mod:`neurotrajectory.genome`
-(flat genomes, noise table, recipes) -> :mod:`neurotrajectory.pareto` and
-:mod:`neurotrajectory.evolution` (selection) -> :mod:`neurotrajectory.rollout` (fitness in
-GridSim-v0) -> :mod:`neurotrajectory.backends` (local, processes, Ray) ->
-:mod:`neurotrajectory.train` (runs, checkpoints, resume). ``gridsim`` never imports it.
+:mod:`neurotrajectory.model` (the network, its kinematic prior from
+:mod:`neurotrajectory.curves`) and three wings:
+
+- :mod:`neurotrajectory.evolve`: training. Genomes and the shared noise table, Pareto
+  selection and the genetic algorithm, fitness from closed-loop rollouts in GridSim-v0,
+  the local / processes / Ray backends, runs (checkpoints, resume), the warm start and the
+  run's plots;
+- :mod:`neurotrajectory.data`: labelled windows of human driving (datasets) and the
+  discrete commands they imply;
+- :mod:`neurotrajectory.compare`: evaluation. Accuracy metrics, the baselines (constant
+  velocity, destination curve, DWA, End2End), trained fronts as predictors and policies,
+  the closed-loop comparison and the report.
+
+``compare`` uses ``evolve`` and ``data``; ``evolve`` uses ``data``; ``gridsim`` never
+imports any of it.
 """

@@ -9,14 +9,15 @@ import sys
 import time
 from pathlib import Path
 
-from gridsim.cli import at_least
+from gridsim.cli import at_least, run_command
 from gridsim.errors import GridSimError
-from gridsim.paths import output_problem
-from neurotrajectory.backends import BACKENDS, BackendError
-from neurotrajectory.front import PICKS, heldout_problem
+from gridsim.outputs import output_problem, write_json
+from neurotrajectory.compare.front import heldout_problem
+from neurotrajectory.data.windows import DAGGER_LABELS, GROUPS
+from neurotrajectory.evolve.backends import BACKENDS, BackendError
+from neurotrajectory.evolve.pareto import PICKS
+from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
 from neurotrajectory.model import PRESETS, PRIORS
-from neurotrajectory.train import Run, RunError, TrainConfig
-from neurotrajectory.windows import DAGGER_LABELS, GROUPS
 
 DEFAULT_OUT = "runs/default"
 _TRAIN_KEYS = (
@@ -83,12 +84,12 @@ def _heldout(
 ) -> None:
     """Drive a front member on held-out episodes; write ``out`` (default the run's
     ``heldout.json``), print a summary."""
-    from neurotrajectory.front import heldout
+    from neurotrajectory.compare.front import heldout
 
     report = heldout(run.out, episodes, pick, seconds)
     path = Path(out) if out else run.out / "heldout.json"
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(report, indent=1))
+    write_json(path, report)
     net, curve = report["network"], report["destination curve"]
     print(f"{pick} member on {episodes} held-out episodes of {report['episode_seconds']:g} s: "
           f"completed {net['completed']:.0%} (destination curve {curve['completed']:.0%}), "
@@ -101,7 +102,7 @@ def _rollout(
 ) -> dict:
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.video import record_rollout
-    from neurotrajectory.front import load_front_member
+    from neurotrajectory.compare.front import load_front_member
 
     run, policy, member = load_front_member(run_dir, pick)
     env = GridSimEnv(run.config.scenario, render_mode="rgb_array", **run.config.overrides)
@@ -133,7 +134,7 @@ def _cmd_rollout(args: argparse.Namespace) -> int:
 def _cmd_record(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from neurotrajectory.windows import (
+    from neurotrajectory.data.windows import (
         Dataset,
         check_new_folder,
         record_group,
@@ -169,8 +170,8 @@ def _cmd_record(args: argparse.Namespace) -> int:
 
 
 def _cmd_evaluate(args: argparse.Namespace) -> int:
-    from neurotrajectory.baselines.end2end import TrainSettings
-    from neurotrajectory.evaluation import EvalConfig, evaluate
+    from neurotrajectory.compare.baselines.end2end import TrainSettings
+    from neurotrajectory.compare.evaluation import EvalConfig, evaluate
 
     sources = {}
     for item in args.group:
@@ -522,12 +523,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    try:
-        return args.func(args)
-    except (RunError, BackendError, GridSimError, ValueError) as exc:
-        print(f"neurotrajectory: error: {exc}", file=sys.stderr)
-        return 2
+    return run_command(build_parser(), argv, (GridSimError, RunError, BackendError, ValueError))
 
 
 if __name__ == "__main__":

@@ -104,7 +104,7 @@ class NetConfig:
     """Sizes of the network. ``pool`` downsamples the grids before the CNN (1 = none).
     ``limits`` are the ego's (:class:`~neurotrajectory.curves.CurveLimits` fields: a_max,
     b_max, v_max, max_curvature) for the destination-curve prior; the scenario sets them
-    (:func:`~neurotrajectory.rollout.net_config_for`)."""
+    (:func:`~neurotrajectory.evolve.fitness.net_config_for`)."""
 
     history: int = 5
     horizon: int = 5
@@ -251,7 +251,7 @@ class TrajectoryNet(nn.Module):
 
     @property
     def zero_init(self) -> tuple[str, ...]:
-        """Parameters that start at 0 (:func:`~neurotrajectory.genome.initial_genome`): the
+        """Parameters that start at 0 (:func:`~neurotrajectory.evolve.genome.initial_genome`): the
         skip read-out and, with a prior, the branches' read-out, so that a fresh network
         outputs its prior exactly."""
         skip = ("skip_weight",) if self.cfg.skip else ()
@@ -293,7 +293,7 @@ def count_parameters(net: nn.Module) -> int:
 
 
 def window_inputs(windows, index: np.ndarray) -> tuple[torch.Tensor, ...]:
-    """The network's inputs for ``windows[index]`` (a :class:`~neurotrajectory.windows.Windows`
+    """The network's inputs for ``windows[index]`` (a :class:`~neurotrajectory.data.windows.Windows`
     batch): grids, ego state and destination tensors."""
     return (
         torch.from_numpy(windows.grids[index]),
@@ -548,3 +548,16 @@ class PopulationNet:
             frames = np.ascontiguousarray(grids[:, :, j])
             slots.append(self.grid_part(params, self.frame_features(params, frames)))
         return self.head(params, torch.stack(slots, dim=2), ego, dest)
+
+
+class NetPolicy:
+    """A trained network as a GridSim-v0 policy (trajectory action)."""
+
+    action_type = "trajectory"
+
+    def __init__(self, net: TrajectoryNet) -> None:
+        self.net = net.eval()
+
+    @torch.no_grad()
+    def __call__(self, env, obs, info):
+        return self.net(*observation_tensors(obs))[0].numpy()

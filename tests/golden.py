@@ -131,7 +131,7 @@ def _windows_digests(d: _Digests, prefix: str, windows) -> None:
 
 def dataset_digests(scenario: str, episodes: int, seed: int, duration) -> dict[str, str]:
     """Digests of every array of the windows ``record_scenario`` records."""
-    from neurotrajectory.windows import record_scenario
+    from neurotrajectory.data.windows import record_scenario
 
     d = _Digests()
     _windows_digests(d, "", record_scenario(scenario, episodes, seed=seed, duration=duration)[0])
@@ -141,7 +141,7 @@ def dataset_digests(scenario: str, episodes: int, seed: int, duration) -> dict[s
 def training_digests(out: Path) -> dict[str, str]:
     """Digests of a short run in ``out``: a warm start on 2 recorded episodes with a DAgger
     round, then 2 generations of 4 tiny networks (local backend, batched)."""
-    from neurotrajectory.train import Run, TrainConfig
+    from neurotrajectory.evolve.runs import Run, TrainConfig
 
     config = TrainConfig(preset="tiny", population=4, generations=2, episodes=1,
                          episode_seconds=3.0, seed=3, pretrain_episodes=2, pretrain_epochs=2,

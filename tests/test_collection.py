@@ -70,8 +70,8 @@ def test_validate_and_scenarios_print_one_line_per_file(folder, capsys):
 
 def test_record_a_folder_as_a_named_group(folder, tmp_path):
     from neurotrajectory.cli import main as nt_main
-    from neurotrajectory.evaluation import EvalConfig
-    from neurotrajectory.windows import DatasetError, group_scenarios, load_dataset
+    from neurotrajectory.compare.evaluation import EvalConfig
+    from neurotrajectory.data.windows import DatasetError, group_scenarios, load_dataset
 
     assert group_scenarios("urban") == ("lankershim_1_1", "peachtree_4_8")
     assert len(group_scenarios("mine", str(folder))) == 2

@@ -7,15 +7,15 @@ import numpy as np
 import pytest
 
 from neurotrajectory.cli import main
-from neurotrajectory.commands import implied_commands
-from neurotrajectory.train import Run, TrainConfig
-from neurotrajectory.windows import (
+from neurotrajectory.data.commands import implied_commands
+from neurotrajectory.data.windows import (
     DatasetError,
     load_dataset,
     record_group,
     save_dataset,
     split_by_track,
 )
+from neurotrajectory.evolve.runs import Run, TrainConfig
 
 
 @pytest.fixture(scope="module")
@@ -139,8 +139,8 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
         assert float(r["max_ex"]) >= float(r["mean_ex"]) >= 0
         assert float(r["rmse"]) > 0
     # the constant-velocity row is reproducible from the held-out windows
-    from neurotrajectory.baselines.constant_velocity import constant_velocity_setpoints
-    from neurotrajectory.metrics import accuracy
+    from neurotrajectory.compare.baselines.constant_velocity import constant_velocity_setpoints
+    from neurotrajectory.compare.metrics import accuracy
 
     ds = load_dataset(data / "urban")
     _, test = split_by_track(ds.windows, 0.3, seed=0)
@@ -194,7 +194,7 @@ def test_bad_input_gives_clear_errors(tiny_run, tmp_path, capsys):
 
 
 def test_progress_is_left_out_when_the_human_did_not_move():
-    from neurotrajectory.closed_loop import MIN_HUMAN_PATH, _progress, summarise
+    from neurotrajectory.compare.closed_loop import MIN_HUMAN_PATH, _progress, summarise
 
     assert _progress(12.0, 10.0) == pytest.approx(1.2)
     assert np.isnan(_progress(12.0, 0.5 * MIN_HUMAN_PATH))  # a car waiting at a light

@@ -10,27 +10,27 @@ from gridsim.envs.frames import grid_to_pixel
 from gridsim.sensors.occupancy import FREE, OCCUPIED, UNKNOWN
 from gridsim.traffic.library import TrajectoryLibrary
 from gridsim.vehicle.kinematics import BicycleParams, box_corners
-from neurotrajectory.baselines.constant_velocity import (
+from neurotrajectory.compare.baselines.constant_velocity import (
     ConstantVelocity,
     constant_velocity_setpoints,
 )
-from neurotrajectory.baselines.dwa import (
+from neurotrajectory.compare.baselines.dwa import (
     ADMISSIBLE,
     DWA,
     MOST_CLEARANCE,
     NO_BRAKING_CHECK,
     DWAConfig,
 )
-from neurotrajectory.baselines.end2end import End2End, TrainSettings
-from neurotrajectory.commands import (
+from neurotrajectory.compare.baselines.end2end import End2End, TrainSettings
+from neurotrajectory.compare.metrics import accuracy, ego_frame_errors
+from neurotrajectory.compare.predictors import Setting
+from neurotrajectory.data.commands import (
     N_STEER,
     STEER_BINS_EACH_SIDE,
     command_setpoints,
     implied_commands,
 )
-from neurotrajectory.metrics import accuracy, ego_frame_errors
-from neurotrajectory.predictors import Setting
-from neurotrajectory.windows import Windows
+from neurotrajectory.data.windows import Windows
 
 TIMES = 0.5 * np.arange(1, 6)
 
@@ -324,7 +324,7 @@ def test_end2end_commands_drive_the_discrete_action():
     import torch
 
     from gridsim.envs.gridsim_env import GridSimEnv
-    from neurotrajectory.baselines.end2end import CommandPolicy, End2EndNet
+    from neurotrajectory.compare.baselines.end2end import CommandPolicy, End2EndNet
     from neurotrajectory.model import PRESETS, NetConfig
 
     env = GridSimEnv("seamless", action_type="discrete")

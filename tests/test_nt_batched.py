@@ -7,11 +7,11 @@ import pytest
 import torch
 
 from neurotrajectory import model
-from neurotrajectory.backends import WorkerSpec, make_backend
-from neurotrajectory.genome import Recipe, initial_genome, set_genome
+from neurotrajectory.evolve.backends import WorkerSpec, make_backend
+from neurotrajectory.evolve.fitness import Evaluator
+from neurotrajectory.evolve.genome import Recipe, initial_genome, set_genome
+from neurotrajectory.evolve.runs import Run, TrainConfig
 from neurotrajectory.model import PRESETS, NetConfig, PopulationNet, TrajectoryNet
-from neurotrajectory.rollout import Evaluator
-from neurotrajectory.train import Run, TrainConfig
 
 SHORT = {"simulation": {"duration": 3.0}}
 #: The batched forward pass versus TrajectoryNet: float rounding only (observed <= 2.4e-7 m).

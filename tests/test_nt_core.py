@@ -9,8 +9,8 @@ import torch
 from pymoo.operators.survival.rank_and_crowding.metrics import calc_crowding_distance
 
 from neurotrajectory.curves import CurveLimits, destination_curves
-from neurotrajectory.evolution import GAConfig, initial_recipes, minimised, next_generation
-from neurotrajectory.genome import (
+from neurotrajectory.evolve.evolution import GAConfig, initial_recipes, next_generation
+from neurotrajectory.evolve.genome import (
     Recipe,
     apply_recipe,
     get_genome,
@@ -18,8 +18,13 @@ from neurotrajectory.genome import (
     noise_table,
     set_genome,
 )
+from neurotrajectory.evolve.pareto import (
+    crowding_distance,
+    hypervolume,
+    minimised,
+    non_dominated_sort,
+)
 from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet, count_parameters
-from neurotrajectory.pareto import crowding_distance, hypervolume, non_dominated_sort
 
 
 def test_presets_sizes_and_output_shape():

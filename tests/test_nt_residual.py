@@ -7,7 +7,10 @@ import numpy as np
 import pytest
 import torch
 
-from neurotrajectory.genome import initial_genome, set_genome
+from neurotrajectory.data.windows import record_group, split_by_track
+from neurotrajectory.evolve.genome import initial_genome, set_genome
+from neurotrajectory.evolve.runs import Run, TrainConfig
+from neurotrajectory.evolve.warm_start import fit_skip
 from neurotrajectory.model import (
     PRESETS,
     NetConfig,
@@ -18,9 +21,6 @@ from neurotrajectory.model import (
     to_ego_frame,
     window_inputs,
 )
-from neurotrajectory.pretrain import fit_skip
-from neurotrajectory.train import Run, TrainConfig
-from neurotrajectory.windows import record_group, split_by_track
 
 
 def _ego(heading, speed=8.0):

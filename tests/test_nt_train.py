@@ -18,12 +18,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from neurotrajectory.backends import BackendError, WorkerSpec, make_backend
 from neurotrajectory.cli import main
-from neurotrajectory.genome import Recipe
+from neurotrajectory.evolve.backends import BackendError, WorkerSpec, make_backend
+from neurotrajectory.evolve.fitness import Evaluator
+from neurotrajectory.evolve.genome import Recipe
+from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
 from neurotrajectory.model import PRESETS
-from neurotrajectory.rollout import Evaluator
-from neurotrajectory.train import Run, RunError, TrainConfig
 
 TINY = dict(preset="tiny", population=6, episodes=1, episode_seconds=4.0, seed=1)
 
@@ -270,7 +270,7 @@ def test_unusable_out_and_video_paths_are_refused_before_training(tmp_path, caps
         assert main(["train", *QUICK, *args]) == 2
         assert text in capsys.readouterr().err
     assert Path("afile").read_text() == "keep me" and not Path("run").exists()
-    monkeypatch.setattr("gridsim.paths.os.access", lambda *a: False)
+    monkeypatch.setattr("gridsim.outputs.os.access", lambda *a: False)
     assert main(["train", *QUICK, "--out", "run"]) == 2
     assert f"--out run: {tmp_path} is not writable" in capsys.readouterr().err
 
@@ -491,7 +491,7 @@ def test_a_scenario_whose_world_cannot_be_built_is_refused_before_the_run(tmp_pa
 def test_heldout_tracks_are_the_usable_tracks_a_run_did_not_train_on():
     from gridsim.scenario.build import ego_candidates, library_for, scene_of
     from gridsim.scenario.loader import load_scenario
-    from neurotrajectory.front import _other_tracks, heldout_problem
+    from neurotrajectory.compare.front import _other_tracks, heldout_problem
 
     base = load_scenario("us101_4_1")
     usable = [t.track_id for t in ego_candidates(base)]

@@ -7,17 +7,7 @@ import numpy as np
 import pytest
 
 from neurotrajectory.cli import main
-from neurotrajectory.genome import initial_genome
-from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
-from neurotrajectory.pretrain import (
-    PretrainError,
-    fit_skip,
-    pretrain_genome,
-    setpoint_mse,
-    visited_weights,
-)
-from neurotrajectory.train import Run, RunError, TrainConfig
-from neurotrajectory.windows import (
+from neurotrajectory.data.windows import (
     DatasetError,
     Windows,
     drive_windows,
@@ -30,6 +20,16 @@ from neurotrajectory.windows import (
     scenario_episodes,
     split_by_track,
 )
+from neurotrajectory.evolve.genome import initial_genome
+from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
+from neurotrajectory.evolve.warm_start import (
+    PretrainError,
+    fit_skip,
+    pretrain_genome,
+    setpoint_mse,
+    visited_weights,
+)
+from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
 
 
 @pytest.fixture(scope="module")
@@ -155,7 +155,7 @@ def test_a_run_can_record_its_own_warm_start(tmp_path, capsys):
 def test_a_recorded_scene_run_drives_only_the_tracks_of_its_training_data(tmp_path):
     """record --split train keeps evaluate's train side; a run on that scene with it as
     warm-start data trains on exactly those tracks, and its held-out report on the others."""
-    from neurotrajectory.evaluation import EvalConfig, _dataset
+    from neurotrajectory.compare.evaluation import EvalConfig, _dataset
 
     data = tmp_path / "highway-train"
     assert main(["record", "--scenario", "us101_3_3", "--split", "train", "--out", str(data),

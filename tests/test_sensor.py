@@ -3,6 +3,7 @@
 import numpy as np
 import pytest
 
+from gridsim.render import colourise
 from gridsim.sensors import (
     FREE,
     OCCUPIED,
@@ -10,7 +11,6 @@ from gridsim.sensors import (
     GridSpec,
     OccupancyGridSensor,
     SensorMount,
-    colourise,
 )
 from gridsim.vehicle.kinematics import box_corners
 

@@ -1,5 +1,6 @@
-"""Headless top-down rendering."""
+"""Headless rendering: top-down frames and coloured occupancy grids."""
 
+from gridsim.render.grids import colourise
 from gridsim.render.topdown import TopDownRenderer, ViewSpec
 
-__all__ = ["TopDownRenderer", "ViewSpec"]
+__all__ = ["TopDownRenderer", "ViewSpec", "colourise"]

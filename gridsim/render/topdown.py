@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from gridsim.sensors.occupancy import colourise
+from gridsim.render.grids import colourise
 from gridsim.vehicle.kinematics import box_corners
 
 _BG = (34, 120, 34)  # grass

@@ -14,6 +14,7 @@ from pathlib import Path
 import yaml
 
 from gridsim.errors import ScenarioError
+from gridsim.outputs import write_text
 from gridsim.scenario.loader import COMMONROAD_DEFAULTS, deep_merge
 from gridsim.traffic.commonroad import read_tracks_commonroad, scene_id
 from gridsim.traffic.library import write_tracks_csv
@@ -43,5 +44,5 @@ def import_commonroad(xml: str | Path, out: str | Path) -> Path:
         f"# Imported from {xml.name} by `gridsim import`; edit freely, check with "
         "`gridsim validate`.\n"
     )
-    path.write_text(header + yaml.safe_dump(doc, sort_keys=False))
+    write_text(path, header + yaml.safe_dump(doc, sort_keys=False))
     return path

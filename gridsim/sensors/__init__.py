@@ -7,7 +7,6 @@ from gridsim.sensors.occupancy import (
     GridSpec,
     OccupancyGridSensor,
     SensorMount,
-    colourise,
     observe,
 )
 
@@ -18,6 +17,5 @@ __all__ = [
     "GridSpec",
     "OccupancyGridSensor",
     "SensorMount",
-    "colourise",
     "observe",
 ]

@@ -30,10 +30,6 @@ import numpy as np
 from gridsim.sensors.rays import cell_states, first_hits, mark_visible
 
 FREE, UNKNOWN, OCCUPIED = 0, 128, 255
-_COLOURS = np.zeros((256, 3), np.uint8)
-_COLOURS[FREE] = (0, 200, 0)
-_COLOURS[OCCUPIED] = (220, 0, 0)
-_COLOURS[UNKNOWN] = (0, 0, 0)
 # obstacle + 2 * visible -> cell state
 _STATE_LUT = np.array([UNKNOWN, UNKNOWN, FREE, OCCUPIED], np.uint8)
 
@@ -96,11 +92,6 @@ def _inset_half_pixel(quads: np.ndarray) -> np.ndarray:
     u_l = e_l / np.maximum(n_l, 1e-9) * np.minimum(0.5, 0.5 * n_l)
     u_w = e_w / np.maximum(n_w, 1e-9) * np.minimum(0.5, 0.5 * n_w)
     return quads - _SIGN_L * u_l[:, None, :] - _SIGN_W * u_w[:, None, :]
-
-
-def colourise(grid: np.ndarray) -> np.ndarray:
-    """RGB view of a grid as in the paper's figures: green free, red occupied, black unknown."""
-    return _COLOURS[grid]
 
 
 class OccupancyGridSensor:

@@ -18,6 +18,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from gridsim.errors import DataError
+from gridsim.outputs import atomic_text
 
 REQUIRED_COLUMNS = (
     "scenario_id",
@@ -231,7 +232,7 @@ def write_tracks_csv(tracks: list[Track], path: str | Path) -> Path:
     :func:`read_tracks_csv` reads back exactly (floats in full precision)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="") as fh:
+    with atomic_text(path) as fh:
         out = csv.writer(fh)
         out.writerow(REQUIRED_COLUMNS)
         for tr in tracks:

@@ -16,9 +16,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from neurotrajectory.genome import Recipe, apply_recipe, initial_genome, noise_table, table_size
+from neurotrajectory.evolve.fitness import Evaluator
+from neurotrajectory.evolve.genome import (
+    Recipe,
+    apply_recipe,
+    initial_genome,
+    noise_table,
+    table_size,
+)
 from neurotrajectory.model import NetConfig, aligned_rows
-from neurotrajectory.rollout import Evaluator
 
 BACKENDS = ("local", "processes", "ray")
 

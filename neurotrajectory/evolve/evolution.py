@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from neurotrajectory.genome import Recipe
-from neurotrajectory.pareto import rank_and_crowding
+from neurotrajectory.evolve.genome import Recipe
+from neurotrajectory.evolve.pareto import minimised, rank_and_crowding
 
 
 @dataclass(frozen=True)
@@ -40,12 +40,6 @@ class GAConfig:
             raise ValueError("tournament must be >= 1 and probabilities in [0, 1]")
         if not self.sigma > 0:
             raise ValueError(f"sigma must be > 0, got {self.sigma}")
-
-
-def minimised(fitness: np.ndarray) -> np.ndarray:
-    """Fitness ``[l1, l2, l3]`` as objectives to minimise: ``[l1, l2, -l3]``."""
-    f = np.asarray(fitness, dtype=np.float64)
-    return np.column_stack([f[:, 0], f[:, 1], -f[:, 2]])
 
 
 def generation_rng(seed: int, generation: int) -> np.random.Generator:

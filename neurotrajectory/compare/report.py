@@ -13,7 +13,6 @@
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 
 import matplotlib
@@ -22,7 +21,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from neurotrajectory.metrics import SUMMARY_KEYS  # noqa: E402
+from gridsim.outputs import atomic_text, write_json, write_text  # noqa: E402
+from neurotrajectory.compare.metrics import SUMMARY_KEYS  # noqa: E402
 
 GROUP_TITLES = {
     "seamless": "GridSim seamless",
@@ -96,15 +96,13 @@ def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
             for m, s in r.closed_loop.items():
                 vals = [f"{s[k]:.3g}" if k != "episodes" else str(int(s[k])) for k in LOOP_KEYS]
                 lines.append("| " + " | ".join([r.group, m, *vals]) + " |")
-    path = out / "table2.md"
-    path.write_text("\n".join(lines) + "\n")
-    return path
+    return write_text(out / "table2.md", "\n".join(lines) + "\n")
 
 
 def _write_csv(results, out: Path) -> Path:
     path = out / "table2.csv"
     horizon = len(next(iter(results[0].accuracy.values())).rmse_per_setpoint)
-    with open(path, "w", newline="") as fh:
+    with atomic_text(path) as fh:
         w = csv.writer(fh)
         w.writerow(["group", "source", "method", "windows", *SUMMARY_KEYS,
                     *[f"rmse_{k + 1}" for k in range(horizon)]])  # fmt: skip
@@ -114,7 +112,7 @@ def _write_csv(results, out: Path) -> Path:
                             *[f"{getattr(a, k):.4f}" for k in SUMMARY_KEYS],
                             *[f"{v:.4f}" for v in a.rmse_per_setpoint]])  # fmt: skip
     if any(r.closed_loop for r in results):
-        with open(out / "closed_loop.csv", "w", newline="") as fh:
+        with atomic_text(out / "closed_loop.csv") as fh:
             w = csv.writer(fh)
             w.writerow(["group", "method", *LOOP_KEYS])
             for r in results:
@@ -135,9 +133,7 @@ def _write_json(results, out: Path, run_info: dict) -> Path:
                          for m, a in r.accuracy.items()},
             "closed_loop": r.closed_loop,
         })  # fmt: skip
-    path = out / "results.json"
-    path.write_text(json.dumps(doc, indent=1))
-    return path
+    return write_json(out / "results.json", doc)
 
 
 def _fig8(results, methods, out: Path) -> Path:

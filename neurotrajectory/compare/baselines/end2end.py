@@ -2,10 +2,10 @@
 
 The network is the same per-grid CNN -> FC -> FC body (:class:`GridEncoder`) as
 NeuroTrajectory's; the features of the newest frame feed two linear heads over the discrete
-commands of :mod:`neurotrajectory.commands` (21 steering directions 3 degrees apart, and
+commands of :mod:`neurotrajectory.data.commands` (21 steering directions 3 degrees apart, and
 decelerate / keep / accelerate). It learns, with cross-entropy, the commands the human
 set-points imply. Its trajectory is the command's line segment
-(:func:`~neurotrajectory.commands.command_setpoints`), with each longitudinal class standing
+(:func:`~neurotrajectory.data.commands.command_setpoints`), with each longitudinal class standing
 for the median acceleration of its training windows; it is scored by the same metric code as
 every other method. In closed loop it drives GridSim-v0 through the discrete action.
 """
@@ -20,16 +20,17 @@ import numpy as np
 import torch
 from torch import nn
 
-from neurotrajectory.commands import (
+from gridsim.outputs import write_json
+from neurotrajectory.compare.predictors import Setting, observation_batch
+from neurotrajectory.data.commands import (
     LONGITUDINAL,
     N_STEER,
     command_setpoints,
     fit_class_accel,
     steer_angles,
 )
+from neurotrajectory.data.windows import Windows
 from neurotrajectory.model import PRESETS, GridEncoder, NetConfig, window_inputs
-from neurotrajectory.predictors import Setting, observation_batch
-from neurotrajectory.windows import Windows
 
 
 class End2EndNet(nn.Module):
@@ -135,7 +136,7 @@ class End2End:
         folder.mkdir(parents=True, exist_ok=True)
         torch.save(self.net.state_dict(), folder / "end2end.pt")
         meta = {"net": self.net.cfg.to_dict(), "class_accel": self.class_accel.tolist()}
-        (folder / "end2end.json").write_text(json.dumps(meta, indent=1))
+        write_json(folder / "end2end.json", meta)
 
     @classmethod
     def load(cls, folder: str | Path, setting: Setting) -> End2End:

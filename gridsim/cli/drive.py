@@ -1,8 +1,7 @@
-"""A scripted drive: the lane-following ego in a scenario, recording occupancy grids."""
+"""``gridsim drive``: the lane-following ego in a scenario, recording occupancy grids."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import cv2
@@ -10,11 +9,12 @@ import numpy as np
 from tqdm import tqdm
 
 from gridsim.errors import GridSimError
-from gridsim.paths import output_problem
+from gridsim.outputs import output_problem, write_json, write_npz
+from gridsim.render.grids import colourise
 from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
-from gridsim.sensors.occupancy import colourise, observe
+from gridsim.sensors.occupancy import observe
 from gridsim.world.driver import LaneFollower
 
 
@@ -48,7 +48,7 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         grids[k] = observe(sensor, world)
         times[k] = world.time
     out.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(out / "grids.npz", grids=grids, times=times)
+    write_npz(out / "grids.npz", compressed=True, grids=grids, times=times)
     for k in np.linspace(0, steps - 1, min(steps, 5)).astype(int):
         cv2.imwrite(str(out / f"grid_{k:05d}.png"), colourise(grids[k])[:, :, ::-1])
     frame = TopDownRenderer().render(world, grids[-1])
@@ -65,5 +65,5 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         "traffic_active": int(world.traffic.fleet.active.sum()),
         "outputs": sorted(p.name for p in out.iterdir()),
     }
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    write_json(out / "summary.json", summary, indent=2)
     return summary

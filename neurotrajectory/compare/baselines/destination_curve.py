@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from neurotrajectory.compare.predictors import Setting
 from neurotrajectory.curves import CurveLimits, destination_curves
-from neurotrajectory.predictors import Setting
-from neurotrajectory.windows import Windows
+from neurotrajectory.data.windows import Windows
 
 
 class DestinationCurve:

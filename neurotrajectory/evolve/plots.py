@@ -11,6 +11,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from neurotrajectory.evolve.pareto import pick_member  # noqa: E402
+
 #: The objectives as plotted: a member's fitness is the mean over its episodes of each
 #: episode's sum of the per-step terms (l2 and l3 add one value per simulation tick).
 NAMES = (
@@ -39,8 +41,6 @@ def plot_run(out: str | Path, history: list[dict]) -> list[Path]:
     axes[0].legend()
     fig.tight_layout()
     paths.append(_save(fig, folder / "objectives.png"))
-
-    from neurotrajectory.front import pick_member
 
     last, rank = fit[-1], np.array(history[-1]["rank"])
     lost = np.array(history[-1].get("violation", np.zeros(len(last)))) > 0

@@ -3,7 +3,7 @@
 Training from random weights leaves the network close to its constant-velocity prior for
 many generations. With ``--pretrain DATA``, the run first fits one network by
 backpropagation (Adam, mean squared set-point error) to the labelled windows of a dataset
-recorded with ``neurotrajectory record`` (:mod:`neurotrajectory.windows`), starting from the
+recorded with ``neurotrajectory record`` (:mod:`neurotrajectory.data.windows`), starting from the
 run's NumPy-drawn initial weights; generation 0 is then that network (individual 0) and
 mutations of it (``sigma`` times slices of the shared noise table). With ``validation`` > 0
 that share of the tracks is held out of the fit and the epoch whose weights predict them
@@ -17,7 +17,8 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from neurotrajectory.genome import get_genome, set_genome
+from neurotrajectory.data.windows import DatasetError, Windows, split_by_track
+from neurotrajectory.evolve.genome import get_genome, set_genome
 from neurotrajectory.model import (
     TrajectoryNet,
     kinematic_features,
@@ -26,7 +27,6 @@ from neurotrajectory.model import (
     to_ego_frame,
     window_inputs,
 )
-from neurotrajectory.windows import DatasetError, Windows, split_by_track
 
 
 class PretrainError(DatasetError):

@@ -89,3 +89,27 @@ def hypervolume(f: np.ndarray, ref: np.ndarray) -> float:
     if not np.any(keep):
         return 0.0
     return float(moocore.hypervolume(f[keep], ref=np.asarray(ref, dtype=np.float64)))
+
+
+def minimised(fitness: np.ndarray) -> np.ndarray:
+    """Fitness ``[l1, l2, l3]`` as objectives to minimise: ``[l1, l2, -l3]``."""
+    f = np.asarray(fitness, dtype=np.float64)
+    return np.column_stack([f[:, 0], f[:, 1], -f[:, 2]])
+
+
+#: The front members a user can pick: the knee or the best on one objective.
+PICKS = ("knee", "best-l1", "best-l2", "best-l3")
+
+
+def pick_member(fitness: np.ndarray, pick: str) -> int:
+    """Index into the front: ``best-lK`` optimises one objective; ``knee`` is the member
+    closest to the ideal point after scaling each (minimised) objective to [0, 1] over
+    the front."""
+    f = minimised(fitness)
+    if pick == "knee":
+        lo, hi = f.min(axis=0), f.max(axis=0)
+        z = (f - lo) / np.where(hi > lo, hi - lo, 1.0)
+        return int(np.argmin(np.hypot.reduce(z, axis=1)))
+    if pick in PICKS:
+        return int(np.argmin(f[:, PICKS.index(pick) - 1]))
+    raise ValueError(f"unknown pick {pick!r}; choose from {list(PICKS)}")

@@ -1,7 +1,7 @@
 """What every trajectory predictor shares: the setting it predicts in, the batch it reads,
 and the adapter that lets it drive GridSim-v0.
 
-A predictor maps a batch of :class:`~neurotrajectory.windows.Windows` (only the observation
+A predictor maps a batch of :class:`~neurotrajectory.data.windows.Windows` (only the observation
 fields are read) to set-points ``(N, tau_o, 2)`` [m] in the grid frame at the set-point times
 of its :class:`Setting`.
 """
@@ -16,7 +16,7 @@ import numpy as np
 from gridsim.scenario.build import vehicle_params
 from gridsim.scenario.schema import VehicleConfig
 from gridsim.vehicle.kinematics import BicycleParams
-from neurotrajectory.windows import Windows
+from neurotrajectory.data.windows import Windows
 
 
 @dataclass(frozen=True)

@@ -3,9 +3,9 @@
 The baselines: constant velocity, the destination curve (the feasible arc to the given
 destination, no grid: the floor when the destination is known), DWA and End2End.
 
-**Open loop.** For every scenario group (:data:`~neurotrajectory.windows.GROUPS`), the
+**Open loop.** For every scenario group (:data:`~neurotrajectory.data.windows.GROUPS`), the
 labelled windows are split by track; End2End is trained on the train split, and every method
-predicts the held-out windows, scored by :mod:`neurotrajectory.metrics`. NeuroTrajectory is
+predicts the held-out windows, scored by :mod:`neurotrajectory.compare.metrics`. NeuroTrajectory is
 represented by one member of its Pareto front chosen **without** the test data (``pick``,
 the knee by default), and also by the front member with the lowest test RMSE (an optimistic
 pick, labelled as such).
@@ -20,7 +20,6 @@ speed, mean steering rate and the episode fitness vector ``[l1, l2, l3]``.
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -28,16 +27,17 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from gridsim.outputs import write_json
 from gridsim.policies import Reference
-from neurotrajectory.baselines.constant_velocity import ConstantVelocity
-from neurotrajectory.baselines.destination_curve import DestinationCurve
-from neurotrajectory.baselines.dwa import DWA
-from neurotrajectory.baselines.end2end import CommandPolicy, End2End, TrainSettings
-from neurotrajectory.closed_loop import closed_loop
-from neurotrajectory.front import NetPredictor, load_front, pick_member
-from neurotrajectory.metrics import Accuracy, accuracy
-from neurotrajectory.predictors import Setting, TrajectoryPolicy
-from neurotrajectory.windows import (
+from neurotrajectory.compare.baselines.constant_velocity import ConstantVelocity
+from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
+from neurotrajectory.compare.baselines.dwa import DWA
+from neurotrajectory.compare.baselines.end2end import CommandPolicy, End2End, TrainSettings
+from neurotrajectory.compare.closed_loop import closed_loop
+from neurotrajectory.compare.front import NetPredictor, load_front
+from neurotrajectory.compare.metrics import Accuracy, accuracy
+from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
+from neurotrajectory.data.windows import (
     GROUPS,
     Dataset,
     DatasetError,
@@ -48,6 +48,7 @@ from neurotrajectory.windows import (
     save_dataset,
     split_by_track,
 )
+from neurotrajectory.evolve.pareto import pick_member
 
 NT_PICKED = "NeuroTrajectory"
 NT_BEST = "NeuroTrajectory (best member on test)"
@@ -196,7 +197,7 @@ def evaluate(
     """Run the whole comparison; writes tables, plots and models into ``out``.
     NeuroTrajectory is the run in ``run_dir``, or for the groups in ``group_runs`` the run
     given there."""
-    from neurotrajectory.report import write_report
+    from neurotrajectory.compare.report import write_report
 
     out = Path(out)
     check_new_folder(out)
@@ -208,9 +209,9 @@ def evaluate(
     fronts = _load_fronts(runs, cfg.pick)  # fails before anything is written
     data_dir = Path(data_dir) if data_dir is not None else None
     out.mkdir(parents=True, exist_ok=True)
-    (out / "eval_config.json").write_text(json.dumps(
-        {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
-         **asdict(cfg)}, indent=1))  # fmt: skip
+    write_json(out / "eval_config.json",
+               {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
+                **asdict(cfg)})  # fmt: skip
     results = []
     for group in cfg.groups:
         t0 = time.perf_counter()

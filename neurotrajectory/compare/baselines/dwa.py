@@ -42,8 +42,8 @@ import numpy as np
 from gridsim.envs.frames import grid_to_pixel
 from gridsim.sensors.occupancy import FREE, OCCUPIED
 from gridsim.vehicle.kinematics import PSI, V, step_bicycle
-from neurotrajectory.predictors import Setting
-from neurotrajectory.windows import Windows
+from neurotrajectory.compare.predictors import Setting
+from neurotrajectory.data.windows import Windows
 
 
 @dataclass(frozen=True)

@@ -10,46 +10,17 @@ import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
-from neurotrajectory.evolution import minimised
-from neurotrajectory.genome import genome_mismatch, set_genome
+from neurotrajectory.evolve.fitness import net_config_for
+from neurotrajectory.evolve.genome import genome_mismatch, set_genome
+from neurotrajectory.evolve.pareto import pick_member
+from neurotrajectory.evolve.runs import Run, RunError
 from neurotrajectory.model import (
     NetConfig,
+    NetPolicy,
     TrajectoryNet,
-    observation_tensors,
     size_mismatch,
     window_inputs,
 )
-from neurotrajectory.rollout import net_config_for
-from neurotrajectory.train import Run, RunError
-
-PICKS = ("knee", "best-l1", "best-l2", "best-l3")
-
-
-def pick_member(fitness: np.ndarray, pick: str) -> int:
-    """Index into the front: ``best-lK`` optimises one objective; ``knee`` is the member
-    closest to the ideal point after scaling each (minimised) objective to [0, 1] over
-    the front."""
-    f = minimised(fitness)
-    if pick == "knee":
-        lo, hi = f.min(axis=0), f.max(axis=0)
-        z = (f - lo) / np.where(hi > lo, hi - lo, 1.0)
-        return int(np.argmin(np.hypot.reduce(z, axis=1)))
-    if pick in PICKS:
-        return int(np.argmin(f[:, PICKS.index(pick) - 1]))
-    raise RunError(f"unknown pick {pick!r}; choose from {list(PICKS)}")
-
-
-class NetPolicy:
-    """A trained network as a GridSim-v0 policy (trajectory action)."""
-
-    action_type = "trajectory"
-
-    def __init__(self, net: TrajectoryNet) -> None:
-        self.net = net.eval()
-
-    @torch.no_grad()
-    def __call__(self, env, obs, info):
-        return self.net(*observation_tensors(obs))[0].numpy()
 
 
 class NetPredictor:
@@ -115,14 +86,14 @@ def heldout(
     run_dir: str | Path, episodes: int, pick: str = "knee", seconds: float | None = None
 ) -> dict:
     """Closed-loop statistics of the picked front member on ``episodes`` episodes that no
-    generation trained on (:meth:`~neurotrajectory.train.TrainConfig.heldout_seeds`; on a
+    generation trained on (:meth:`~neurotrajectory.evolve.runs.TrainConfig.heldout_seeds`; on a
     recorded scene trained on some ``ego_tracks``, the scene's other tracks that can be the
     ego), each
     ``seconds`` long (default: as long as the training episodes), beside the destination
     curve's on the same episodes."""
-    from neurotrajectory.baselines.destination_curve import DestinationCurve
-    from neurotrajectory.closed_loop import drive_episodes, summarise
-    from neurotrajectory.predictors import Setting, TrajectoryPolicy
+    from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
+    from neurotrajectory.compare.closed_loop import drive_episodes, summarise
+    from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
 
     run, policy, member = load_front_member(run_dir, pick)
     cfg = run.config
@@ -145,7 +116,7 @@ def heldout(
 
 
 def heldout_problem(config) -> str | None:
-    """Why a run of ``config`` (a :class:`~neurotrajectory.train.TrainConfig`) has no held-out
+    """Why a run of ``config`` (a :class:`~neurotrajectory.evolve.runs.TrainConfig`) has no held-out
     episodes (a recorded scene all of whose usable tracks it trains on), or None."""
     if not config.ego_tracks:
         return None

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from neurotrajectory.predictors import Setting
-from neurotrajectory.windows import Windows
+from neurotrajectory.compare.predictors import Setting
+from neurotrajectory.data.windows import Windows
 
 
 def constant_velocity_setpoints(speed: np.ndarray, heading: np.ndarray, times: np.ndarray):

@@ -12,8 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 import time
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
@@ -22,10 +20,11 @@ import numpy as np
 from tqdm import tqdm
 
 from gridsim.errors import GridSimError
-from gridsim.paths import output_problem
-from neurotrajectory.backends import BACKENDS, WorkerSpec, make_backend
-from neurotrajectory.evolution import GAConfig, initial_recipes, minimised, next_generation
-from neurotrajectory.genome import (
+from gridsim.outputs import new_folder_problem, write_json, write_npz
+from neurotrajectory.data.windows import DAGGER_LABELS
+from neurotrajectory.evolve.backends import BACKENDS, WorkerSpec, make_backend
+from neurotrajectory.evolve.evolution import GAConfig, initial_recipes, next_generation
+from neurotrajectory.evolve.genome import (
     apply_recipe,
     genome_mismatch,
     initial_genome,
@@ -33,9 +32,15 @@ from neurotrajectory.genome import (
     set_genome,
     table_size,
 )
-from neurotrajectory.model import PRESETS, PRIORS, NetConfig, TrajectoryNet, size_mismatch
-from neurotrajectory.pareto import hypervolume, non_dominated_sort
-from neurotrajectory.windows import DAGGER_LABELS
+from neurotrajectory.evolve.pareto import hypervolume, minimised, non_dominated_sort
+from neurotrajectory.model import (
+    PRESETS,
+    PRIORS,
+    NetConfig,
+    NetPolicy,
+    TrajectoryNet,
+    size_mismatch,
+)
 
 FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
 PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
@@ -81,7 +86,7 @@ class TrainConfig:
     #: the DAgger windows' total weight in the refit as a share of the human windows' (each
     #: human window weighs 1); None: every window weighs 1, however many were visited
     dagger_weight: float | None = None
-    #: how the DAgger windows are labelled (see :data:`neurotrajectory.windows.DAGGER_LABELS`)
+    #: how the DAgger windows are labelled (see :data:`neurotrajectory.data.windows.DAGGER_LABELS`)
     dagger_labels: str = "rejoin"
 
     #: What configurations saved before these fields existed meant (a stored config without
@@ -192,30 +197,6 @@ class TrainConfig:
     RESUMABLE = ("generations", "backend", "workers", "ray_address", "batch")
 
 
-def _atomic_write(path: Path, write) -> None:
-    """Write through a temporary file in the same folder and rename: never half a file."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-
-
-def _write_json(path: Path, data) -> None:
-    _atomic_write(path, lambda tmp: Path(tmp).write_text(json.dumps(data, indent=1)))
-
-
-def _write_npz(path: Path, **arrays) -> None:
-    def write(tmp):
-        with open(tmp, "wb") as fh:
-            np.savez(fh, **arrays)
-
-    _atomic_write(path, write)
-
-
 class Run:
     """A training run in ``out``."""
 
@@ -232,16 +213,14 @@ class Run:
         network, the pre-training data) before anything is written, so that a failure leaves
         ``out`` as it was."""
         out = Path(out)
-        problem = output_problem(out, directory=True)
+        problem = new_folder_problem(out, hint=f"use --resume {out} or another --out")
         if problem:
             raise RunError(f"--out {out}: {problem}")
-        if out.exists() and any(out.iterdir()):
-            raise RunError(f"{out} exists and is not empty: use --resume {out} or another --out")
         config, windows = _checked(config)
         out.mkdir(parents=True, exist_ok=True)
         run = cls(out, config)
         run._windows = windows
-        _write_json(out / "config.json", {"format": FORMAT_VERSION, "train": asdict(config)})
+        write_json(out / "config.json", {"format": FORMAT_VERSION, "train": asdict(config)})
         return run
 
     @classmethod
@@ -284,7 +263,7 @@ class Run:
                            f"{done} generations the run has done; give >= {done} (or "
                            "leave it out to finish the run as configured)")  # fmt: skip
         if allowed:
-            _write_json(cfg_path, {"format": FORMAT_VERSION, "train": asdict(config)})
+            write_json(cfg_path, {"format": FORMAT_VERSION, "train": asdict(config)})
         return run
 
     def completed_generations(self) -> int:
@@ -388,14 +367,14 @@ class Run:
             )
             history.append(self._record(gen, fitness, violation, rank, stats,
                                         time.perf_counter() - t0, history))  # fmt: skip
-            _write_npz(
+            write_npz(
                 self.out / "checkpoint.npz",
                 generation=np.array(gen),
                 population=population,
                 fitness=fitness,
                 violation=violation,
             )
-            _write_json(self.out / "history.json", {"generations": history})
+            write_json(self.out / "history.json", {"generations": history})
             bar.set_postfix(hv=f"{history[-1]['hypervolume']:.3f}", front=int(np.sum(rank == 0)))
             if gen + 1 < cfg.generations:
                 backend.advance(recipes)
@@ -424,15 +403,14 @@ class Run:
         from there, and fits a fresh start to all windows so far (same seed, same held-out
         tracks, validated on human windows only; ``dagger_weight`` weighs the visited windows),
         so that the network learns to recover from its own mistakes."""
-        from neurotrajectory.front import NetPolicy
-        from neurotrajectory.pretrain import pretrain_genome
-        from neurotrajectory.windows import (
+        from neurotrajectory.data.windows import (
             GENERATED_STRIDE,
             RECORDED_STRIDE,
             Windows,
             drive_windows,
             is_recorded,
         )
+        from neurotrajectory.evolve.warm_start import pretrain_genome
 
         cfg = self.config
         windows, source, episodes = self._pretrain_windows()
@@ -458,7 +436,7 @@ class Run:
                               if k in stats}})  # fmt: skip
         if rounds:
             stats |= {"dagger": rounds, "dagger_weight": cfg.dagger_weight}
-        _write_json(self.out / "pretrain.json", {**source, **stats})
+        write_json(self.out / "pretrain.json", {**source, **stats})
         return base
 
     def _pretrain_windows(self):
@@ -466,7 +444,7 @@ class Run:
         scenario they were recorded on (to drive again): the dataset ``pretrain``, or
         ``pretrain_episodes`` episodes of the training scenario recorded now (training seeds,
         :data:`PRETRAIN_EPISODE_SECONDS` each)."""
-        from neurotrajectory.windows import GENERATED_STRIDE, drive_windows, scenario_episodes
+        from neurotrajectory.data.windows import GENERATED_STRIDE, drive_windows, scenario_episodes
 
         cfg = self.config
         if cfg.pretrain:
@@ -513,7 +491,7 @@ class Run:
         """Write the final front and the plots from the checkpoint and history. With
         ``validation_episodes``, the final population is evaluated again on them (more
         episodes than a generation's, none trained on) and the front is chosen on that."""
-        from neurotrajectory.plots import plot_run
+        from neurotrajectory.evolve.plots import plot_run
 
         ckpt = self.load_checkpoint()
         if ckpt is None:
@@ -526,7 +504,7 @@ class Run:
             violation = np.array([s.get("lost", 0.0) for s in stats])
         rank = non_dominated_sort(minimised(fitness), self._violation(violation))
         members = np.flatnonzero(rank == 0)
-        _write_npz(
+        write_npz(
             self.out / "front.npz",
             genomes=population[members],
             fitness=fitness[members],
@@ -549,7 +527,7 @@ class Run:
             ],  # fmt: skip
             "hypervolume": [h["hypervolume"] for h in self.load_history()],
         }
-        _write_json(self.out / "front.json", summary)
+        write_json(self.out / "front.json", summary)
         plot_run(self.out, self.load_history())
         return summary
 
@@ -563,7 +541,7 @@ def _checked(config: TrainConfig):
     pre-training data (the data's windows, or None), with :func:`_with_training_tracks`."""
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.scenario.loader import load_scenario
-    from neurotrajectory.rollout import net_config_for
+    from neurotrajectory.evolve.fitness import net_config_for
 
     try:
         load_scenario(config.scenario)
@@ -593,7 +571,7 @@ def _checked(config: TrainConfig):
 
 
 def _pretrain_data(folder: str):
-    from neurotrajectory.windows import DatasetError, load_dataset
+    from neurotrajectory.data.windows import DatasetError, load_dataset
 
     try:
         return load_dataset(folder).windows
@@ -604,7 +582,7 @@ def _pretrain_data(folder: str):
 def _dagger_episodes(config: TrainConfig, windows) -> list:
     """The episodes of the training scenario the pre-training ``windows`` were recorded on
     (to drive again); a :class:`RunError` if DAgger rounds need them and there are none."""
-    from neurotrajectory.windows import episodes_of
+    from neurotrajectory.data.windows import episodes_of
 
     episodes = episodes_of(windows, config.scenario, PRETRAIN_EPISODE_SECONDS)
     if config.dagger_rounds and not episodes:
@@ -614,7 +592,7 @@ def _dagger_episodes(config: TrainConfig, windows) -> list:
 
 
 def _check_pretrain_episodes(config: TrainConfig) -> None:
-    from neurotrajectory.windows import is_recorded
+    from neurotrajectory.data.windows import is_recorded
 
     if is_recorded(config.scenario):
         raise RunError(f"--pretrain-episodes: {config.scenario!r} replays a recorded scene; "
@@ -626,7 +604,7 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
     """On a recorded scene with pre-training data (``windows``) and no ``ego_tracks``: the
     data's tracks of that scene, so that the tracks held out of the data are never driven in
     training."""
-    from neurotrajectory.windows import is_recorded
+    from neurotrajectory.data.windows import is_recorded
 
     if config.ego_tracks or windows is None or not is_recorded(config.scenario):
         return config
@@ -650,6 +628,6 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
 def _probe_net(spec_net: NetConfig, scenario: str, overrides: dict) -> TrajectoryNet:
     """The network (on the CPU) with the sizes the scenario dictates."""
     from gridsim.envs.gridsim_env import GridSimEnv
-    from neurotrajectory.rollout import net_config_for
+    from neurotrajectory.evolve.fitness import net_config_for
 
     return TrajectoryNet(net_config_for(GridSimEnv(scenario, **overrides), spec_net))

@@ -98,7 +98,7 @@ def _cmd_import(args: argparse.Namespace) -> int:
 
 
 def _cmd_drive(args: argparse.Namespace) -> int:
-    from gridsim.drive import drive
+    from gridsim.cli.drive import drive
 
     summary = drive(args.scenario, args.seconds, args.seed, Path(args.out), progress=not args.quiet)
     print(json.dumps(summary, indent=2))
@@ -106,7 +106,7 @@ def _cmd_drive(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from gridsim.run import run_policy
+    from gridsim.cli.run import run_policy
 
     summary = run_policy(
         args.scenario, args.policy, args.steps, args.seed, video=args.video,
@@ -169,13 +169,24 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+def run_command(
+    parser: argparse.ArgumentParser,
+    argv: list[str] | None,
+    errors: tuple[type[Exception], ...] = (GridSimError,),
+) -> int:
+    """Parse ``argv`` and run the chosen sub-command's ``func``. An expected error (one of
+    ``errors``: bad input, named by the message) is printed as ``PROG: error: MESSAGE`` with
+    exit status 2, as argparse prints a bad flag; anything else is a bug and raises."""
+    args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except GridSimError as exc:
-        print(f"gridsim: error: {exc}", file=sys.stderr)
+    except errors as exc:
+        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
         return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run_command(build_parser(), argv)
 
 
 if __name__ == "__main__":

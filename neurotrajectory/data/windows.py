@@ -4,7 +4,7 @@ A window is taken at a decision time ``t`` of a GridSim-v0 episode in which the 
 the reference (the human trajectory: recorded on NGSIM scenes, a human profile on generated
 roads). It holds the observation (``tau_i`` grids, ego state, destination), the next
 ``tau_o`` reference set-points (the label), the discrete command they imply
-(:mod:`neurotrajectory.commands`), the ego's size, and the *track* it came from (an NGSIM
+(:mod:`neurotrajectory.data.commands`), the ego's size, and the *track* it came from (an NGSIM
 vehicle or a simulated episode), so that train and test sets never share a track.
 
 On disk a dataset is a folder with ``manifest.json`` (scenario group, seeds, sizes, versions,
@@ -28,11 +28,12 @@ import numpy as np
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError
+from gridsim.outputs import new_folder_problem, write_json, write_npz
 from gridsim.scenario.build import library_for, scene_of
 from gridsim.scenario.collection import load_collection, scenario_files
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.schema import RecordedRoadConfig
-from neurotrajectory.commands import implied_commands
+from neurotrajectory.data.commands import implied_commands
 
 FORMAT_VERSION = 1
 SHARD_SIZE = 256
@@ -393,8 +394,6 @@ def split_by_track(
 # -- storage --------------------------------------------------------------------------------
 def check_new_folder(out: str | Path) -> None:
     """A :class:`DatasetError` unless ``out`` can become a new output folder."""
-    from gridsim.paths import new_folder_problem
-
     problem = new_folder_problem(out)
     if problem:
         raise DatasetError(f"{out}: {problem}")
@@ -410,11 +409,11 @@ def save_dataset(dataset: Dataset, out: str | Path) -> Path:
     for k, start in enumerate(range(0, len(w), SHARD_SIZE)):
         part = w.take(np.arange(start, min(start + SHARD_SIZE, len(w))))
         name = f"shard-{k:05d}.npz"
-        with open(out / name, "wb") as fh:
-            np.savez_compressed(fh, **{f.name: getattr(part, f.name) for f in fields(Windows)})
+        write_npz(out / name, compressed=True,
+                  **{f.name: getattr(part, f.name) for f in fields(Windows)})  # fmt: skip
         shards.append({"file": name, "windows": len(part), "sha256": _sha256(out / name)})
     manifest = {**dataset.manifest, "count": len(w), "shards": shards}
-    (out / "manifest.json").write_text(json.dumps(manifest, indent=1))
+    write_json(out / "manifest.json", manifest)  # last: a folder without it is no dataset
     return out
 
 

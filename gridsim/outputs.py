@@ -1,0 +1,95 @@
+"""Output files and folders: checks made before anything is written, and atomic writes
+(a reader never sees half a file: each is written beside its place and renamed)."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+
+def output_problem(path: str | Path, directory: bool) -> str | None:
+    """Why ``path`` cannot be created (or written) as a folder (``directory``) or a file, or
+    None if it can. Nothing is created."""
+    path = Path(path)
+    if path.is_dir() and not directory:
+        return "is a folder, expected a file"
+    if path.exists() and directory and not path.is_dir():
+        return "is a file, expected a folder"
+    if path.exists():
+        target = path if directory else path.absolute().parent
+    else:
+        target = path.absolute().parent
+        while not target.exists():
+            target = target.parent
+        if not target.is_dir():
+            return f"{target} is a file, not a folder"
+    if not os.access(target, os.W_OK | os.X_OK):
+        return f"{target} is not writable"
+    return None
+
+
+def new_folder_problem(path: str | Path, hint: str = "choose another --out") -> str | None:
+    """Why ``path`` cannot become a new output folder (one that can be created, or an empty
+    one), or None if it can; ``hint`` ends the message about a folder that is not empty."""
+    problem = output_problem(path, directory=True)
+    if problem is None and Path(path).is_dir() and any(Path(path).iterdir()):
+        problem = f"exists and is not empty: {hint}"
+    return problem
+
+
+@contextmanager
+def _beside(path: Path) -> Iterator[str]:
+    """A temporary file beside ``path`` that replaces it when the block ends without an
+    error (and is removed otherwise)."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    os.close(fd)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def atomic_write(path: str | Path, write: Callable[[str], Any]) -> Path:
+    """Call ``write(temporary_path)``, then rename the file to ``path``: never half a file."""
+    path = Path(path)
+    with _beside(path) as tmp:
+        write(tmp)
+    return path
+
+
+@contextmanager
+def atomic_text(path: str | Path) -> Iterator[TextIO]:
+    """A text file (``newline=""``, for :mod:`csv`) that appears at ``path``, whole, when the
+    ``with`` block ends without an error."""
+    with _beside(Path(path)) as tmp, open(tmp, "w", newline="") as fh:
+        yield fh
+
+
+def write_text(path: str | Path, text: str) -> Path:
+    """Write ``text`` to ``path`` atomically."""
+    return atomic_write(path, lambda tmp: Path(tmp).write_text(text))
+
+
+def write_json(path: str | Path, data: Any, indent: int = 1) -> Path:
+    """Write ``data`` as JSON to ``path`` atomically."""
+    return write_text(path, json.dumps(data, indent=indent))
+
+
+def write_npz(path: str | Path, compressed: bool = False, **arrays: np.ndarray) -> Path:
+    """Write ``arrays`` as an ``.npz`` archive to ``path`` atomically."""
+    save = np.savez_compressed if compressed else np.savez
+
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as fh:
+            save(fh, **arrays)
+
+    return atomic_write(path, write)

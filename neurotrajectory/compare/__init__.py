@@ -1,0 +1,1 @@
+"""Evaluation: metrics, baselines, trained fronts, closed loop and the report."""

@@ -1,0 +1,1 @@
+"""Datasets of labelled windows of human driving and the commands they imply."""

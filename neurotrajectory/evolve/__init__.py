@@ -1,0 +1,1 @@
+"""Training: genomes, selection, fitness rollouts, backends, runs and the warm start."""

@@ -1,0 +1,46 @@
+"""Output files and folders: checks before writing, and writes that never leave half a file."""
+
+import csv
+import json
+
+import numpy as np
+import pytest
+
+from gridsim.outputs import atomic_text, new_folder_problem, write_json, write_npz, write_text
+
+
+def test_writes_round_trip_and_leave_no_temporary_files(tmp_path):
+    write_json(tmp_path / "a.json", {"x": [1, 2.5]})
+    write_text(tmp_path / "b.txt", "line\n")
+    write_npz(tmp_path / "c.npz", compressed=True, g=np.arange(6).reshape(2, 3))
+    with atomic_text(tmp_path / "d.csv") as fh:
+        csv.writer(fh).writerow(["t", 0.1])
+    assert json.loads((tmp_path / "a.json").read_text()) == {"x": [1, 2.5]}
+    assert (tmp_path / "b.txt").read_text() == "line\n"
+    with np.load(tmp_path / "c.npz") as f:
+        np.testing.assert_array_equal(f["g"], np.arange(6).reshape(2, 3))
+    assert (tmp_path / "d.csv").read_bytes() == b"t,0.1\r\n"  # csv line ends, untranslated
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.txt", "c.npz", "d.csv"]
+
+
+def test_a_failed_write_keeps_the_old_file_whole(tmp_path):
+    path = write_text(tmp_path / "table.csv", "old\n")
+    with pytest.raises(RuntimeError), atomic_text(path) as fh:
+        fh.write("half a new tab")
+        raise RuntimeError("interrupted")
+    assert path.read_text() == "old\n"
+    with pytest.raises(TypeError):
+        write_json(path, {"not JSON": object()})
+    assert path.read_text() == "old\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["table.csv"]  # no temporary file left
+
+
+def test_new_folders_must_be_empty_and_the_message_says_what_to_do(tmp_path):
+    assert new_folder_problem(tmp_path / "new") is None
+    assert new_folder_problem(tmp_path) is None  # empty
+    write_text(tmp_path / "x", "")
+    assert new_folder_problem(tmp_path) == "exists and is not empty: choose another --out"
+    assert new_folder_problem(tmp_path, hint="use --resume") == (
+        "exists and is not empty: use --resume"
+    )
+    assert new_folder_problem(tmp_path / "x") == "is a file, expected a folder"
