@@ -31,6 +31,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from gridsim.frames import EGO_ACCEL, EGO_COS, EGO_SIN, EGO_SPEED, EGO_STEERING
 from neurotrajectory.curves import CurveLimits, destination_curves
 
 _ACTIVATIONS = {"sigmoid": nn.Sigmoid, "relu": nn.ReLU, "tanh": nn.Tanh}
@@ -40,7 +41,7 @@ DESTINATION_SCALE = 20.0  # m: destination inputs are divided by this
 def constant_velocity_setpoints(ego: torch.Tensor, times: torch.Tensor) -> torch.Tensor:
     """Where the ego would be at ``times`` [s] holding its speed and heading: ``(B, T, 2)`` [m,
     grid frame] from ``ego`` ``(B, 6)`` (speed, ..., cos, sin of the heading)."""
-    speed, cos, sin = ego[:, 0:1], ego[:, 4:5], ego[:, 5:6]
+    speed, cos, sin = (ego[:, k : k + 1] for k in (EGO_SPEED, EGO_COS, EGO_SIN))
     dist = speed * times[None, :]
     return torch.stack([dist * cos, dist * sin], dim=2)
 
@@ -49,7 +50,7 @@ def to_ego_frame(xy: torch.Tensor, ego: torch.Tensor) -> torch.Tensor:
     """Points ``(B, ..., 2)`` [m, grid frame] in the ego frame (x along the heading, y to the
     left), with the heading's cos, sin from ``ego`` ``(B, 6)``."""
     shape = (-1,) + (1,) * (xy.dim() - 2)
-    cos, sin = ego[:, 4].reshape(shape), ego[:, 5].reshape(shape)
+    cos, sin = ego[:, EGO_COS].reshape(shape), ego[:, EGO_SIN].reshape(shape)
     x, y = xy[..., 0], xy[..., 1]
     return torch.stack([x * cos + y * sin, y * cos - x * sin], dim=-1)
 
@@ -57,7 +58,7 @@ def to_ego_frame(xy: torch.Tensor, ego: torch.Tensor) -> torch.Tensor:
 def from_ego_frame(xy: torch.Tensor, ego: torch.Tensor) -> torch.Tensor:
     """The inverse of :func:`to_ego_frame`."""
     shape = (-1,) + (1,) * (xy.dim() - 2)
-    cos, sin = ego[:, 4].reshape(shape), ego[:, 5].reshape(shape)
+    cos, sin = ego[:, EGO_COS].reshape(shape), ego[:, EGO_SIN].reshape(shape)
     x, y = xy[..., 0], xy[..., 1]
     return torch.stack([x * cos - y * sin, x * sin + y * cos], dim=-1)
 
@@ -74,7 +75,9 @@ def kinematic_features(cfg: NetConfig, ego, dest, prior) -> torch.Tensor:
     if prior is None:
         prior = ego.new_zeros(b, cfg.horizon, 2)
     points = to_ego_frame(torch.cat([dest[:, None, :], prior], dim=1), ego)
-    state = torch.stack([ego[:, 0] / v_max, ego[:, 1], ego[:, 2] / a_max], dim=1)
+    state = torch.stack(
+        [ego[:, EGO_SPEED] / v_max, ego[:, EGO_STEERING], ego[:, EGO_ACCEL] / a_max], dim=1
+    )
     return torch.cat([state, points.reshape(b, -1) / DESTINATION_SCALE], dim=1)
 
 

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from gridsim.envs.frames import grid_to_pixel
+from gridsim.frames import grid_to_pixel
 from gridsim.sensors.occupancy import FREE, OCCUPIED, UNKNOWN
 from gridsim.traffic.library import TrajectoryLibrary
 from gridsim.vehicle.kinematics import BicycleParams, box_corners

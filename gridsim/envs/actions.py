@@ -13,7 +13,7 @@ from collections.abc import Callable
 import numpy as np
 from gymnasium import spaces
 
-from gridsim.envs.frames import grid_to_world
+from gridsim.frames import grid_to_world
 from gridsim.road.polyline import Polyline
 from gridsim.vehicle.control import PursuitGains, follow_path
 from gridsim.vehicle.kinematics import PSI, BicycleParams, V, step_bicycle

@@ -12,7 +12,7 @@ Observation (``Dict``):
   (``t + horizon * setpoint_period``), in the grid frame [m].
 
 The grid frame has its origin at the rear axle; its axes are the world's (north_up) or the
-body's (heading_up): see :mod:`gridsim.envs.frames`.
+body's (heading_up): see :mod:`gridsim.frames`.
 
 Reward: float32 ``(3,)`` fitness vector ``[l1, l2, l3]`` for the step (see
 :meth:`GridSimEnv.step`); ``env.unwrapped.reward_space`` describes it (MO-Gymnasium).
@@ -27,10 +27,10 @@ import numpy as np
 from gymnasium import spaces
 
 from gridsim.envs.actions import ACTION_TYPES
-from gridsim.envs.frames import grid_rotation, world_to_grid
 from gridsim.envs.reference import ReferenceTrajectory, human_reference, reference_from_track
 from gridsim.envs.vector import refuse_scalar_reward_vectorization
 from gridsim.errors import ScenarioError
+from gridsim.frames import EGO_FEATURES, grid_rotation, world_to_grid
 from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world, vehicle_params
 from gridsim.scenario.collection import load_collection, pick
@@ -40,14 +40,6 @@ from gridsim.vehicle.kinematics import DELTA, PSI, V
 
 REFERENCE_COLOUR = (255, 255, 255)  # the human reference set-points
 PLAN_COLOUR = (255, 220, 0)  # the last commanded set-points
-EGO_FEATURES = (
-    "speed",
-    "steering_angle",
-    "acceleration",
-    "steering_rate",
-    "cos_heading",
-    "sin_heading",
-)
 
 
 class GridSimEnv(gym.Env):
@@ -95,7 +87,7 @@ class GridSimEnv(gym.Env):
         self._orientation = cfg.sensor.orientation
         self._ticks = cfg.ticks_per_decision
         e = cfg.env
-        self._setpoint_times = e.setpoint_period * np.arange(1, e.horizon + 1)
+        self._setpoint_times = e.setpoint_times
         self.metadata = {**self.metadata, "render_fps": 1.0 / e.decision_period}
         # Spaces depend only on the scenario, not on the episode.
         params = vehicle_params(cfg.ego.vehicle)
@@ -162,7 +154,7 @@ class GridSimEnv(gym.Env):
         track = self.world.ego_track
         if track is not None:
             return reference_from_track(track, self.world.ego_params.center_offset)
-        horizon = cfg.env.horizon * cfg.env.setpoint_period
+        horizon = cfg.env.horizon_time
         return human_reference(self.scenario, seed, cfg.simulation.duration + horizon)
 
     @property

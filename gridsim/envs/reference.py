@@ -21,6 +21,7 @@ import numpy as np
 
 from gridsim.scenario.build import build_world, road_lane_width, synthetic_tracks
 from gridsim.scenario.loader import Scenario
+from gridsim.seeding import Salt, stream
 from gridsim.traffic.library import Track
 from gridsim.traffic.profiles import ProfileChain, SpeedBounds, human_profiles
 from gridsim.world.collision import CollisionChecker
@@ -169,7 +170,7 @@ class HumanReference(ReferenceTrajectory):
         profiles = human_profiles(
             tuple(synthetic_tracks(scenario)), bounds, road_lane_width(scenario)
         )
-        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5EF]))
+        rng = stream(seed, Salt.HUMAN_PROFILE)
         self._chain = ProfileChain(profiles, rng, duration, cfg.simulation.dt, cfg.ego.speed)
         n = len(self._chain.times)
         super().__init__(self._chain.times, np.empty((n, 2)), np.empty(n), np.empty(n))

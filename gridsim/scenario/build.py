@@ -43,6 +43,15 @@ from gridsim.vehicle.kinematics import BicycleParams
 from gridsim.world.collision import EDGE_TOLERANCE, CollisionChecker
 from gridsim.world.world import World
 
+#: Recorded tracks shorter than this [s] are neither human profiles nor egos.
+MIN_TRACK_SECONDS = 2.0
+#: Seamless road held beyond the traffic window [m]: behind it and ahead of it (with the
+#: default window of 80 / 160 m, 150 m behind the ego and 400 m ahead).
+ROAD_MARGIN_BEHIND, ROAD_MARGIN_AHEAD = 70.0, 240.0
+#: An inner-city ego route is as long as the episode at the ego's speed (at least
+#: :data:`ROUTE_MIN_SPEED` [m/s]) plus :data:`ROUTE_MARGIN` [m].
+ROUTE_MIN_SPEED, ROUTE_MARGIN = 5.0, 200.0
+
 
 def vehicle_params(
     cfg: VehicleConfig, length: float | None = None, width: float | None = None
@@ -158,7 +167,9 @@ def _seeds(seed: int) -> tuple[int, np.random.Generator, np.random.Generator]:
 def synthetic_tracks(scenario: Scenario) -> list[Track]:
     """Library tracks usable as human profiles (>= 2 s long, not longer than the limit)."""
     t = scenario.config.traffic
-    tracks = library_for(scenario).select(min_duration=2.0, max_length=t.max_vehicle_length)
+    tracks = library_for(scenario).select(
+        min_duration=MIN_TRACK_SECONDS, max_length=t.max_vehicle_length
+    )
     if not tracks:
         raise ScenarioError(
             f"{scenario.source}: traffic.library has no track of >= 2 s and <= "
@@ -188,8 +199,8 @@ def _build_seamless(scenario: Scenario, seed: int) -> World:
         rc.straight_fraction,
         rc.mean_curve_angle_deg,
         tuple(rc.curve_radius),
-        keep_behind=behind + 70.0,
-        keep_ahead=ahead + 240.0,
+        keep_behind=behind + ROAD_MARGIN_BEHIND,
+        keep_ahead=ahead + ROAD_MARGIN_AHEAD,
     )
     road = SeamlessRoad(params, rc.seed if rc.seed is not None else road_seed)
     ego = vehicle_params(cfg.ego.vehicle)
@@ -227,7 +238,7 @@ def _build_city(scenario: Scenario, seed: int) -> World:
     )
     road = _city_road(params, rc.seed if rc.seed is not None else road_seed)
     ego = vehicle_params(cfg.ego.vehicle)
-    length = max(cfg.ego.speed, 5.0) * cfg.simulation.duration + 200.0
+    length = max(cfg.ego.speed, ROUTE_MIN_SPEED) * cfg.simulation.duration + ROUTE_MARGIN
     route = road.random_route(ego_rng, length)
     start, heading = route.point_at(5.0)
     state = np.array([start[0], start[1], heading, cfg.ego.speed, 0.0])
@@ -287,8 +298,8 @@ def ego_candidates(
         road, tracks = recorded_scene(scenario)
     unfit = unfit_experts(scene_of(scenario), tuple(tracks), road)
     longest = scenario.config.traffic.max_vehicle_length
-    return [t for t in tracks
-            if t.duration >= 2.0 and t.length <= longest and t.track_id not in unfit]  # fmt: skip
+    return [t for t in tracks if t.duration >= MIN_TRACK_SECONDS and t.length <= longest
+            and t.track_id not in unfit]  # fmt: skip
 
 
 def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:

@@ -80,7 +80,7 @@ def scene_problems(scenario: Scenario, road: StaticRoad, tracks: list[Track]) ->
     for tr in tracks:
         out += track_problems(tr, road)
     env = scenario.config.env
-    need = env.horizon * env.setpoint_period
+    need = env.horizon_time
     longest = max(tracks, key=lambda t: t.duration)
     if longest.duration < need:
         out.append(

@@ -13,10 +13,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from gridsim.errors import ScenarioError
 from gridsim.scenario.loader import Scenario, load_scenario
+from gridsim.seeding import Salt, stream
 
 SUFFIXES = (".yaml", ".yml", ".xml")
 #: Keys on which the scenarios of a collection must agree (spaces, time step).
@@ -78,5 +77,5 @@ def pick(scenarios: list[Scenario], seed: int) -> Scenario:
     """The scenario of a collection for an episode seed (the first if there is one)."""
     if len(scenarios) == 1:
         return scenarios[0]
-    rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x5CE7E]))
+    rng = stream(seed, Salt.SCENARIO_PICK)
     return scenarios[int(rng.integers(len(scenarios)))]

@@ -8,7 +8,10 @@ from __future__ import annotations
 
 from typing import Annotated, Literal
 
+import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from gridsim.frames import setpoint_times
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -200,6 +203,16 @@ class EnvConfig(Strict):
         Field(description="[v_min, v_max] counted by l3 [m/s]; default: the traffic bounds"),
     ] = None
     destination_tolerance: Annotated[float, Field(gt=0, le=50)] = 2.0
+
+    @property
+    def setpoint_times(self) -> np.ndarray:
+        """The set-point times [s] after a decision (:func:`gridsim.frames.setpoint_times`)."""
+        return setpoint_times(self.setpoint_period, self.horizon)
+
+    @property
+    def horizon_time(self) -> float:
+        """How far a plan reaches [s]: the last set-point's time."""
+        return self.horizon * self.setpoint_period
 
 
 class ScenarioConfig(Strict):

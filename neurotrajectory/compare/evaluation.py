@@ -29,6 +29,7 @@ from tqdm import tqdm
 
 from gridsim.outputs import write_json
 from gridsim.policies import Reference
+from gridsim.seeding import Salt, stream
 from neurotrajectory.compare.baselines.constant_velocity import ConstantVelocity
 from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
 from neurotrajectory.compare.baselines.dwa import DWA
@@ -169,7 +170,7 @@ def _evaluate_group(
         policies |= {n: TrajectoryPolicy(methods[n])
                      for n in ("constant velocity", "destination curve", "DWA")}  # fmt: skip
         policies |= {"End2End": CommandPolicy(e2e), NT_PICKED: TrajectoryPolicy(nt)}
-        rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0xC10]))
+        rng = stream(cfg.seed, Salt.CLOSED_LOOP_EPISODES)
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
         bar = tqdm(policies.items(), desc=f"closed loop {group} ({len(seeds)} episodes each)",
                    unit="method", leave=False, disable=not progress)  # fmt: skip

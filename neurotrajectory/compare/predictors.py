@@ -13,6 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
+from gridsim.frames import setpoint_times
 from gridsim.scenario.build import vehicle_params
 from gridsim.scenario.schema import VehicleConfig
 from gridsim.vehicle.kinematics import BicycleParams
@@ -31,7 +32,7 @@ class Setting:
 
     @classmethod
     def from_manifest(cls, manifest: dict) -> Setting:
-        times = manifest["setpoint_period"] * np.arange(1, manifest["horizon"] + 1)
+        times = setpoint_times(manifest["setpoint_period"], manifest["horizon"])
         s = manifest["sensor"]
         params = vehicle_params(VehicleConfig(**manifest["vehicle"]))
         return cls(times, float(s["cell_size"]), s["orientation"], params)
@@ -39,7 +40,7 @@ class Setting:
     @classmethod
     def from_env(cls, env) -> Setting:
         cfg = env.unwrapped.cfg
-        times = cfg.env.setpoint_period * np.arange(1, cfg.env.horizon + 1)
+        times = cfg.env.setpoint_times
         params = env.unwrapped.action_kind.params
         return cls(times, cfg.sensor.cell_size, cfg.sensor.orientation, params)
 

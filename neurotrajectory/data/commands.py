@@ -12,7 +12,7 @@ As in the paper, the trajectory of a command is a line segment through the ego a
 commanded direction; the set-points lie on it at the distances the speed and the class's
 acceleration give at the set-point times.
 
-All positions are in the grid frame [m] (see :mod:`gridsim.envs.frames`); ``heading`` is the
+All positions are in the grid frame [m] (see :mod:`gridsim.frames`); ``heading`` is the
 ego's heading in that frame [rad].
 """
 

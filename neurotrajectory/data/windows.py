@@ -28,11 +28,13 @@ import numpy as np
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError
+from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import new_folder_problem, write_json, write_npz
 from gridsim.scenario.build import library_for, scene_of
 from gridsim.scenario.collection import load_collection, scenario_files
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.schema import RecordedRoadConfig
+from gridsim.seeding import Salt, stream
 from neurotrajectory.data.commands import implied_commands
 
 FORMAT_VERSION = 1
@@ -60,7 +62,7 @@ class DatasetError(GridSimError):
 
 @dataclass
 class Windows:
-    """``N`` labelled windows (structure of arrays). Frames: see :mod:`gridsim.envs.frames`."""
+    """``N`` labelled windows (structure of arrays). Frames: see :mod:`gridsim.frames`."""
 
     grids: np.ndarray  # uint8 (N, tau_i, H, W)
     ego: np.ndarray  # float32 (N, 6): speed, steering, accel, steer rate, cos, sin heading
@@ -79,11 +81,11 @@ class Windows:
     @property
     def heading(self) -> np.ndarray:
         """Ego heading [rad] in the grid frame, ``(N,)``."""
-        return np.arctan2(self.ego[:, 5], self.ego[:, 4]).astype(np.float64)
+        return ego_heading(self.ego).astype(np.float64)
 
     @property
     def speed(self) -> np.ndarray:
-        return self.ego[:, 0].astype(np.float64)
+        return self.ego[:, EGO_SPEED].astype(np.float64)
 
     def take(self, index: np.ndarray) -> Windows:
         return Windows(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
@@ -108,8 +110,7 @@ class Dataset:
     @property
     def times(self) -> np.ndarray:
         """Set-point times [s] after the window's decision time, ``(tau_o,)``."""
-        m = self.manifest
-        return m["setpoint_period"] * np.arange(1, m["horizon"] + 1)
+        return setpoint_times(self.manifest["setpoint_period"], self.manifest["horizon"])
 
 
 # -- recording ------------------------------------------------------------------------------
@@ -153,7 +154,7 @@ def scenario_episodes(
     if seeds is None:
         if episodes < 1:
             raise DatasetError(f"episodes must be >= 1, got {episodes}")
-        rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0xDA7A]))
+        rng = stream(seed, Salt.RECORDED_EPISODES)
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=episodes)]
     overrides = {"simulation": {"duration": duration}} if duration else {}
     out = [Episode(f"{scenario}/seed{s}", int(s), overrides) for s in seeds]
@@ -234,7 +235,7 @@ def _episode_windows(
 ) -> Windows | None:
     """One episode of :func:`drive_windows`."""
     obs, info = env.reset(seed=seed)
-    times = env.cfg.env.setpoint_period * np.arange(1, env.cfg.env.horizon + 1)
+    times = env.cfg.env.setpoint_times
     end = env.reference.end_time
     p = env.world.ego_params
     rejoin = policy is not None and labels == "rejoin"
@@ -256,8 +257,8 @@ def _episode_windows(
         return None
     ego = np.stack([r[0]["ego"] for r in rows]).astype(np.float32)
     target = np.stack([r[1] for r in rows]).astype(np.float32)
-    heading = np.arctan2(ego[:, 5], ego[:, 4]).astype(np.float64)
-    steer, longitudinal, accel = implied_commands(target, ego[:, 0], heading, times)
+    heading = ego_heading(ego).astype(np.float64)
+    steer, longitudinal, accel = implied_commands(target, ego[:, EGO_SPEED], heading, times)
     n = len(rows)
     return Windows(
         grids=np.stack([r[0]["grids"] for r in rows]),
@@ -385,7 +386,7 @@ def split_by_track(
     tracks = np.unique(windows.track)
     if len(tracks) < 2:
         raise DatasetError(f"need windows from >= 2 tracks to split, got {len(tracks)}")
-    order = np.random.default_rng(np.random.SeedSequence([seed, 0x5B17])).permutation(len(tracks))
+    order = stream(seed, Salt.TRACK_SPLIT).permutation(len(tracks))
     n_test = min(max(1, int(round(test_fraction * len(tracks)))), len(tracks) - 1)
     held_out = np.isin(windows.track, tracks[order[:n_test]])
     return windows.take(np.flatnonzero(~held_out)), windows.take(np.flatnonzero(held_out))

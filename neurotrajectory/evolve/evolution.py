@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gridsim.seeding import Salt, stream
 from neurotrajectory.evolve.genome import Recipe
 from neurotrajectory.evolve.pareto import minimised, rank_and_crowding
 
@@ -44,7 +45,7 @@ class GAConfig:
 
 def generation_rng(seed: int, generation: int) -> np.random.Generator:
     """The generator of generation ``generation`` (``-1``: the initial population)."""
-    return np.random.default_rng(np.random.SeedSequence([int(seed), int(generation) + 1, 0x6A]))
+    return stream(seed, int(generation) + 1, Salt.GENERATION)
 
 
 def initial_recipes(config: GAConfig, seed: int) -> list[Recipe]:

@@ -14,13 +14,13 @@ import numpy as np
 import torch
 from torch import nn
 
-NOISE_SEED = 0x6E5
+from gridsim.seeding import Salt
 
 
 @lru_cache(maxsize=2)
 def noise_table(size: int) -> np.ndarray:
     """``size`` standard normal float32 numbers (read-only), identical on every machine."""
-    table = np.random.default_rng(NOISE_SEED).standard_normal(size, dtype=np.float32)
+    table = np.random.default_rng(int(Salt.NOISE_TABLE)).standard_normal(size, dtype=np.float32)
     table.flags.writeable = False
     return table
 

@@ -21,6 +21,7 @@ from tqdm import tqdm
 
 from gridsim.errors import GridSimError
 from gridsim.outputs import new_folder_problem, write_json, write_npz
+from gridsim.seeding import Salt, stream
 from neurotrajectory.data.windows import DAGGER_LABELS
 from neurotrajectory.evolve.backends import BACKENDS, WorkerSpec, make_backend
 from neurotrajectory.evolve.evolution import GAConfig, initial_recipes, next_generation
@@ -166,26 +167,26 @@ class TrainConfig:
         drawn anew each generation (``resample_episodes``) or the same for all. Training
         seeds are even; :meth:`heldout_seeds` are odd, so never used in training."""
         salt = [generation] if self.resample_episodes else []
-        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0xE915, *salt]))
+        rng = stream(self.seed, Salt.EPISODES, *salt)
         return tuple(2 * int(s) for s in rng.integers(0, 2**30 - 1, size=self.episodes))
 
     @property
     def pretrain_seeds(self) -> tuple[int, ...]:
         """The episodes recorded for the warm start (``pretrain_episodes``): training seeds
         (even), none of them a generation's or a validation episode."""
-        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0x9E7B]))
+        rng = stream(self.seed, Salt.PRETRAIN_EPISODES)
         return tuple(2 * int(s) for s in rng.integers(0, 2**30 - 1, size=self.pretrain_episodes))
 
     @property
     def validation_seeds(self) -> tuple[int, ...]:
         """The episodes the final front is chosen on: training seeds (even) that no
         generation was evaluated on."""
-        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0x7A11D]))
+        rng = stream(self.seed, Salt.VALIDATION_EPISODES)
         return tuple(2 * int(s) for s in rng.integers(0, 2**30 - 1, size=self.validation_episodes))
 
     def heldout_seeds(self, count: int) -> tuple[int, ...]:
         """``count`` episode seeds that no generation trains on (odd numbers)."""
-        rng = np.random.default_rng(np.random.SeedSequence([self.seed, 0x4E1D]))
+        rng = stream(self.seed, Salt.HELDOUT_EPISODES)
         return tuple(2 * int(s) + 1 for s in rng.integers(0, 2**30 - 1, size=count))
 
     @property
@@ -390,7 +391,7 @@ class Run:
         cfg = self.config
         base = self._warm_start(probe)
         n = len(base)
-        rng = np.random.default_rng(np.random.SeedSequence([cfg.seed, 0x9E7A]))
+        rng = stream(cfg.seed, Salt.WARM_START_MUTATIONS)
         offsets = rng.integers(0, len(table) - n, size=cfg.population)
         population = np.stack([base + np.float32(cfg.sigma) * table[o : o + n] for o in offsets])
         population[0] = base

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
+from gridsim.seeding import Salt, stream
 from neurotrajectory.data.windows import DatasetError, Windows, split_by_track
 from neurotrajectory.evolve.genome import get_genome, set_genome
 from neurotrajectory.model import (
@@ -160,7 +161,7 @@ def pretrain_genome(
         opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
         target = torch.from_numpy(windows.target.astype(np.float32))
         weight = None if weights is None else torch.from_numpy(weights.astype(np.float32))
-        rng = np.random.default_rng(np.random.SeedSequence([seed, 0x9E7]))
+        rng = stream(seed, Salt.WARM_START_BATCHES)
         for _ in range(epochs):
             net.train()
             order = rng.permutation(len(windows))

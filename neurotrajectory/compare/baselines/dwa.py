@@ -39,7 +39,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
-from gridsim.envs.frames import grid_to_pixel
+from gridsim.frames import EGO_SPEED, EGO_STEERING, ego_heading, grid_to_pixel
 from gridsim.sensors.occupancy import FREE, OCCUPIED
 from gridsim.vehicle.kinematics import PSI, V, step_bicycle
 from neurotrajectory.compare.predictors import Setting
@@ -165,14 +165,14 @@ class DWA:
         n = len(batch)
         wheelbase, length, width = (batch.vehicle[:, k].astype(np.float64) for k in range(3))
         ego = batch.ego.astype(np.float64)
-        v0, d0 = ego[:, 0], ego[:, 1]
+        v0, d0 = ego[:, EGO_SPEED], ego[:, EGO_STEERING]
         v_t, d_t, valid = self._window(v0, d0, wheelbase)  # (n, S)
         samples = v_t.shape[1]
         rows = lambda a: np.repeat(a, samples)  # noqa: E731  per-window values per sample
         params = replace(s.params, wheelbase=rows(wheelbase), length=rows(length),
                          width=rows(width), center_offset=rows(0.5 * wheelbase))  # fmt: skip
         state = np.zeros((n * samples, 5))
-        state[:, PSI] = rows(np.arctan2(ego[:, 5], ego[:, 4]))
+        state[:, PSI] = rows(ego_heading(ego))
         state[:, V], state[:, 4] = rows(v0), rows(d0)
         accel = (v_t - v0[:, None]).ravel() / cfg.control_period
         rate = (d_t - d0[:, None]).ravel() / cfg.control_period

@@ -1,8 +1,12 @@
-"""The ego-centred grid frame used by observations, actions and labels.
+"""Frames and layouts shared by the simulator, the environment and the trainer.
 
-Origin at the ego's rear axle. With ``north_up`` grids the axes are parallel to the world's
-(x east, y north); with ``heading_up`` grids they are the body axes (x forward, y left).
-Either way the frame matches the occupancy grid the network sees.
+The ego-centred **grid frame** of observations, actions and labels: origin at the ego's rear
+axle; with ``north_up`` grids the axes are parallel to the world's (x east, y north), with
+``heading_up`` grids they are the body axes (x forward, y left). Either way the frame
+matches the occupancy grid the network sees.
+
+The **set-point times** of a plan, and the **ego feature vector** of an observation
+(:data:`EGO_FEATURES`, read by name through the ``EGO_*`` indices).
 """
 
 from __future__ import annotations
@@ -10,6 +14,27 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+#: The observation's ego vector, in this order (float32; heading in the grid frame).
+EGO_FEATURES = (
+    "speed",  # [m/s]
+    "steering_angle",  # [rad]
+    "acceleration",  # [m/s^2], the last tick's
+    "steering_rate",  # [rad/s], the last tick's
+    "cos_heading",
+    "sin_heading",
+)
+EGO_SPEED, EGO_STEERING, EGO_ACCEL, EGO_STEER_RATE, EGO_COS, EGO_SIN = range(len(EGO_FEATURES))
+
+
+def setpoint_times(period: float, horizon: int) -> np.ndarray:
+    """The times [s] after a decision of a plan's ``horizon`` set-points, ``period`` apart."""
+    return period * np.arange(1, horizon + 1)
+
+
+def ego_heading(ego: np.ndarray) -> np.ndarray:
+    """The heading [rad, grid frame] of ego vectors ``(..., 6)``."""
+    return np.arctan2(ego[..., EGO_SIN], ego[..., EGO_COS])
 
 
 def grid_rotation(orientation: str, psi: float) -> float:

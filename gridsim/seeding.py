@@ -1,0 +1,35 @@
+"""The project's named random streams.
+
+Every random draw derived from a user's seed comes from :func:`stream` with a salt of
+:class:`Salt`, so that no two uses share a stream and each salt is written once. The values
+are fixed forever: changing one changes every result drawn from it.
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+import numpy as np
+
+
+class Salt(IntEnum):
+    """What a random stream is for (simulator, then trainer and evaluation)."""
+
+    HUMAN_PROFILE = 0x5EF  # the generated human reference's speed and lane profile
+    SCENARIO_PICK = 0x5CE7E  # the scenario of a folder or glob an episode seed picks
+    NOISE_TABLE = 0x6E5  # the trainer's shared Gaussian noise table (no user seed)
+    GENERATION = 0x6A  # a generation's selection, crossover and mutation
+    EPISODES = 0xE915  # the training episodes of a generation
+    PRETRAIN_EPISODES = 0x9E7B  # the episodes recorded for the warm start
+    VALIDATION_EPISODES = 0x7A11D  # the episodes the final front is chosen on
+    HELDOUT_EPISODES = 0x4E1D  # episodes no generation trains on
+    WARM_START_MUTATIONS = 0x9E7A  # generation 0 around the fitted network
+    WARM_START_BATCHES = 0x9E7  # the order of the warm start's mini-batches
+    RECORDED_EPISODES = 0xDA7A  # the episode seeds `record` draws
+    TRACK_SPLIT = 0x5B17  # the train / test split by track
+    CLOSED_LOOP_EPISODES = 0xC10  # the evaluation's closed-loop episodes
+
+
+def stream(*entropy: int) -> np.random.Generator:
+    """A generator seeded with ``entropy`` (a user's seed, a :class:`Salt`, more numbers)."""
+    return np.random.default_rng(np.random.SeedSequence([int(e) for e in entropy]))
