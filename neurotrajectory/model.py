@@ -292,6 +292,7 @@ def observation_tensors(obs: dict | list[dict]) -> tuple[torch.Tensor, ...]:
 
 
 def count_parameters(net: nn.Module) -> int:
+    """The network's number of weights: the length of its genome."""
     return sum(p.numel() for p in net.parameters())
 
 

@@ -10,10 +10,9 @@ import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
-from neurotrajectory.evolve.fitness import net_config_for
 from neurotrajectory.evolve.genome import genome_mismatch, set_genome
 from neurotrajectory.evolve.pareto import pick_member
-from neurotrajectory.evolve.runs import Run, RunError
+from neurotrajectory.evolve.runs import Run, RunError, scenario_net_config
 from neurotrajectory.model import (
     NetConfig,
     NetPolicy,
@@ -55,8 +54,7 @@ def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[T
             base = NetConfig.from_dict(json.loads(str(data["net"])))
     except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as exc:
         raise RunError(f"{path}: unreadable front ({type(exc).__name__}: {exc})") from None
-    env = GridSimEnv(run.config.scenario, **run.config.overrides)
-    cfg = net_config_for(env, base)
+    cfg = scenario_net_config(run.config.scenario, run.config.overrides, base)
     nets = []
     for genome in genomes:
         net = TrajectoryNet(cfg)

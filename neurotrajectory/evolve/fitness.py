@@ -21,6 +21,8 @@ import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.scenario.build import vehicle_params
+from gridsim.scenario.schema import ScenarioConfig
 from neurotrajectory.curves import CurveLimits
 from neurotrajectory.model import NetConfig, PopulationNet, TrajectoryNet
 
@@ -38,10 +40,9 @@ class EpisodeStats:
     extra: dict = field(default_factory=dict)
 
 
-def net_config_for(env: GridSimEnv, base: NetConfig) -> NetConfig:
-    """``base`` with the sizes and limits the environment dictates (history, horizon, grid,
-    period, the ego's limits)."""
-    cfg = env.cfg
+def net_config_for(cfg: ScenarioConfig, base: NetConfig) -> NetConfig:
+    """``base`` with the sizes and limits a scenario dictates (history, horizon, grid, period,
+    the ego's limits); no environment is built."""
     if cfg.sensor.rows != cfg.sensor.cols:
         raise ValueError(
             f"the network needs square grids, got {cfg.sensor.rows} x {cfg.sensor.cols}"
@@ -51,7 +52,7 @@ def net_config_for(env: GridSimEnv, base: NetConfig) -> NetConfig:
         "horizon": cfg.env.horizon,
         "grid_size": cfg.sensor.rows,
         "setpoint_period": cfg.env.setpoint_period,
-        "limits": astuple(CurveLimits.from_params(env.action_kind.params)),
+        "limits": astuple(CurveLimits.from_params(vehicle_params(cfg.ego.vehicle))),
     }
     return NetConfig(**{**base.to_dict(), **sizes})
 
@@ -86,7 +87,7 @@ class Evaluator:
         self.seeds = list(seeds)
         self.batch, self.cache = batch, cache
         env = self.envs[0]
-        self.net_cfg = net_config_for(env, net_cfg)
+        self.net_cfg = net_config_for(env.cfg, net_cfg)
         self.net = TrajectoryNet(self.net_cfg).eval()  # the parameter layout of a genome
         self.pop_net = PopulationNet(self.net_cfg)
         cfg = env.cfg

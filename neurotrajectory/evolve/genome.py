@@ -15,6 +15,7 @@ import torch
 from torch import nn
 
 from gridsim.seeding import Salt
+from neurotrajectory.model import count_parameters
 
 
 @lru_cache(maxsize=2)
@@ -36,7 +37,7 @@ def get_genome(net: nn.Module) -> np.ndarray:
 
 def genome_mismatch(net: nn.Module, size: int) -> str | None:
     """Why genomes of ``size`` weights do not fit ``net``, or None if they do."""
-    n = sum(p.numel() for p in net.parameters())
+    n = count_parameters(net)
     if size == n:
         return None
     return (f"genomes of {size} weights, the network has {n}: saved with another preset, "

@@ -40,6 +40,7 @@ from neurotrajectory.model import (
     NetConfig,
     NetPolicy,
     TrajectoryNet,
+    count_parameters,
     size_mismatch,
 )
 
@@ -326,7 +327,7 @@ class Run:
         cfg = self.config
         ga = cfg.ga
         probe = _probe_net(spec_net=self.net_config, scenario=cfg.scenario, overrides=cfg.overrides)
-        n = sum(p.numel() for p in probe.parameters())
+        n = count_parameters(probe)
         table = noise_table(table_size(n))
         history = self.load_history()
         ckpt = self.load_checkpoint()
@@ -558,7 +559,7 @@ def _checked(config: TrainConfig):
         env.reset(seed=0)  # builds a world: the map, the traffic and its library
     except GridSimError as exc:
         raise RunError(f"--scenario {config.scenario}: {exc}") from None
-    probe = TrajectoryNet(net_config_for(env, config.net))
+    probe = TrajectoryNet(net_config_for(env.cfg, config.net))
     windows = None
     if config.pretrain:
         windows = _pretrain_data(config.pretrain)
@@ -628,7 +629,13 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
 
 def _probe_net(spec_net: NetConfig, scenario: str, overrides: dict) -> TrajectoryNet:
     """The network (on the CPU) with the sizes the scenario dictates."""
-    from gridsim.envs.gridsim_env import GridSimEnv
+    return TrajectoryNet(scenario_net_config(scenario, overrides, spec_net))
+
+
+def scenario_net_config(scenario: str, overrides: dict, base: NetConfig) -> NetConfig:
+    """``base`` with the sizes and limits of ``scenario`` (name or path; of a collection, its
+    first file) with ``overrides``."""
+    from gridsim.scenario.collection import load_collection
     from neurotrajectory.evolve.fitness import net_config_for
 
-    return TrajectoryNet(net_config_for(GridSimEnv(scenario, **overrides), spec_net))
+    return net_config_for(load_collection(scenario, overrides)[0].config, base)
