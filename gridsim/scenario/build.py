@@ -79,17 +79,7 @@ def build_sensor(scenario: Scenario) -> OccupancyGridSensor:
     mounts = tuple(
         SensorMount(m.x, m.y, np.deg2rad(m.yaw_deg), np.deg2rad(m.fov_deg)) for m in s.mounts
     )
-    spec = GridSpec(
-        rows=s.rows,
-        cols=s.cols,
-        cell_size=s.cell_size,
-        orientation=s.orientation,
-        max_range=s.max_range,
-        rays=s.rays,
-        hit_depth=s.hit_depth,
-        ray_step=s.ray_step,
-        mounts=mounts,
-    )
+    spec = GridSpec(**s.model_dump(exclude={"mounts"}), mounts=mounts)
     return OccupancyGridSensor(spec)
 
 
@@ -194,11 +184,7 @@ def _build_seamless(scenario: Scenario, seed: int) -> World:
     road_seed, traffic_rng, _ = _seeds(seed)
     behind, ahead = cfg.traffic.window
     params = SeamlessParams(
-        rc.lanes,
-        rc.lane_width,
-        rc.straight_fraction,
-        rc.mean_curve_angle_deg,
-        tuple(rc.curve_radius),
+        **rc.model_dump(exclude={"type", "seed"}),
         keep_behind=behind + ROAD_MARGIN_BEHIND,
         keep_ahead=ahead + ROAD_MARGIN_AHEAD,
     )
@@ -226,16 +212,7 @@ def _build_city(scenario: Scenario, seed: int) -> World:
     cfg = scenario.config
     rc: CityRoadConfig = cfg.road
     road_seed, traffic_rng, ego_rng = _seeds(seed)
-    params = CityParams(
-        rc.blocks_x,
-        rc.blocks_y,
-        rc.block_size,
-        rc.jitter,
-        rc.lanes_per_direction,
-        rc.lane_width,
-        rc.turn_radius,
-        rc.turn_probability,
-    )
+    params = CityParams(**rc.model_dump(exclude={"type", "seed"}))
     road = _city_road(params, rc.seed if rc.seed is not None else road_seed)
     ego = vehicle_params(cfg.ego.vehicle)
     length = max(cfg.ego.speed, ROUTE_MIN_SPEED) * cfg.simulation.duration + ROUTE_MARGIN

@@ -12,6 +12,9 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from gridsim.frames import setpoint_times
+from gridsim.road.city import CityParams
+from gridsim.road.seamless import SeamlessParams
+from gridsim.sensors.occupancy import GridSpec
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -72,15 +75,17 @@ class MountConfig(Strict):
 
 
 class SensorConfig(Strict):
-    rows: Annotated[int, Field(ge=8, le=1024)] = 128
-    cols: Annotated[int, Field(ge=8, le=1024)] = 128
-    cell_size: Annotated[float, Field(gt=0, le=5)] = 0.5
-    orientation: Literal["north_up", "heading_up"] = "north_up"
-    max_range: Annotated[float, Field(gt=0, le=500)] = 50.0
-    rays: Annotated[int, Field(ge=8, le=8192)] = 720
-    hit_depth: Annotated[float, Field(ge=0, le=10)] = 0.5
+    """The occupancy-grid sensor; defaults: :class:`~gridsim.sensors.occupancy.GridSpec`'s."""
+
+    rows: Annotated[int, Field(ge=8, le=1024)] = GridSpec.rows
+    cols: Annotated[int, Field(ge=8, le=1024)] = GridSpec.cols
+    cell_size: Annotated[float, Field(gt=0, le=5)] = GridSpec.cell_size
+    orientation: Literal["north_up", "heading_up"] = GridSpec.orientation
+    max_range: Annotated[float, Field(gt=0, le=500)] = GridSpec.max_range
+    rays: Annotated[int, Field(ge=8, le=8192)] = GridSpec.rays
+    hit_depth: Annotated[float, Field(ge=0, le=10)] = GridSpec.hit_depth
     ray_step: Annotated[float, Field(ge=0.1, le=2.0, description="ray sample spacing [cells]")] = (
-        0.5
+        GridSpec.ray_step
     )
     mounts: Annotated[list[MountConfig], Field(min_length=1, max_length=8)] = [MountConfig()]
 
@@ -116,11 +121,13 @@ class TrafficConfig(Strict):
 class SeamlessRoadConfig(Strict):
     type: Literal["seamless"]
     seed: Seed | None = None
-    lanes: Annotated[int, Field(ge=1, le=8)] = 3
-    lane_width: Annotated[float, Field(ge=2, le=6)] = 3.5
-    straight_fraction: Annotated[float, Field(ge=0, lt=1)] = 0.6
-    mean_curve_angle_deg: Annotated[float, Field(gt=0, le=120)] = 55.0
-    curve_radius: tuple[PositiveFloat, PositiveFloat] = (60.0, 150.0)
+    lanes: Annotated[int, Field(ge=1, le=8)] = SeamlessParams.lanes
+    lane_width: Annotated[float, Field(ge=2, le=6)] = SeamlessParams.lane_width
+    straight_fraction: Annotated[float, Field(ge=0, lt=1)] = SeamlessParams.straight_fraction
+    mean_curve_angle_deg: Annotated[float, Field(gt=0, le=120)] = (
+        SeamlessParams.mean_curve_angle_deg
+    )
+    curve_radius: tuple[PositiveFloat, PositiveFloat] = SeamlessParams.curve_radius
 
     @model_validator(mode="after")
     def _radius(self) -> SeamlessRoadConfig:
@@ -140,14 +147,14 @@ class SeamlessRoadConfig(Strict):
 class CityRoadConfig(Strict):
     type: Literal["inner_city"]
     seed: Seed | None = 0
-    blocks_x: Annotated[int, Field(ge=1, le=40)] = 6
-    blocks_y: Annotated[int, Field(ge=1, le=40)] = 6
-    block_size: Annotated[float, Field(ge=20, le=500)] = 45.0
-    jitter: Annotated[float, Field(ge=0, le=50)] = 6.0
-    lanes_per_direction: Annotated[int, Field(ge=1, le=4)] = 1
-    lane_width: Annotated[float, Field(ge=2, le=6)] = 3.5
-    turn_radius: Annotated[float, Field(ge=3, le=50)] = 18.0
-    turn_probability: Annotated[float, Field(ge=0, le=1)] = 0.85
+    blocks_x: Annotated[int, Field(ge=1, le=40)] = CityParams.blocks_x
+    blocks_y: Annotated[int, Field(ge=1, le=40)] = CityParams.blocks_y
+    block_size: Annotated[float, Field(ge=20, le=500)] = CityParams.block_size
+    jitter: Annotated[float, Field(ge=0, le=50)] = CityParams.jitter
+    lanes_per_direction: Annotated[int, Field(ge=1, le=4)] = CityParams.lanes_per_direction
+    lane_width: Annotated[float, Field(ge=2, le=6)] = CityParams.lane_width
+    turn_radius: Annotated[float, Field(ge=3, le=50)] = CityParams.turn_radius
+    turn_probability: Annotated[float, Field(ge=0, le=1)] = CityParams.turn_probability
 
     @model_validator(mode="after")
     def _jitter(self) -> CityRoadConfig:
