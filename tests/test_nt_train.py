@@ -463,7 +463,7 @@ def test_rollout_says_when_steps_exceed_the_episode(finished_run, tmp_path, caps
 
 
 def test_front_plot_marks_the_knee_and_lost_members(tmp_path, monkeypatch):
-    from neurotrajectory import plots
+    from neurotrajectory.evolve import plots
 
     figures = []
     monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig) or path)
