@@ -35,6 +35,38 @@ def output_problem(path: str | Path, directory: bool) -> str | None:
     return None
 
 
+def read_manifest(
+    folder: str | Path,
+    name: str,
+    what: str,
+    error: type[Exception],
+    formats: tuple[int, ...],
+    keys: tuple[str, ...] = (),
+) -> dict:
+    """The JSON object ``folder/name`` that makes ``folder`` a ``what`` (a run, a dataset),
+    checked: it exists, parses, is an object with ``"format"`` in ``formats`` (the last is
+    today's) and the ``keys``. Anything else raises ``error`` with a message that names the
+    file and what is wrong."""
+    folder = Path(folder)
+    path = folder / name
+    if not path.is_file():
+        raise error(f"{folder} is not a {what} (no {name})")
+    try:
+        doc = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise error(f"{path}: unreadable JSON ({exc})") from None
+    needed = ("format", *keys)
+    if not isinstance(doc, dict) or any(k not in doc for k in needed):
+        kind = {dict: "an object", list: "a list", str: "a string"}.get(type(doc), repr(doc))
+        if isinstance(doc, dict):
+            kind += f" without {', '.join(repr(k) for k in needed if k not in doc)}"
+        raise error(f"{path}: expected an object with {' and '.join(map(repr, needed))}, "
+                    f"got {kind}")  # fmt: skip
+    if doc["format"] not in formats:
+        raise error(f"{path}: format {doc['format']!r}, expected {formats[-1]}")
+    return doc
+
+
 def new_folder_problem(path: str | Path, hint: str = "choose another --out") -> str | None:
     """Why ``path`` cannot become a new output folder (one that can be created, or an empty
     one), or None if it can; ``hint`` ends the message about a folder that is not empty."""

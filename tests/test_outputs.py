@@ -2,11 +2,19 @@
 
 import csv
 import json
+import re
 
 import numpy as np
 import pytest
 
-from gridsim.outputs import atomic_text, new_folder_problem, write_json, write_npz, write_text
+from gridsim.outputs import (
+    atomic_text,
+    new_folder_problem,
+    read_manifest,
+    write_json,
+    write_npz,
+    write_text,
+)
 
 
 def test_writes_round_trip_and_leave_no_temporary_files(tmp_path):
@@ -44,3 +52,24 @@ def test_new_folders_must_be_empty_and_the_message_says_what_to_do(tmp_path):
         "exists and is not empty: use --resume"
     )
     assert new_folder_problem(tmp_path / "x") == "is a file, expected a folder"
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [(None, "is not a thing (no m.json)"),
+     ("{bad", "m.json: unreadable JSON (Expecting property name"),
+     ("[1]", "m.json: expected an object with 'format' and 'items', got a list"),
+     ('{"format": 2}', "m.json: expected an object with 'format' and 'items', got an object "
+                       "without 'items'"),
+     ('{"format": 3, "items": []}', "m.json: format 3, expected 2")],
+)  # fmt: skip
+def test_a_folders_manifest_is_checked_and_errors_name_the_file(tmp_path, content, message):
+    if content is not None:
+        write_text(tmp_path / "m.json", content)
+    with pytest.raises(ValueError, match=re.escape(message)):
+        read_manifest(tmp_path, "m.json", "thing", ValueError, (1, 2), keys=("items",))
+    if content is None:
+        return
+    write_text(tmp_path / "m.json", '{"format": 1, "items": [3]}')  # an older format is read
+    assert read_manifest(tmp_path, "m.json", "thing", ValueError, (1, 2), ("items",)) == {
+        "format": 1, "items": [3]}  # fmt: skip

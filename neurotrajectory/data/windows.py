@@ -29,7 +29,7 @@ import numpy as np
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
-from gridsim.outputs import new_folder_problem, write_json, write_npz
+from gridsim.outputs import new_folder_problem, read_manifest, write_json, write_npz
 from gridsim.scenario.build import library_for, scene_of
 from gridsim.scenario.collection import load_collection, scenario_files
 from gridsim.scenario.loader import load_scenario
@@ -426,15 +426,11 @@ def load_dataset(folder: str | Path) -> Dataset:
     """Read a dataset folder written by :func:`save_dataset`, checking every shard."""
     folder = Path(folder)
     path = folder / "manifest.json"
-    if not path.is_file():
-        raise DatasetError(f"{folder} is not a dataset (no manifest.json)")
-    try:
-        manifest = json.loads(path.read_text())
-        shards = manifest["shards"]
-    except (json.JSONDecodeError, KeyError, TypeError) as exc:
-        raise DatasetError(f"{path}: unreadable manifest ({exc})") from None
-    if manifest.get("format") != FORMAT_VERSION:
-        raise DatasetError(f"{path}: format {manifest.get('format')!r}, expected {FORMAT_VERSION}")
+    manifest = read_manifest(folder, "manifest.json", "dataset", DatasetError, (FORMAT_VERSION,),
+                             keys=("shards",))  # fmt: skip
+    shards = manifest["shards"]
+    if not isinstance(shards, list) or not all(isinstance(s, dict) for s in shards):
+        raise DatasetError(f"{path}: 'shards' must be a list of objects, got {shards!r}")
     parts = []
     for shard in shards:
         file = folder / shard["file"]

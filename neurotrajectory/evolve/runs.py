@@ -20,7 +20,7 @@ import numpy as np
 from tqdm import tqdm
 
 from gridsim.errors import GridSimError
-from gridsim.outputs import new_folder_problem, write_json, write_npz
+from gridsim.outputs import new_folder_problem, read_manifest, write_json, write_npz
 from gridsim.seeding import Salt, stream
 from neurotrajectory.data.windows import DAGGER_LABELS
 from neurotrajectory.evolve.backends import BACKENDS, WorkerSpec, make_backend
@@ -230,23 +230,17 @@ class Run:
         """Reopen a run directory; ``changes`` may only touch :attr:`TrainConfig.RESUMABLE`."""
         out = Path(out)
         cfg_path = out / "config.json"
-        if not cfg_path.is_file():
-            raise RunError(f"{out} is not a run directory (no config.json)")
+        doc = read_manifest(out, "config.json", "run directory", RunError, (1, FORMAT_VERSION),
+                            keys=("train",))  # fmt: skip
+        if not isinstance(doc["train"], dict):
+            raise RunError(f"{cfg_path}: 'train' must be an object, got {doc['train']!r}")
         try:
-            doc = json.loads(cfg_path.read_text())
-            if not isinstance(doc, dict) or not isinstance(doc.get("train"), dict):
-                raise RunError(f"{cfg_path}: expected an object with 'format' and 'train', "
-                               f"got {_json_kind(doc)}")  # fmt: skip
-            if doc.get("format") not in (1, FORMAT_VERSION):
-                raise RunError(
-                    f"{cfg_path}: format {doc.get('format')!r}, expected {FORMAT_VERSION}"
-                )
             known = {f.name for f in fields(TrainConfig)}
             legacy = TrainConfig.LEGACY
             stored = TrainConfig(
                 **{**legacy, **{k: v for k, v in doc["train"].items() if k in known}}
             )
-        except (json.JSONDecodeError, KeyError, TypeError) as exc:
+        except (KeyError, TypeError) as exc:
             raise RunError(f"{cfg_path}: unreadable run configuration ({exc})") from None
         clash = {
             k: (getattr(stored, k), v)
@@ -532,10 +526,6 @@ class Run:
         write_json(self.out / "front.json", summary)
         plot_run(self.out, self.load_history())
         return summary
-
-
-def _json_kind(doc) -> str:
-    return {dict: "an object", list: "a list", str: "a string"}.get(type(doc), repr(doc))
 
 
 def _checked(config: TrainConfig):
