@@ -10,6 +10,7 @@ from pathlib import Path
 import imageio.v2 as imageio
 import numpy as np
 
+from gridsim.envs.episode import Episode, Policy, check_steps, run_episode
 from gridsim.errors import GridSimError
 from gridsim.outputs import output_problem
 
@@ -77,43 +78,54 @@ class VideoWriter:
         self.close()
 
 
-def record_rollout(
+def record_episode(
     env,
-    policy: Callable,
+    policy: Policy,
     path: str | Path | None,
-    steps: int,
+    steps: int | None = None,
     seed: int | None = None,
-    on_step: Callable | None = None,
+    on_step: Callable[[object, dict], None] | None = None,
     overlay: bool = False,
-) -> tuple[Path | None, list[dict]]:
-    """Run ``policy(env, obs, info) -> action`` for up to ``steps`` steps (one episode).
-
-    With a ``path``, the env must be made with ``render_mode="rgb_array"``; one frame per
-    step (plus the first) is written at the environment's real rate. Returns the video path
-    (``None`` without one) and the infos of all steps, each with its ``"reward"``. With
-    ``overlay``, each frame shows the time, the ego's speed and what the dots are."""
-    if steps < 1:
-        raise GridSimError(f"steps must be >= 1, got {steps}")
+) -> tuple[Episode, Path | None]:
+    """:func:`~gridsim.envs.episode.run_episode`, filmed: with a ``path``, the env must be
+    made with ``render_mode="rgb_array"``; one frame per step (plus the first) is written at
+    the environment's real rate, captioned (time, speed, what the dots are) with ``overlay``;
+    ``on_step(env, info)`` after every step. Returns the episode and the video's path
+    (``None`` without one)."""
+    check_steps(steps)
     if path is not None and getattr(env, "render_mode", None) != "rgb_array":
         raise GridSimError("record_rollout needs an environment made with render_mode='rgb_array'")
-    obs, info = env.reset(seed=seed)
-    infos = []
     with contextlib.ExitStack() as stack:
         video = None
         if path is not None:
             video = stack.enter_context(VideoWriter(path, env.metadata.get("render_fps", 10)))
-            video.write(_frame(env, info, overlay))
-        for _ in range(steps):
-            obs, reward, terminated, truncated, info = env.step(policy(env, obs, info))
-            info = {**info, "reward": np.asarray(reward)}
-            infos.append(info)
+
+        def film(env, info: dict) -> None:
             if video is not None:
                 video.write(_frame(env, info, overlay))
+
+        def observe(env, info: dict) -> None:
+            film(env, info)
             if on_step is not None:
-                on_step(info)
-            if terminated or truncated:
-                break
-    return (video.path if video is not None else None), infos
+                on_step(env, info)
+
+        episode = run_episode(env, policy, steps, seed, on_step=observe, on_reset=film)
+    return episode, (video.path if video is not None else None)
+
+
+def record_rollout(
+    env,
+    policy: Policy,
+    path: str | Path | None,
+    steps: int | None,
+    seed: int | None = None,
+    overlay: bool = False,
+) -> tuple[Path | None, list[dict]]:
+    """Run ``policy(env, obs, info) -> action`` for up to ``steps`` steps of one episode
+    (None: until it ends), filmed as :func:`record_episode` films it. Returns the video path
+    (``None`` without one) and the infos of all steps, each with its ``"reward"``."""
+    episode, video = record_episode(env, policy, path, steps, seed, overlay=overlay)
+    return video, episode.infos
 
 
 def _frame(env, info: dict, overlay: bool) -> np.ndarray:

@@ -101,26 +101,21 @@ def _rollout(
     run_dir: str, pick: str, video: str, seed: int, steps: int | None, overlay: bool = False
 ) -> dict:
     from gridsim.envs.gridsim_env import GridSimEnv
-    from gridsim.video import record_rollout
+    from gridsim.video import record_episode
     from neurotrajectory.compare.front import load_front_member
 
     run, policy, member = load_front_member(run_dir, pick)
     env = GridSimEnv(run.config.scenario, render_mode="rgb_array", **run.config.overrides)
-    episode = int(round(env.cfg.simulation.duration / env.cfg.env.decision_period))
+    episode = env.cfg.episode_decisions
     if steps and steps > episode:
         print(f"neurotrajectory: note: --steps {steps} is more than the run's episodes of "
               f"{episode} decisions ({env.cfg.simulation.duration:g} s): the episode ends at "
               f"{episode}", file=sys.stderr)  # fmt: skip
-    max_steps = min(steps or episode, episode)
-    path, infos = record_rollout(env, policy, video, max_steps, seed=seed, overlay=overlay)
-    last = infos[-1] if infos else {}
-    result = {
-        "video": str(path),
-        "member": member,
-        "steps": len(infos),
-        "collision": bool(last.get("collision")),
-        "off_road": bool(last.get("off_road")),
-    }
+    driven, path = record_episode(env, policy, video, min(steps or episode, episode), seed=seed,
+                                  overlay=overlay)  # fmt: skip
+    s = driven.summary()
+    result = {"video": str(path), "member": member,
+              **{k: s[k] for k in ("steps", "collision", "off_road")}}  # fmt: skip
     print(json.dumps(result, indent=1))
     return result
 

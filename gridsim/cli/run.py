@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import numpy as np
 from tqdm import tqdm
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError
 from gridsim.policies import POLICIES
-from gridsim.video import record_rollout
+from gridsim.video import record_episode
 
 
 def run_policy(
@@ -34,26 +33,13 @@ def run_policy(
     bar = tqdm(
         total=steps, desc=f"{policy} on {env.scenario.name}", unit="step", disable=not progress
     )
-    path, infos = record_rollout(env, pol, video, steps, seed, on_step=lambda _: bar.update(),
-                                 overlay=overlay)  # fmt: skip
+    episode, path = record_episode(env, pol, video, steps, seed,
+                                   on_step=lambda *_: bar.update(), overlay=overlay)  # fmt: skip
     bar.close()
-    poses = np.array([i["pose"][:2] for i in infos])
-    fitness = np.sum([i["reward"] for i in infos], axis=0) if infos else np.zeros(3)
-    last = infos[-1] if infos else {}
-    summary = {
-        "scenario": env.scenario.name,
-        "policy": policy,
-        "seed": seed,
-        "steps": len(infos),
-        "simulated_s": round(float(last.get("time", 0.0)), 3),
-        "distance_m": round(float(np.sum(np.hypot(*np.diff(poses, axis=0).T))), 2)
-        if len(poses) > 1
-        else 0.0,
-        "collision": bool(last.get("collision", False)),
-        "off_road": bool(last.get("off_road", False)),
-        "destination_reached": bool(last.get("destination_reached", False)),
-        "fitness_sums": {"l1": float(fitness[0]), "l2": float(fitness[1]), "l3": float(fitness[2])},
-    }
+    s = episode.summary()
+    summary = {"scenario": env.scenario.name, "policy": policy, "seed": seed, **s,
+               "simulated_s": round(s["simulated_s"], 3),
+               "distance_m": round(s["distance_m"], 2)}  # fmt: skip
     if path is not None:
         summary["video"] = str(path)
     return summary

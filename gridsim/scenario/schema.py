@@ -258,6 +258,11 @@ class ScenarioConfig(Strict):
         return round(self.env.decision_period / self.simulation.dt)
 
     @property
+    def episode_decisions(self) -> int:
+        """Decisions (environment steps) in an episode of ``simulation.duration``."""
+        return int(round(self.simulation.duration / self.env.decision_period))
+
+    @property
     def speed_range(self) -> tuple[float, float]:
         """``[v_min, v_max]`` [m/s] inside which l3 counts the speed."""
         return self.env.speed_range or (self.traffic.v_min, self.traffic.v_max)

@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.video import record_rollout
+from gridsim.video import record_episode
 
 #: m: below this the human's path (a car waiting at a light) is no yardstick for progress.
 MIN_HUMAN_PATH = 1.0
@@ -38,25 +38,22 @@ def drive_episodes(
     env = GridSimEnv(scenario, action_type=policy.action_type,
                      render_mode="rgb_array" if video else None,
                      simulation={"duration": seconds}, **({"ego": ego} if ego else {}))  # fmt: skip
-    ticks = env.cfg.ticks_per_decision
+    ticks, dt = env.cfg.ticks_per_decision, env.cfg.simulation.dt
     rows = []
     for k, seed in enumerate(seeds):
-        _, infos = record_rollout(env, policy, video if k == 0 else None, 10**6, seed=seed)
-        fitness = np.sum([i["reward"] for i in infos], axis=0)
-        speeds = [i["pose"][3] for i in infos]
-        last = infos[-1]
-        failed = last["collision"] or last["off_road"]
+        episode, _ = record_episode(env, policy, video if k == 0 else None, seed=seed)
+        s, fitness = episode.summary(), episode.fitness
         ref = env.reference
-        driven = np.vstack([ref.xy[:1], [i["pose"][:2] for i in infos]])
-        human = ref.positions(np.arange(0.0, last["time"] + 1e-9, env.cfg.simulation.dt))
+        driven = np.vstack([ref.xy[:1], episode.poses()[1:, :2]])
+        human = ref.positions(np.arange(0.0, s["simulated_s"] + 1e-9, dt))
         rows.append({
             "seed": int(seed),
-            "completed": float(not failed),
+            "completed": float(not episode.failed),
             "progress": _progress(_length(driven), _length(human)),
-            "collision": float(last["collision"]),
-            "off_road": float(last["off_road"]), "seconds": float(last["time"]),
-            "mean_speed": float(np.mean(speeds)),
-            "mean_steer_rate": float(fitness[1] / (len(infos) * ticks * env.cfg.simulation.dt)),
+            "collision": float(s["collision"]),
+            "off_road": float(s["off_road"]), "seconds": s["simulated_s"],
+            "mean_speed": s["mean_speed"],
+            "mean_steer_rate": float(fitness[1] / (episode.steps * ticks * dt)),
             "l1": float(fitness[0]), "l2": float(fitness[1]), "l3": float(fitness[2]),
         })  # fmt: skip
     return rows

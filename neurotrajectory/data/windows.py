@@ -26,10 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
+from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import new_folder_problem, read_manifest, write_json, write_npz
+from gridsim.policies import Reference
 from gridsim.scenario.build import library_for, scene_of
 from gridsim.scenario.collection import load_collection, scenario_files
 from gridsim.scenario.loader import load_scenario
@@ -230,29 +232,36 @@ def drive_windows(
     return Windows.concat(parts) if parts else None
 
 
+class _WindowTaker:
+    """Drives ``policy`` and, every ``stride`` decisions while the reference covers the whole
+    horizon, takes a window: the observation, the label (with ``rejoin``, the
+    :func:`rejoin_labels` of the reference's set-points) and the time."""
+
+    def __init__(self, stride: int, policy, rejoin: bool) -> None:
+        self.stride, self.policy, self.rejoin = stride, policy, rejoin
+        self.rows: list[tuple] = []
+
+    def reset(self, env: GridSimEnv, info: dict) -> None:
+        self.decisions, self.end = 0, env.reference.end_time
+
+    def __call__(self, env: GridSimEnv, obs: dict, info: dict):
+        t, times = env.world.time, env.cfg.env.setpoint_times
+        if self.decisions % self.stride == 0 and t + times[-1] <= self.end + 1e-6:
+            label = info["reference_setpoints"]
+            if self.rejoin:
+                label = rejoin_labels(label[None], env.reference_in_grid([t]), times)[0]
+            self.rows.append((obs, label, t))
+        self.decisions += 1
+        return self.policy(env, obs, info)
+
+
 def _episode_windows(
     env: GridSimEnv, seed: int, stride: int, track: str, policy=None, labels: str = "rejoin"
 ) -> Windows | None:
     """One episode of :func:`drive_windows`."""
-    obs, info = env.reset(seed=seed)
-    times = env.cfg.env.setpoint_times
-    end = env.reference.end_time
-    p = env.world.ego_params
-    rejoin = policy is not None and labels == "rejoin"
-    rows: list[tuple] = []
-    step = 0
-    while True:
-        t = env.world.time
-        if step % stride == 0 and t + times[-1] <= end + 1e-6:
-            label = info["reference_setpoints"]
-            if rejoin:
-                label = rejoin_labels(label[None], env.reference_in_grid([t]), times)[0]
-            rows.append((obs, label, t))
-        action = info["reference_setpoints"] if policy is None else policy(env, obs, info)
-        obs, _, terminated, truncated, info = env.step(action)
-        step += 1
-        if terminated or truncated:
-            break
+    taker = _WindowTaker(stride, policy or Reference(), policy is not None and labels == "rejoin")
+    run_episode(env, taker, seed=seed, on_reset=taker.reset)
+    rows, times, p = taker.rows, env.cfg.env.setpoint_times, env.world.ego_params
     if not rows:
         return None
     ego = np.stack([r[0]["ego"] for r in rows]).astype(np.float32)

@@ -91,7 +91,7 @@ class Evaluator:
         self.net = TrajectoryNet(self.net_cfg).eval()  # the parameter layout of a genome
         self.pop_net = PopulationNet(self.net_cfg)
         cfg = env.cfg
-        self.max_steps = int(round(cfg.simulation.duration / cfg.env.decision_period))
+        self.max_steps = cfg.episode_decisions
         reach = float(env.action_space.high.max())
         ticks = cfg.ticks_per_decision
         vmax = env.action_kind.params.v_max
