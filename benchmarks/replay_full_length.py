@@ -18,8 +18,9 @@ import json
 from collections import Counter
 
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.scenario.build import library_for, scene_of
+from gridsim.scenario.families.recorded import scene_of
 from gridsim.scenario.loader import load_scenario
+from gridsim.scenario.parts import library_for
 
 RECORDED = ("us101_3_3", "us101_4_1", "lankershim_1_1", "peachtree_4_8")
 NEAR_END = 0.5  # [s]

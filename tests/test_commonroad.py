@@ -9,7 +9,8 @@ import yaml
 
 from gridsim.envs import ENV_ID
 from gridsim.errors import DataError, ScenarioError
-from gridsim.scenario.build import build_world, scene_of
+from gridsim.scenario.build import build_world
+from gridsim.scenario.families.recorded import scene_of
 from gridsim.scenario.loader import load_scenario
 from gridsim.traffic.commonroad import read_tracks_commonroad, scene_id
 from gridsim.traffic.library import TrajectoryLibrary

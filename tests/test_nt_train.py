@@ -489,8 +489,9 @@ def test_a_scenario_whose_world_cannot_be_built_is_refused_before_the_run(tmp_pa
 
 
 def test_heldout_tracks_are_the_usable_tracks_a_run_did_not_train_on():
-    from gridsim.scenario.build import ego_candidates, library_for, scene_of
+    from gridsim.scenario.families.recorded import ego_candidates, scene_of
     from gridsim.scenario.loader import load_scenario
+    from gridsim.scenario.parts import library_for
     from neurotrajectory.compare.front import _other_tracks, heldout_problem
 
     base = load_scenario("us101_4_1")

@@ -10,8 +10,8 @@ import pytest
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.envs.reference import HumanReference, human_reference
-from gridsim.scenario.build import synthetic_tracks
 from gridsim.scenario.loader import load_scenario
+from gridsim.scenario.parts import synthetic_tracks
 from gridsim.traffic.profiles import ProfileChain, SpeedBounds, human_profiles
 
 DIGESTS = json.loads((Path(__file__).parent / "data" / "reference_digests.json").read_text())

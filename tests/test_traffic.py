@@ -281,8 +281,8 @@ def test_csv_not_in_utf8_names_the_file(tmp_path):
 
 
 def test_a_csv_edited_on_disk_is_read_again(tmp_path):
-    from gridsim.scenario.build import library_for
     from gridsim.scenario.loader import load_scenario
+    from gridsim.scenario.parts import library_for
 
     rows = [f"s,1,{k * 0.1:.1f},{k:.1f},0,0,10,4.5,1.8" for k in range(40)]
     write_csv(tmp_path, rows)

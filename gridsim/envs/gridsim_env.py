@@ -28,13 +28,14 @@ from gymnasium import spaces
 
 from gridsim.envs.actions import ACTION_TYPES
 from gridsim.envs.reference import ReferenceTrajectory, human_reference, reference_from_track
-from gridsim.envs.vector import refuse_scalar_reward_vectorization
+from gridsim.envs.vector_guard import refuse_scalar_reward_vectorization
 from gridsim.errors import ScenarioError
 from gridsim.frames import EGO_FEATURES, grid_rotation, world_to_grid
 from gridsim.render.topdown import TopDownRenderer
-from gridsim.scenario.build import build_sensor, build_world, vehicle_params
+from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
 from gridsim.scenario.loader import Scenario
+from gridsim.scenario.parts import vehicle_params
 from gridsim.sensors.occupancy import observe
 from gridsim.vehicle.kinematics import DELTA, PSI, V
 

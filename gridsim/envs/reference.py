@@ -19,8 +19,9 @@ from collections import OrderedDict
 
 import numpy as np
 
-from gridsim.scenario.build import build_world, road_lane_width, synthetic_tracks
+from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import Scenario
+from gridsim.scenario.parts import road_lane_width, synthetic_tracks
 from gridsim.seeding import Salt, stream
 from gridsim.traffic.library import Track
 from gridsim.traffic.profiles import ProfileChain, SpeedBounds, human_profiles

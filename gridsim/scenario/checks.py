@@ -11,10 +11,10 @@ from __future__ import annotations
 import numpy as np
 
 from gridsim.road.base import StaticRoad
-from gridsim.scenario.build import recorded_scene
+from gridsim.scenario.families.recorded import recorded_scene
 from gridsim.scenario.loader import Scenario
 from gridsim.scenario.schema import RecordedRoadConfig
-from gridsim.traffic.library import Track
+from gridsim.traffic.track import Track
 
 #: A track is on another map when more than this share of its positions is off the drivable
 #: area (the shipped scenes: 0 %; maps are cropped, so a few positions may lie beyond them).

@@ -1,8 +1,9 @@
 """Traffic: recorded trajectories, the structure-of-arrays fleet and traffic sources."""
 
 from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
-from gridsim.traffic.library import Track, TrajectoryLibrary
+from gridsim.traffic.library import TrajectoryLibrary
 from gridsim.traffic.sources import CityTraffic, RecordedSceneTraffic, SeamlessTraffic, SpeedBounds
+from gridsim.traffic.track import Track
 
 __all__ = [
     "CityTraffic",

@@ -20,7 +20,7 @@ import numpy as np
 
 from gridsim.errors import DataError
 from gridsim.road.lanelet import parse_commonroad
-from gridsim.traffic.library import Track
+from gridsim.traffic.track import Track
 
 
 def _scene_id(root: ET.Element, path: Path) -> str:

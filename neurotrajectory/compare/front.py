@@ -127,7 +127,7 @@ def heldout_problem(config) -> str | None:
 
 def _other_tracks(scenario: str, trained: tuple[str, ...]) -> list[str]:
     """The ids of ``scenario``'s tracks that can be the ego and are not in ``trained``."""
-    from gridsim.scenario.build import ego_candidates
+    from gridsim.scenario.families.recorded import ego_candidates
     from gridsim.scenario.loader import load_scenario
 
     others = [t.track_id for t in ego_candidates(load_scenario(scenario))

@@ -14,7 +14,7 @@ from typing import Protocol
 import numpy as np
 
 from gridsim.frames import setpoint_times
-from gridsim.scenario.build import vehicle_params
+from gridsim.scenario.parts import vehicle_params
 from gridsim.scenario.schema import VehicleConfig
 from gridsim.vehicle.kinematics import BicycleParams
 from neurotrajectory.data.windows import Windows

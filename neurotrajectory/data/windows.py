@@ -32,9 +32,10 @@ from gridsim.errors import GridSimError
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import new_folder_problem, read_manifest, write_json, write_npz
 from gridsim.policies import Reference
-from gridsim.scenario.build import library_for, scene_of
 from gridsim.scenario.collection import load_collection, scenario_files
+from gridsim.scenario.families.recorded import scene_of
 from gridsim.scenario.loader import load_scenario
+from gridsim.scenario.parts import library_for
 from gridsim.scenario.schema import RecordedRoadConfig
 from gridsim.seeding import Salt, stream
 from neurotrajectory.data.commands import implied_commands

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.scenario.build import vehicle_params
+from gridsim.scenario.parts import vehicle_params
 from gridsim.scenario.schema import ScenarioConfig
 from neurotrajectory.curves import CurveLimits
 from neurotrajectory.model import NetConfig, PopulationNet, TrajectoryNet

@@ -601,8 +601,8 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
     if config.ego_tracks or windows is None or not is_recorded(config.scenario):
         return config
     from gridsim.envs.gridsim_env import GridSimEnv
-    from gridsim.scenario.build import scene_of
     from gridsim.scenario.collection import is_collection
+    from gridsim.scenario.families.recorded import scene_of
 
     if is_collection(config.scenario):
         raise RunError(f"--pretrain on the recorded collection {config.scenario!r}: the tracks "

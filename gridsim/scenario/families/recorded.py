@@ -1,0 +1,169 @@
+"""The recorded family: a CommonRoad lanelet map (:mod:`gridsim.road.lanelet`) with its
+recorded vehicles replayed, one of them the ego (its track is the human reference)."""
+
+from __future__ import annotations
+
+from functools import lru_cache, partial
+
+import numpy as np
+
+from gridsim.errors import DataError, ScenarioError
+from gridsim.road.base import StaticRoad
+from gridsim.road.lanelet import load_lanelet_road
+from gridsim.road.polyline import Polyline
+from gridsim.scenario.loader import Scenario
+from gridsim.scenario.parts import (
+    MIN_TRACK_SECONDS,
+    fixed_route,
+    library_for,
+    map_path,
+    seed_streams,
+    stamped,
+    vehicle_params,
+)
+from gridsim.traffic.commonroad import scene_id
+from gridsim.traffic.sources import RecordedSceneTraffic, track_path
+from gridsim.traffic.track import Track
+from gridsim.vehicle.kinematics import BicycleParams
+from gridsim.world.collision import EDGE_TOLERANCE, CollisionChecker
+from gridsim.world.world import World
+
+
+def scene_of(scenario: Scenario) -> str:
+    """The scene a recorded scenario replays: ``road.scene``, or its map file's scene id."""
+    return scenario.config.road.scene or scene_id(map_path(scenario))
+
+
+@lru_cache(maxsize=8)
+def _lanelet_road(file: tuple[str, int, int]):
+    return load_lanelet_road(file[0])
+
+
+def recorded_scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
+    """The map and the tracks of a recorded scenario (cached)."""
+    road = _lanelet_road(stamped(map_path(scenario)))
+    try:
+        return road, library_for(scenario).scene(scene_of(scenario))
+    except DataError as exc:
+        if "scene" in scenario.config.traffic.library:
+            raise
+        raise DataError(
+            f"{scenario.source}: {exc}; to replay the vehicles of the CommonRoad file itself, "
+            "set traffic.library: [scene] (or give the .xml file as the scenario)"
+        ) from None
+
+
+def build(scenario: Scenario, seed: int) -> World:
+    cfg = scenario.config
+    _, traffic_rng, ego_rng = seed_streams(seed)
+    road, tracks = recorded_scene(scenario)
+    ego_track = _pick_ego_track(scenario, tracks, road, ego_rng)
+    ego = vehicle_params(cfg.ego.vehicle, ego_track.length, ego_track.width)
+    u = np.array([np.cos(ego_track.heading[0]), np.sin(ego_track.heading[0])])
+    rear = np.array([ego_track.x[0], ego_track.y[0]]) - ego.center_offset * u
+    state = np.array([rear[0], rear[1], ego_track.heading[0], ego_track.speed[0], 0.0])
+    state[4] = initial_steering(ego_track, ego)
+    route = Polyline(track_path(ego_track)[0])
+    traffic = RecordedSceneTraffic(tracks, exclude=ego_track.track_id)
+    return World(
+        road,
+        traffic,
+        ego,
+        state,
+        cfg.simulation.dt,
+        partial(fixed_route, route),
+        traffic_rng,
+        ego_track,
+    )
+
+
+def ego_candidates(
+    scenario: Scenario, tracks: list[Track] | None = None, road: StaticRoad | None = None
+) -> list[Track]:
+    """The tracks of a recorded scene that can be the ego: at least 2 s long, not too long a
+    vehicle, and inside the road (``tracks`` and ``road``: the scene's, if already loaded)."""
+    if tracks is None or road is None:
+        road, tracks = recorded_scene(scenario)
+    unfit = unfit_experts(scene_of(scenario), tuple(tracks), road)
+    longest = scenario.config.traffic.max_vehicle_length
+    return [t for t in tracks if t.duration >= MIN_TRACK_SECONDS and t.length <= longest
+            and t.track_id not in unfit]  # fmt: skip
+
+
+def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
+    """The ego's track: ``ego.track`` by id, or drawn from the seed among the fit tracks (at
+    least 2 s long, not too long a vehicle, inside the road) of the scene (``"random"``) or of
+    a list of ids."""
+    cfg, scene = scenario.config, scene_of(scenario)
+    wanted = cfg.ego.track
+    if isinstance(wanted, str) and wanted != "random":
+        match = [t for t in tracks if t.track_id == wanted]
+        if not match:
+            ids = ", ".join(t.track_id for t in tracks)
+            raise ScenarioError(
+                f"{scenario.source}: ego.track {wanted!r} is not in scene {scene!r}; tracks: {ids}"
+            )
+        return match[0]
+    if isinstance(wanted, list):
+        missing = sorted(set(wanted) - {t.track_id for t in tracks})
+        if missing:
+            raise ScenarioError(
+                f"{scenario.source}: ego.track lists {len(missing)} track(s) not in scene "
+                f"{scene!r}: {', '.join(missing[:10])}"
+            )
+    listed = set(wanted) if isinstance(wanted, list) else {t.track_id for t in tracks}
+    fit = [t for t in ego_candidates(scenario, tracks, road) if t.track_id in listed]
+    if not fit:
+        which = "the listed tracks" if isinstance(wanted, list) else f"scene {scene!r}"
+        raise ScenarioError(f"{scenario.source}: {which} have no track >= 2 s to use as ego")
+    return fit[int(rng.integers(len(fit)))]
+
+
+def initial_steering(track: Track, params: BicycleParams) -> float:
+    """Steering angle [rad] matching the curvature of the first second of ``track``."""
+    n = min(len(track.t), 11)
+    dist = float(np.sum(np.hypot(np.diff(track.x[:n]), np.diff(track.y[:n]))))
+    if dist < 1.0:
+        return 0.0
+    curvature = (track.heading[n - 1] - track.heading[0]) / dist
+    delta = np.arctan(params.wheelbase * curvature)
+    return float(np.clip(delta, -params.delta_max, params.delta_max))
+
+
+#: An expert's recorded footprint must stay this far [m] inside the off-road tolerance, so
+#: that tracking it with small errors does not count as leaving the road.
+EXPERT_EDGE_MARGIN = 0.25
+
+
+@lru_cache(maxsize=16)
+def unfit_experts(scene: str, tracks: tuple[Track, ...], road: StaticRoad) -> frozenset[str]:
+    """Tracks that cannot serve as the expert ego because of quirks of the recording: their
+    footprint overlaps another's, or comes within :data:`EXPERT_EDGE_MARGIN` of counting as
+    off the mapped road. The reference must be driveable without collision or leaving it."""
+    import cv2
+
+    bad = set()
+    no_traffic = (np.zeros(0),) * 5
+    for a in tracks:  # the same edge test as the world's
+        checker = CollisionChecker(a.length, a.width, EDGE_TOLERANCE - EXPERT_EDGE_MARGIN)
+        for k in range(len(a.t)):
+            centre = np.array([a.x[k], a.y[k]])
+            checker.set_boundaries(road.boundary_segments(), road.version, centre)
+            if checker.check(centre, float(a.heading[k]), no_traffic, np.zeros(0, int)).boundaries:
+                bad.add(a.track_id)
+                break
+    for i, a in enumerate(tracks):
+        ta = np.round(a.t, 3)
+        for b in tracks[i + 1 :]:
+            tb = np.round(b.t, 3)
+            for t in np.intersect1d(ta, tb):
+                ka, kb = np.searchsorted(ta, t), np.searchsorted(tb, t)
+                reach = 0.5 * (np.hypot(a.length, a.width) + np.hypot(b.length, b.width))
+                if np.hypot(a.x[ka] - b.x[kb], a.y[ka] - b.y[kb]) > reach:
+                    continue
+                ra = ((a.x[ka], a.y[ka]), (a.length, a.width), np.rad2deg(a.heading[ka]))
+                rb = ((b.x[kb], b.y[kb]), (b.length, b.width), np.rad2deg(b.heading[kb]))
+                if cv2.rotatedRectangleIntersection(ra, rb)[0] != cv2.INTERSECT_NONE:
+                    bad |= {a.track_id, b.track_id}
+                    break
+    return frozenset(bad)

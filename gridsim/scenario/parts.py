@@ -1,0 +1,137 @@
+"""What the scenario families share when they build a world: the ego's parameters, files
+named by a scenario (built-in or relative to it), trajectory libraries, the split of a reset
+seed into independent streams, and the human profiles of generated traffic."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+
+from gridsim.errors import ScenarioError
+from gridsim.road.polyline import Polyline
+from gridsim.scenario.loader import Scenario
+from gridsim.scenario.schema import RecordedRoadConfig, VehicleConfig
+from gridsim.traffic.library import TrajectoryLibrary
+from gridsim.traffic.sources import SpeedBounds
+from gridsim.traffic.track import Track
+from gridsim.vehicle.kinematics import BicycleParams
+
+#: Recorded tracks shorter than this [s] are neither human profiles nor egos.
+MIN_TRACK_SECONDS = 2.0
+
+
+def vehicle_params(
+    cfg: VehicleConfig, length: float | None = None, width: float | None = None
+) -> BicycleParams:
+    """Bicycle parameters from the YAML vehicle block (angles converted to radians)."""
+    length = cfg.length if length is None else length
+    width = cfg.width if width is None else width
+    wheelbase = min(cfg.wheelbase, 0.7 * length)
+    return BicycleParams(
+        wheelbase=wheelbase,
+        length=length,
+        width=width,
+        center_offset=0.5 * wheelbase,
+        v_min=cfg.v_min,
+        v_max=cfg.v_max,
+        a_max=cfg.a_max,
+        b_max=cfg.b_max,
+        delta_max=np.deg2rad(cfg.max_steer_deg),
+        v_delta_max=np.deg2rad(cfg.max_steer_rate_deg),
+    )
+
+
+def resolve(scenario: Scenario, ref: str, builtin_dir: tuple[str, ...], suffix: str) -> Path:
+    from importlib import resources
+
+    if ref.startswith("builtin:"):
+        name = ref.split(":", 1)[1]
+        entry = resources.files("gridsim").joinpath(*builtin_dir, name + suffix)
+        if not entry.is_file():
+            raise ScenarioError(f"{scenario.source}: no built-in file {ref!r}")
+        return Path(str(entry))
+    path = Path(ref)
+    if not path.is_absolute() and scenario.base_dir is not None:
+        path = scenario.base_dir / path
+    if not path.is_file():
+        raise ScenarioError(f"{scenario.source}: file not found: {ref!r} (resolved to {path})")
+    return path
+
+
+def stamped(path: Path) -> tuple[str, int, int]:
+    """A file as a cache key: its path, modification time and size, so that a file edited
+    on disk is read again."""
+    st = path.stat()
+    return str(path), st.st_mtime_ns, st.st_size
+
+
+def map_path(scenario: Scenario) -> Path:
+    """The CommonRoad file of a recorded scenario's ``road.map``."""
+    return resolve(scenario, scenario.config.road.map, ("data", "ngsim", "commonroad-xml"), ".xml")
+
+
+def library_for(scenario: Scenario) -> TrajectoryLibrary:
+    """The tracks of ``traffic.library``: ``builtin``, ``scene`` (the recorded map file's
+    dynamic obstacles) and trajectory files (CSV or CommonRoad XML)."""
+    files = []
+    for ref in scenario.config.traffic.library:
+        if ref == "builtin":
+            files.append("builtin")
+        elif ref == "scene":
+            if not isinstance(scenario.config.road, RecordedRoadConfig):
+                raise ScenarioError(
+                    f"{scenario.source}: traffic.library 'scene' needs road.type recorded (the "
+                    "tracks of its CommonRoad map file)"
+                )
+            files.append(stamped(map_path(scenario)))
+        else:
+            files.append(stamped(resolve(scenario, ref, ("data", "ngsim"), ".csv")))
+    return _library(tuple(files))
+
+
+@lru_cache(maxsize=8)
+def _library(files: tuple) -> TrajectoryLibrary:
+    tracks = []
+    for f in files:
+        lib = TrajectoryLibrary.builtin() if f == "builtin" else TrajectoryLibrary.from_files(f[0])
+        tracks += lib.tracks
+    return TrajectoryLibrary(tracks)
+
+
+def seed_streams(seed: int) -> tuple[int, np.random.Generator, np.random.Generator]:
+    road_ss, traffic_ss, ego_ss = np.random.SeedSequence(seed).spawn(3)
+    return (
+        int(road_ss.generate_state(1)[0]),
+        np.random.default_rng(traffic_ss),
+        np.random.default_rng(ego_ss),
+    )
+
+
+def synthetic_tracks(scenario: Scenario) -> list[Track]:
+    """Library tracks usable as human profiles (>= 2 s long, not longer than the limit)."""
+    t = scenario.config.traffic
+    tracks = library_for(scenario).select(
+        min_duration=MIN_TRACK_SECONDS, max_length=t.max_vehicle_length
+    )
+    if not tracks:
+        raise ScenarioError(
+            f"{scenario.source}: traffic.library has no track of >= 2 s and <= "
+            f"{t.max_vehicle_length} m (traffic.max_vehicle_length)"
+        )
+    return tracks
+
+
+def road_lane_width(scenario: Scenario) -> float:
+    """Lane width [m] of a generated road (3.5 m for recorded maps)."""
+    return float(getattr(scenario.config.road, "lane_width", 3.5))
+
+
+def speed_bounds(scenario: Scenario) -> SpeedBounds:
+    t = scenario.config.traffic
+    return SpeedBounds(t.v_min, t.v_max, t.a_max)
+
+
+def fixed_route(route: Polyline) -> Polyline:
+    return route
