@@ -7,6 +7,7 @@ import json
 import math
 import sys
 import time
+from dataclasses import fields
 from pathlib import Path
 
 from gridsim.cli import at_least, run_command
@@ -20,13 +21,11 @@ from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
 from neurotrajectory.model import PRESETS, PRIORS
 
 DEFAULT_OUT = "runs/default"
-_TRAIN_KEYS = (
-    "scenario", "preset", "population", "generations", "episodes", "episode_seconds", "sigma",
-    "seed", "backend", "workers", "ray_address", "pretrain", "pretrain_episodes", "pretrain_epochs",
-    "batch", "prior",
-    "resample_episodes", "constrained", "validation_episodes", "frame", "skip",
-    "pretrain_validation", "dagger_rounds", "dagger_weight", "dagger_labels",
-)  # fmt: skip
+
+
+def _train_flags(args: argparse.Namespace) -> dict:
+    """The ``train`` flags that set :class:`TrainConfig` fields (None where not given)."""
+    return {f.name: getattr(args, f.name) for f in fields(TrainConfig) if hasattr(args, f.name)}
 
 
 def _cmd_train(args: argparse.Namespace) -> int:
@@ -39,10 +38,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
         _check_video(args.video)
     if args.resume:
         # flags that would change the run's results are refused unless they match it
-        run = Run.open(args.resume, **{k: getattr(args, k) for k in _TRAIN_KEYS})
+        run = Run.open(args.resume, **_train_flags(args))
     else:
         defaults = TrainConfig()
-        given = {k: getattr(args, k) for k in _TRAIN_KEYS}
+        given = _train_flags(args)
         config = TrainConfig(
             **{k: (v if v is not None else getattr(defaults, k)) for k, v in given.items()}
         )
