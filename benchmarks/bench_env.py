@@ -51,7 +51,7 @@ def _run(env, steps: int, action_type: str, seeds: list[int]) -> tuple[np.ndarra
 
 def bench_steps(steps: int, action_type: str, cached_reference: bool) -> dict:
     """Steps on the default scenario. A step on a new seed also advances that seed's human
-    reference by a tick (:mod:`gridsim.envs.reference`); with ``cached_reference`` the same
+    reference by a tick (:mod:`gridsim.envs.human_reference`); with ``cached_reference`` the same
     seeds were driven once before, as when a population shares its episode seeds, so only
     the step itself is timed."""
     env = gym.make("GridSim-v0", action_type=action_type)

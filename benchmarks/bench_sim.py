@@ -21,7 +21,7 @@ import numpy as np  # noqa: E402
 
 from gridsim.scenario import build_sensor, build_world, load_scenario  # noqa: E402
 from gridsim.sensors.occupancy import observe  # noqa: E402
-from gridsim.world.driver import LaneFollower  # noqa: E402
+from gridsim.world.scripted_drivers import LaneFollower  # noqa: E402
 
 cv2.setNumThreads(1)
 

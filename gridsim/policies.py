@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gridsim.world.driver import LaneFollower
+from gridsim.world.scripted_drivers import LaneFollower
 
 
 class Idle:

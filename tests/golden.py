@@ -27,7 +27,7 @@ import numpy as np
 
 from gridsim.envs import ENV_ID
 from gridsim.scenario import build_world, load_scenario
-from gridsim.world.driver import LaneFollower
+from gridsim.world.scripted_drivers import LaneFollower
 
 GOLDEN_PATH = Path(__file__).parent / "data" / "golden_digests.json"
 SCENARIOS = ("seamless", "inner_city", "us101_3_3", "us101_4_1", "lankershim_1_1", "peachtree_4_8")

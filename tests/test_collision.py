@@ -6,7 +6,7 @@ import pytest
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import load_scenario
 from gridsim.world.collision import CollisionChecker
-from gridsim.world.driver import LaneFollower
+from gridsim.world.scripted_drivers import LaneFollower
 
 
 def traffic(*poses, length=4.0, width=2.0):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.envs.reference import HumanReference, human_reference
+from gridsim.envs.human_reference import HumanReference, human_reference
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.parts import synthetic_tracks
 from gridsim.traffic.profiles import ProfileChain, SpeedBounds, human_profiles

@@ -8,7 +8,7 @@ import pytest
 from scenes import track, waiting, write_scene
 
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.envs.reference import reference_from_track
+from gridsim.envs.human_reference import reference_from_track
 
 
 def drive_reference(path: Path) -> tuple[GridSimEnv, dict, bool]:

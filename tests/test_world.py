@@ -11,7 +11,7 @@ from gridsim.cli import main
 from gridsim.scenario.build import WORLD_BUILDERS, build_sensor, build_world
 from gridsim.scenario.loader import builtin_scenarios, load_scenario
 from gridsim.sensors import FREE, OCCUPIED, UNKNOWN, observe
-from gridsim.world.driver import LaneFollower
+from gridsim.world.scripted_drivers import LaneFollower
 
 
 def rollout(name, seed, ticks=80):

@@ -15,7 +15,7 @@ from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
 from gridsim.sensors.occupancy import observe
-from gridsim.world.driver import LaneFollower
+from gridsim.world.scripted_drivers import LaneFollower
 
 
 def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = True) -> dict:

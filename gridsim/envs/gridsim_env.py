@@ -27,7 +27,7 @@ import numpy as np
 from gymnasium import spaces
 
 from gridsim.envs.actions import ACTION_TYPES
-from gridsim.envs.reference import ReferenceTrajectory, human_reference, reference_from_track
+from gridsim.envs.human_reference import ReferenceTrajectory, human_reference, reference_from_track
 from gridsim.envs.vector_guard import refuse_scalar_reward_vectorization
 from gridsim.errors import ScenarioError
 from gridsim.frames import EGO_FEATURES, grid_rotation, world_to_grid

@@ -1,4 +1,5 @@
-"""A scripted ego driver: keeps its route (pure pursuit) and its distance (IDM)."""
+"""Scripted ego drivers: the lane follower (route by pure pursuit, distance by IDM) and the
+human driver of the reference's shadow world."""
 
 from __future__ import annotations
 
@@ -10,7 +11,7 @@ from gridsim.traffic.profiles import ProfileChain
 from gridsim.vehicle.control import PursuitGains, follow_path
 from gridsim.vehicle.idm import IDMParams, idm_accel
 from gridsim.vehicle.kinematics import V
-from gridsim.world.driver_kernels import route_leader
+from gridsim.world.scripted_driver_kernels import route_leader
 
 
 class LaneFollower:

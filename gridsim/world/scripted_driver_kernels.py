@@ -1,4 +1,4 @@
-"""Compiled part of the scripted drivers (:mod:`gridsim.world.driver`): the leader on the
+"""Compiled part of the scripted drivers (:mod:`gridsim.world.scripted_drivers`): the leader on the
 route. Same operations, in the same order, as the NumPy code it replaced (same bits)."""
 
 from __future__ import annotations

@@ -1,9 +1,9 @@
-"""Reference trajectories: where a human would drive in this episode.
+"""The human reference: where a human would drive in this episode.
 
 On recorded scenes it is the ego track's own recorded future. On generated roads it is a
 human speed and lane-offset profile replayed along the ego's route, exactly like traffic:
 a shadow copy of the episode's world (same scenario, same seed) is driven by a
-:class:`~gridsim.world.driver.HumanDriver` (which keeps its distance to traffic with IDM),
+:class:`~gridsim.world.scripted_drivers.HumanDriver` (which keeps its distance to traffic with IDM),
 and its ego states are recorded. A policy that follows the reference therefore meets the
 same traffic.
 
@@ -26,7 +26,7 @@ from gridsim.seeding import Salt, stream
 from gridsim.traffic.library import Track
 from gridsim.traffic.profiles import ProfileChain, SpeedBounds, human_profiles
 from gridsim.world.collision import CollisionChecker
-from gridsim.world.driver import HumanDriver
+from gridsim.world.scripted_drivers import HumanDriver
 
 _CACHE: OrderedDict[tuple[str, int], HumanReference] = OrderedDict()
 _CACHE_SIZE = 64
@@ -159,7 +159,8 @@ class HumanReference(ReferenceTrajectory):
     A human keeps its distance: when the shadow world's ego collides (or nearly: see
     :data:`NEAR_MISS_AHEAD`) at sample ``k``, the
     world is rebuilt and replayed to ``k - REVISION_WINDOW`` and driven on giving way to the
-    vehicle hit (:func:`~gridsim.world.driver.conflict_free_accel`) until ``k + YIELD_AFTER``.
+    vehicle hit (:func:`~gridsim.world.scripted_drivers.conflict_free_accel`) until
+    ``k + YIELD_AFTER``.
     A reference that never collides is exactly today's human drive; samples are handed out
     only once no revision can change them, so they do not depend on the order of requests."""
 
