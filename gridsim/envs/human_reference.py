@@ -25,6 +25,7 @@ from gridsim.scenario.parts import road_lane_width, synthetic_tracks
 from gridsim.seeding import Salt, stream
 from gridsim.traffic.library import Track
 from gridsim.traffic.profiles import ProfileChain, SpeedBounds, human_profiles
+from gridsim.vehicle.kinematics import rear_axle_of
 from gridsim.world.collision import CollisionChecker
 from gridsim.world.scripted_drivers import HumanDriver
 
@@ -254,8 +255,7 @@ class HumanReference(ReferenceTrajectory):
 
 def reference_from_track(track: Track, center_offset: float) -> ReferenceTrajectory:
     """The recorded future of ``track`` (footprint centres) as rear-axle positions."""
-    u = np.stack([np.cos(track.heading), np.sin(track.heading)], axis=1)
-    xy = np.stack([track.x, track.y], axis=1) - center_offset * u
+    xy = rear_axle_of(np.stack([track.x, track.y], axis=1), track.heading, center_offset)
     return ReferenceTrajectory(track.t - track.t[0], xy, track.heading.copy(), track.speed.copy())
 
 

@@ -194,6 +194,14 @@ def _step_one(
     return StepResult(out, np.array((v1 - v0) / dt), np.array(vd))
 
 
+def rear_axle_of(centre: np.ndarray, heading, center_offset) -> np.ndarray:
+    """Rear-axle positions ``(..., 2)`` [m] of vehicles whose footprints are centred at
+    ``centre`` ``(..., 2)`` with ``heading`` ``(...)`` [rad] (``center_offset``: see
+    :class:`BicycleParams`)."""
+    u = np.stack([np.cos(heading), np.sin(heading)], axis=-1)
+    return centre - center_offset * u
+
+
 def box_corners(
     x: np.ndarray, y: np.ndarray, psi: np.ndarray, length: np.ndarray, width: np.ndarray
 ) -> np.ndarray:

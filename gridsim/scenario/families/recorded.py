@@ -24,7 +24,7 @@ from gridsim.scenario.parts import (
 from gridsim.traffic.commonroad import scene_id
 from gridsim.traffic.sources import RecordedSceneTraffic, track_path
 from gridsim.traffic.track import Track
-from gridsim.vehicle.kinematics import BicycleParams
+from gridsim.vehicle.kinematics import BicycleParams, rear_axle_of
 from gridsim.world.collision import EDGE_TOLERANCE, CollisionChecker
 from gridsim.world.world import World
 
@@ -59,8 +59,8 @@ def build(scenario: Scenario, seed: int) -> World:
     road, tracks = recorded_scene(scenario)
     ego_track = _pick_ego_track(scenario, tracks, road, ego_rng)
     ego = vehicle_params(cfg.ego.vehicle, ego_track.length, ego_track.width)
-    u = np.array([np.cos(ego_track.heading[0]), np.sin(ego_track.heading[0])])
-    rear = np.array([ego_track.x[0], ego_track.y[0]]) - ego.center_offset * u
+    centre = np.array([ego_track.x[0], ego_track.y[0]])
+    rear = rear_axle_of(centre, ego_track.heading[0], ego.center_offset)
     state = np.array([rear[0], rear[1], ego_track.heading[0], ego_track.speed[0], 0.0])
     state[4] = initial_steering(ego_track, ego)
     route = Polyline(track_path(ego_track)[0])
