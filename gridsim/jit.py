@@ -8,8 +8,8 @@ never used: kernels must give the same bits as the NumPy code they replace.
 
 numba checks a cached kernel against its own source file only: after editing a kernel that
 kernels in other modules call (e.g. ``polyline_kernels.project``, called by
-``driver_kernels.route_leader``), delete the ``__pycache__/*.nbi`` and ``*.nbc`` files of the
-package (a fresh checkout has none), or the callers keep the old code.
+``scripted_driver_kernels.route_leader``), delete the ``__pycache__/*.nbi`` and ``*.nbc``
+files of the package (a fresh checkout has none), or the callers keep the old code.
 """
 
 from __future__ import annotations

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import reprlib
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -53,7 +54,7 @@ def read_manifest(
         raise error(f"{folder} is not a {what} (no {name})")
     try:
         doc = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+    except (OSError, json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise error(f"{path}: unreadable JSON ({exc})") from None
     needed = ("format", *keys)
     if not isinstance(doc, dict) or any(k not in doc for k in needed):
@@ -62,9 +63,14 @@ def read_manifest(
             kind += f" without {', '.join(repr(k) for k in needed if k not in doc)}"
         raise error(f"{path}: expected an object with {' and '.join(map(repr, needed))}, "
                     f"got {kind}")  # fmt: skip
-    if doc["format"] not in formats:
-        raise error(f"{path}: format {doc['format']!r}, expected {formats[-1]}")
+    if isinstance(doc["format"], bool) or doc["format"] not in formats:
+        raise error(f"{path}: format {short_repr(doc['format'])}, expected {formats[-1]}")
     return doc
+
+
+def short_repr(value: Any) -> str:
+    """``repr(value)``, cut to a readable length for an error message."""
+    return reprlib.repr(value)
 
 
 def new_folder_problem(path: str | Path, hint: str = "choose another --out") -> str | None:
@@ -76,6 +82,15 @@ def new_folder_problem(path: str | Path, hint: str = "choose another --out") -> 
     return problem
 
 
+def _mode_for(path: Path) -> int:
+    """The permissions ``path`` keeps, or a new file gets under the process's umask."""
+    if path.exists():
+        return path.stat().st_mode & 0o777
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
+
+
 @contextmanager
 def _beside(path: Path) -> Iterator[str]:
     """A temporary file beside ``path`` that replaces it when the block ends without an
@@ -84,6 +99,7 @@ def _beside(path: Path) -> Iterator[str]:
     os.close(fd)
     try:
         yield tmp
+        os.chmod(tmp, _mode_for(path))  # mkstemp's files are private (0600)
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):

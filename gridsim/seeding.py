@@ -1,7 +1,9 @@
 """The project's named random streams.
 
-Every random draw derived from a user's seed comes from :func:`stream` with a salt of
-:class:`Salt`, so that no two uses share a stream and each salt is written once. The values
+Every salted random stream derived from a user's seed comes from :func:`stream` with a
+:class:`Salt`, so that no two uses share a stream and each salt is written once (a world
+build splits its seed with ``SeedSequence.spawn`` instead, and generators seeded directly by
+a recipe or a road seed need no salt). The values
 are fixed forever: changing one changes every result drawn from it.
 """
 

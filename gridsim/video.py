@@ -94,7 +94,7 @@ def record_episode(
     (``None`` without one)."""
     check_steps(steps)
     if path is not None and getattr(env, "render_mode", None) != "rgb_array":
-        raise GridSimError("record_rollout needs an environment made with render_mode='rgb_array'")
+        raise GridSimError("a video needs an environment made with render_mode='rgb_array'")
     with contextlib.ExitStack() as stack:
         video = None
         if path is not None:
@@ -119,12 +119,15 @@ def record_rollout(
     path: str | Path | None,
     steps: int | None,
     seed: int | None = None,
+    on_step: Callable[[dict], None] | None = None,
     overlay: bool = False,
 ) -> tuple[Path | None, list[dict]]:
     """Run ``policy(env, obs, info) -> action`` for up to ``steps`` steps of one episode
-    (None: until it ends), filmed as :func:`record_episode` films it. Returns the video path
-    (``None`` without one) and the infos of all steps, each with its ``"reward"``."""
-    episode, video = record_episode(env, policy, path, steps, seed, overlay=overlay)
+    (None: until it ends), filmed as :func:`record_episode` films it; ``on_step(info)`` after
+    every step. Returns the video path (``None`` without one) and the infos of all steps,
+    each with its ``"reward"``."""
+    observe = None if on_step is None else (lambda env, info: on_step(info))
+    episode, video = record_episode(env, policy, path, steps, seed, observe, overlay)
     return video, episode.infos
 
 

@@ -45,6 +45,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
         config = TrainConfig(
             **{k: (v if v is not None else getattr(defaults, k)) for k, v in given.items()}
         )
+        if args.dagger_labels is not None and not config.dagger_rounds:
+            raise RunError(f"--dagger-labels {args.dagger_labels} labels the DAgger rounds' "
+                           "windows: give --dagger-rounds >= 1")  # fmt: skip
         run = Run.create(args.out or DEFAULT_OUT, config)
     if args.heldout and (problem := heldout_problem(run.config)):
         print(f"neurotrajectory: note: no held-out report: {problem}", file=sys.stderr)

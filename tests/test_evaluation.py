@@ -2,6 +2,7 @@
 
 import csv
 import json
+import re
 
 import numpy as np
 import pytest
@@ -89,6 +90,16 @@ def test_damaged_datasets_give_clear_errors(tmp_path):
         load_dataset(tmp_path / "d")
     with pytest.raises(DatasetError, match="no manifest.json"):
         load_dataset(tmp_path / "nothing")
+    manifest = tmp_path / "d" / "manifest.json"
+    doc = json.loads(manifest.read_text())
+    cases = (([], "'shards' must be a non-empty list, got []"),
+             ([{"windows": 3}], "shards[0] must be an object with the strings 'file' and "
+                                "'sha256', got {'windows': 3}"),
+             ([{"file": 5, "sha256": "x"}], "shards[0] must be an object"))  # fmt: skip
+    for shards, message in cases:
+        manifest.write_text(json.dumps({**doc, "shards": shards}))
+        with pytest.raises(DatasetError, match=re.escape(f"{manifest}: {message}")):
+            load_dataset(tmp_path / "d")
 
 
 def test_splits_never_share_a_track(data):

@@ -103,3 +103,9 @@ def test_runs_saved_before_the_ego_frame_keep_their_network(tmp_path):
     assert NetConfig.from_dict({"history": 5}).skip is False
     new = Run.open(Run.create(tmp_path / "new", TrainConfig(preset="tiny")).out).config
     assert (new.net.frame, new.net.skip) == ("ego", True)
+    # a format-2 configuration from before dagger_labels: only that field is filled in
+    doc = json.loads((tmp_path / "new" / "config.json").read_text())
+    del doc["train"]["dagger_labels"]
+    (tmp_path / "new" / "config.json").write_text(json.dumps(doc))
+    before = Run.open(tmp_path / "new").config
+    assert before.dagger_labels == "human" and (before.frame, before.skip) == ("ego", True)

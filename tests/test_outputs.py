@@ -2,6 +2,7 @@
 
 import csv
 import json
+import os
 import re
 
 import numpy as np
@@ -29,6 +30,18 @@ def test_writes_round_trip_and_leave_no_temporary_files(tmp_path):
         np.testing.assert_array_equal(f["g"], np.arange(6).reshape(2, 3))
     assert (tmp_path / "d.csv").read_bytes() == b"t,0.1\r\n"  # csv line ends, untranslated
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.json", "b.txt", "c.npz", "d.csv"]
+
+
+def test_written_files_have_the_usual_permissions(tmp_path):
+    old = os.umask(0o022)
+    try:
+        path = write_text(tmp_path / "new.txt", "a")
+        assert path.stat().st_mode & 0o777 == 0o644  # not mkstemp's private 0600
+        path.chmod(0o640)
+        write_text(path, "b")  # a replaced file keeps its permissions
+        assert path.stat().st_mode & 0o777 == 0o640 and path.read_text() == "b"
+    finally:
+        os.umask(old)
 
 
 def test_a_failed_write_keeps_the_old_file_whole(tmp_path):

@@ -349,6 +349,11 @@ def test_a_dagger_weight_without_rounds_is_refused_before_the_run(tmp_path, caps
     assert "dagger_weight must be a finite number > 0, got -1.0" in capsys.readouterr().err
     assert main([*args[:3], *args[5:], "--dagger-weight", "0.5"]) == 2
     assert "give dagger_rounds >= 1" in capsys.readouterr().err
+    assert main([*args[:3], *args[5:], "--dagger-labels", "human"]) == 2
+    assert "--dagger-labels human labels the DAgger rounds' windows: give --dagger-rounds >= 1" in (
+        capsys.readouterr().err
+    )
+    assert not out.exists()
     assert not out.exists()
 
 

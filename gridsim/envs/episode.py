@@ -1,6 +1,7 @@
-"""One episode of GridSim-v0 driven by a policy: the loop every driver of the environment
-uses (videos, ``gridsim run``, closed-loop evaluation, rollouts of trained networks), and
-the one summary of how it went."""
+"""One episode of GridSim-v0 driven by a policy: the loop the drivers of one environment
+use (videos, ``gridsim run``, the closed-loop evaluation, rollouts of trained networks, the
+window recorder), and the one summary of how it went. The trainer's fitness rollouts step
+many environments in lockstep instead (:class:`neurotrajectory.evolve.fitness.Evaluator`)."""
 
 from __future__ import annotations
 

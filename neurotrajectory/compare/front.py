@@ -10,9 +10,10 @@ import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
+from neurotrajectory.evolve.fitness import scenario_net_config
 from neurotrajectory.evolve.genome import genome_mismatch, set_genome
 from neurotrajectory.evolve.pareto import pick_member
-from neurotrajectory.evolve.runs import Run, RunError, scenario_net_config
+from neurotrajectory.evolve.runs import Run, RunError
 from neurotrajectory.model import (
     NetConfig,
     NetPolicy,

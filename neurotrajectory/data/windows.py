@@ -30,7 +30,7 @@ from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
-from gridsim.outputs import new_folder_problem, read_manifest, write_json, write_npz
+from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write_json, write_npz
 from gridsim.policies import Reference
 from gridsim.scenario.collection import load_collection, scenario_files
 from gridsim.scenario.families.recorded import scene_of
@@ -122,7 +122,7 @@ RECORDED_STRIDE, GENERATED_STRIDE = 1, 5
 
 
 @dataclass(frozen=True)
-class Episode:
+class PlannedEpisode:
     """One episode to record: the track label its windows carry, its reset seed and the
     :class:`GridSimEnv` overrides that select it (the ego track, the duration)."""
 
@@ -138,7 +138,7 @@ def scenario_episodes(
     duration: float | None = None,
     seeds: list[int] | None = None,
     tracks: Iterable[str] | None = None,
-) -> tuple[list[Episode], dict]:
+) -> tuple[list[PlannedEpisode], dict]:
     """The episodes of ``scenario`` to record and their provenance. On a recorded scene, every
     track (or the ids in ``tracks``) is driven once as the ego for its recorded duration
     (``episodes`` and ``seed`` do not apply); elsewhere ``episodes`` episodes with seeds drawn
@@ -149,7 +149,7 @@ def scenario_episodes(
         wanted = None if tracks is None else {str(t) for t in tracks}
         chosen = [t for t in library_for(base).scene(scene)
                   if wanted is None or t.track_id in wanted]  # fmt: skip
-        out = [Episode(f"{scene}/{t.track_id}", 0,
+        out = [PlannedEpisode(f"{scene}/{t.track_id}", 0,
                        {"ego": {"track": t.track_id},
                         "simulation": {"duration": max(float(t.duration), 0.1)}})
                for t in chosen]  # fmt: skip
@@ -160,11 +160,13 @@ def scenario_episodes(
         rng = stream(seed, Salt.RECORDED_EPISODES)
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=episodes)]
     overrides = {"simulation": {"duration": duration}} if duration else {}
-    out = [Episode(f"{scenario}/seed{s}", int(s), overrides) for s in seeds]
+    out = [PlannedEpisode(f"{scenario}/seed{s}", int(s), overrides) for s in seeds]
     return out, {"episodes": len(out), "episode_seeds": [int(s) for s in seeds]}
 
 
-def episodes_of(windows: Windows, scenario: str, duration: float | None = None) -> list[Episode]:
+def episodes_of(
+    windows: Windows, scenario: str, duration: float | None = None
+) -> list[PlannedEpisode]:
     """The episodes of ``scenario`` that ``windows`` were recorded from (by their track
     labels, in order; windows of other scenarios are ignored), to drive them again;
     ``duration`` [s] for generated scenarios (recorded tracks keep their own)."""
@@ -188,7 +190,7 @@ DAGGER_LABELS = ("rejoin", "human")
 
 def rejoin_labels(target: np.ndarray, offset: np.ndarray, times: np.ndarray) -> np.ndarray:
     """Set-points ``(N, tau_o, 2)`` that lead from the ego back onto the human's path:
-    ``target`` (the human's next set-points, ego frame) minus ``offset`` ``(N, 2)`` (where
+    ``target`` (the human's next set-points, grid frame) minus ``offset`` ``(N, 2)`` (where
     the human is now, same frame) times ``1 - b(t / t_end)`` at set-point ``times`` [s], with
     the smooth step ``b(s) = 3 s^2 - 2 s^3``: the label starts at the ego, keeps its offset
     at first and merges with the human's path at the end of the horizon (the destination).
@@ -201,7 +203,7 @@ def rejoin_labels(target: np.ndarray, offset: np.ndarray, times: np.ndarray) -> 
 
 def drive_windows(
     scenario: str,
-    episodes: list[Episode],
+    episodes: list[PlannedEpisode],
     stride: int,
     policy=None,
     progress: Callable[[int], None] | None = None,
@@ -439,8 +441,13 @@ def load_dataset(folder: str | Path) -> Dataset:
     manifest = read_manifest(folder, "manifest.json", "dataset", DatasetError, (FORMAT_VERSION,),
                              keys=("shards",))  # fmt: skip
     shards = manifest["shards"]
-    if not isinstance(shards, list) or not all(isinstance(s, dict) for s in shards):
-        raise DatasetError(f"{path}: 'shards' must be a list of objects, got {shards!r}")
+    if not isinstance(shards, list) or not shards:
+        raise DatasetError(f"{path}: 'shards' must be a non-empty list, got {short_repr(shards)}")
+    for k, shard in enumerate(shards):
+        if not (isinstance(shard, dict) and isinstance(shard.get("file"), str)
+                and isinstance(shard.get("sha256"), str)):  # fmt: skip
+            raise DatasetError(f"{path}: shards[{k}] must be an object with the strings 'file' "
+                               f"and 'sha256', got {short_repr(shard)}")  # fmt: skip
     parts = []
     for shard in shards:
         file = folder / shard["file"]

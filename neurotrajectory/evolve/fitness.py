@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.scenario.collection import load_collection
 from gridsim.scenario.parts import vehicle_params
 from gridsim.scenario.schema import ScenarioConfig
 from neurotrajectory.curves import CurveLimits
@@ -55,6 +56,12 @@ def net_config_for(cfg: ScenarioConfig, base: NetConfig) -> NetConfig:
         "limits": astuple(CurveLimits.from_params(vehicle_params(cfg.ego.vehicle))),
     }
     return NetConfig(**{**base.to_dict(), **sizes})
+
+
+def scenario_net_config(scenario: str, overrides: dict, base: NetConfig) -> NetConfig:
+    """:func:`net_config_for` the scenario ``scenario`` (name or path; of a collection, its
+    first file) with ``overrides``."""
+    return net_config_for(load_collection(scenario, overrides)[0].config, base)
 
 
 class Evaluator:
@@ -112,9 +119,9 @@ class Evaluator:
 
     def evaluate_many(self, population, seeds=None) -> list[tuple[np.ndarray, EpisodeStats]]:
         """:meth:`evaluate` for every row of ``population`` ``(K, n)`` float32, ``batch`` rows at
-        a time, on the episodes ``seeds`` (default: the evaluator's). Rows
-        already in 64-byte aligned storage (see :func:`aligned_rows`; strided views of it too)
-        are used in place, others are copied once."""
+        a time, on the episodes ``seeds`` (default: the evaluator's). Rows already in 64-byte
+        aligned storage (see :func:`~neurotrajectory.model.aligned_rows`; strided views of it
+        too) are used in place, others are copied once."""
         seeds = self.seeds if seeds is None else [int(s) for s in seeds]
         if not seeds:
             raise ValueError("need at least one episode seed")

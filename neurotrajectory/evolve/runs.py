@@ -22,9 +22,21 @@ from tqdm import tqdm
 from gridsim.errors import GridSimError
 from gridsim.outputs import new_folder_problem, read_manifest, write_json, write_npz
 from gridsim.seeding import Salt, stream
-from neurotrajectory.data.windows import DAGGER_LABELS
+from neurotrajectory.data.windows import (
+    DAGGER_LABELS,
+    GENERATED_STRIDE,
+    RECORDED_STRIDE,
+    DatasetError,
+    Windows,
+    drive_windows,
+    episodes_of,
+    is_recorded,
+    load_dataset,
+    scenario_episodes,
+)
 from neurotrajectory.evolve.backends import BACKENDS, WorkerSpec, make_backend
 from neurotrajectory.evolve.evolution import GAConfig, initial_recipes, next_generation
+from neurotrajectory.evolve.fitness import net_config_for, scenario_net_config
 from neurotrajectory.evolve.genome import (
     apply_recipe,
     genome_mismatch,
@@ -91,9 +103,10 @@ class TrainConfig:
     #: how the DAgger windows are labelled (see :data:`neurotrajectory.data.windows.DAGGER_LABELS`)
     dagger_labels: str = "rejoin"
 
-    #: What configurations saved before these fields existed meant (a stored config without
-    #: the field).
+    #: What format-1 configurations (saved before these fields existed) meant.
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human"}
+    #: Fields added within format 2, and what a format-2 configuration without them meant.
+    LATER = {"dagger_labels": "human"}
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
@@ -236,7 +249,7 @@ class Run:
             raise RunError(f"{cfg_path}: 'train' must be an object, got {doc['train']!r}")
         try:
             known = {f.name for f in fields(TrainConfig)}
-            legacy = TrainConfig.LEGACY
+            legacy = TrainConfig.LEGACY if doc["format"] == 1 else TrainConfig.LATER
             stored = TrainConfig(
                 **{**legacy, **{k: v for k, v in doc["train"].items() if k in known}}
             )
@@ -320,7 +333,7 @@ class Run:
     def _loop(self, backend, progress, stop_after) -> dict:
         cfg = self.config
         ga = cfg.ga
-        probe = _probe_net(spec_net=self.net_config, scenario=cfg.scenario, overrides=cfg.overrides)
+        probe = TrajectoryNet(scenario_net_config(cfg.scenario, cfg.overrides, self.net_config))
         n = count_parameters(probe)
         table = noise_table(table_size(n))
         history = self.load_history()
@@ -399,13 +412,6 @@ class Run:
         from there, and fits a fresh start to all windows so far (same seed, same held-out
         tracks, validated on human windows only; ``dagger_weight`` weighs the visited windows),
         so that the network learns to recover from its own mistakes."""
-        from neurotrajectory.data.windows import (
-            GENERATED_STRIDE,
-            RECORDED_STRIDE,
-            Windows,
-            drive_windows,
-            is_recorded,
-        )
         from neurotrajectory.evolve.warm_start import pretrain_genome
 
         cfg = self.config
@@ -440,7 +446,6 @@ class Run:
         scenario they were recorded on (to drive again): the dataset ``pretrain``, or
         ``pretrain_episodes`` episodes of the training scenario recorded now (training seeds,
         :data:`PRETRAIN_EPISODE_SECONDS` each)."""
-        from neurotrajectory.data.windows import GENERATED_STRIDE, drive_windows, scenario_episodes
 
         cfg = self.config
         if cfg.pretrain:
@@ -533,7 +538,6 @@ def _checked(config: TrainConfig):
     pre-training data (the data's windows, or None), with :func:`_with_training_tracks`."""
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.scenario.loader import load_scenario
-    from neurotrajectory.evolve.fitness import net_config_for
 
     try:
         load_scenario(config.scenario)
@@ -563,7 +567,6 @@ def _checked(config: TrainConfig):
 
 
 def _pretrain_data(folder: str):
-    from neurotrajectory.data.windows import DatasetError, load_dataset
 
     try:
         return load_dataset(folder).windows
@@ -574,7 +577,6 @@ def _pretrain_data(folder: str):
 def _dagger_episodes(config: TrainConfig, windows) -> list:
     """The episodes of the training scenario the pre-training ``windows`` were recorded on
     (to drive again); a :class:`RunError` if DAgger rounds need them and there are none."""
-    from neurotrajectory.data.windows import episodes_of
 
     episodes = episodes_of(windows, config.scenario, PRETRAIN_EPISODE_SECONDS)
     if config.dagger_rounds and not episodes:
@@ -584,7 +586,6 @@ def _dagger_episodes(config: TrainConfig, windows) -> list:
 
 
 def _check_pretrain_episodes(config: TrainConfig) -> None:
-    from neurotrajectory.data.windows import is_recorded
 
     if is_recorded(config.scenario):
         raise RunError(f"--pretrain-episodes: {config.scenario!r} replays a recorded scene; "
@@ -596,7 +597,6 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
     """On a recorded scene with pre-training data (``windows``) and no ``ego_tracks``: the
     data's tracks of that scene, so that the tracks held out of the data are never driven in
     training."""
-    from neurotrajectory.data.windows import is_recorded
 
     if config.ego_tracks or windows is None or not is_recorded(config.scenario):
         return config
@@ -615,17 +615,3 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
         raise RunError(f"--pretrain {config.pretrain} has no track of scene {scene!r}, which "
                        f"{config.scenario!r} replays: record windows of that scene")  # fmt: skip
     return replace(config, ego_tracks=tuple(ids))
-
-
-def _probe_net(spec_net: NetConfig, scenario: str, overrides: dict) -> TrajectoryNet:
-    """The network (on the CPU) with the sizes the scenario dictates."""
-    return TrajectoryNet(scenario_net_config(scenario, overrides, spec_net))
-
-
-def scenario_net_config(scenario: str, overrides: dict, base: NetConfig) -> NetConfig:
-    """``base`` with the sizes and limits of ``scenario`` (name or path; of a collection, its
-    first file) with ``overrides``."""
-    from gridsim.scenario.collection import load_collection
-    from neurotrajectory.evolve.fitness import net_config_for
-
-    return net_config_for(load_collection(scenario, overrides)[0].config, base)
