@@ -256,14 +256,10 @@ class SeamlessTraffic(SyntheticTraffic):
         self._sync_lanes()
         f = self.fleet
         self._chain_profiles(f.tick(dt, ego))
-        # Recycle participants out of the window (measured along the ego's heading).
-        ux, uy = np.cos(ego.psi), np.sin(ego.psi)
-        lon = (f.x - ego.x) * ux + (f.y - ego.y) * uy
-        out = np.flatnonzero(f.active & ((lon < -self.behind) | (lon > self.ahead)))
-        f.deactivate(out)
-        idle = np.flatnonzero(~f.active[: self.count])
-        if len(idle) == 0:
+        f.leave_window(ego, self.behind, self.ahead)  # to be recycled
+        if f.active[: self.count].all():
             return
+        idle = np.flatnonzero(~f.active[: self.count])
         # One attempt per tick, out of the sensor's sight: ahead if it
         # starts slower than the ego (the ego will catch up), behind if faster. A blocked spot
         # is retried on a later tick.

@@ -109,6 +109,13 @@ class TableBank:
             self._rebuild()
         return self._lo[slots], self._hi[slots]
 
+    def kernel_data(self) -> tuple:
+        """The flat arrays that :func:`~gridsim.traffic.table_kernels.lookup` reads: the
+        bank's index, the knot values and the slopes."""
+        if self._dirty:
+            self._rebuild()
+        return self._bank, self._ys, self._slope
+
     def _queries(self, slots, x) -> tuple[tuple, np.ndarray, np.ndarray, bool]:
         """The bank's flat arrays for the kernels, queries as 1-D arrays, and whether to
         locate them through the bucket index."""
@@ -142,6 +149,8 @@ class PathBank(TableBank):
     def __init__(self) -> None:
         super().__init__(width=2)
         self._corridor: list[int] = []
+        #: Whether every path belongs to a corridor (no leaders to search on other paths).
+        self.all_in_corridors = True
 
     def add_path(self, points: np.ndarray, s: np.ndarray, corridor: int = -1) -> int:
         slot = self.add(s, points)
@@ -149,6 +158,7 @@ class PathBank(TableBank):
             self._corridor.append(-1)
         self._corridor[slot] = corridor
         self._corridor_arr = np.array(self._corridor)
+        self.all_in_corridors = min(self._corridor) >= 0
         return slot
 
     def corridors(self, slots: np.ndarray) -> np.ndarray:
@@ -169,7 +179,6 @@ class PathBank(TableBank):
         return xy, h
 
     def kernel_data(self) -> tuple:
-        """The flat arrays that :func:`~gridsim.traffic.table_kernels.frenet_one` reads."""
-        if self._dirty:
-            self._rebuild()
-        return self._bank, self._ys, self._slope, self._normal, self._heading
+        """The flat arrays that :func:`~gridsim.traffic.table_kernels.frenet_one` reads: the
+        table's, then the segments' normals and headings."""
+        return super().kernel_data() + (self._normal, self._heading)
