@@ -120,6 +120,4 @@ class World:
         """What ``checker``'s ego box, placed at the ego's pose, touches among the active
         traffic (and the road edges it has loaded). ``center``: the ego centre if known."""
         center = self.ego_center() if center is None else center
-        f = self.traffic.fleet
-        idx = np.flatnonzero(f.active)
-        return checker.check(center, float(self.ego[PSI]), f.footprints(), idx)
+        return checker.check_fleet(center, float(self.ego[PSI]), self.traffic.fleet)
