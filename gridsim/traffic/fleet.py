@@ -157,6 +157,13 @@ class Fleet:
         ``ahead`` [m] ahead of it, measured along its heading."""
         kernels.leave_window(self.state, ego.x, ego.y, ego.psi, -behind, ahead)
 
+    def occupied(self, x, y, heading, length, width, ego: EgoPose, along, side) -> bool:
+        """Whether an active participant or the ego overlaps a ``length`` x ``width`` [m]
+        box at ``(x, y)`` [m] with ``heading`` [rad], grown by ``along`` [m] at both ends and
+        by ``side`` [m] at both sides (beyond the footprints)."""
+        pose = (float(ego.x), float(ego.y), float(ego.length), float(ego.width))
+        return kernels.occupied(self.state, pose, x, y, heading, length, width, along, side)
+
     def _update_pose(self, idx: np.ndarray) -> None:
         kernels.update_poses(idx, self.state, self.paths.kernel_data(), self.profiles.kernel_data())
 

@@ -253,6 +253,27 @@ def leave_window(state, x0, y0, psi, lo, hi) -> None:
 
 
 @kernel
+def occupied(state, ego, x, y, heading, length, width, along, side) -> bool:
+    """Whether an active participant or the ego (``(x, y, length, width)``) overlaps a
+    ``length`` x ``width`` box at ``(x, y)`` with ``heading`` [rad], each box grown by
+    ``along`` [m] ahead and behind and ``side`` [m] to each side."""
+    f = FleetState(*state)
+    c, sn = np.cos(heading), np.sin(heading)
+    for i in range(len(f.active) + 1):
+        if i < len(f.active):
+            if not f.active[i]:
+                continue
+            xi, yi, li, wi = f.x[i], f.y[i], f.length[i], f.width[i]
+        else:
+            xi, yi, li, wi = ego
+        lon = (xi - x) * c + (yi - y) * sn
+        lat = -(xi - x) * sn + (yi - y) * c
+        if abs(lon) < 0.5 * (li + length) + along and abs(lat) < 0.5 * (wi + width) + side:
+            return True
+    return False
+
+
+@kernel
 def leaders(state, ego, cross, paths, lookahead, margin, crossing_horizon):
     """Set ``gap`` [m], ``leader`` and ``lead_v`` [m/s] of every participant (see
     :meth:`Fleet.find_leaders`) and return the active indices. ``ego``: ``(present, x, y, v,

@@ -146,19 +146,7 @@ class SyntheticTraffic(TrafficSource):
     ) -> bool:
         """Whether a ``length`` x ``width`` vehicle at ``(x, y, heading)`` keeps
         :data:`_SPAWN_CLEARANCE` metres ahead and behind from everyone in its lane."""
-        f = self.fleet
-        a = f.active
-        xs = np.append(f.x[a], ego.x)
-        ys = np.append(f.y[a], ego.y)
-        lengths = np.append(f.length[a], ego.length)
-        widths = np.append(f.width[a], ego.width)
-        c, s = np.cos(heading), np.sin(heading)
-        lon = (xs - x) * c + (ys - y) * s
-        lat = -(xs - x) * s + (ys - y) * c
-        blocked = (np.abs(lon) < 0.5 * (lengths + length) + _SPAWN_CLEARANCE) & (
-            np.abs(lat) < 0.5 * (widths + width) + 0.5
-        )
-        return not bool(np.any(blocked))
+        return not self.fleet.occupied(x, y, heading, length, width, ego, _SPAWN_CLEARANCE, 0.5)
 
     def _draw(self) -> tuple[int, float, float]:
         """A fresh profile, its speed scale and a start time in its first half."""
