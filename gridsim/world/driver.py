@@ -157,11 +157,7 @@ class HumanDriver:
         self.yield_to = yield_to
 
     def __call__(self, world) -> tuple[float, float]:
-        t, chain = world.time, self.chain
-        # Interpolation reads the samples around t: make the one after it known.
-        chain.extend(int(t / chain.dt) + 3)
-        n = chain.ready
-        speed = float(np.interp(t, chain.times[:n], chain.speeds[:n]))
-        offset = float(np.interp(t, chain.times[:n], chain.offsets[:n]))
+        t = world.time
+        speed, offset = self.chain.at(t)
         avoid = self.yield_to(round(t / world.dt)) if self.yield_to else ()
         return self.follower.inputs(world, speed, offset, avoid)
