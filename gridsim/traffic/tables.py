@@ -6,6 +6,8 @@ arc length): one ``searchsorted`` locates every query, whatever the number of ta
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from gridsim.traffic import table_kernels
@@ -29,6 +31,16 @@ class TableBank:
 
     def __len__(self) -> int:
         return len(self._x)
+
+    def __deepcopy__(self, memo) -> TableBank:
+        """A copy with its own lists of tables that shares the arrays: tables are replaced,
+        never modified in place, and the flat arrays are rebuilt, not updated."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        for name, value in vars(self).items():
+            if isinstance(value, list):
+                setattr(new, name, list(value))
+        return new
 
     def add(self, x: np.ndarray, y: np.ndarray) -> int:
         """Store a table; returns its slot id."""
