@@ -83,7 +83,13 @@ class Fleet:
     """All traffic participants of a world, as arrays of length ``capacity``."""
 
     def __init__(self, capacity: int, params: FleetParams | None = None) -> None:
-        self.p = params or FleetParams()
+        self.p = p = params or FleetParams()
+        #: The compiled tick's settings: leader search, replay limits, IDM parameters.
+        self._settings = (
+            (p.lookahead, p.lateral_margin, p.crossing_horizon),
+            (p.v_min, p.v_max, p.a_max, p.b_max, p.resume_factor, p.resume_speed_tol),
+            p.idm.values,
+        )
         self.paths = PathBank()
         self.profiles = TableBank(width=4)
         n = capacity
@@ -178,9 +184,8 @@ class Fleet:
         a lane corridor (city routes, recorded tracks), pairs from a k-d tree. Vehicles in a
         corridor keep their lane, so their leader is the next vehicle on their own lane.
         """
-        p = self.p
         kernels.leaders(self.state, _ego(ego), self._cross_candidates(), self.paths.kernel_data(),
-                        p.lookahead, p.lateral_margin, p.crossing_horizon)  # fmt: skip
+                        *self._settings[0])  # fmt: skip
 
     def _cross_candidates(self) -> tuple[np.ndarray, ...]:
         """Leader candidates ``(a, b, gap, lead_v)`` on other paths for the vehicles outside
@@ -241,17 +246,20 @@ class Fleet:
         """Advance all active participants by ``dt`` seconds. Returns the indices whose
         profile ran out this tick (recorded vehicles are deactivated; synthetic ones must be
         given a new profile by the caller)."""
-        p = self.p
-        leader_params = (p.lookahead, p.lateral_margin, p.crossing_horizon)
-        limits = (p.v_min, p.v_max, p.a_max, p.b_max, p.resume_factor, p.resume_speed_tol)
         return kernels.tick(self.state, _ego(ego), self._cross_candidates(),
-                            self.paths.kernel_data(), self.profiles.kernel_data(), leader_params,
-                            limits, p.idm.values, dt, np.exp(-dt / 2.0))  # fmt: skip
+                            self.paths.kernel_data(), self.profiles.kernel_data(),
+                            *self._settings, dt, _decay(dt))  # fmt: skip
 
     def footprints(self) -> tuple[np.ndarray, ...]:
         """``(x, y, psi, length, width)`` of the active participants (centre poses)."""
         a = self.active
         return self.x[a], self.y[a], self.psi[a], self.length[a], self.width[a]
+
+
+@lru_cache(maxsize=8)
+def _decay(dt: float) -> float:
+    """The factor by which a lateral bias decays over ``dt`` [s] (time constant 2 s)."""
+    return np.exp(-dt / 2.0)
 
 
 def _ego(ego: EgoPose | None) -> tuple:
