@@ -276,7 +276,7 @@ class SeamlessRoad(Road):
 
     def lane_s_near_ego(self, lane: int) -> float:
         """Arc length [m] along lane ``lane`` abreast of the ego's last projected position."""
-        i = int(np.clip(np.searchsorted(self._ref_s, self._ego_s), 1, len(self._ref_s) - 1))
+        i = min(max(int(np.searchsorted(self._ref_s, self._ego_s)), 1), len(self._ref_s) - 1)
         t = (self._ego_s - self._ref_s[i - 1]) / (self._ref_s[i] - self._ref_s[i - 1])
         return float(
             self._lane_s[lane, i - 1] + t * (self._lane_s[lane, i] - self._lane_s[lane, i - 1])

@@ -230,12 +230,13 @@ class SeamlessTraffic(SyntheticTraffic):
         per_lane = int((self.behind + self.ahead) // spacing)
         n_lanes = len(self._lane_slots)
         slots = rng.permutation(per_lane * n_lanes)
+        abreast = [self.road.lane_s_near_ego(lane) for lane in range(n_lanes)]
         i = 0
         for slot in slots:
             if i == self.count:
                 break
             lane, k = divmod(int(slot), per_lane)
-            s = self.road.lane_s_near_ego(lane) - self.behind + (k + 0.5) * spacing
+            s = abreast[lane] - self.behind + (k + 0.5) * spacing
             s += rng.uniform(-1.0, 1.0)
             if self._spawn(i, self._lane_slots[lane], s, ego):
                 i += 1
