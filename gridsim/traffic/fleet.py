@@ -40,6 +40,7 @@ from gridsim.vehicle.idm import IDMParams
 _V, _D = 1, 2
 _NO_CANDIDATES = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
 _NO_EGO = (False, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+_EVERYWHERE = (np.inf, np.inf)
 _ALL_PAIRS_MAX = 48  # up to this many vehicles, testing all pairs beats building a tree
 
 
@@ -158,11 +159,6 @@ class Fleet:
         self.gap[idx] = np.inf
         self.leader[idx] = -1
 
-    def leave_window(self, ego: EgoPose, behind: float, ahead: float) -> None:
-        """Deactivate the participants farther than ``behind`` [m] behind the ego or
-        ``ahead`` [m] ahead of it, measured along its heading."""
-        kernels.leave_window(self.state, ego.x, ego.y, ego.psi, -behind, ahead)
-
     def occupied(self, x, y, heading, length, width, ego: EgoPose, along, side) -> bool:
         """Whether an active participant or the ego overlaps a ``length`` x ``width`` [m]
         box at ``(x, y)`` [m] with ``heading`` [rad], grown by ``along`` [m] at both ends and
@@ -242,13 +238,16 @@ class Fleet:
         return pairs[:, 0], pairs[:, 1]
 
     # -- the tick --------------------------------------------------------------------------------
-    def tick(self, dt: float, ego: EgoPose | None) -> np.ndarray:
-        """Advance all active participants by ``dt`` seconds. Returns the indices whose
-        profile ran out this tick (recorded vehicles are deactivated; synthetic ones must be
-        given a new profile by the caller)."""
+    def tick(
+        self, dt: float, ego: EgoPose | None, window: tuple[float, float] = _EVERYWHERE
+    ) -> np.ndarray:
+        """Advance all active participants by ``dt`` seconds; then deactivate those more
+        than ``window = (behind, ahead)`` metres behind or ahead of the ego, measured along
+        its heading. Returns the indices whose profile ran out this tick (recorded vehicles
+        are deactivated; synthetic ones must be given a new profile by the caller)."""
         return kernels.tick(self.state, _ego(ego), self._cross_candidates(),
                             self.paths.kernel_data(), self.profiles.kernel_data(),
-                            *self._settings, dt, _decay(dt))  # fmt: skip
+                            *self._settings, dt, _decay(dt), (-window[0], window[1]))  # fmt: skip
 
     def footprints(self) -> tuple[np.ndarray, ...]:
         """``(x, y, psi, length, width)`` of the active participants (centre poses)."""

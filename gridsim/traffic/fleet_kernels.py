@@ -240,11 +240,10 @@ def deactivate(idx, state) -> None:
 
 
 @kernel
-def leave_window(state, x0, y0, psi, lo, hi) -> None:
-    """Deactivate the participants whose distance [m] from ``(x0, y0)`` along heading
-    ``psi`` [rad] is outside ``[lo, hi]``."""
+def leave_window(state, x0, y0, ux, uy, lo, hi) -> None:
+    """Deactivate the participants whose distance [m] from ``(x0, y0)`` along the unit
+    vector ``(ux, uy)`` is outside ``[lo, hi]``."""
     f = FleetState(*state)
-    ux, uy = np.cos(psi), np.sin(psi)
     for i in range(len(f.active)):
         if f.active[i]:
             lon = (f.x[i] - x0) * ux + (f.y[i] - y0) * uy
@@ -302,11 +301,13 @@ def leaders(state, ego, cross, paths, lookahead, margin, crossing_horizon):
 
 
 @kernel
-def tick(state, ego, cross, paths, profiles, leader_params, limits, idm, dt, decay):
+def tick(state, ego, cross, paths, profiles, leader_params, limits, idm, dt, decay, window):
     """Advance the fleet by ``dt`` [s]: :func:`leaders` (``leader_params``: ``(lookahead,
     lateral_margin, crossing_horizon)``), then :func:`advance` with the profile values at
     ``tau`` and ``tau + dt``, then the poses. Recorded participants whose profile ran out are
-    deactivated. Returns the indices of all participants whose profile ran out."""
+    deactivated, and, if there is an ego, those outside ``window = (lo, hi)`` [m] along its
+    heading (:func:`leave_window`). Returns the indices of all participants whose profile
+    ran out."""
     f = FleetState(*state)
     idx = leaders(state, ego, cross, paths, *leader_params)
     n = len(idx)
@@ -323,4 +324,6 @@ def tick(state, ego, cross, paths, profiles, leader_params, limits, idm, dt, dec
     hi = profiles[0][5]
     ended = idx[f.tau[idx] > hi[prof] + 1e-9]
     deactivate(ended[f.geometric[ended]], state)
+    if ego[0]:
+        leave_window(state, ego[1], ego[2], ego[6], ego[7], window[0], window[1])
     return ended

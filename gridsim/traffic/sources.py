@@ -244,8 +244,7 @@ class SeamlessTraffic(SyntheticTraffic):
     def tick(self, dt: float, ego: EgoPose) -> None:
         self._sync_lanes()
         f = self.fleet
-        self._chain_profiles(f.tick(dt, ego))
-        f.leave_window(ego, self.behind, self.ahead)  # to be recycled
+        self._chain_profiles(f.tick(dt, ego, (self.behind, self.ahead)))  # out: recycled
         if f.active[: self.count].all():
             return
         idle = np.flatnonzero(~f.active[: self.count])
