@@ -71,7 +71,10 @@ class TableBank:
     def _rebuild(self) -> None:
         keys, ys, first, last, base = [], [], [], [], []
         offset, n = 0.0, 0
-        for x, y in zip(self._x, self._y, strict=True):
+        # An empty bank gets a placeholder table, so that the kernels always get arrays
+        # (a fleet hands them over even when no participant is active).
+        tables = zip(self._x, self._y, strict=True) if self._x else [(None, None)]
+        for x, y in tables:
             if x is None:
                 x, y = np.array([0.0, 1.0]), np.zeros((2, self.width))
             b = offset - x[0]
@@ -82,8 +85,8 @@ class TableBank:
             last.append(n + len(x) - 2)
             n += len(x)
             offset = x[-1] + b + _GAP
-        self._keys = np.concatenate(keys) if keys else np.zeros(0)
-        self._ys = np.vstack(ys) if ys else np.zeros((0, self.width))
+        self._keys = np.concatenate(keys)
+        self._ys = np.vstack(ys)
         # Slope of the segment starting at each knot (the last knot of a table gets the slope
         # of the gap to the next table; it is never used, lookups clip to ``last``).
         dx = np.diff(self._keys, append=self._keys[-1] + 1.0)
