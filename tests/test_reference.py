@@ -75,6 +75,19 @@ def test_profile_chain_gives_the_same_samples_however_it_is_extended():
     assert np.all((whole.speeds >= 4.0 - 1e-12) & (whole.speeds <= 13.0 + 1e-12))
 
 
+def test_profile_chain_at_interpolates_as_numpy():
+    sc = load_scenario("seamless")
+    hp = human_profiles(tuple(synthetic_tracks(sc)), SpeedBounds(4.0, 13.0, 2.0), 3.5)
+    chain = ProfileChain(hp, np.random.default_rng(4), 80.0, 0.1, 8.0)
+    rng = np.random.default_rng(5)
+    ts = np.sort(np.concatenate([rng.uniform(0.0, 80.0, 5000), chain.times[::7]]))
+    for t in ts:
+        speed, offset = chain.at(float(t))
+        n = chain.ready
+        assert speed == np.interp(t, chain.times[:n], chain.speeds[:n])
+        assert offset == np.interp(t, chain.times[:n], chain.offsets[:n])
+
+
 @pytest.mark.parametrize("seed", [6, 8, 10, 14])
 def test_following_a_revised_reference_does_not_collide(seed):
     """Inner-city seeds whose reference would drive into crossing traffic without revisions."""

@@ -325,3 +325,50 @@ def test_recorded_vehicle_handed_over_while_standing_keeps_its_recorded_heading(
         src.tick(0.1, FAR)
         if src.fleet.active[0]:
             assert abs(src.fleet.psi[0] - h) < 1e-9
+
+
+def _occupied_numpy(f: Fleet, ego: EgoPose, x, y, heading, length, width, along, side) -> bool:
+    """The NumPy spawn-clearance test that :meth:`Fleet.occupied` compiles."""
+    a = f.active
+    xs, ys = np.append(f.x[a], ego.x), np.append(f.y[a], ego.y)
+    lengths, widths = np.append(f.length[a], ego.length), np.append(f.width[a], ego.width)
+    c, s = np.cos(heading), np.sin(heading)
+    lon = (xs - x) * c + (ys - y) * s
+    lat = -(xs - x) * s + (ys - y) * c
+    blocked = (np.abs(lon) < 0.5 * (lengths + length) + along) & (
+        np.abs(lat) < 0.5 * (widths + width) + side
+    )
+    return bool(np.any(blocked))
+
+
+def test_occupied_matches_the_numpy_test_on_random_scenes():
+    rng = np.random.default_rng(3)
+    f = Fleet(6)
+    answers = set()
+    for _ in range(3000):
+        f.active[:] = rng.random(6) < 0.7
+        f.x[:], f.y[:] = rng.uniform(-15, 15, 6), rng.uniform(-6, 6, 6)
+        f.length[:], f.width[:] = rng.uniform(3.5, 6.0, 6), rng.uniform(1.6, 2.2, 6)
+        ego = EgoPose(*rng.uniform(-15, 15, 2), rng.uniform(-3, 3), 5.0, 4.5, 1.8)
+        spot = (*rng.uniform(-10, 10, 2), rng.uniform(-np.pi, np.pi), rng.uniform(3.5, 6.0), 1.8)
+        got = f.occupied(*spot, ego, 6.0, 0.5)
+        assert got == _occupied_numpy(f, ego, *spot, 6.0, 0.5)
+        answers.add(got)
+    assert answers == {True, False}
+
+
+def test_a_fleet_ticks_without_an_ego_as_with_one_out_of_reach():
+    fleets = []
+    for _ in range(2):
+        f = Fleet(8)
+        lane = f.paths.add_path(np.array([[0.0, 0.0], [1000.0, 0.0]]), np.array([0.0, 1000.0]))
+        prof = f.profiles.add(np.array([0.0, 30.0]), np.array([[0, 10, 0, 0], [300, 12, 0, 0]]))
+        for i in range(8):
+            f.place(i, path=lane, s=10.0 + 9.0 * i, profile=prof, tau=0.5 * i, k=1.5 - 0.1 * i)
+        fleets.append(f)
+    for _ in range(50):
+        fleets[0].tick(0.1, None)
+        fleets[1].tick(0.1, FAR)
+    assert np.any(fleets[0].mode == IDM)  # followers caught up
+    for name in ("s", "v", "d", "tau", "x", "y", "psi", "gap", "leader", "mode", "active"):
+        assert np.array_equal(getattr(fleets[0], name), getattr(fleets[1], name)), name

@@ -37,7 +37,9 @@ def bbox_of(polys: list[np.ndarray]) -> np.ndarray:
     """Axis-aligned boxes ``(K, 4)`` = ``[xmin, ymin, xmax, ymax]`` of a list of point arrays."""
     if not polys:
         return np.zeros((0, 4))
-    return np.array([[*p.min(axis=0), *p.max(axis=0)] for p in polys])
+    starts = np.cumsum([0] + [len(p) for p in polys[:-1]])
+    points = np.concatenate(polys)
+    return np.hstack([np.minimum.reduceat(points, starts), np.maximum.reduceat(points, starts)])
 
 
 def near(boxes: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:

@@ -61,6 +61,12 @@ class Polyline:
         (:mod:`gridsim.road.polyline_kernels`)."""
         return self.points, self._seg, self._seg_len, self.s
 
+    def tracking_data(self) -> tuple[np.ndarray, ...]:
+        """:meth:`kernel_data` with the squared segment lengths (libm's ``pow``) after the
+        segment lengths and the segment headings at the end: what
+        :func:`~gridsim.world.scripted_driver_kernels.route_inputs` reads."""
+        return self.points, self._seg, self._seg_len, self._seg_len_pow2, self.s, self._heading
+
     def frenet_one(self, s: float, d: float) -> tuple[float, float, float]:
         """:meth:`frenet_to_world` of one point: ``(x, y, heading)`` as floats."""
         return kernels.frenet_one(self.points, self._seg, self._seg_len, self.s, self._heading,

@@ -10,6 +10,7 @@ memory, whatever distance is driven; the road is a pure function of its paramete
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import cv2
@@ -51,6 +52,14 @@ class _PieceGenerator:
         self.pos = np.zeros(2)
         self.heading = 0.0
         self.leftover = 0.0  # distance already travelled past the last emitted sample
+
+    def __deepcopy__(self, memo) -> _PieceGenerator:
+        """A copy with its own random stream (the position array is replaced, never
+        modified in place; the parameters are frozen)."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        new.rng = copy.deepcopy(self.rng, memo)
+        return new
 
     def _straight(self, length: float):
         ds = self.p.sample_spacing
@@ -136,6 +145,15 @@ class SeamlessRoad(Road):
         self._chunk = max(100.0, 0.25 * (params.keep_behind + params.keep_ahead))
         self._extend_to(params.keep_ahead)
         self._rebuild()
+
+    def __deepcopy__(self, memo) -> SeamlessRoad:
+        """A copy with its own piece generator (and random stream) that shares the geometry:
+        arrays and lists here are replaced when the road is extended or trimmed, never
+        modified in place."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        new._gen = copy.deepcopy(self._gen, memo)
+        return new
 
     # -- generation -------------------------------------------------------------------------
     def _offset_points(self, pts: np.ndarray, hs: np.ndarray) -> np.ndarray:
@@ -258,7 +276,7 @@ class SeamlessRoad(Road):
 
     def lane_s_near_ego(self, lane: int) -> float:
         """Arc length [m] along lane ``lane`` abreast of the ego's last projected position."""
-        i = int(np.clip(np.searchsorted(self._ref_s, self._ego_s), 1, len(self._ref_s) - 1))
+        i = min(max(int(np.searchsorted(self._ref_s, self._ego_s)), 1), len(self._ref_s) - 1)
         t = (self._ego_s - self._ref_s[i - 1]) / (self._ref_s[i] - self._ref_s[i - 1])
         return float(
             self._lane_s[lane, i - 1] + t * (self._lane_s[lane, i] - self._lane_s[lane, i - 1])

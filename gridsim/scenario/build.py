@@ -52,8 +52,11 @@ def build_world(scenario: Scenario, seed: int = 0) -> World:
 
 
 def _shared_parts(world: World) -> list:
-    """The parts of ``world`` that copies share: immutable and independent of the seed."""
-    parts = [world.ego_track] if world.ego_track is not None else []
+    """The parts of ``world`` that copies share: immutable (frozen settings, the last tick's
+    result) or independent of the seed and never changed."""
+    parts = [world.ego_params, world.last, world.traffic.fleet.p]
+    if world.ego_track is not None:
+        parts.append(world.ego_track)
     if isinstance(world.road, StaticRoad):
         parts.append(world.road)
     if isinstance(world.traffic, SyntheticTraffic):

@@ -31,19 +31,16 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial import cKDTree
 
+from gridsim.traffic import fleet_kernels as kernels
 from gridsim.traffic.fleet_kernels import IDM as IDM  # the modes, re-exported
-from gridsim.traffic.fleet_kernels import (
-    REPLAY,
-    advance,
-    ego_ahead,
-    nearest_leaders,
-    poses,
-    same_path,
-)
+from gridsim.traffic.fleet_kernels import REPLAY
 from gridsim.traffic.tables import PathBank, TableBank
 from gridsim.vehicle.idm import IDMParams
 
-_V, _D, _H = 1, 2, 3
+_V, _D = 1, 2
+_NO_CANDIDATES = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+_NO_EGO = (False, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
+_EVERYWHERE = (np.inf, np.inf)
 _ALL_PAIRS_MAX = 48  # up to this many vehicles, testing all pairs beats building a tree
 
 
@@ -87,7 +84,13 @@ class Fleet:
     """All traffic participants of a world, as arrays of length ``capacity``."""
 
     def __init__(self, capacity: int, params: FleetParams | None = None) -> None:
-        self.p = params or FleetParams()
+        self.p = p = params or FleetParams()
+        #: The compiled tick's settings: leader search, replay limits, IDM parameters.
+        self._settings = (
+            (p.lookahead, p.lateral_margin, p.crossing_horizon),
+            (p.v_min, p.v_max, p.a_max, p.b_max, p.resume_factor, p.resume_speed_tol),
+            p.idm.values,
+        )
         self.paths = PathBank()
         self.profiles = TableBank(width=4)
         n = capacity
@@ -109,10 +112,19 @@ class Fleet:
         self.psi = np.zeros(n)
         self.gap = np.full(n, np.inf)
         self.leader = np.full(n, -1, np.int64)
+        self.lead_v = np.zeros(n)
 
     @property
     def capacity(self) -> int:
         return len(self.active)
+
+    @property
+    def state(self) -> tuple[np.ndarray, ...]:
+        """The arrays in :class:`~gridsim.traffic.fleet_kernels.FleetState` order, for the
+        compiled tick."""
+        return (self.active, self.geometric, self.mode, self.path, self.profile, self.s, self.d,
+                self.v, self.tau, self.k, self.d_bias, self.length, self.width, self.x, self.y,
+                self.psi, self.gap, self.leader, self.lead_v)  # fmt: skip
 
     # -- set-up ---------------------------------------------------------------------------------
     def place(
@@ -147,49 +159,40 @@ class Fleet:
         self.gap[idx] = np.inf
         self.leader[idx] = -1
 
+    def occupied(self, x, y, heading, length, width, ego: EgoPose, along, side) -> bool:
+        """Whether an active participant or the ego overlaps a ``length`` x ``width`` [m]
+        box at ``(x, y)`` [m] with ``heading`` [rad], grown by ``along`` [m] at both ends and
+        by ``side`` [m] at both sides (beyond the footprints)."""
+        pose = (float(ego.x), float(ego.y), float(ego.length), float(ego.width))
+        return kernels.occupied(self.state, pose, x, y, heading, length, width, along, side)
+
     def _update_pose(self, idx: np.ndarray) -> None:
-        poses(idx, self.path, self.s, self.d, self.paths.kernel_data(), self.x, self.y, self.psi)
-        # Recorded vehicles keep their recorded heading at their profile time, in IDM mode
-        # too (its time advances with their progress): the tangent of a recorded path is
-        # noise where the vehicle stood still.
-        geo = idx[self.geometric[idx]]
-        if len(geo):
-            self.psi[geo] = self.profiles.lookup(self.profile[geo], self.tau[geo])[:, _H]
+        kernels.update_poses(idx, self.state, self.paths.kernel_data(), self.profiles.kernel_data())
 
     # -- leaders ----------------------------------------------------------------------------------
     def find_leaders(self, ego: EgoPose | None) -> None:
         """Set :attr:`gap` (bumper to bumper [m], inf if none), :attr:`leader` (index, ``-2``
-        for the ego, ``-1`` for none) and the leader speed along the follower's heading.
+        for the ego, ``-1`` for none) and :attr:`lead_v`, the leader speed along the
+        follower's heading [m/s].
 
         Candidates come from three sources, none of them O(N^2): the next vehicle on the same
         path (a sort by arc length); the ego (one vectorised test); and, for vehicles outside
         a lane corridor (city routes, recorded tracks), pairs from a k-d tree. Vehicles in a
         corridor keep their lane, so their leader is the next vehicle on their own lane.
         """
-        self.gap.fill(np.inf)
-        self.leader.fill(-1)
-        self._lead_v = np.zeros(self.capacity)
+        kernels.leaders(self.state, _ego(ego), self._cross_candidates(), self.paths.kernel_data(),
+                        *self._settings[0])  # fmt: skip
+
+    def _cross_candidates(self) -> tuple[np.ndarray, ...]:
+        """Leader candidates ``(a, b, gap, lead_v)`` on other paths for the vehicles outside
+        lane corridors (see :meth:`_cross_path`); none when all are in one."""
+        if self.paths.all_in_corridors:
+            return _NO_CANDIDATES
         idx = np.flatnonzero(self.active)
-        if len(idx) == 0:
-            return
         corridor = self.paths.corridors(self.path[idx])
-        c, sn = np.cos(self.psi[idx]), np.sin(self.psi[idx])
-        p = self.p
-        found = [same_path(idx, self.path, self.s, self.length, self.v, self.psi, p.lookahead)]
-        if not np.all(corridor >= 0):  # vehicles outside lane corridors
-            found.append(self._cross_path(idx, corridor, c, sn))
-        if ego is not None:
-            pose = (ego.x, ego.y, ego.v, ego.length, ego.width, math.cos(ego.psi),
-                    math.sin(ego.psi))  # fmt: skip
-            fleet = (self.x, self.y, self.s, self.d, self.path, self.length, self.width, self.v,
-                     self.geometric)  # fmt: skip
-            paths = self.paths.kernel_data()
-            found.append(ego_ahead(idx, fleet, c, sn, pose, paths, p.lookahead, p.lateral_margin,
-                                   p.crossing_horizon))  # fmt: skip
-        # follower (index into idx), leader (index into idx, or -2 for the ego), gap, and
-        # leader speed along the follower's heading
-        a, b, gap, lead_v = (np.concatenate(part) for part in zip(*found, strict=True))
-        nearest_leaders(idx, a, b, gap, lead_v, self.gap, self.leader, self._lead_v)
+        if np.all(corridor >= 0):
+            return _NO_CANDIDATES
+        return self._cross_path(idx, corridor, np.cos(self.psi[idx]), np.sin(self.psi[idx]))
 
     def _cross_path(self, idx, corridor, c, sn):
         """Leaders on another path: pairs from a k-d tree (or all pairs when few), kept if
@@ -235,30 +238,33 @@ class Fleet:
         return pairs[:, 0], pairs[:, 1]
 
     # -- the tick --------------------------------------------------------------------------------
-    def tick(self, dt: float, ego: EgoPose | None) -> np.ndarray:
-        """Advance all active participants by ``dt`` seconds. Returns the indices whose
-        profile ran out this tick (recorded vehicles are deactivated; synthetic ones must be
-        given a new profile by the caller)."""
-        self.find_leaders(ego)
-        idx = np.flatnonzero(self.active)
-        n = len(idx)
-        if n == 0:
-            return idx
-        p = self.p
-        prof, tau = self.profile[idx], self.tau[idx]
-        both = self.profiles.lookup(np.concatenate([prof, prof]), np.concatenate([tau, tau + dt]))
-        fleet = (self.s, self.v, self.tau, self.d, self.d_bias, self.k, self.mode,
-                 self.geometric, self.gap)  # fmt: skip
-        limits = (p.v_min, p.v_max, p.a_max, p.b_max, p.resume_factor, p.resume_speed_tol)
-        advance(idx, both[:n], both[n:], fleet, self._lead_v, limits, p.idm.values, dt,
-                np.exp(-dt / 2.0))  # fmt: skip
-        self._update_pose(idx)
-        _, hi = self.profiles.ranges(prof)
-        ended = idx[self.tau[idx] > hi + 1e-9]
-        self.deactivate(ended[self.geometric[ended]])
-        return ended
+    def tick(
+        self, dt: float, ego: EgoPose | None, window: tuple[float, float] = _EVERYWHERE
+    ) -> np.ndarray:
+        """Advance all active participants by ``dt`` seconds; then deactivate those more
+        than ``window = (behind, ahead)`` metres behind or ahead of the ego, measured along
+        its heading. Returns the indices whose profile ran out this tick (recorded vehicles
+        are deactivated; synthetic ones must be given a new profile by the caller)."""
+        return kernels.tick(self.state, _ego(ego), self._cross_candidates(),
+                            self.paths.kernel_data(), self.profiles.kernel_data(),
+                            *self._settings, dt, _decay(dt), (-window[0], window[1]))  # fmt: skip
 
     def footprints(self) -> tuple[np.ndarray, ...]:
         """``(x, y, psi, length, width)`` of the active participants (centre poses)."""
         a = self.active
         return self.x[a], self.y[a], self.psi[a], self.length[a], self.width[a]
+
+
+@lru_cache(maxsize=8)
+def _decay(dt: float) -> float:
+    """The factor by which a lateral bias decays over ``dt`` [s] (time constant 2 s)."""
+    return np.exp(-dt / 2.0)
+
+
+def _ego(ego: EgoPose | None) -> tuple:
+    """The ego for the leader search: ``(present, x, y, v, length, width, cos psi, sin
+    psi)``."""
+    if ego is None:
+        return _NO_EGO
+    return (True, float(ego.x), float(ego.y), float(ego.v), float(ego.length),
+            float(ego.width), math.cos(ego.psi), math.sin(ego.psi))  # fmt: skip

@@ -1,21 +1,52 @@
-"""Compiled parts of :meth:`gridsim.traffic.fleet.Fleet.tick`: the per-vehicle update and the
-leader candidates on the same path and behind the ego, and the choice among candidates.
+"""Compiled :meth:`gridsim.traffic.fleet.Fleet.tick`: one call per tick finds the leaders
+(the next vehicle on the same path, the ego, and candidates on other paths found by the
+caller), advances every active participant (replay or IDM), updates the poses and reports
+the participants whose profile ran out.
 
-One loop over the active participants replaces dozens of small array operations. Every
-expression is the scalar form of the NumPy one it replaces, in the same order (the IDM is
-the same source, :mod:`gridsim.vehicle.idm`), so the results are the same bits.
+Every expression is the scalar form of the NumPy one it replaced, in the same order (the IDM
+is the same source, :mod:`gridsim.vehicle.idm`), so the results are the same bits.
+
+``state`` is the tuple of the fleet's arrays in :class:`FleetState` order (a plain tuple:
+numba takes it in a third of the time it takes to take a named one); ``paths`` and
+``profiles`` are the ``kernel_data()`` of its path and profile banks.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from gridsim.jit import kernel
-from gridsim.traffic.table_kernels import SMALL_QUERY, frenet_one
+from gridsim.traffic.table_kernels import SMALL_QUERY, frenet_one, lookup
 from gridsim.vehicle.idm import idm_accel, idm_gap
 
 REPLAY, IDM = 0, 1
-_S, _V, _D = 0, 1, 2
+_S, _V, _D, _H = 0, 1, 2, 3
+
+
+class FleetState(NamedTuple):
+    """The arrays of a :class:`~gridsim.traffic.fleet.Fleet` (one entry per participant)."""
+
+    active: np.ndarray
+    geometric: np.ndarray
+    mode: np.ndarray
+    path: np.ndarray
+    profile: np.ndarray
+    s: np.ndarray
+    d: np.ndarray
+    v: np.ndarray
+    tau: np.ndarray
+    k: np.ndarray
+    d_bias: np.ndarray
+    length: np.ndarray
+    width: np.ndarray
+    x: np.ndarray
+    y: np.ndarray
+    psi: np.ndarray
+    gap: np.ndarray
+    leader: np.ndarray
+    lead_v: np.ndarray
 
 
 @kernel
@@ -183,3 +214,116 @@ def poses(idx, path, s, d, paths, x, y, psi) -> None:
     buckets = len(idx) > SMALL_QUERY
     for i in idx:
         x[i], y[i], psi[i] = frenet_one(paths, path[i], s[i], d[i], buckets)
+
+
+@kernel
+def update_poses(idx, state, paths, profiles) -> None:
+    """:func:`poses` of participants ``idx``; recorded (``geometric``) ones keep the heading
+    [rad] of their profile at their profile time, in IDM mode too (the tangent of a recorded
+    path is noise where the vehicle stood still)."""
+    f = FleetState(*state)
+    poses(idx, f.path, f.s, f.d, paths, f.x, f.y, f.psi)
+    geo = idx[f.geometric[idx]]
+    if len(geo):
+        vals = np.empty((len(geo), profiles[1].shape[1]))
+        lookup(*profiles, f.profile[geo], f.tau[geo], True, len(geo) > SMALL_QUERY, vals)
+        for q in range(len(geo)):
+            f.psi[geo[q]] = vals[q, _H]
+
+
+@kernel
+def deactivate(idx, state) -> None:
+    """Take participants ``idx`` out of the fleet (no gap, no leader)."""
+    f = FleetState(*state)
+    for i in idx:
+        f.active[i], f.gap[i], f.leader[i] = False, np.inf, -1
+
+
+@kernel
+def leave_window(state, x0, y0, ux, uy, lo, hi) -> None:
+    """Deactivate the participants whose distance [m] from ``(x0, y0)`` along the unit
+    vector ``(ux, uy)`` is outside ``[lo, hi]``."""
+    f = FleetState(*state)
+    for i in range(len(f.active)):
+        if f.active[i]:
+            lon = (f.x[i] - x0) * ux + (f.y[i] - y0) * uy
+            if lon < lo or lon > hi:
+                f.active[i], f.gap[i], f.leader[i] = False, np.inf, -1
+
+
+@kernel
+def occupied(state, ego, x, y, heading, length, width, along, side) -> bool:
+    """Whether an active participant or the ego (``(x, y, length, width)``) overlaps a
+    ``length`` x ``width`` box at ``(x, y)`` with ``heading`` [rad], each box grown by
+    ``along`` [m] ahead and behind and ``side`` [m] to each side."""
+    f = FleetState(*state)
+    c, sn = np.cos(heading), np.sin(heading)
+    for i in range(len(f.active) + 1):
+        if i < len(f.active):
+            if not f.active[i]:
+                continue
+            xi, yi, li, wi = f.x[i], f.y[i], f.length[i], f.width[i]
+        else:
+            xi, yi, li, wi = ego
+        lon = (xi - x) * c + (yi - y) * sn
+        lat = -(xi - x) * sn + (yi - y) * c
+        if abs(lon) < 0.5 * (li + length) + along and abs(lat) < 0.5 * (wi + width) + side:
+            return True
+    return False
+
+
+@kernel
+def leaders(state, ego, cross, paths, lookahead, margin, crossing_horizon):
+    """Set ``gap`` [m], ``leader`` and ``lead_v`` [m/s] of every participant (see
+    :meth:`Fleet.find_leaders`) and return the active indices. ``ego``: ``(present, x, y, v,
+    length, width, cos psi, sin psi)``; ``cross``: candidates ``(a, b, gap, lead_v)`` on
+    other paths (``a``, ``b`` index the active participants), which rank after the one on
+    the same path and before the ego's when gaps are equal."""
+    f = FleetState(*state)
+    f.gap[:] = np.inf
+    f.leader[:] = -1
+    f.lead_v[:] = 0.0
+    idx = np.flatnonzero(f.active)
+    if len(idx) == 0:
+        return idx
+    a, b, g, lv = same_path(idx, f.path, f.s, f.length, f.v, f.psi, lookahead)
+    if ego[0]:
+        c, sn = np.cos(f.psi[idx]), np.sin(f.psi[idx])
+        fleet = (f.x, f.y, f.s, f.d, f.path, f.length, f.width, f.v, f.geometric)
+        ea, eb, eg, elv = ego_ahead(idx, fleet, c, sn, ego[1:], paths, lookahead, margin,
+                                    crossing_horizon)  # fmt: skip
+    else:
+        ea, eb, eg, elv = cross[0][:0], cross[1][:0], cross[2][:0], cross[3][:0]
+    nearest_leaders(idx, np.concatenate((a, cross[0], ea)), np.concatenate((b, cross[1], eb)),
+                    np.concatenate((g, cross[2], eg)), np.concatenate((lv, cross[3], elv)),
+                    f.gap, f.leader, f.lead_v)  # fmt: skip
+    return idx
+
+
+@kernel
+def tick(state, ego, cross, paths, profiles, leader_params, limits, idm, dt, decay, window):
+    """Advance the fleet by ``dt`` [s]: :func:`leaders` (``leader_params``: ``(lookahead,
+    lateral_margin, crossing_horizon)``), then :func:`advance` with the profile values at
+    ``tau`` and ``tau + dt``, then the poses. Recorded participants whose profile ran out are
+    deactivated, and, if there is an ego, those outside ``window = (lo, hi)`` [m] along its
+    heading (:func:`leave_window`). Returns the indices of all participants whose profile
+    ran out."""
+    f = FleetState(*state)
+    idx = leaders(state, ego, cross, paths, *leader_params)
+    n = len(idx)
+    if n == 0:
+        return idx
+    prof, tau = f.profile[idx], f.tau[idx]
+    buckets = 2 * n > SMALL_QUERY  # as one query of both times
+    now, nxt = np.empty((n, 4)), np.empty((n, 4))
+    lookup(*profiles, prof, tau, True, buckets, now)
+    lookup(*profiles, prof, tau + dt, True, buckets, nxt)
+    fleet = (f.s, f.v, f.tau, f.d, f.d_bias, f.k, f.mode, f.geometric, f.gap)
+    advance(idx, now, nxt, fleet, f.lead_v, limits, idm, dt, decay)
+    update_poses(idx, state, paths, profiles)
+    hi = profiles[0][5]
+    ended = idx[f.tau[idx] > hi[prof] + 1e-9]
+    deactivate(ended[f.geometric[ended]], state)
+    if ego[0]:
+        leave_window(state, ego[1], ego[2], ego[6], ego[7], window[0], window[1])
+    return ended

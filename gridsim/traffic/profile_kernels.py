@@ -31,3 +31,10 @@ def chain_samples(out, m0, m1, profile, state, limits) -> tuple[int, float]:
         speeds[m] = v_prev
         offsets[m] = np.interp(tau, t_prof, d_prof) + d_bias * math.exp(-tau / 2.0)
     return m1, v_prev
+
+
+@kernel
+def chain_at(t, times, speeds, offsets, n) -> tuple[float, float]:
+    """Speed [m/s] and offset [m] at time ``t`` [s], ``np.interp`` over the first ``n``
+    samples (compiled, the same bits as NumPy's: ``tests/test_reference.py``)."""
+    return np.interp(t, times[:n], speeds[:n]), np.interp(t, times[:n], offsets[:n])

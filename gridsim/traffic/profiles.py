@@ -12,7 +12,11 @@ from functools import lru_cache
 import numpy as np
 
 from gridsim.traffic.library import Track
-from gridsim.traffic.profile_kernels import chain_samples
+from gridsim.traffic.profile_kernels import chain_at, chain_samples
+
+#: Samples computed beyond those :meth:`ProfileChain.at` needs, so that it extends the chain
+#: once a second rather than every tick.
+_AHEAD = 10
 
 
 @dataclass(frozen=True)
@@ -103,6 +107,14 @@ class ProfileChain:
         self.ready = 0
         self._i, self._k = profiles.continue_from(rng, v_start)
         self._start, self._v_prev, self._d_bias = 0.0, v_start, -profiles.d[self._i][0]
+
+    def at(self, t: float) -> tuple[float, float]:
+        """Speed [m/s] and offset [m] at time ``t`` [s], interpolated between the samples
+        around it (computed first if needed)."""
+        n = int(t / self.dt) + 3  # up to the sample after t
+        if self.ready < n:
+            self.extend(n + _AHEAD)
+        return chain_at(t, self.times, self.speeds, self.offsets, self.ready)
 
     def extend(self, n: int) -> None:
         """Compute the samples up to index ``n`` (exclusive; capped at the end)."""

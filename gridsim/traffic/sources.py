@@ -146,19 +146,7 @@ class SyntheticTraffic(TrafficSource):
     ) -> bool:
         """Whether a ``length`` x ``width`` vehicle at ``(x, y, heading)`` keeps
         :data:`_SPAWN_CLEARANCE` metres ahead and behind from everyone in its lane."""
-        f = self.fleet
-        a = f.active
-        xs = np.append(f.x[a], ego.x)
-        ys = np.append(f.y[a], ego.y)
-        lengths = np.append(f.length[a], ego.length)
-        widths = np.append(f.width[a], ego.width)
-        c, s = np.cos(heading), np.sin(heading)
-        lon = (xs - x) * c + (ys - y) * s
-        lat = -(xs - x) * s + (ys - y) * c
-        blocked = (np.abs(lon) < 0.5 * (lengths + length) + _SPAWN_CLEARANCE) & (
-            np.abs(lat) < 0.5 * (widths + width) + 0.5
-        )
-        return not bool(np.any(blocked))
+        return not self.fleet.occupied(x, y, heading, length, width, ego, _SPAWN_CLEARANCE, 0.5)
 
     def _draw(self) -> tuple[int, float, float]:
         """A fresh profile, its speed scale and a start time in its first half."""
@@ -242,12 +230,13 @@ class SeamlessTraffic(SyntheticTraffic):
         per_lane = int((self.behind + self.ahead) // spacing)
         n_lanes = len(self._lane_slots)
         slots = rng.permutation(per_lane * n_lanes)
+        abreast = [self.road.lane_s_near_ego(lane) for lane in range(n_lanes)]
         i = 0
         for slot in slots:
             if i == self.count:
                 break
             lane, k = divmod(int(slot), per_lane)
-            s = self.road.lane_s_near_ego(lane) - self.behind + (k + 0.5) * spacing
+            s = abreast[lane] - self.behind + (k + 0.5) * spacing
             s += rng.uniform(-1.0, 1.0)
             if self._spawn(i, self._lane_slots[lane], s, ego):
                 i += 1
@@ -255,15 +244,10 @@ class SeamlessTraffic(SyntheticTraffic):
     def tick(self, dt: float, ego: EgoPose) -> None:
         self._sync_lanes()
         f = self.fleet
-        self._chain_profiles(f.tick(dt, ego))
-        # Recycle participants out of the window (measured along the ego's heading).
-        ux, uy = np.cos(ego.psi), np.sin(ego.psi)
-        lon = (f.x - ego.x) * ux + (f.y - ego.y) * uy
-        out = np.flatnonzero(f.active & ((lon < -self.behind) | (lon > self.ahead)))
-        f.deactivate(out)
-        idle = np.flatnonzero(~f.active[: self.count])
-        if len(idle) == 0:
+        self._chain_profiles(f.tick(dt, ego, (self.behind, self.ahead)))  # out: recycled
+        if f.active[: self.count].all():
             return
+        idle = np.flatnonzero(~f.active[: self.count])
         # One attempt per tick, out of the sensor's sight: ahead if it
         # starts slower than the ego (the ego will catch up), behind if faster. A blocked spot
         # is retried on a later tick.

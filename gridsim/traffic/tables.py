@@ -6,6 +6,8 @@ arc length): one ``searchsorted`` locates every query, whatever the number of ta
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 
 from gridsim.traffic import table_kernels
@@ -29,6 +31,16 @@ class TableBank:
 
     def __len__(self) -> int:
         return len(self._x)
+
+    def __deepcopy__(self, memo) -> TableBank:
+        """A copy with its own lists of tables that shares the arrays: tables are replaced,
+        never modified in place, and the flat arrays are rebuilt, not updated."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        for name, value in vars(self).items():
+            if isinstance(value, list):
+                setattr(new, name, list(value))
+        return new
 
     def add(self, x: np.ndarray, y: np.ndarray) -> int:
         """Store a table; returns its slot id."""
@@ -59,7 +71,10 @@ class TableBank:
     def _rebuild(self) -> None:
         keys, ys, first, last, base = [], [], [], [], []
         offset, n = 0.0, 0
-        for x, y in zip(self._x, self._y, strict=True):
+        # An empty bank gets a placeholder table, so that the kernels always get arrays
+        # (a fleet hands them over even when no participant is active).
+        tables = zip(self._x, self._y, strict=True) if self._x else [(None, None)]
+        for x, y in tables:
             if x is None:
                 x, y = np.array([0.0, 1.0]), np.zeros((2, self.width))
             b = offset - x[0]
@@ -70,8 +85,8 @@ class TableBank:
             last.append(n + len(x) - 2)
             n += len(x)
             offset = x[-1] + b + _GAP
-        self._keys = np.concatenate(keys) if keys else np.zeros(0)
-        self._ys = np.vstack(ys) if ys else np.zeros((0, self.width))
+        self._keys = np.concatenate(keys)
+        self._ys = np.vstack(ys)
         # Slope of the segment starting at each knot (the last knot of a table gets the slope
         # of the gap to the next table; it is never used, lookups clip to ``last``).
         dx = np.diff(self._keys, append=self._keys[-1] + 1.0)
@@ -109,6 +124,13 @@ class TableBank:
             self._rebuild()
         return self._lo[slots], self._hi[slots]
 
+    def kernel_data(self) -> tuple:
+        """The flat arrays that :func:`~gridsim.traffic.table_kernels.lookup` reads: the
+        bank's index, the knot values and the slopes."""
+        if self._dirty:
+            self._rebuild()
+        return self._bank, self._ys, self._slope
+
     def _queries(self, slots, x) -> tuple[tuple, np.ndarray, np.ndarray, bool]:
         """The bank's flat arrays for the kernels, queries as 1-D arrays, and whether to
         locate them through the bucket index."""
@@ -142,6 +164,8 @@ class PathBank(TableBank):
     def __init__(self) -> None:
         super().__init__(width=2)
         self._corridor: list[int] = []
+        #: Whether every path belongs to a corridor (no leaders to search on other paths).
+        self.all_in_corridors = True
 
     def add_path(self, points: np.ndarray, s: np.ndarray, corridor: int = -1) -> int:
         slot = self.add(s, points)
@@ -149,6 +173,7 @@ class PathBank(TableBank):
             self._corridor.append(-1)
         self._corridor[slot] = corridor
         self._corridor_arr = np.array(self._corridor)
+        self.all_in_corridors = min(self._corridor) >= 0
         return slot
 
     def corridors(self, slots: np.ndarray) -> np.ndarray:
@@ -169,7 +194,6 @@ class PathBank(TableBank):
         return xy, h
 
     def kernel_data(self) -> tuple:
-        """The flat arrays that :func:`~gridsim.traffic.table_kernels.frenet_one` reads."""
-        if self._dirty:
-            self._rebuild()
-        return self._bank, self._ys, self._slope, self._normal, self._heading
+        """The flat arrays that :func:`~gridsim.traffic.table_kernels.frenet_one` reads: the
+        table's, then the segments' normals and headings."""
+        return super().kernel_data() + (self._normal, self._heading)

@@ -53,6 +53,11 @@ def _clip(x: float, lo: float, hi: float) -> float:
     return float(min(max(x, lo), hi))
 
 
+def pursuit_lookahead(v: float, gains: PursuitGains) -> float:
+    """How far ahead [m] along the path pure pursuit aims at speed ``v`` [m/s]."""
+    return gains.min_lookahead + gains.lookahead_time * max(v, 0.0)
+
+
 def follow_path(
     state: np.ndarray,
     path: Polyline,
@@ -66,6 +71,5 @@ def follow_path(
     vehicle's arc length on the path if already known."""
     if s is None:
         s = float(path.project(state[None, :2])[0][0])
-    look = gains.min_lookahead + gains.lookahead_time * max(state[V], 0.0)
-    x, y, _ = path.frenet_one(s + look, offset)
+    x, y, _ = path.frenet_one(s + pursuit_lookahead(state[V], gains), offset)
     return pursuit_inputs(state, (x, y), target_speed, params, gains)

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 import pymunk
 
+from gridsim.world import collision_kernels
+
 _PARK = (1e9, 1e9)
 #: How far [m] the ego's footprint may reach over a road edge before it counts as off-road.
 EDGE_TOLERANCE = 0.3
@@ -126,8 +128,29 @@ class CollisionChecker:
         ``traffic_index`` their indices in the fleet, reported in :attr:`Contact.vehicles`.
         """
         x, y, psi, length, width = traffic
-        reach = self._ego_radius + 0.5 * np.hypot(length, width)
-        near = np.flatnonzero(np.hypot(x - ego_center[0], y - ego_center[1]) <= reach)
+        everyone = np.ones(len(x), bool)
+        self._place(traffic, traffic_index, self._near(ego_center, everyone, x, y, length, width))
+        return self._query(ego_center, ego_psi)
+
+    def check_fleet(self, ego_center: np.ndarray, ego_psi: float, fleet) -> Contact:
+        """:meth:`check` against the active participants of ``fleet`` (a
+        :class:`~gridsim.traffic.fleet.Fleet`), without gathering their footprints first."""
+        f = fleet
+        near = self._near(ego_center, f.active, f.x, f.y, f.length, f.width)
+        if len(near) or self._placed:
+            self._place((f.x, f.y, f.psi, f.length, f.width), np.arange(f.capacity), near)
+        return self._query(ego_center, ego_psi)
+
+    def _near(self, ego_center, active, x, y, length, width) -> np.ndarray:
+        """The broad phase: indices of the active boxes whose bounding circle touches the
+        ego's."""
+        cx, cy = ego_center[0], ego_center[1]
+        return collision_kernels.within_reach(active, x, y, length, width, cx, cy,
+                                              self._ego_radius)  # fmt: skip
+
+    def _place(self, traffic, traffic_index, near) -> None:
+        """Move the boxes ``near`` (indices into ``traffic``) into place, park the others."""
+        x, y, psi, length, width = traffic
         placed = set()
         for j in near:
             index = int(traffic_index[j])
@@ -141,6 +164,10 @@ class CollisionChecker:
             body.position = _PARK
             self.space.reindex_shapes_for_body(body)
         self._placed = placed
+
+    def _query(self, ego_center, ego_psi) -> Contact:
+        """The contacts of the ego box with what is placed and loaded."""
+        placed = self._placed
         if not placed and not self._boundary_shapes:
             return Contact()  # nothing loaded the ego could touch
         self._ego_body.position = (float(ego_center[0]), float(ego_center[1]))

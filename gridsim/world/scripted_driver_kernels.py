@@ -1,5 +1,6 @@
-"""Compiled part of the scripted drivers (:mod:`gridsim.world.scripted_drivers`): the leader on the
-route. Same operations, in the same order, as the NumPy code it replaced (same bits)."""
+"""Compiled part of the scripted drivers (:mod:`gridsim.world.scripted_drivers`): the ego's
+position on its route, its pure-pursuit target and the leader on the route. Same operations,
+in the same order, as the NumPy code they replaced (same bits)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import math
 import numpy as np
 
 from gridsim.jit import kernel
-from gridsim.road.polyline_kernels import project
+from gridsim.road.polyline_kernels import frenet_one, project, track
 
 
 @kernel
@@ -53,3 +54,21 @@ def route_leader(fleet, ego, route, hint, window, lookahead) -> tuple[float, flo
     j = idx[best]
     gap = s[best] - (s_rear + center_offset) - 0.5 * (length[j] + ego_length)
     return gap, v[j]
+
+
+@kernel
+def route_inputs(route, fleet, ego, hint, look, offset, window, lookahead):
+    """What a :class:`~gridsim.world.scripted_drivers.LaneFollower` needs from its route, in
+    one call: the rear axle's arc length and lateral offset [m] and its segment (tracked from
+    segment ``hint``), the pure-pursuit target ``(x, y)`` [m, world] ``look`` metres further
+    along at lateral ``offset`` [m], and :func:`route_leader`'s gap [m] and leader speed [m/s].
+
+    ``route``: :meth:`~gridsim.road.polyline.Polyline.tracking_data`; ``fleet`` as for
+    :func:`route_leader`; ``ego``: ``(x, y, psi, length, width, center_offset)``."""
+    points, seg, seg_len, seg_len_pow2, s_cum, heading = route
+    x, y, psi, length, width, center_offset = ego
+    s, d, j = track(points, seg, seg_len, seg_len_pow2, s_cum, x, y, hint)
+    tx, ty, _ = frenet_one(points, seg, seg_len, s_cum, heading, s + look, offset)
+    pose = (x, y, psi, s, length, width, center_offset)
+    gap, lead_v = route_leader(fleet, pose, (points, seg, seg_len, s_cum), j, window, lookahead)
+    return s, d, j, tx, ty, gap, lead_v

@@ -8,10 +8,10 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from gridsim.traffic.profiles import ProfileChain
-from gridsim.vehicle.control import PursuitGains, follow_path
+from gridsim.vehicle.control import PursuitGains, pursuit_inputs, pursuit_lookahead
 from gridsim.vehicle.idm import IDMParams, idm_accel
 from gridsim.vehicle.kinematics import V
-from gridsim.world.scripted_driver_kernels import route_leader
+from gridsim.world.scripted_driver_kernels import route_inputs
 
 
 class LaneFollower:
@@ -40,13 +40,13 @@ class LaneFollower:
         """Inputs ``(acceleration [m/s^2], steering rate [rad/s])`` for the current state."""
         return self.inputs(world, self.speed, 0.0)
 
-    def _track(self, world, route, xy: np.ndarray) -> tuple[float, float]:
-        """Arc length and lateral offset [m] of the rear axle on ``route``."""
+    def _hint_on(self, world, route) -> int:
+        """The segment of ``route`` to track the ego from: the last one, or on a new route
+        (or world) the nearest one."""
         if route is not self._route or world is not self._world:  # search all of a new route
-            _, _, seg = route.project(xy[None])
+            _, _, seg = route.project(world.ego[None, :2])
             self._world, self._route, self._hint = world, route, int(seg[0])
-        s, d, self._hint = route.track(float(xy[0]), float(xy[1]), self._hint)
-        return s, d
+        return self._hint
 
     def inputs(
         self, world, speed: float, offset: float, yield_to: Sequence[int] = ()
@@ -55,12 +55,15 @@ class LaneFollower:
         with ``yield_to`` (fleet indices), also giving way to those vehicles
         (:func:`conflict_free_accel`)."""
         route = world.route
-        p = world.ego_params
-        s_rear, d_rear = self._track(world, route, world.ego[:2])
-        accel, steer_rate = follow_path(world.ego, route, speed, p, self.gains, offset, s_rear)
-        gap, lead_v = self._leader(world, route, s_rear)
+        p, f, ego = world.ego_params, world.traffic.fleet, world.ego
+        pose = (float(ego[0]), float(ego[1]), float(ego[2]), p.length, p.width, p.center_offset)
+        s_rear, d_rear, self._hint, tx, ty, gap, lead_v = route_inputs(
+            route.tracking_data(), (f.x, f.y, f.active, f.length, f.width, f.v), pose,
+            self._hint_on(world, route), pursuit_lookahead(ego[V], self.gains), float(offset),
+            96, self.lookahead)  # fmt: skip
+        accel, steer_rate = pursuit_inputs(ego, (tx, ty), speed, p, self.gains)
         if np.isfinite(gap):
-            v = world.ego[V]
+            v = ego[V]
             # the shared formula on floats (NumPy scalars: its powers are libm's pow, as before)
             a_idm = idm_accel(float(v), float(speed), gap, float(v - lead_v), *self.idm.values)
             accel = min(accel, float(a_idm))
@@ -68,15 +71,6 @@ class LaneFollower:
         if len(yield_to):
             accel = conflict_free_accel(world, route, s_rear, d_rear, accel, yield_to)
         return accel, steer_rate
-
-    def _leader(self, world, route, s_rear: float) -> tuple[float, float]:
-        """Gap [m] to the vehicle ahead on ``route`` and its speed [m/s] (``inf, 0``: none)."""
-        f, p = world.traffic.fleet, world.ego_params
-        ego = (float(world.ego[0]), float(world.ego[1]), float(world.ego[2]), float(s_rear),
-               p.length, p.width, p.center_offset)  # fmt: skip
-        gap, lead_v = route_leader((f.x, f.y, f.active, f.length, f.width, f.v), ego,
-                                   route.kernel_data(), self._hint, 96, self.lookahead)  # fmt: skip
-        return float(gap), float(lead_v)
 
 
 #: Prediction horizon [s] and step [s] of :func:`conflict_free_accel`.
@@ -158,11 +152,7 @@ class HumanDriver:
         self.yield_to = yield_to
 
     def __call__(self, world) -> tuple[float, float]:
-        t, chain = world.time, self.chain
-        # Interpolation reads the samples around t: make the one after it known.
-        chain.extend(int(t / chain.dt) + 3)
-        n = chain.ready
-        speed = float(np.interp(t, chain.times[:n], chain.speeds[:n]))
-        offset = float(np.interp(t, chain.times[:n], chain.offsets[:n]))
+        t = world.time
+        speed, offset = self.chain.at(t)
         avoid = self.yield_to(round(t / world.dt)) if self.yield_to else ()
         return self.follower.inputs(world, speed, offset, avoid)

@@ -89,8 +89,7 @@ class World:
         ``check=False`` skips the ego's contact and road-edge tests (the result then reports
         none), for a caller that tests what it needs itself (the reference's shadow world)."""
         step = step_bicycle(self.ego, accel, steer_rate, self.ego_params, self.dt)
-        moved = float(np.hypot(*(step.state[:2] - self.ego[:2])))
-        self.ego = step.state
+        previous, self.ego = self.ego, step.state
         self.road.update(self.ego[:2])
         pose = self.ego_pose()
         self.traffic.tick(self.dt, pose)
@@ -100,6 +99,7 @@ class World:
             self._checked = False  # the next checked tick cannot trust last.off_road
             return self.last
         contact = self.check_contacts()
+        moved = float(np.hypot(*(self.ego[:2] - previous[:2])))
         trusted, self._checked = self._checked, True
         if contact.boundaries:
             off_road = True
@@ -120,6 +120,4 @@ class World:
         """What ``checker``'s ego box, placed at the ego's pose, touches among the active
         traffic (and the road edges it has loaded). ``center``: the ego centre if known."""
         center = self.ego_center() if center is None else center
-        f = self.traffic.fleet
-        idx = np.flatnonzero(f.active)
-        return checker.check(center, float(self.ego[PSI]), f.footprints(), idx)
+        return checker.check_fleet(center, float(self.ego[PSI]), self.traffic.fleet)
