@@ -7,7 +7,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from gridsim.traffic.library import REQUIRED_COLUMNS, Track
+from gridsim.traffic.library import REQUIRED_COLUMNS
+from gridsim.traffic.track import Track
 
 MAP = Path(__file__).parent / "data" / "commonroad" / "straight_2018b.xml"
 

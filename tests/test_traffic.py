@@ -6,8 +6,9 @@ import pytest
 from gridsim.errors import DataError
 from gridsim.road.seamless import SeamlessParams, SeamlessRoad
 from gridsim.traffic.fleet import IDM, REPLAY, EgoPose, Fleet
-from gridsim.traffic.library import REQUIRED_COLUMNS, Track, TrajectoryLibrary, read_tracks_csv
+from gridsim.traffic.library import REQUIRED_COLUMNS, TrajectoryLibrary, read_tracks_csv
 from gridsim.traffic.sources import RecordedSceneTraffic, SeamlessTraffic, SpeedBounds
+from gridsim.traffic.track import Track
 from gridsim.vehicle.kinematics import box_corners
 
 FAR = EgoPose(1e6, 1e6, 0.0, 0.0, 4.5, 1.8)

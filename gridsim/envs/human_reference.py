@@ -23,8 +23,8 @@ from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import Scenario
 from gridsim.scenario.parts import road_lane_width, synthetic_tracks
 from gridsim.seeding import Salt, stream
-from gridsim.traffic.library import Track
 from gridsim.traffic.profiles import ProfileChain, SpeedBounds, human_profiles
+from gridsim.traffic.track import Track
 from gridsim.vehicle.kinematics import rear_axle_of
 from gridsim.world.collision import CollisionChecker
 from gridsim.world.scripted_drivers import HumanDriver

@@ -11,8 +11,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from gridsim.traffic.library import Track
 from gridsim.traffic.profile_kernels import chain_at, chain_samples
+from gridsim.traffic.track import Track
 
 #: Samples computed beyond those :meth:`ProfileChain.at` needs, so that it extends the chain
 #: once a second rather than every tick.

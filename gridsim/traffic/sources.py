@@ -14,9 +14,9 @@ import numpy as np
 from gridsim.road.city import CityRoad
 from gridsim.road.seamless import SeamlessRoad
 from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
-from gridsim.traffic.library import Track
 from gridsim.traffic.profiles import HumanProfiles, SpeedBounds, human_profiles
 from gridsim.traffic.tables import TableBank
+from gridsim.traffic.track import Track
 
 _SPAWN_CLEARANCE = 6.0  # free distance [m] kept around a new participant, beyond the footprints
 

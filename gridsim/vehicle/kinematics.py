@@ -202,6 +202,12 @@ def rear_axle_of(centre: np.ndarray, heading, center_offset) -> np.ndarray:
     return centre - center_offset * u
 
 
+def centre_of(rear: np.ndarray, heading, center_offset) -> np.ndarray:
+    """Footprint centres ``(..., 2)`` [m] of vehicles with the rear axle at ``rear`` and
+    ``heading`` [rad]: the inverse of :func:`rear_axle_of`."""
+    return rear + center_offset * np.stack([np.cos(heading), np.sin(heading)], axis=-1)
+
+
 def box_corners(
     x: np.ndarray, y: np.ndarray, psi: np.ndarray, length: np.ndarray, width: np.ndarray
 ) -> np.ndarray:

@@ -10,7 +10,7 @@ import numpy as np
 from gridsim.traffic.profiles import ProfileChain
 from gridsim.vehicle.control import PursuitGains, pursuit_inputs, pursuit_lookahead
 from gridsim.vehicle.idm import IDMParams, idm_accel
-from gridsim.vehicle.kinematics import V
+from gridsim.vehicle.kinematics import V, centre_of
 from gridsim.world.scripted_driver_kernels import route_inputs
 
 
@@ -122,7 +122,7 @@ def conflict_free_accel(world, route, s_rear, d_rear, accel, vehicles) -> float:
         tt = np.minimum(t, stop)
         ds = v0 * tt + 0.5 * a * tt**2
         rear, h_ego = route.frenet_to_world(s_rear + ds, np.full(m, d_rear))
-        centre = rear + p.center_offset * np.stack([np.cos(h_ego), np.sin(h_ego)], axis=1)
+        centre = centre_of(rear, h_ego, p.center_offset)
         ego = _disks(centre[:, 0], centre[:, 1], h_ego, p.length)
         # distances (vehicle, time, ego disk, other disk)
         gap = np.linalg.norm(ego[None, :, :, None, :] - other[:, :, None, :, :], axis=-1)

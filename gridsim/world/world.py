@@ -11,8 +11,8 @@ import numpy as np
 from gridsim.road.base import Road
 from gridsim.road.polyline import Polyline
 from gridsim.traffic.fleet import EgoPose
-from gridsim.traffic.library import Track
 from gridsim.traffic.sources import TrafficSource
+from gridsim.traffic.track import Track
 from gridsim.vehicle.kinematics import PSI, STATE_SIZE, BicycleParams, V, X, Y, step_bicycle
 from gridsim.world.collision import CollisionChecker, Contact
 
