@@ -11,9 +11,10 @@ commit whose results are known to be right) with::
     python tests/golden.py training datasets    # only these sections
 
 :func:`training_digests` and :func:`dataset_digests` guard the trainer the same way: a
-short warm-started training run (its history without timings, front and checkpoint) and
-recorded window datasets. The training digests involve torch's CPU kernels and hold for
-this machine type (single-threaded torch, same instruction set).
+short warm-started training run (its history without timings, front and checkpoint), short
+runs down the trainer's other paths (:data:`TRAINING_PATHS`; a resumed run must match the
+uninterrupted one) and recorded window datasets. The training digests involve torch's CPU
+kernels and hold for this machine type (single-threaded torch, same instruction set).
 """
 
 from __future__ import annotations
@@ -147,6 +148,32 @@ def training_digests(out: Path) -> dict[str, str]:
                          episode_seconds=3.0, seed=3, pretrain_episodes=2, pretrain_epochs=2,
                          dagger_rounds=1, validation_episodes=2, batch=3)  # fmt: skip
     Run.create(out, config).train(progress=False)
+    return run_digests(out)
+
+
+#: Short runs down the paths the warm-started golden run does not take (``train`` settings):
+#: generation 0 from random weights, and a warm start evaluated by worker processes.
+TRAINING_PATHS = {
+    "random_init": dict(preset="tiny", population=4, generations=3, episodes=1,
+                        episode_seconds=3.0, seed=5, validation_episodes=2, batch=3),
+    "warm_start_processes": dict(preset="tiny", population=4, generations=2, episodes=1,
+                                 episode_seconds=3.0, seed=4, pretrain_episodes=2,
+                                 pretrain_epochs=1, validation_episodes=1, batch=2,
+                                 backend="processes", workers=2),
+}  # fmt: skip
+
+
+def training_path_digests(out: Path, name: str) -> dict[str, str]:
+    """Digests of the run :data:`TRAINING_PATHS` ``[name]`` in ``out``."""
+    from neurotrajectory.evolve.runs import Run, TrainConfig
+
+    Run.create(out, TrainConfig(**TRAINING_PATHS[name])).train(progress=False)
+    return run_digests(out)
+
+
+def run_digests(out: Path) -> dict[str, str]:
+    """Digests of a finished run in ``out``: its history without timings, front and
+    checkpoint, and ``pretrain.json`` if it has one."""
     d = _Digests()
     for gen in json.loads((out / "history.json").read_text())["generations"]:
         for key, value in sorted(gen.items()):
@@ -156,8 +183,9 @@ def training_digests(out: Path) -> dict[str, str]:
         with np.load(out / name) as arrays:
             for key in sorted(arrays.files):
                 d.add(f"{name}_{key}", arrays[key])
-    pretrain = json.loads((out / "pretrain.json").read_text())
-    d.add("pretrain", json.dumps(pretrain, sort_keys=True))
+    if (out / "pretrain.json").exists():
+        pretrain = json.loads((out / "pretrain.json").read_text())
+        d.add("pretrain", json.dumps(pretrain, sort_keys=True))
     return d.hexdigests()
 
 
@@ -191,11 +219,16 @@ def record(sections: tuple[str, ...]) -> dict:
     if "training" in sections:
         with tempfile.TemporaryDirectory() as tmp:
             out["training"] = training_digests(Path(tmp) / "run")
+    if "training_paths" in sections:
+        with tempfile.TemporaryDirectory() as tmp:
+            out["training_paths"] = {
+                name: training_path_digests(Path(tmp) / name, name) for name in TRAINING_PATHS
+            }
     return out
 
 
 if __name__ == "__main__":
     import sys
 
-    sections = tuple(sys.argv[1:]) or ("env", "world", "datasets", "training")
+    sections = tuple(sys.argv[1:]) or ("env", "world", "datasets", "training", "training_paths")
     GOLDEN_PATH.write_text(json.dumps(record(sections), indent=1, sort_keys=True) + "\n")

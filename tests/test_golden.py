@@ -8,11 +8,14 @@ import pytest
 from golden import (
     DATASET_CASES,
     GOLDEN_PATH,
+    TRAINING_PATHS,
     WORLD_CASES,
     dataset_digests,
     env_cases,
     env_digests,
+    run_digests,
     training_digests,
+    training_path_digests,
     world_digests,
 )
 
@@ -36,3 +39,19 @@ def test_recorded_datasets_are_bit_identical_to_golden(case):
 
 def test_a_short_training_run_is_bit_identical_to_golden(tmp_path):
     assert training_digests(tmp_path / "run") == GOLDEN["training"]
+
+
+@pytest.mark.parametrize("name", TRAINING_PATHS)
+def test_the_trainers_other_paths_are_bit_identical_to_golden(name, tmp_path):
+    assert training_path_digests(tmp_path / name, name) == GOLDEN["training_paths"][name]
+
+
+def test_a_run_resumed_on_worker_processes_is_bit_identical_to_golden(tmp_path):
+    from neurotrajectory.evolve.runs import Run, TrainConfig
+
+    out = tmp_path / "run"
+    Run.create(out, TrainConfig(**TRAINING_PATHS["random_init"])).train(
+        progress=False, stop_after=1
+    )
+    Run.open(out, backend="processes", workers=2).train(progress=False)
+    assert run_digests(out) == GOLDEN["training_paths"]["random_init"]
