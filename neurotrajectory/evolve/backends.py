@@ -1,10 +1,11 @@
 """Where the population is evaluated: in this process, in a pool of processes, or on Ray.
 
-Every backend runs :class:`Worker` objects. A worker holds the current population and
-advances it from *recipes* (parents and seeds, a few numbers per child), never from weight
-vectors; only a resumed run ships the population once. Individuals are assigned to
-workers statically (``i % workers``) and each evaluation is deterministic, so the results
-do not depend on the backend or the number of workers.
+Every backend runs :class:`Worker` objects. A worker holds the current
+:class:`~neurotrajectory.evolve.population.Population` and advances it from *recipes*
+(parents and seeds, a few numbers per child), never from weight vectors; only a warm start
+(its one fitted genome) and a resumed run (the checkpoint's population) ship weights, once.
+Individuals are assigned to workers statically (``i % workers``) and each evaluation is
+deterministic, so the results do not depend on the backend or the number of workers.
 """
 
 from __future__ import annotations
@@ -16,15 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from neurotrajectory.evolve.fitness import Evaluator
-from neurotrajectory.evolve.genome import (
-    Recipe,
-    apply_recipe,
-    initial_genome,
-    noise_table,
-    table_size,
-)
-from neurotrajectory.model import NetConfig, aligned_rows
+from neurotrajectory.evolve.fitness import Evaluator, scenario_net_config
+from neurotrajectory.evolve.genome import Recipe
+from neurotrajectory.evolve.population import Population
+from neurotrajectory.model import NetConfig, TrajectoryNet
 
 BACKENDS = ("local", "processes", "ray")
 
@@ -55,30 +51,19 @@ class Worker:
         self.evaluator = Evaluator(
             spec.scenario, spec.overrides, spec.net, list(spec.seeds), batch=spec.batch
         )
-        n = sum(p.numel() for p in self.evaluator.net.parameters())
-        self.table = noise_table(table_size(n))
-        self.population: np.ndarray | None = None
+        self.population = Population(self.evaluator.net)
 
     @property
     def genome_size(self) -> int:
-        return sum(p.numel() for p in self.evaluator.net.parameters())
+        return self.population.genome_size
 
     def advance(self, recipes: list[Recipe]) -> None:
         """Replace the population by the children of ``recipes``."""
-        net = self.evaluator.net
-        children = [
-            apply_recipe(r, self.population, self.table,
-                         initial_genome(net, r.init_seed) if r.init_seed is not None else None)
-            for r in recipes
-        ]  # fmt: skip
-        self.load(children)
+        self.population.advance(recipes)
 
-    def load(self, population) -> None:
-        """Hold a copy of ``population`` (rows aligned for the batched forward pass)."""
-        rows = aligned_rows(len(population), self.genome_size).numpy()
-        for i, genome in enumerate(population):
-            rows[i] = genome
-        self.population = rows
+    def load(self, genomes) -> None:
+        """Hold a copy of ``genomes`` as the population."""
+        self.population.load(genomes)
 
     def evaluate(self, job: tuple[list[int], tuple[int, ...]]) -> list[Evaluated]:
         """Fitness and statistics of individuals ``indices`` on the episodes ``seeds``
@@ -89,10 +74,11 @@ class Worker:
         if len(idx) == 0:
             return []
         step = int(idx[1] - idx[0]) if len(idx) > 1 else 1
+        genomes = self.population.genomes
         if step > 0 and np.array_equal(idx, idx[0] + step * np.arange(len(idx))):
-            rows = self.population[idx[0] : idx[-1] + 1 : step]  # a view, no copy
+            rows = genomes[idx[0] : idx[-1] + 1 : step]  # a view, no copy
         else:
-            rows = self.population[idx]
+            rows = genomes[idx]
         results = self.evaluator.evaluate_many(rows, seeds)
         return [(int(i), f, s.__dict__) for i, (f, s) in zip(idx, results, strict=True)]
 
@@ -100,11 +86,16 @@ class Worker:
 class Backend(ABC):
     """Evaluates a population held by its workers."""
 
-    @abstractmethod
-    def advance(self, recipes: list[Recipe]) -> None: ...
+    #: The population as the trainer reads it (to checkpoint it): see the subclasses.
+    population: Population
 
     @abstractmethod
-    def load(self, population: np.ndarray) -> None: ...
+    def advance(self, recipes: list[Recipe]) -> None:
+        """Replace the population by the children of ``recipes``."""
+
+    @abstractmethod
+    def load(self, genomes: np.ndarray) -> None:
+        """Replace the population by a copy of ``genomes``."""
 
     @abstractmethod
     def evaluate(self, size: int, seeds: tuple[int, ...]) -> tuple[np.ndarray, list[dict]]:
@@ -130,16 +121,17 @@ def _jobs(size: int, workers: int, seeds: tuple[int, ...]) -> list:
 
 
 class LocalBackend(Backend):
-    """One worker in this process."""
+    """One worker in this process; its population is the trainer's (made once)."""
 
     def __init__(self, spec: WorkerSpec) -> None:
         self.worker = Worker(spec)
+        self.population = self.worker.population
 
     def advance(self, recipes):
         self.worker.advance(recipes)
 
-    def load(self, population):
-        self.worker.load(population)
+    def load(self, genomes):
+        self.worker.load(genomes)
 
     def evaluate(self, size, seeds):
         return _collect(size, [self.worker.evaluate((list(range(size)), seeds))])
@@ -159,12 +151,44 @@ def _serve(conn, spec: WorkerSpec) -> None:
             conn.send(("error", f"{type(exc).__name__}: {exc}"))
 
 
-class ProcessBackend(Backend):
-    """``workers`` processes (spawned, so safe with torch), each holding the population."""
+class RemoteBackend(Backend):
+    """Workers in other processes, each holding the population. The trainer keeps its own
+    copy (:attr:`population`), advanced in step with theirs: checkpoints and the front need
+    the weights, and fetching them back would ship the whole population every generation."""
 
     def __init__(self, spec: WorkerSpec, workers: int) -> None:
         if workers < 1:
             raise BackendError(f"workers must be >= 1, got {workers}")
+        self.workers = workers
+        net = TrajectoryNet(scenario_net_config(spec.scenario, spec.overrides, spec.net))
+        self.population = Population(net)
+
+    @abstractmethod
+    def _all(self, name: str, args: list) -> list:
+        """Call :class:`Worker` method ``name`` on every worker (one argument each); their
+        results."""
+
+    def _shipped(self, genomes: np.ndarray):
+        """``genomes`` as the workers receive them."""
+        return genomes
+
+    def advance(self, recipes):
+        self._all("advance", [recipes] * self.workers)
+        self.population.advance(recipes)
+
+    def load(self, genomes):
+        self._all("load", [self._shipped(genomes)] * self.workers)
+        self.population.load(genomes)
+
+    def evaluate(self, size, seeds):
+        return _collect(size, self._all("evaluate", _jobs(size, self.workers, seeds)))
+
+
+class ProcessBackend(RemoteBackend):
+    """``workers`` processes (spawned, so safe with torch), each holding the population."""
+
+    def __init__(self, spec: WorkerSpec, workers: int) -> None:
+        super().__init__(spec, workers)
         ctx = mp.get_context("spawn")
         self.conns, self.procs = [], []
         for _ in range(workers):
@@ -190,15 +214,6 @@ class ProcessBackend(Backend):
             conn.send((name, arg))
         return [self._reply(conn) for conn in self.conns]
 
-    def advance(self, recipes):
-        self._all("advance", [recipes] * len(self.conns))
-
-    def load(self, population):
-        self._all("load", [population] * len(self.conns))
-
-    def evaluate(self, size, seeds):
-        return _collect(size, self._all("evaluate", _jobs(size, len(self.conns), seeds)))
-
     def close(self):
         for conn, proc in zip(self.conns, self.procs, strict=True):
             with contextlib.suppress(BrokenPipeError, OSError):
@@ -221,10 +236,11 @@ def _check_reachable(address: str, timeout: float = 3.0) -> None:
         raise BackendError(f"cannot connect to Ray at {address}: {exc}") from None
 
 
-class RayBackend(Backend):
+class RayBackend(RemoteBackend):
     """``workers`` Ray actors on an existing cluster (``address``) or a local one."""
 
     def __init__(self, spec: WorkerSpec, workers: int, address: str | None = None) -> None:
+        super().__init__(spec, workers)
         try:
             import ray
         except ImportError:
@@ -247,15 +263,8 @@ class RayBackend(Backend):
             [getattr(a, name).remote(arg) for a, arg in zip(self.actors, args, strict=True)]
         )
 
-    def advance(self, recipes):
-        self._all("advance", [recipes] * len(self.actors))
-
-    def load(self, population):
-        ref = self.ray.put(population)
-        self._all("load", [ref] * len(self.actors))
-
-    def evaluate(self, size, seeds):
-        return _collect(size, self._all("evaluate", _jobs(size, len(self.actors), seeds)))
+    def _shipped(self, genomes):
+        return self.ray.put(genomes)  # once to the object store, not once per actor
 
     def close(self):
         for a in self.actors:

@@ -9,7 +9,8 @@ fill the rest with children of tournament-selected parents: uniform crossover of
 with probability ``p_crossover``, additive Gaussian mutation (``sigma`` times a slice of the
 shared noise table) with probability ``p_mutation``; a child that drew neither is mutated,
 so that no evaluation is spent on an exact copy. All draws come from a generator seeded by
-(run seed, generation): a run is reproducible and resumable.
+(run seed, generation): a run is reproducible and resumable. Generation 0 is drawn the same
+way (:func:`initial_recipes`), or around a warm start's genome (:func:`warm_start_recipes`).
 """
 
 from __future__ import annotations
@@ -49,8 +50,20 @@ def generation_rng(seed: int, generation: int) -> np.random.Generator:
 
 
 def initial_recipes(config: GAConfig, seed: int) -> list[Recipe]:
+    """Generation 0 from random weights: one initial seed per individual."""
     rng = generation_rng(seed, -1)
     return [Recipe(init_seed=int(s)) for s in rng.integers(0, 2**63 - 1, size=config.population)]
+
+
+def warm_start_recipes(
+    config: GAConfig, seed: int, genome_size: int, table_size: int
+) -> list[Recipe]:
+    """Generation 0 around a warm start's fitted genome (parent 0): itself, then ``sigma``
+    mutations of it (noise offsets from their own stream; individual 0's is drawn too)."""
+    rng = stream(seed, Salt.WARM_START_MUTATIONS)
+    offsets = rng.integers(0, table_size - genome_size, size=config.population)
+    mutants = [Recipe(parent=0, noise_offset=int(o), sigma=config.sigma) for o in offsets[1:]]
+    return [Recipe(parent=0), *mutants]
 
 
 def next_generation(

@@ -35,24 +35,22 @@ from neurotrajectory.data.windows import (
     scenario_episodes,
 )
 from neurotrajectory.evolve.backends import BACKENDS, WorkerSpec, make_backend
-from neurotrajectory.evolve.evolution import GAConfig, initial_recipes, next_generation
-from neurotrajectory.evolve.fitness import net_config_for, scenario_net_config
-from neurotrajectory.evolve.genome import (
-    apply_recipe,
-    genome_mismatch,
-    initial_genome,
-    noise_table,
-    set_genome,
-    table_size,
+from neurotrajectory.evolve.evolution import (
+    GAConfig,
+    initial_recipes,
+    next_generation,
+    warm_start_recipes,
 )
+from neurotrajectory.evolve.fitness import net_config_for, scenario_net_config
+from neurotrajectory.evolve.genome import genome_mismatch, initial_genome, set_genome
 from neurotrajectory.evolve.pareto import hypervolume, minimised, non_dominated_sort
+from neurotrajectory.evolve.population import Population, Source, Start
 from neurotrajectory.model import (
     PRESETS,
     PRIORS,
     NetConfig,
     NetPolicy,
     TrajectoryNet,
-    count_parameters,
     size_mismatch,
 )
 
@@ -332,10 +330,7 @@ class Run:
 
     def _loop(self, backend, progress, stop_after) -> dict:
         cfg = self.config
-        ga = cfg.ga
         probe = TrajectoryNet(scenario_net_config(cfg.scenario, cfg.overrides, self.net_config))
-        n = count_parameters(probe)
-        table = noise_table(table_size(n))
         history = self.load_history()
         ckpt = self.load_checkpoint()
         if ckpt is None and history:
@@ -345,41 +340,35 @@ class Run:
         problem = genome_mismatch(probe, ckpt[1].shape[1]) if ckpt is not None else None
         if problem:
             raise RunError(f"{self.out / 'checkpoint.npz'}: {problem}")
-        if ckpt is None and (cfg.pretrain or cfg.pretrain_episodes):
-            start, population = 0, self._pretrained_population(probe, table)
-            backend.load(population)
-        elif ckpt is None:
-            start, recipes = 0, initial_recipes(ga, cfg.seed)
-            population = np.stack([initial_genome(probe, r.init_seed) for r in recipes])
-            backend.advance(recipes)
+        if ckpt is not None and len(history) != ckpt[0] + 1:
+            raise RunError(f"{self.out}: history.json has {len(history)} generations, "
+                           f"checkpoint.npz {ckpt[0] + 1}: they disagree; restore both or "
+                           "start a new run with another --out")  # fmt: skip
+        if ckpt is not None:
+            source = Source.CHECKPOINT
+        elif cfg.pretrain or cfg.pretrain_episodes:
+            source = Source.WARM_START
         else:
-            gen, population, fitness, violation = ckpt
-            if len(history) != gen + 1:
-                raise RunError(f"{self.out}: history.json has {len(history)} generations, "
-                               f"checkpoint.npz {gen + 1}: they disagree; restore both or "
-                               "start a new run with another --out")  # fmt: skip
-            recipes, _ = next_generation(
-                fitness, ga, cfg.seed, gen, n, len(table), self._violation(violation)
-            )
-            backend.load(population)
-            backend.advance(recipes)
-            population = np.stack([apply_recipe(r, population, table) for r in recipes])
-            start = gen + 1
-        bar = tqdm(range(start, cfg.generations), desc="generations", unit="gen",
-                   disable=not progress, initial=start, total=cfg.generations)  # fmt: skip
+            source = Source.RANDOM
+        population = backend.population  # the workers' generation, as checkpoints save it
+        first = self._start(source, probe, population, ckpt)
+        if first.parents is not None:
+            backend.load(first.parents)
+        backend.advance(first.recipes)
+        bar = tqdm(range(first.generation, cfg.generations), desc="generations", unit="gen",
+                   disable=not progress, initial=first.generation,
+                   total=cfg.generations)  # fmt: skip
         for done, gen in enumerate(bar, start=1):
             t0 = time.perf_counter()
             fitness, stats = backend.evaluate(cfg.population, cfg.episode_seeds(gen))
             violation = np.array([s.get("lost", 0.0) for s in stats])
-            recipes, rank = next_generation(
-                fitness, ga, cfg.seed, gen, n, len(table), self._violation(violation)
-            )
+            recipes, rank = self._next_generation(population, gen, fitness, violation)
             history.append(self._record(gen, fitness, violation, rank, stats,
                                         time.perf_counter() - t0, history))  # fmt: skip
             write_npz(
                 self.out / "checkpoint.npz",
                 generation=np.array(gen),
-                population=population,
+                population=population.genomes,
                 fitness=fitness,
                 violation=violation,
             )
@@ -387,23 +376,31 @@ class Run:
             bar.set_postfix(hv=f"{history[-1]['hypervolume']:.3f}", front=int(np.sum(rank == 0)))
             if gen + 1 < cfg.generations:
                 backend.advance(recipes)
-                population = np.stack([apply_recipe(r, population, table) for r in recipes])
             if stop_after is not None and done >= stop_after:
                 return {"stopped_at": gen}
         return self.finish(backend)
 
-    def _pretrained_population(self, probe: TrajectoryNet, table: np.ndarray) -> np.ndarray:
-        """Generation 0 of a warm-started run: the network fitted to the pre-training windows
-        (and, with ``dagger_rounds``, to the windows of its own drives; see :meth:`_warm_start`)
-        as individual 0 and ``sigma``-mutations of it."""
+    def _start(self, source: Source, probe: TrajectoryNet, population: Population, ckpt) -> Start:
+        """The first generation this call evaluates, made from ``source``: generation 0 from
+        random weights; generation 0 around the warm start's genome (see :meth:`_warm_start`):
+        itself as individual 0 and ``sigma``-mutations of it; or, resuming, the generation
+        after the checkpoint's ``ckpt``."""
         cfg = self.config
-        base = self._warm_start(probe)
-        n = len(base)
-        rng = stream(cfg.seed, Salt.WARM_START_MUTATIONS)
-        offsets = rng.integers(0, len(table) - n, size=cfg.population)
-        population = np.stack([base + np.float32(cfg.sigma) * table[o : o + n] for o in offsets])
-        population[0] = base
-        return population
+        if source is Source.CHECKPOINT:
+            gen, genomes, fitness, violation = ckpt
+            return Start(gen + 1, self._next_generation(population, gen, fitness, violation)[0],
+                         genomes)  # fmt: skip
+        if source is Source.WARM_START:
+            base = self._warm_start(probe)
+            recipes = warm_start_recipes(cfg.ga, cfg.seed, len(base), len(population.table))
+            return Start(0, recipes, base[None])
+        return Start(0, initial_recipes(cfg.ga, cfg.seed))
+
+    def _next_generation(self, population: Population, gen, fitness, violation):
+        """The recipes of the generation after ``gen`` and its (constrained) Pareto ranks."""
+        cfg = self.config
+        return next_generation(fitness, cfg.ga, cfg.seed, gen, population.genome_size,
+                               len(population.table), self._violation(violation))  # fmt: skip
 
     def _warm_start(self, probe: TrajectoryNet) -> np.ndarray:
         """The warm start's genome; writes ``pretrain.json``. Fits the network to the
