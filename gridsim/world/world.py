@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -13,7 +12,16 @@ from gridsim.road.polyline import Polyline
 from gridsim.traffic.fleet import EgoPose
 from gridsim.traffic.sources import TrafficSource
 from gridsim.traffic.track import Track
-from gridsim.vehicle.kinematics import PSI, STATE_SIZE, BicycleParams, V, X, Y, step_bicycle
+from gridsim.vehicle.kinematics import (
+    PSI,
+    STATE_SIZE,
+    BicycleParams,
+    V,
+    X,
+    Y,
+    centre_xy,
+    step_bicycle,
+)
 from gridsim.world.collision import CollisionChecker, Contact
 
 
@@ -71,9 +79,7 @@ class World:
         return self._route()
 
     def _center_xy(self) -> tuple[float, float]:
-        x, y, psi = self.ego[X], self.ego[Y], self.ego[PSI]
-        c = self.ego_params.center_offset
-        return float(x + c * math.cos(psi)), float(y + c * math.sin(psi))
+        return centre_xy(self.ego[X], self.ego[Y], self.ego[PSI], self.ego_params.center_offset)
 
     def ego_center(self) -> np.ndarray:
         """Centre of the ego footprint [m] in the world frame."""
