@@ -10,7 +10,8 @@ with probability ``p_crossover``, additive Gaussian mutation (``sigma`` times a 
 shared noise table) with probability ``p_mutation``; a child that drew neither is mutated,
 so that no evaluation is spent on an exact copy. All draws come from a generator seeded by
 (run seed, generation): a run is reproducible and resumable. Generation 0 is drawn the same
-way (:func:`initial_recipes`), or around a warm start's genome (:func:`warm_start_recipes`).
+way (:func:`initial_recipes`), or around a warm start's genome (:func:`warm_start_recipes`,
+from a stream of its own).
 """
 
 from __future__ import annotations
