@@ -18,7 +18,7 @@ from neurotrajectory.data.windows import DAGGER_LABELS, GROUPS
 from neurotrajectory.evolve.backends import BACKENDS, BackendError
 from neurotrajectory.evolve.pareto import PICKS
 from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
-from neurotrajectory.model import PRESETS, PRIORS
+from neurotrajectory.model import EVOLVE_SCOPES, PRESETS, PRIORS
 
 DEFAULT_OUT = "runs/default"
 
@@ -307,6 +307,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="how the DAgger windows are labelled: 'rejoin' (default), the human's path "
         "shifted by the ego's offset from the human, the shift fading out over the horizon; "
         "'human', the human's next set-points from there",
+    )
+    t.add_argument(
+        "--evolve",
+        choices=list(EVOLVE_SCOPES),
+        default=None,
+        help="what mutation changes: 'all' weights (default), or with a warm start only the "
+        "planning 'head' (LSTM branches and read-outs) or only the linear 'readout's",
     )
     t.add_argument("--out", default=None, help=f"run directory (created; default {DEFAULT_OUT})")
     t.add_argument("--resume", default=None, help="continue the run in this directory")

@@ -170,6 +170,16 @@ PRESETS = {
 }
 
 
+#: What evolution mutates, by parameter-name prefix (None: every weight). ``head``: the LSTM
+#: branches and both read-outs, on an encoder the warm start fitted; ``readout``: only the
+#: branches' linear read-outs and the kinematic skip read-out (a few hundred weights).
+EVOLVE_SCOPES = {
+    "all": None,
+    "head": ("branches.", "skip_weight"),
+    "readout": ("branches.head_weight", "branches.head_bias", "skip_weight"),
+}
+
+
 class BranchLSTMs(nn.Module):
     """``branches`` independent many-to-one LSTMs over the same input sequence, each with a
     linear read-out of one set-point, computed together (batched matrix products; the same
@@ -251,6 +261,14 @@ class TrajectoryNet(nn.Module):
             self.skip_weight = nn.Parameter(torch.zeros(cfg.horizon, 2, cfg.features))
         times = cfg.setpoint_period * torch.arange(1, cfg.horizon + 1, dtype=torch.float32)
         self.register_buffer("times", times, persistent=False)
+
+    def evolved(self, scope: str) -> tuple[str, ...] | None:
+        """The parameters evolution mutates in ``scope`` (see :data:`EVOLVE_SCOPES`), or None
+        for all of them."""
+        prefixes = EVOLVE_SCOPES[scope]
+        if prefixes is None:
+            return None
+        return tuple(name for name, _ in self.named_parameters() if name.startswith(prefixes))
 
     @property
     def zero_init(self) -> tuple[str, ...]:

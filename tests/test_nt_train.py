@@ -336,6 +336,7 @@ _OTHER_VALUES = {
     "--pretrain-validation": "0.5", "--dagger-rounds": "1", "--dagger-weight": "0.5",
     "--dagger-labels": "human", "--prior": "none", "--frame": "grid", "--no-skip": None,
     "--fixed-episodes": None, "--unconstrained": None, "--validation-episodes": "3",
+    "--evolve": "head",
 }  # fmt: skip
 #: ``train`` flags that are about the command, not the run's configuration.
 _COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quiet"}

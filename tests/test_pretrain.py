@@ -20,7 +20,7 @@ from neurotrajectory.data.windows import (
     scenario_episodes,
     split_by_track,
 )
-from neurotrajectory.evolve.genome import initial_genome
+from neurotrajectory.evolve.genome import initial_genome, mutation_mask
 from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
 from neurotrajectory.evolve.warm_start import (
     PretrainError,
@@ -104,6 +104,53 @@ def test_a_warm_started_run_begins_from_the_fitted_network(windows_dir, tmp_path
         json.loads((again / "history.json").read_text())["generations"][0]["fitness"]
         == (history[0]["fitness"])
     )
+
+
+@pytest.mark.parametrize("scope", ["head", "readout"])
+def test_evolving_the_head_keeps_the_warm_started_encoder(windows_dir, tmp_path, scope):
+    out = tmp_path / scope
+    args = ["train", "--preset", "tiny", "--population", "4", "--generations", "3",
+            "--episodes", "1", "--episode-seconds", "2", "--pretrain", str(windows_dir),
+            "--pretrain-epochs", "2", "--evolve", scope, "--sigma", "0.05", "--heldout", "0",
+            "--out", str(out), "--quiet"]  # fmt: skip
+    assert main(args) == 0
+    with np.load(out / "checkpoint.npz") as ckpt:
+        population = ckpt["population"]
+    run = Run.open(out)
+    net = TrajectoryNet(run.net_config)
+    evolved = net.evolved(scope)
+    names = {"head": {"branches.weight_ih", "branches.weight_hh", "branches.bias_ih",
+                      "branches.bias_hh", "branches.head_weight", "branches.head_bias",
+                      "skip_weight"},
+             "readout": {"branches.head_weight", "branches.head_bias", "skip_weight"}}  # fmt: skip
+    assert set(evolved) == names[scope]
+    mask = mutation_mask(net, evolved).astype(bool)
+    assert 0 < mask.sum() < len(mask)
+    # every member shares the encoder (and in "readout" the LSTMs) with the others, ...
+    assert (population[:, ~mask] == population[0, ~mask]).all()
+    # ... while their evolved weights went separate ways
+    assert len({row.tobytes() for row in population[:, mask]}) > 1
+    if scope == "readout":  # workers in other processes mutate alike
+        remote = tmp_path / "remote"
+        argv = [*args[:-3], "--out", str(remote), "--backend", "processes", "--workers", "1",
+                "--quiet"]  # fmt: skip
+        assert main(argv) == 0
+        with np.load(remote / "checkpoint.npz") as ckpt:
+            np.testing.assert_array_equal(ckpt["population"], population)
+        fitness = [json.loads((o / "history.json").read_text())["generations"][-1]["fitness"]
+                   for o in (out, remote)]  # fmt: skip
+        assert fitness[0] == fitness[1]
+
+
+def test_evolve_scopes_are_checked():
+    with pytest.raises(RunError, match=r"unknown evolve scope 'cnn'; choose from \['all', "):
+        TrainConfig(pretrain_episodes=2, evolve="cnn")
+    with pytest.raises(RunError, match="evolve 'head' keeps the warm start's encoder: give "
+                                       "pretrain or pretrain_episodes"):  # fmt: skip
+        TrainConfig(evolve="head")
+    with pytest.raises(ValueError, match=r"the network has no parameters \['nope'\]"):
+        mutation_mask(_tiny_net(), ("nope",))
+    assert mutation_mask(_tiny_net(), None) is None
 
 
 def test_a_missing_pretraining_dataset_is_a_clear_error(tmp_path, capsys):

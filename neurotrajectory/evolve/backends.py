@@ -38,6 +38,7 @@ class WorkerSpec:
     net: NetConfig
     seeds: tuple[int, ...]  # the default episodes; each evaluation names its own
     batch: int = 16  # individuals evaluated together (batch * episodes environments)
+    evolve: str = "all"  # what mutation changes (:data:`~neurotrajectory.model.EVOLVE_SCOPES`)
 
 
 #: One individual's result: its index, mean fitness ``[l1, l2, l3]`` and episode statistics.
@@ -51,7 +52,7 @@ class Worker:
         self.evaluator = Evaluator(
             spec.scenario, spec.overrides, spec.net, list(spec.seeds), batch=spec.batch
         )
-        self.population = Population(self.evaluator.net)
+        self.population = Population(self.evaluator.net, spec.evolve)
 
     @property
     def genome_size(self) -> int:
@@ -161,7 +162,7 @@ class RemoteBackend(Backend):
             raise BackendError(f"workers must be >= 1, got {workers}")
         self.workers = workers
         net = TrajectoryNet(scenario_net_config(spec.scenario, spec.overrides, spec.net))
-        self.population = Population(net)
+        self.population = Population(net, spec.evolve)
 
     @abstractmethod
     def _all(self, name: str, args: list) -> list:

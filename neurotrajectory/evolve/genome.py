@@ -52,6 +52,18 @@ def set_genome(net: nn.Module, genome: np.ndarray) -> None:
     torch.nn.utils.vector_to_parameters(vec, net.parameters())
 
 
+def mutation_mask(net: nn.Module, evolved: tuple[str, ...] | None) -> np.ndarray | None:
+    """A float32 0/1 vector over the genome: 1 where a parameter named in ``evolved`` lies
+    (None: every weight evolves, no mask)."""
+    if evolved is None:
+        return None
+    unknown = set(evolved) - {name for name, _ in net.named_parameters()}
+    if unknown:
+        raise ValueError(f"the network has no parameters {sorted(unknown)}")
+    return np.concatenate([np.full(p.numel(), name in evolved, np.float32)
+                           for name, p in net.named_parameters()])  # fmt: skip
+
+
 def initial_genome(net: nn.Module, seed: int) -> np.ndarray:
     """Weights ~ N(0, 1 / fan_in), biases 0, drawn with NumPy from ``seed`` (reproducible
     everywhere, unlike torch's initialisers); the parameters the network names in its
@@ -95,18 +107,24 @@ class Recipe:
 
 
 def apply_recipe(
-    recipe: Recipe, parents: np.ndarray | None, table: np.ndarray, init: np.ndarray | None = None
+    recipe: Recipe,
+    parents: np.ndarray | None,
+    table: np.ndarray,
+    init: np.ndarray | None = None,
+    mask: np.ndarray | None = None,
 ) -> np.ndarray:
     """The child genome of ``recipe``. ``parents`` ``(K, n)``; ``init`` is the genome made
-    from ``recipe.init_seed`` (generation 0)."""
+    from ``recipe.init_seed`` (generation 0); ``mask`` (:func:`mutation_mask`) limits the
+    mutation to the evolved weights."""
     if recipe.init_seed is not None:
         child = np.array(init, dtype=np.float32, copy=True)
     else:
         child = parents[recipe.parent].copy()
     n = len(child)
     if recipe.other is not None:
-        mask = np.random.default_rng(recipe.crossover_seed).random(n) < 0.5
-        child[mask] = parents[recipe.other][mask]
+        from_other = np.random.default_rng(recipe.crossover_seed).random(n) < 0.5
+        child[from_other] = parents[recipe.other][from_other]
     if recipe.noise_offset is not None:
-        child += np.float32(recipe.sigma) * table[recipe.noise_offset : recipe.noise_offset + n]
+        noise = np.float32(recipe.sigma) * table[recipe.noise_offset : recipe.noise_offset + n]
+        child += noise if mask is None else noise * mask
     return child

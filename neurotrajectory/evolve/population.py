@@ -24,6 +24,7 @@ from neurotrajectory.evolve.genome import (
     Recipe,
     apply_recipe,
     initial_genome,
+    mutation_mask,
     noise_table,
     table_size,
 )
@@ -32,19 +33,23 @@ from neurotrajectory.model import aligned_rows, count_parameters
 
 class Population:
     """One generation's genomes ``(K, n)`` and the noise table its children are mutated with;
-    ``net`` gives the genome's layout (initial genomes are drawn for it)."""
+    ``net`` gives the genome's layout (initial genomes are drawn for it); mutation changes
+    the parameters ``net.evolved(evolve)`` names (see :data:`~neurotrajectory.model.EVOLVE_SCOPES`),
+    the others pass from parents to children unchanged."""
 
-    def __init__(self, net: nn.Module) -> None:
+    def __init__(self, net: nn.Module, evolve: str = "all") -> None:
         self.net = net
         self.genome_size = count_parameters(net)
         self.table = noise_table(table_size(self.genome_size))
+        self.mask = mutation_mask(net, net.evolved(evolve))
         self.genomes: np.ndarray | None = None
 
     def advance(self, recipes: list[Recipe]) -> None:
         """Replace the genomes by the children of ``recipes``."""
         children = [
             apply_recipe(r, self.genomes, self.table,
-                         initial_genome(self.net, r.init_seed) if r.init_seed is not None else None)
+                         initial_genome(self.net, r.init_seed) if r.init_seed is not None else None,
+                         self.mask)
             for r in recipes
         ]  # fmt: skip
         self.load(children)

@@ -46,6 +46,7 @@ from neurotrajectory.evolve.genome import genome_mismatch, initial_genome, set_g
 from neurotrajectory.evolve.pareto import hypervolume, minimised, non_dominated_sort
 from neurotrajectory.evolve.population import Population, Source, Start
 from neurotrajectory.model import (
+    EVOLVE_SCOPES,
     PRESETS,
     PRIORS,
     NetConfig,
@@ -100,6 +101,9 @@ class TrainConfig:
     dagger_weight: float | None = None
     #: how the DAgger windows are labelled (see :data:`neurotrajectory.data.windows.DAGGER_LABELS`)
     dagger_labels: str = "rejoin"
+    #: what mutation changes (:data:`~neurotrajectory.model.EVOLVE_SCOPES`); a scope other
+    #: than "all" keeps the warm start's encoder and evolves the planning head on it
+    evolve: str = "all"
 
     #: What format-1 configurations (saved before these fields existed) meant.
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human"}
@@ -159,6 +163,12 @@ class TrainConfig:
             raise RunError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
         if not 0 <= self.pretrain_validation < 1:
             raise RunError(f"pretrain_validation must be in [0, 1), got {self.pretrain_validation}")
+        if self.evolve not in EVOLVE_SCOPES:
+            raise RunError(f"unknown evolve scope {self.evolve!r}; choose from "
+                           f"{list(EVOLVE_SCOPES)}")  # fmt: skip
+        if self.evolve != "all" and not (self.pretrain or self.pretrain_episodes):
+            raise RunError(f"evolve {self.evolve!r} keeps the warm start's encoder: give "
+                           "pretrain or pretrain_episodes (or evolve 'all')")  # fmt: skip
         if self.prior is not None and self.prior not in PRIORS:
             raise RunError(f"unknown prior {self.prior!r}; choose from {list(PRIORS)}")
 
@@ -319,9 +329,8 @@ class Run:
         """Run (or continue) the generations. ``stop_after`` ends the process after that many
         new generations (for tests of interrupted runs)."""
         cfg = self.config
-        spec = WorkerSpec(
-            cfg.scenario, cfg.overrides, self.net_config, cfg.episode_seeds(0), batch=cfg.batch
-        )
+        spec = WorkerSpec(cfg.scenario, cfg.overrides, self.net_config, cfg.episode_seeds(0),
+                          batch=cfg.batch, evolve=cfg.evolve)  # fmt: skip
         backend = make_backend(cfg.backend, spec, cfg.workers, cfg.ray_address)
         try:
             return self._loop(backend, progress, stop_after)
