@@ -373,3 +373,31 @@ def test_a_fleet_ticks_without_an_ego_as_with_one_out_of_reach():
     assert np.any(fleets[0].mode == IDM)  # followers caught up
     for name in ("s", "v", "d", "tau", "x", "y", "psi", "gap", "leader", "mode", "active"):
         assert np.array_equal(getattr(fleets[0], name), getattr(fleets[1], name)), name
+
+
+def test_city_traffic_never_appears_next_to_the_ego():
+    """On city streets participants spawn crossing or merging into the ego's path: none may
+    appear within CITY_EGO_CLEARANCE of the ego (two seeds used to spawn one into it)."""
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.policies import Reference
+    from gridsim.traffic.sources import CITY_EGO_CLEARANCE
+
+    env = GridSimEnv("inner_city", action_type="trajectory", simulation={"duration": 6.0})
+    policy = Reference()
+    for seed in (1396185866, 1018360727, 3):
+        obs, info = env.reset(seed=seed)
+        seen = np.zeros(0, bool)
+        done = False
+        while True:
+            world = env.world
+            f, ego = world.traffic.fleet, world.ego_pose()
+            new = f.active & ~np.pad(seen, (0, len(f.active) - len(seen)))
+            reach = 0.5 * (np.hypot(f.length, f.width) + np.hypot(ego.length, ego.width))
+            gap = np.hypot(f.x - ego.x, f.y - ego.y) - reach
+            assert np.all(gap[new] >= CITY_EGO_CLEARANCE), (seed, world.time, gap[new].min())
+            seen = f.active.copy()
+            if done:
+                break
+            obs, _, term, trunc, info = env.step(policy(env, obs, info))
+            assert not term, (seed, world.time, info)
+            done = trunc

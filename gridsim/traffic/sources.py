@@ -6,6 +6,7 @@ every :meth:`tick` (recycling participants that fall out of range on endless roa
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from functools import lru_cache
 
@@ -19,6 +20,9 @@ from gridsim.traffic.tables import TableBank
 from gridsim.traffic.track import Track
 
 _SPAWN_CLEARANCE = 6.0  # free distance [m] kept around a new participant, beyond the footprints
+#: free distance [m] between a participant spawned on a city street and the ego, whatever
+#: their headings (between the circles around both footprints)
+CITY_EGO_CLEARANCE = 5.0
 
 
 def track_path(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -301,6 +305,15 @@ class CityTraffic(SyntheticTraffic):
         self.fleet.deactivate(np.arange(self.fleet.capacity))
         for i in range(self.count):
             self._spawn_near(i, ego)
+
+    def _clear(self, x, y, heading, length, width, ego: EgoPose) -> bool:
+        """As for any traffic, and :data:`CITY_EGO_CLEARANCE` from the ego: on city streets a
+        participant may spawn crossing or merging into the ego's path, where the lane-aligned
+        test of :meth:`Fleet.occupied` does not see the ego's footprint turned against it."""
+        reach = 0.5 * (math.hypot(length, width) + math.hypot(ego.length, ego.width))
+        if math.hypot(x - ego.x, y - ego.y) < reach + CITY_EGO_CLEARANCE:
+            return False
+        return super()._clear(x, y, heading, length, width, ego)
 
     def tick(self, dt: float, ego: EgoPose) -> None:
         f = self.fleet
