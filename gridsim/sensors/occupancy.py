@@ -27,7 +27,8 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from gridsim.sensors.rays import cell_states, first_hits, mark_visible
+from gridsim.sensors.occupancy_kernels import near_corners, pixel_quads
+from gridsim.sensors.rays import cell_states, cell_states_one, first_hits, mark_visible, ray_runs
 
 FREE, UNKNOWN, OCCUPIED = 0, 128, 255
 # obstacle + 2 * visible -> cell state
@@ -74,26 +75,6 @@ class GridSpec:
             raise ValueError(f"ray_step must be in [0.1, 2] cells, got {self.ray_step}")
 
 
-_SIGN_L = np.array([-1.0, 1.0, 1.0, -1.0])[:, None]
-_SIGN_W = np.array([-1.0, -1.0, 1.0, 1.0])[:, None]
-
-
-def _inset_half_pixel(quads: np.ndarray) -> np.ndarray:
-    """Move each side of the rectangles ``(N, 4, 2)`` (pixel units, corners ordered as
-    :func:`~gridsim.vehicle.kinematics.box_corners`) half a pixel inwards.
-
-    OpenCV's fill covers every pixel an edge touches; insetting by half a pixel turns that into
-    "cells whose centre lies inside the footprint" (exactly for axis-aligned boxes).
-    """
-    e_l = quads[:, 1] - quads[:, 0]
-    e_w = quads[:, 3] - quads[:, 0]
-    n_l = np.linalg.norm(e_l, axis=1, keepdims=True)
-    n_w = np.linalg.norm(e_w, axis=1, keepdims=True)
-    u_l = e_l / np.maximum(n_l, 1e-9) * np.minimum(0.5, 0.5 * n_l)
-    u_w = e_w / np.maximum(n_w, 1e-9) * np.minimum(0.5, 0.5 * n_w)
-    return quads - _SIGN_L * u_l[:, None, :] - _SIGN_W * u_w[:, None, :]
-
-
 class OccupancyGridSensor:
     """Renders :class:`GridSpec` grids from the drivable area and vehicle footprints."""
 
@@ -118,9 +99,9 @@ class OccupancyGridSensor:
         self._hits = np.empty(spec.rays, np.int64)
 
     def _tables_for(self, ou: int, ov: int):
-        """Ray samples ``(rays, samples, 2)`` (whole cells, column and row) and per-cell
-        (ray, radius) tables for a mount ``(ou, ov)`` cells off the grid centre; cached, as
-        mounts snap to whole cells."""
+        """Ray samples ``(rays, samples, 2)`` (whole cells, column and row), their walk tables
+        (:func:`~gridsim.sensors.rays.ray_runs`) and per-cell (ray, radius) tables for a
+        mount ``(ou, ov)`` cells off the grid centre; cached, as mounts snap to whole cells."""
         key = (ou, ov)
         hit = self._tables.get(key)
         if hit is not None:
@@ -138,7 +119,8 @@ class OccupancyGridSensor:
         rad[rad > self._range] = np.inf  # out of range: never visible
         if len(self._tables) > 256:
             self._tables.clear()
-        self._tables[key] = hit = (samples, ray, rad)
+        runs = ray_runs(samples, s.rows, s.cols)
+        self._tables[key] = hit = (samples, runs, ray, rad)
         return hit
 
     # -- geometry ----------------------------------------------------------------------------
@@ -183,26 +165,32 @@ class OccupancyGridSensor:
                 cv2.fillPoly(m, [px[start : start + len(poly)]], 0, cv2.LINE_8, shift=4)
                 start += len(poly)
         if len(boxes):
-            px = _inset_half_pixel(boxes @ a[:, :2].T + a[:, 2])
-            for quad in np.rint(px * 16).astype(np.int32):
+            # Each side moved half a pixel inwards: OpenCV's fill covers every pixel an edge
+            # touches, the inset turns that into "cells whose centre lies inside the
+            # footprint" (exactly for axis-aligned boxes).
+            for quad in pixel_quads(boxes @ a[:, :2].T + a[:, 2]):
                 cv2.fillConvexPoly(m, quad, 1, cv2.LINE_8, shift=4)
         return m
 
     def render(self, ego_xy, ego_psi, drivable: list[np.ndarray], boxes: np.ndarray) -> np.ndarray:
         """The occupancy grid (values :data:`FREE`, :data:`UNKNOWN`, :data:`OCCUPIED`)."""
         obstacles = self.obstacle_mask(ego_xy, ego_psi, drivable, boxes)
+        grid = np.empty_like(obstacles)
+        mounts = self.spec.mounts
+        if len(mounts) == 1:
+            cell_states_one(obstacles, *self._reach_from(mounts[0], obstacles, ego_psi),
+                            _STATE_LUT, grid)  # fmt: skip
+            return grid
         visible = self._visible
         visible.fill(0)
-        for mount in self.spec.mounts:
-            self._mark_visible_from(mount, obstacles, ego_psi, visible)
-        grid = np.empty_like(obstacles)
+        for mount in mounts:
+            mark_visible(*self._reach_from(mount, obstacles, ego_psi), visible)
         cell_states(obstacles, visible, _STATE_LUT, grid)
         return grid
 
-    def _mark_visible_from(
-        self, mount: SensorMount, obstacles: np.ndarray, ego_psi: float, visible: np.ndarray
-    ) -> None:
-        """Set ``visible`` to 1 on the cells seen from ``mount``."""
+    def _reach_from(self, mount: SensorMount, obstacles: np.ndarray, ego_psi: float):
+        """``(rad, ray, reach)``: per cell its radius [samples] and ray from ``mount``, per
+        ray how far [samples] it sees (see :func:`~gridsim.sensors.rays.mark_visible`)."""
         s = self.spec
         north_up = s.orientation == "north_up"
         up_dir = ego_psi if north_up else np.pi / 2  # direction of the heading in the grid
@@ -210,24 +198,21 @@ class OccupancyGridSensor:
         mx, my = mount.x * c - mount.y * sn, mount.x * sn + mount.y * c
         ou = int(np.clip(np.rint(mx / s.cell_size), -(s.cols // 2), s.cols // 2))
         ov = int(np.clip(np.rint(-my / s.cell_size), -(s.rows // 2), s.rows // 2))
-        samples, ray, rad = self._tables_for(ou, ov)
-        first_hits(obstacles, samples, self._hits)
+        _, runs, ray, rad = self._tables_for(ou, ov)
+        first_hits(obstacles, *runs, self._hits)
         reach = self._hits.astype(np.float32) + np.float32(self._depth)
         if mount.fov < 2 * np.pi:
             off = np.angle(np.exp(1j * (self._theta - (up_dir + mount.yaw))))
             reach[np.abs(off) > 0.5 * mount.fov] = -np.inf
-        mark_visible(rad, ray, reach, visible)
+        return rad, ray, reach
 
 
 def observe(sensor: OccupancyGridSensor, world) -> np.ndarray:
     """The occupancy grid of ``sensor`` around the ego of ``world`` (a :class:`World`)."""
-    from gridsim.vehicle.kinematics import box_corners
-
     spec = sensor.spec
     ego_xy, psi = world.ego[:2], float(world.ego[2])
     radius = 0.5 * np.hypot(spec.rows, spec.cols) * spec.cell_size
-    x, y, h, length, width = world.traffic.fleet.footprints()
-    reach = radius + 0.5 * np.hypot(length, width)
-    near = np.hypot(x - ego_xy[0], y - ego_xy[1]) <= reach
-    boxes = box_corners(x[near], y[near], h[near], length[near], width[near])
+    f = world.traffic.fleet
+    boxes = near_corners(f.active, f.x, f.y, f.psi, f.length, f.width, float(ego_xy[0]),
+                         float(ego_xy[1]), float(radius))  # fmt: skip
     return sensor.render(ego_xy, psi, world.road.drivable_polygons(ego_xy, radius), boxes)

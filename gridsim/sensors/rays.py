@@ -1,8 +1,9 @@
 """Compiled ray casting for the occupancy grid: first hits along sampled rays, visibility.
 
-The rays are sampled at whole cells given by a ``(rays, samples, 2)`` int16 map of
-``(column, row)`` pairs (OpenCV's ``CV_16SC2`` nearest-neighbour map). Walking each ray only
-up to its first obstacle costs a fraction of remapping the whole polar image.
+A ray is sampled at whole cells (OpenCV's ``CV_16SC2`` nearest-neighbour map of ``(column,
+row)`` pairs, ``ray_step`` cells apart). :func:`ray_runs` turns each ray's samples into runs
+of the same cell, cut at the first sample outside the grid; walking each ray only up to its
+first obstacle, one cell per run, costs a fraction of remapping the whole polar image.
 """
 
 from __future__ import annotations
@@ -12,18 +13,40 @@ import numpy as np
 from gridsim.jit import kernel
 
 
+def ray_runs(samples: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, ...]:
+    """The walk tables of the sampled rays ``samples`` ``(rays, S, 2)`` (int16 column, row):
+    ``cells`` ``(rays, M)`` flat cell indices (row * cols + column) and ``firsts``
+    ``(rays, M)`` the sample index where each run of equal cells starts, ``counts``
+    ``(rays,)`` the runs per ray, and ``ends`` ``(rays,)`` the hit index of a ray that meets
+    no obstacle: its first sample outside the grid, at most its last sample (``S - 1``)."""
+    n_rays, n_samples = samples.shape[:2]
+    u = samples[:, :-1, 0].astype(np.int64)
+    v = samples[:, :-1, 1].astype(np.int64)
+    outside = (u < 0) | (v < 0) | (u >= cols) | (v >= rows)
+    ends = np.where(outside.any(axis=1), np.argmax(outside, axis=1), n_samples - 1)
+    flat = v * cols + u
+    j = np.arange(n_samples - 1)
+    starts = np.ones(flat.shape, bool)
+    starts[:, 1:] = flat[:, 1:] != flat[:, :-1]
+    starts &= j[None] < ends[:, None]
+    counts = starts.sum(axis=1)
+    order = np.argsort(~starts, axis=1, kind="stable")[:, : max(int(counts.max()), 1)]
+    cells = np.take_along_axis(flat, order, axis=1).astype(np.int32)
+    firsts = np.broadcast_to(j, flat.shape)[np.arange(n_rays)[:, None], order]
+    return cells, firsts.astype(np.int64), counts.astype(np.int64), ends.astype(np.int64)
+
+
 @kernel
-def first_hits(obstacles: np.ndarray, samples: np.ndarray, out: np.ndarray) -> None:
+def first_hits(obstacles, cells, firsts, counts, ends, out) -> None:
     """``out[k]``: index of the first sample of ray ``k`` on an obstacle (a non-zero cell of
-    ``obstacles`` or a cell outside the grid); the last sample of every ray counts as a hit."""
-    rows, cols = obstacles.shape
-    n_rays, n_samples = samples.shape[0], samples.shape[1]
-    for k in range(n_rays):
-        hit = n_samples - 1
-        for j in range(n_samples - 1):
-            u, v = samples[k, j, 0], samples[k, j, 1]
-            if u < 0 or v < 0 or u >= cols or v >= rows or obstacles[v, u] != 0:
-                hit = j
+    ``obstacles``, C-contiguous) or outside the grid, given the tables of :func:`ray_runs`;
+    the last sample of every ray counts as a hit."""
+    flat = obstacles.reshape(-1)
+    for k in range(len(counts)):
+        hit = ends[k]
+        for e in range(counts[k]):
+            if flat[cells[k, e]] != 0:
+                hit = firsts[k, e]
                 break
         out[k] = hit
 
@@ -46,3 +69,14 @@ def cell_states(obstacles: np.ndarray, visible: np.ndarray, lut: np.ndarray, out
     for r in range(rows):
         for c in range(cols):
             out[r, c] = lut[obstacles[r, c] + 2 * visible[r, c]]
+
+
+@kernel
+def cell_states_one(obstacles, rad, ray, reach, lut, out) -> None:
+    """:func:`mark_visible` into a cleared grid, then :func:`cell_states`, in one pass (one
+    mount)."""
+    rows, cols = obstacles.shape
+    for r in range(rows):
+        for c in range(cols):
+            seen = 1 if rad[r, c] <= reach[ray[r, c]] else 0
+            out[r, c] = lut[obstacles[r, c] + 2 * seen]
