@@ -7,13 +7,14 @@ set-point times that the action asks for (used by the fitness term l1).
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
 import numpy as np
 from gymnasium import spaces
 
-from gridsim.frames import grid_to_world
+from gridsim.envs import actions_kernels as kernels
 from gridsim.road.polyline import Polyline
 from gridsim.vehicle.control import PursuitGains, follow_path
 from gridsim.vehicle.kinematics import PSI, BicycleParams, V, step_bicycle
@@ -96,14 +97,13 @@ class TrajectoryAction(ActionType):
                 f"trajectory action must have shape ({self.horizon}, 2), got {a.shape}"
             )
         box = self.space
-        pts = grid_to_world(np.clip(a, box.low, box.high), world.ego[:2], rotation)
-        origin = world.ego[:2].copy()
-        speed = float(np.hypot(*(pts[0] - origin))) / self.period
-        path_pts = np.vstack([origin, pts])
-        keep = np.concatenate([[True], np.hypot(*np.diff(path_pts, axis=0).T) > 1e-3])
+        ex, ey = float(world.ego[0]), float(world.ego[1])
+        c, s = math.cos(rotation), math.sin(rotation)
+        pts, first, path_pts = kernels.setpoint_path(a, box.low, box.high, ex, ey, c, s)
+        speed = float(first) / self.period
         heading = np.array([np.cos(world.ego[PSI]), np.sin(world.ego[PSI])])
-        ahead = float(np.dot(pts[0] - origin, heading)) > 0.0
-        path = Polyline(path_pts[keep]) if keep.sum() >= 2 and ahead else None
+        ahead = float(np.dot(pts[0] - world.ego[:2], heading)) > 0.0
+        path = Polyline(path_pts) if len(path_pts) >= 2 and ahead else None
         gains = TRACKING_GAINS
         params = self.params
 

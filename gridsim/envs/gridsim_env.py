@@ -135,8 +135,9 @@ class GridSimEnv(gym.Env):
     def _look_ahead(self) -> None:
         """Reference positions at the coming set-point times, world and grid frames."""
         w = self.world
-        self._ref_future = self.reference.positions(w.time + self._setpoint_times)
-        self._ref_future_grid = self._to_grid(self._ref_future).astype(np.float32)
+        self._ref_future, self._ref_future_grid = self.reference.positions_in_grid(
+            w.time + self._setpoint_times, w.ego[:2], grid_rotation(self._orientation, w.ego[PSI])
+        )
 
     def _to_grid(self, points: np.ndarray) -> np.ndarray:
         """World points ``(N, 2)`` [m] in the ego's grid frame (rear axle at the origin)."""
