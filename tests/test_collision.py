@@ -78,3 +78,31 @@ def test_lane_follower_stays_on_road_and_steering_away_goes_off_road():
     first = events.index(True)
     assert all(events[first:])  # once off the road it stays off
     assert not world.road.is_drivable(world.ego_center()[None])[0]
+
+
+def test_edge_distance_test_skips_only_queries_that_find_nothing(monkeypatch):
+    """pymunk is asked about road edges only when one comes near the ego: the contacts are
+    the same as when it is always asked (random edges and ego poses, touching or not)."""
+    from gridsim.world import collision_kernels
+
+    rng = np.random.default_rng(8)
+    cases = []
+    for _ in range(300):
+        edges = rng.uniform(-15, 15, (int(rng.integers(0, 12)), 4))
+        edges[: len(edges) // 2, 2:] = edges[: len(edges) // 2, :2]  # some of zero length
+        cases.append((edges, rng.normal(0, 4, 2), float(rng.uniform(-4, 4))))
+
+    def contacts():
+        out, skipped = [], 0
+        for edges, center, psi in cases:
+            cc = CollisionChecker(4.5, 1.8)
+            cc.set_boundaries(edges, 1, np.zeros(2))
+            skipped += not collision_kernels.near_segment(cc._edges, *center, cc._core_reach)
+            out.append(cc.check(center, psi, traffic(), np.array([], int)))
+        return out, skipped
+
+    filtered, skipped = contacts()
+    monkeypatch.setattr(collision_kernels, "near_segment", lambda *args: True)
+    always, _ = contacts()
+    assert filtered == always
+    assert 0 < skipped < len(cases) and sum(bool(c.boundaries) for c in always) > 20

@@ -22,6 +22,9 @@ EDGE_TOLERANCE = 0.3
 BOUNDARY_RADIUS = 40.0
 #: The edges are reloaded after the ego moved this far [m] (must stay well below the radius).
 BOUNDARY_RELOAD = 20.0
+#: pymunk is asked about road edges only when one passes within the ego core's bounding
+#: circle plus this margin [m] (far more than any rounding: it cannot report a farther one).
+EDGE_QUERY_MARGIN = 1.0
 
 
 @dataclass(frozen=True)
@@ -56,8 +59,13 @@ class CollisionChecker:
         shrink = 2 * edge_tolerance
         core = (max(ego_length - shrink, 0.1), max(ego_width - shrink, 0.1))
         self._ego_core = _box(self._ego_body, *core)
+        # The ego's two boxes share a group: a query with one does not report the other
+        # (the queries skip the ego's body anyway; this spares pymunk's callback for it).
+        self._ego_shape.filter = self._ego_core.filter = pymunk.ShapeFilter(group=1)
         self.space.add(self._ego_body, self._ego_shape, self._ego_core)
         self._ego_radius = 0.5 * np.hypot(ego_length, ego_width)
+        self._core_reach = 0.5 * float(np.hypot(*core)) + EDGE_QUERY_MARGIN
+        self._edges = np.zeros((0, 4))  # the loaded road edges' segments
         self._shapes: dict[int, tuple[pymunk.Body, pymunk.Poly]] = {}
         self._placed: set[int] = set()
         self._boundary_shapes: list[pymunk.Segment] = []
@@ -95,6 +103,7 @@ class CollisionChecker:
         if shapes:
             self.space.add(*shapes)
         self._boundary_shapes = shapes
+        self._edges = np.ascontiguousarray(segments[near], np.float64)
         self._road_version = version
         self._boundary_center = np.array(center, dtype=np.float64)
 
@@ -168,9 +177,13 @@ class CollisionChecker:
     def _query(self, ego_center, ego_psi) -> Contact:
         """The contacts of the ego box with what is placed and loaded."""
         placed = self._placed
-        if not placed and not self._boundary_shapes:
+        cx, cy = float(ego_center[0]), float(ego_center[1])
+        edges_near = bool(self._boundary_shapes) and collision_kernels.near_segment(
+            self._edges, cx, cy, self._core_reach
+        )
+        if not placed and not edges_near:
             return Contact()  # nothing loaded the ego could touch
-        self._ego_body.position = (float(ego_center[0]), float(ego_center[1]))
+        self._ego_body.position = (cx, cy)
         self._ego_body.angle = float(ego_psi)
         self.space.reindex_shapes_for_body(self._ego_body)
         ego = self._ego_body
@@ -179,9 +192,9 @@ class CollisionChecker:
             for hit in (self.space.shape_query(self._ego_shape) if placed else ())
             if hit.shape.body.body_type == pymunk.Body.KINEMATIC and hit.shape.body is not ego
         ]
-        edges = [  # none unless road edges are loaded
+        edges = [  # none unless a loaded road edge comes near
             hit.shape.gridsim_index
-            for hit in (self.space.shape_query(self._ego_core) if self._boundary_shapes else ())
+            for hit in (self.space.shape_query(self._ego_core) if edges_near else ())
             if hit.shape.body.body_type == pymunk.Body.STATIC
         ]
         return Contact(tuple(sorted(vehicles)), tuple(sorted(edges)))
