@@ -260,3 +260,25 @@ def test_one_pass_cell_states_equal_marking_then_states():
         got = np.empty_like(obstacles)
         cell_states_one(obstacles, rad, ray, reach, _STATE_LUT, got)
         assert np.array_equal(got, want)
+
+
+def test_north_up_pixel_map_equals_the_matrix_product():
+    """The north-up world -> pixel map, built from floats and applied compiled, gives the
+    same bits as the matrix products (``rot @ ego``, ``points @ a[:, :2].T + a[:, 2]``) it
+    replaced; a heading-up map still goes through ``@``."""
+    from gridsim.sensors.occupancy_kernels import diagonal_map
+
+    rng = np.random.default_rng(9)
+    for cell_size, rows, cols in [(0.5, 128, 128), (0.3, 64, 100), (1.0, 7, 9)]:
+        sensor = OccupancyGridSensor(GridSpec(rows=rows, cols=cols, cell_size=cell_size))
+        k = 1.0 / cell_size
+        rot = np.array([[k, 0.0], [0.0, -k]])
+        for _ in range(300):
+            ego = rng.normal(0, 1, 2) * rng.choice([1e-3, 10.0, 1e4])
+            t = np.array([cols / 2 - 0.5, rows / 2 - 0.5]) - rot @ ego
+            want = np.hstack([rot, t[:, None]])
+            a = sensor.world_to_pixel(ego, float(rng.uniform(-4, 4)))
+            assert np.array_equal(a, want)
+            points = ego + rng.normal(0, 40, (int(rng.integers(0, 60)), 2))
+            assert np.array_equal(diagonal_map(points, a), points @ a[:, :2].T + a[:, 2])
+            assert np.array_equal(sensor._to_pixels(points, a), points @ a[:, :2].T + a[:, 2])

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from gridsim.sensors.occupancy_kernels import near_corners, pixel_quads
+from gridsim.sensors.occupancy_kernels import diagonal_map, near_corners, pixel_quads
 from gridsim.sensors.rays import cell_states, cell_states_one, first_hits, mark_visible, ray_runs
 
 FREE, UNKNOWN, OCCUPIED = 0, 128, 255
@@ -128,14 +128,25 @@ class OccupancyGridSensor:
         """Affine map ``(2, 3)``: world metres -> pixel coordinates (u = column, v = row)."""
         s = self.spec
         k = 1.0 / s.cell_size
+        cu, cv = s.cols / 2 - 0.5, s.rows / 2 - 0.5
         if s.orientation == "north_up":
-            rot = np.array([[k, 0.0], [0.0, -k]])
-        else:  # up = heading, right = heading - 90 deg
-            c, sn = np.cos(ego_psi), np.sin(ego_psi)
-            rot = np.array([[sn * k, -c * k], [-c * k, -sn * k]])
-        centre = np.array([s.cols / 2 - 0.5, s.rows / 2 - 0.5])
-        t = centre - rot @ np.asarray(ego_xy, dtype=np.float64)
+            # A scale: each product of ``rot @ ego_xy`` is one rounding plus an exact zero.
+            x, y = float(ego_xy[0]), float(ego_xy[1])
+            return np.array([[k, 0.0, cu - k * x], [0.0, -k, cv - -k * y]])
+        # up = heading, right = heading - 90 deg
+        c, sn = np.cos(ego_psi), np.sin(ego_psi)
+        rot = np.array([[sn * k, -c * k], [-c * k, -sn * k]])
+        t = np.array([cu, cv]) - rot @ np.asarray(ego_xy, dtype=np.float64)
         return np.hstack([rot, t[:, None]])
+
+    @staticmethod
+    def _to_pixels(points: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """``points`` ``(N, 2)`` [m, world] mapped by the affine map ``a`` ``(2, 3)`` to pixel
+        coordinates. A diagonal map (north-up) is compiled: each coordinate is one product
+        plus an exact zero, the same bits as the BLAS product that other maps go through."""
+        if a[0, 1] == 0.0 and a[1, 0] == 0.0:
+            return diagonal_map(points, a)
+        return points @ a[:, :2].T + a[:, 2]
 
     def cell_centers(self, ego_xy: np.ndarray, ego_psi: float) -> np.ndarray:
         """World coordinates ``(rows, cols, 2)`` [m] of every cell centre."""
@@ -159,7 +170,7 @@ class OccupancyGridSensor:
         m = self._obstacles
         m.fill(1)
         if drivable:
-            px = np.rint((np.concatenate(drivable) @ a[:, :2].T + a[:, 2]) * 16).astype(np.int32)
+            px = np.rint(self._to_pixels(np.concatenate(drivable), a) * 16).astype(np.int32)
             start = 0
             for poly in drivable:  # one call per polygon: a multi-polygon call XORs overlaps
                 cv2.fillPoly(m, [px[start : start + len(poly)]], 0, cv2.LINE_8, shift=4)
@@ -168,7 +179,8 @@ class OccupancyGridSensor:
             # Each side moved half a pixel inwards: OpenCV's fill covers every pixel an edge
             # touches, the inset turns that into "cells whose centre lies inside the
             # footprint" (exactly for axis-aligned boxes).
-            for quad in pixel_quads(boxes @ a[:, :2].T + a[:, 2]):
+            corners = self._to_pixels(boxes.reshape(-1, 2), a).reshape(boxes.shape)
+            for quad in pixel_quads(corners):
                 cv2.fillConvexPoly(m, quad, 1, cv2.LINE_8, shift=4)
         return m
 
@@ -196,8 +208,9 @@ class OccupancyGridSensor:
         up_dir = ego_psi if north_up else np.pi / 2  # direction of the heading in the grid
         c, sn = np.cos(up_dir), np.sin(up_dir)
         mx, my = mount.x * c - mount.y * sn, mount.x * sn + mount.y * c
-        ou = int(np.clip(np.rint(mx / s.cell_size), -(s.cols // 2), s.cols // 2))
-        ov = int(np.clip(np.rint(-my / s.cell_size), -(s.rows // 2), s.rows // 2))
+        # round: to the nearest even on ties, as np.rint
+        ou = min(max(round(mx / s.cell_size), -(s.cols // 2)), s.cols // 2)
+        ov = min(max(round(-my / s.cell_size), -(s.rows // 2)), s.rows // 2)
         _, runs, ray, rad = self._tables_for(ou, ov)
         first_hits(obstacles, *runs, self._hits)
         reach = self._hits.astype(np.float32) + np.float32(self._depth)

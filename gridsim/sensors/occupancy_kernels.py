@@ -1,8 +1,8 @@
 """Compiled footprint preparation for the occupancy grid: the same operations, in the same
 order, as the NumPy code they replaced (``observe``'s range test and
 :func:`~gridsim.vehicle.kinematics.box_corners`; the half-pixel inset and fixed-point
-rounding before OpenCV's fill). The affine map world -> pixel between the two stays NumPy's
-``@`` (BLAS sets its bits)."""
+rounding before OpenCV's fill), and the world -> pixel map when it is diagonal (for other
+maps the bits are BLAS's: NumPy's ``@`` stays)."""
 
 from __future__ import annotations
 
@@ -60,4 +60,16 @@ def pixel_quads(quads):
             for j in range(2):
                 p = quads[m, k, j] - _LX[k] * u[0, j] - _LY[k] * u[1, j]
                 out[m, k, j] = np.int32(np.rint(p * 16))
+    return out
+
+
+@kernel
+def diagonal_map(points, a):
+    """``points @ a[:, :2].T + a[:, 2]`` for points ``(N, 2)`` and an affine map ``a``
+    ``(2, 3)`` whose off-diagonal entries are zero: the same bits in any evaluation order."""
+    out = np.empty(points.shape)
+    for i in range(points.shape[0]):
+        x, y = points[i, 0], points[i, 1]
+        out[i, 0] = (x * a[0, 0] + y * a[0, 1]) + a[0, 2]
+        out[i, 1] = (x * a[1, 0] + y * a[1, 1]) + a[1, 2]
     return out
