@@ -99,11 +99,12 @@ class TrajectoryAction(ActionType):
         box = self.space
         ex, ey = float(world.ego[0]), float(world.ego[1])
         c, s = math.cos(rotation), math.sin(rotation)
-        pts, first, path_pts = kernels.setpoint_path(a, box.low, box.high, ex, ey, c, s)
+        pts, first, path_arrays = kernels.setpoint_path(a, box.low, box.high, ex, ey, c, s)
         speed = float(first) / self.period
         heading = np.array([np.cos(world.ego[PSI]), np.sin(world.ego[PSI])])
         ahead = float(np.dot(pts[0] - world.ego[:2], heading)) > 0.0
-        path = Polyline(path_pts) if len(path_pts) >= 2 and ahead else None
+        # (a path of 2 or more points has 2 or more distinct ones: they are 1 mm apart)
+        path = Polyline.from_segments(path_arrays) if len(path_arrays[0]) >= 2 and ahead else None
         gains = TRACKING_GAINS
         params = self.params
 

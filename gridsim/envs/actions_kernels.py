@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from gridsim.jit import kernel
+from gridsim.road.polyline_kernels import segments
 
 
 @kernel
@@ -14,7 +15,8 @@ def setpoint_path(a, low, high, ex, ey, c, s):
     """Set-points ``a`` ``(H, 2)`` [m, grid frame] clipped to ``[low, high]``, in the world
     frame of an ego at ``(ex, ey)`` with grid rotation ``(c, s)`` = its cos, sin. Returns
     them ``(H, 2)`` [m, world], the distance [m] from the ego to the first, and the path
-    from the ego through them ``(K, 2)``, dropping points within 1 mm of the one before."""
+    from the ego through them, dropping points within 1 mm of the one before, as the arrays of
+    :func:`~gridsim.road.polyline_kernels.segments` (its points ``(K, 2)`` first)."""
     h = a.shape[0]
     pts = np.empty((h, 2))
     path = np.empty((h + 1, 2))
@@ -31,4 +33,4 @@ def setpoint_path(a, low, high, ex, ey, c, s):
         if np.hypot(x - px, y - py) > 1e-3:
             path[k, 0], path[k, 1] = x, y
             k += 1
-    return pts, np.hypot(pts[0, 0] - ex, pts[0, 1] - ey), path[:k]
+    return pts, np.hypot(pts[0, 0] - ex, pts[0, 1] - ey), segments(path[:k], 0.0)

@@ -114,7 +114,7 @@ class OccupancyGridSensor:
         v, u = np.mgrid[0 : s.rows, 0 : s.cols].astype(np.float64)
         du, dv = u - u0, v - v0
         ang = np.mod(np.arctan2(-dv, du), 2 * np.pi)
-        ray = np.rint(ang / (2 * np.pi) * s.rays).astype(np.intp) % s.rays
+        ray = (np.rint(ang / (2 * np.pi) * s.rays).astype(np.intp) % s.rays).astype(np.int32)
         rad = (np.hypot(du, dv) / self._dr).astype(np.float32)
         rad[rad > self._range] = np.inf  # out of range: never visible
         if len(self._tables) > 256:

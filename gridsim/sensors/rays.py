@@ -33,7 +33,7 @@ def ray_runs(samples: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, ...
     order = np.argsort(~starts, axis=1, kind="stable")[:, : max(int(counts.max()), 1)]
     cells = np.take_along_axis(flat, order, axis=1).astype(np.int32)
     firsts = np.broadcast_to(j, flat.shape)[np.arange(n_rays)[:, None], order]
-    return cells, firsts.astype(np.int64), counts.astype(np.int64), ends.astype(np.int64)
+    return cells, firsts.astype(np.int32), counts.astype(np.int32), ends.astype(np.int32)
 
 
 @kernel
