@@ -36,7 +36,7 @@ def _real(action, kind: str) -> np.ndarray:
         raise ValueError(f"{kind} action must hold real numbers (integers or floats), got dtype "
                          f"{raw.dtype}: {raw.tolist()!r}")  # fmt: skip
     a = raw.astype(np.float64)
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise ValueError(f"{kind} action contains NaN or infinite values: {raw.tolist()}")
     return a
 

@@ -187,7 +187,7 @@ class GridSimEnv(gym.Env):
         world = self.world
         rotation = grid_rotation(self._orientation, world.ego[PSI])
         control, plan = self.action_kind.controller(world, action, rotation)
-        l1 = float(np.sum((plan - self._ref_future) ** 2))
+        l1 = float(((plan - self._ref_future) ** 2).sum())
         l2 = l3 = 0.0
         v_lo, v_hi = self.cfg.speed_range
         result = None

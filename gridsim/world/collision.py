@@ -70,7 +70,7 @@ class CollisionChecker:
         self._placed: set[int] = set()
         self._boundary_shapes: list[pymunk.Segment] = []
         self._road_version = -1
-        self._boundary_center = np.array([np.inf, np.inf])
+        self._boundary_center = (np.inf, np.inf)
 
     def __deepcopy__(self, memo) -> CollisionChecker:
         """A fresh checker: its pymunk space only caches shapes near the ego (edges within
@@ -82,7 +82,8 @@ class CollisionChecker:
         """Load the road-edge segments ``(M, 4)`` within :data:`BOUNDARY_RADIUS` of ``center``
         as static shapes; reloads only when the road ``version`` changed or the ego moved more
         than :data:`BOUNDARY_RELOAD` metres since the last load."""
-        moved = np.hypot(*(np.asarray(center) - self._boundary_center))
+        bx, by = self._boundary_center
+        moved = np.hypot(float(center[0]) - bx, float(center[1]) - by)
         if version == self._road_version and moved < BOUNDARY_RELOAD:
             return
         if self._boundary_shapes:
@@ -105,7 +106,7 @@ class CollisionChecker:
         self._boundary_shapes = shapes
         self._edges = np.ascontiguousarray(segments[near], np.float64)
         self._road_version = version
-        self._boundary_center = np.array(center, dtype=np.float64)
+        self._boundary_center = (float(center[0]), float(center[1]))
 
     def _shape_for(self, index: int, length: float, width: float) -> pymunk.Body:
         """The kinematic body of participant ``index``, its box resized if needed."""
