@@ -28,7 +28,14 @@ import cv2
 import numpy as np
 
 from gridsim.sensors.occupancy_kernels import diagonal_map, near_corners, pixel_quads
-from gridsim.sensors.rays import cell_states, cell_states_one, first_hits, mark_visible, ray_runs
+from gridsim.sensors.rays import (
+    cell_states,
+    cell_states_one,
+    first_hits,
+    index_dtype,
+    mark_visible,
+    ray_runs,
+)
 
 FREE, UNKNOWN, OCCUPIED = 0, 128, 255
 # obstacle + 2 * visible -> cell state
@@ -114,7 +121,8 @@ class OccupancyGridSensor:
         v, u = np.mgrid[0 : s.rows, 0 : s.cols].astype(np.float64)
         du, dv = u - u0, v - v0
         ang = np.mod(np.arctan2(-dv, du), 2 * np.pi)
-        ray = (np.rint(ang / (2 * np.pi) * s.rays).astype(np.intp) % s.rays).astype(np.int32)
+        ray = np.rint(ang / (2 * np.pi) * s.rays).astype(np.intp) % s.rays
+        ray = ray.astype(index_dtype(s.rays))
         rad = (np.hypot(du, dv) / self._dr).astype(np.float32)
         rad[rad > self._range] = np.inf  # out of range: never visible
         if len(self._tables) > 256:

@@ -13,12 +13,19 @@ import numpy as np
 from gridsim.jit import kernel
 
 
+def index_dtype(n: int) -> type:
+    """The smallest of int16 and int32 that holds the indices ``0 .. n - 1`` (smaller tables
+    stay in cache between steps)."""
+    return np.int16 if n <= np.iinfo(np.int16).max + 1 else np.int32
+
+
 def ray_runs(samples: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, ...]:
     """The walk tables of the sampled rays ``samples`` ``(rays, S, 2)`` (int16 column, row):
     ``cells`` ``(rays, M)`` flat cell indices (row * cols + column) and ``firsts``
     ``(rays, M)`` the sample index where each run of equal cells starts, ``counts``
     ``(rays,)`` the runs per ray, and ``ends`` ``(rays,)`` the hit index of a ray that meets
-    no obstacle: its first sample outside the grid, at most its last sample (``S - 1``)."""
+    no obstacle: its first sample outside the grid, at most its last sample (``S - 1``).
+    Indices are int16 where they fit (:func:`index_dtype`)."""
     n_rays, n_samples = samples.shape[:2]
     u = samples[:, :-1, 0].astype(np.int64)
     v = samples[:, :-1, 1].astype(np.int64)
@@ -31,9 +38,14 @@ def ray_runs(samples: np.ndarray, rows: int, cols: int) -> tuple[np.ndarray, ...
     starts &= j[None] < ends[:, None]
     counts = starts.sum(axis=1)
     order = np.argsort(~starts, axis=1, kind="stable")[:, : max(int(counts.max()), 1)]
-    cells = np.take_along_axis(flat, order, axis=1).astype(np.int32)
+    cells = np.take_along_axis(flat, order, axis=1).astype(index_dtype(rows * cols))
     firsts = np.broadcast_to(j, flat.shape)[np.arange(n_rays)[:, None], order]
-    return cells, firsts.astype(np.int32), counts.astype(np.int32), ends.astype(np.int32)
+    return (
+        cells,
+        firsts.astype(index_dtype(n_samples)),
+        counts.astype(np.int32),
+        ends.astype(np.int32),
+    )
 
 
 @kernel
