@@ -26,9 +26,11 @@ def within_reach(active, x, y, length, width, cx, cy, radius):
 
 
 @kernel
-def near_segment(segments, cx, cy, reach) -> bool:
-    """Whether any of the segments ``(M, 4)`` = ``[x0, y0, x1, y1]`` [m] comes within
+def near_segments(segments, cx, cy, reach):
+    """Indices of the segments ``(M, 4)`` = ``[x0, y0, x1, y1]`` [m] that come within
     ``reach`` [m] of ``(cx, cy)`` (a distance that is not a number counts as near)."""
+    out = np.empty(len(segments), np.int64)
+    n = 0
     for k in range(len(segments)):
         x0, y0, x1, y1 = segments[k, 0], segments[k, 1], segments[k, 2], segments[k, 3]
         dx, dy = x1 - x0, y1 - y0
@@ -37,5 +39,6 @@ def near_segment(segments, cx, cy, reach) -> bool:
         if den > 0.0:
             t = min(max(((cx - x0) * dx + (cy - y0) * dy) / den, 0.0), 1.0)
         if not np.hypot(cx - x0 - t * dx, cy - y0 - t * dy) > reach:
-            return True
-    return False
+            out[n] = k
+            n += 1
+    return out[:n]
