@@ -192,9 +192,9 @@ class GridSimEnv(gym.Env):
         v_lo, v_hi = self.cfg.speed_range
         result = None
         for _ in range(self._ticks):
-            before = world.ego[:2].copy()
+            x0, y0 = world.ego[0], world.ego[1]  # NumPy scalars: np.hypot of their differences
             result = world.tick(*control(world))
-            self._travelled += float(np.hypot(*(world.ego[:2] - before)))
+            self._travelled += float(np.hypot(world.ego[0] - x0, world.ego[1] - y0))
             l2 += abs(result.steer_rate)
             v = world.ego[V]
             l3 += v if v_lo <= v <= v_hi else 0.0
