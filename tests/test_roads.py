@@ -324,3 +324,16 @@ def test_compiled_near_boxes_equal_numpy():
             & (boxes[:, 3] >= cy - radius)
         )
         assert np.array_equal(near(boxes, np.array([cx, cy]), radius), want)
+
+
+def test_compiled_point_ahead_equals_project_then_frenet_one():
+    """``Polyline.ahead_of`` (one kernel call) gives the bits of :meth:`Polyline.project`
+    followed by :meth:`Polyline.frenet_one` at the arc length plus the distance ahead."""
+    rng = np.random.default_rng(23)
+    for _ in range(500):
+        pts = np.cumsum(rng.normal(0, 3, (int(rng.integers(2, 12)), 2)), axis=0)
+        line = Polyline(pts, float(rng.uniform(-50, 50)))
+        x, y = pts[0] + rng.normal(0, 15, 2)
+        ahead, d = float(rng.uniform(0, 20)), float(rng.normal(0, 2))
+        s = float(line.project(np.array([[x, y]]))[0][0])
+        assert line.ahead_of(x, y, ahead, d) == line.frenet_one(s + ahead, d)

@@ -81,6 +81,12 @@ class Polyline:
         return kernels.frenet_one(self.points, self._seg, self._seg_len, self.s, self._heading,
                                   float(s), float(d))  # fmt: skip
 
+    def ahead_of(self, x: float, y: float, ahead: float, d: float) -> tuple[float, float, float]:
+        """:meth:`frenet_one` at ``ahead`` [m] past the projection (:meth:`project`) of the
+        point ``(x, y)`` [m], lateral offset ``d`` [m]."""
+        return kernels.ahead_of(self.points, self._seg, self._seg_len, self.s, self._heading,
+                                float(x), float(y), float(ahead), float(d))  # fmt: skip
+
     def frenet_to_world(self, s, d) -> tuple[np.ndarray, np.ndarray]:
         """World points and path headings for lane coordinates ``(s, d)``."""
         p, h = self.point_at(s)
