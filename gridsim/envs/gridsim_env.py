@@ -110,7 +110,10 @@ class GridSimEnv(gym.Env):
         )
         self.renderer = TopDownRenderer() if render_mode else None
         self.world = None
+        # The last grids, a ring: the newest at index _newest (the observation puts them in
+        # order, oldest first).
         self._grids = np.zeros(self.observation_space["grids"].shape, np.uint8)
+        self._newest = len(self._grids) - 1
         self._last_plan = None
 
     # -- episode ----------------------------------------------------------------------------
@@ -129,6 +132,7 @@ class GridSimEnv(gym.Env):
         self._terminated = False
         grid = observe(self.sensor, self.world)
         self._grids[:] = grid[None]
+        self._newest = len(self._grids) - 1
         self._look_ahead()
         return self._observation(), self._info(terms=np.zeros(3, np.float32))
 
@@ -202,8 +206,8 @@ class GridSimEnv(gym.Env):
                 break
         self._last_accel, self._last_rate = result.accel, result.steer_rate
         self._last_plan = plan
-        self._grids[:-1] = self._grids[1:]
-        self._grids[-1] = observe(self.sensor, world)
+        self._newest = (self._newest + 1) % len(self._grids)
+        self._grids[self._newest] = observe(self.sensor, world)
         self._look_ahead()
         tol = self.cfg.env.destination_tolerance
         reached = self.reference.reached(world.ego[:2], self._travelled, tol)
@@ -222,7 +226,9 @@ class GridSimEnv(gym.Env):
         ego = np.array([w.ego[V], w.ego[DELTA], self._last_accel, self._last_rate,
                         np.cos(heading), np.sin(heading)], np.float32)  # fmt: skip
         dest = self._ref_future_grid[-1].copy()  # the reference at the end of the horizon
-        return {"grids": self._grids.copy(), "ego": ego, "destination": dest}
+        k = self._newest + 1
+        grids = np.concatenate((self._grids[k:], self._grids[:k]))  # oldest first
+        return {"grids": grids, "ego": ego, "destination": dest}
 
     def _info(self, terms: np.ndarray, reached: bool = False) -> dict[str, Any]:
         w = self.world
@@ -250,7 +256,7 @@ class GridSimEnv(gym.Env):
         overlay = [(self._ref_future, REFERENCE_COLOUR)]
         if self._last_plan is not None:
             overlay.append((self._last_plan, PLAN_COLOUR))
-        return self.renderer.render(w, self._grids[-1], overlay)
+        return self.renderer.render(w, self._grids[self._newest], overlay)
 
 
 def make_env(**kwargs: Any) -> GridSimEnv:
