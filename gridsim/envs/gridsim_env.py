@@ -207,7 +207,7 @@ class GridSimEnv(gym.Env):
         self._last_accel, self._last_rate = result.accel, result.steer_rate
         self._last_plan = plan
         self._newest = (self._newest + 1) % len(self._grids)
-        self._grids[self._newest] = observe(self.sensor, world)
+        observe(self.sensor, world, out=self._grids[self._newest])
         self._look_ahead()
         tol = self.cfg.env.destination_tolerance
         reached = self.reference.reached(world.ego[:2], self._travelled, tol)

@@ -192,10 +192,13 @@ class OccupancyGridSensor:
                 cv2.fillConvexPoly(m, quad, 1, cv2.LINE_8, shift=4)
         return m
 
-    def render(self, ego_xy, ego_psi, drivable: list[np.ndarray], boxes: np.ndarray) -> np.ndarray:
-        """The occupancy grid (values :data:`FREE`, :data:`UNKNOWN`, :data:`OCCUPIED`)."""
+    def render(
+        self, ego_xy, ego_psi, drivable: list[np.ndarray], boxes: np.ndarray, out=None
+    ) -> np.ndarray:
+        """The occupancy grid (values :data:`FREE`, :data:`UNKNOWN`, :data:`OCCUPIED`), in
+        ``out`` (uint8 ``(rows, cols)``, C-contiguous) if given."""
         obstacles = self.obstacle_mask(ego_xy, ego_psi, drivable, boxes)
-        grid = np.empty_like(obstacles)
+        grid = np.empty_like(obstacles) if out is None else out
         mounts = self.spec.mounts
         if len(mounts) == 1:
             cell_states_one(obstacles, *self._reach_from(mounts[0], obstacles, ego_psi),
@@ -228,12 +231,13 @@ class OccupancyGridSensor:
         return rad, ray, reach
 
 
-def observe(sensor: OccupancyGridSensor, world) -> np.ndarray:
-    """The occupancy grid of ``sensor`` around the ego of ``world`` (a :class:`World`)."""
+def observe(sensor: OccupancyGridSensor, world, out: np.ndarray | None = None) -> np.ndarray:
+    """The occupancy grid of ``sensor`` around the ego of ``world`` (a :class:`World`), in
+    ``out`` if given (see :meth:`OccupancyGridSensor.render`)."""
     spec = sensor.spec
     ego_xy, psi = world.ego[:2], float(world.ego[2])
     radius = 0.5 * np.hypot(spec.rows, spec.cols) * spec.cell_size
     f = world.traffic.fleet
     boxes = near_corners(f.active, f.x, f.y, f.psi, f.length, f.width, float(ego_xy[0]),
                          float(ego_xy[1]), float(radius))  # fmt: skip
-    return sensor.render(ego_xy, psi, world.road.drivable_polygons(ego_xy, radius), boxes)
+    return sensor.render(ego_xy, psi, world.road.drivable_polygons(ego_xy, radius), boxes, out)
