@@ -165,7 +165,7 @@ def test_compiled_ray_walk_equals_the_polar_remap(density):
     sensor = OccupancyGridSensor(GridSpec())
     rng = np.random.default_rng(3)
     for ou, ov in [(0, 0), (5, -3), (-64, 64)]:
-        samples, runs, _, _ = sensor._tables_for(ou, ov)
+        samples, runs = sensor._tables_for(ou, ov)[:2]
         obstacles = (rng.random((128, 128)) < density).astype(np.uint8)
         polar = cv2.remap(obstacles, samples, None, cv2.INTER_NEAREST,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=1)  # fmt: skip
@@ -240,26 +240,28 @@ def test_compiled_pixel_quads_equal_numpy():
         assert np.array_equal(pixel_quads(quads), want)
 
 
-def test_one_pass_cell_states_equal_marking_then_states():
-    """``cell_states_one`` (one mount) equals ``mark_visible`` into a cleared grid followed
-    by ``cell_states``."""
+def test_cell_states_by_ray_equal_marking_then_states():
+    """``cell_states_by_ray`` (one mount: per ray its cells nearest first, up to its reach)
+    equals ``mark_visible`` into a cleared grid followed by ``cell_states``."""
     from gridsim.sensors.occupancy import _STATE_LUT
-    from gridsim.sensors.rays import cell_states, cell_states_one, mark_visible
+    from gridsim.sensors.rays import cell_states, cell_states_by_ray, mark_visible
 
     rng = np.random.default_rng(5)
     sensor = OccupancyGridSensor(GridSpec())
-    _, _, ray, rad = sensor._tables_for(3, -2)
-    for _ in range(20):
-        obstacles = (rng.random((128, 128)) < 0.1).astype(np.uint8)
-        reach = rng.uniform(-1, 200, len(sensor._theta)).astype(np.float32)
-        reach[rng.random(len(reach)) < 0.1] = -np.inf
-        visible = np.zeros_like(obstacles)
-        mark_visible(rad, ray, reach, visible)
-        want = np.empty_like(obstacles)
-        cell_states(obstacles, visible, _STATE_LUT, want)
-        got = np.empty_like(obstacles)
-        cell_states_one(obstacles, rad, ray, reach, _STATE_LUT, got)
-        assert np.array_equal(got, want)
+    for ou, ov in [(0, 0), (3, -2), (-64, 64)]:
+        _, _, ray, rad, by_ray = sensor._tables_for(ou, ov)
+        for _ in range(20):
+            obstacles = (rng.random((128, 128)) < 0.1).astype(np.uint8)
+            reach = rng.uniform(-1, 200, len(sensor._theta)).astype(np.float32)
+            reach[rng.random(len(reach)) < 0.1] = -np.inf
+            reach[rng.random(len(reach)) < 0.1] = rad.ravel()[rng.integers(0, rad.size)]  # ties
+            visible = np.zeros_like(obstacles)
+            mark_visible(rad, ray, reach, visible)
+            want = np.empty_like(obstacles)
+            cell_states(obstacles, visible, _STATE_LUT, want)
+            got = np.empty_like(obstacles)
+            cell_states_by_ray(obstacles, *by_ray, reach, _STATE_LUT, got)
+            assert np.array_equal(got, want)
 
 
 def test_north_up_pixel_map_equals_the_matrix_product():

@@ -30,10 +30,11 @@ import numpy as np
 from gridsim.sensors.occupancy_kernels import diagonal_map, near_corners, pixel_quads
 from gridsim.sensors.rays import (
     cell_states,
-    cell_states_one,
+    cell_states_by_ray,
     first_hits,
     index_dtype,
     mark_visible,
+    ray_cells,
     ray_runs,
 )
 
@@ -107,8 +108,9 @@ class OccupancyGridSensor:
 
     def _tables_for(self, ou: int, ov: int):
         """Ray samples ``(rays, samples, 2)`` (whole cells, column and row), their walk tables
-        (:func:`~gridsim.sensors.rays.ray_runs`) and per-cell (ray, radius) tables for a
-        mount ``(ou, ov)`` cells off the grid centre; cached, as mounts snap to whole cells."""
+        (:func:`~gridsim.sensors.rays.ray_runs`), per-cell (ray, radius) tables and the cells
+        of each ray (:func:`~gridsim.sensors.rays.ray_cells`) for a mount ``(ou, ov)`` cells
+        off the grid centre; cached, as mounts snap to whole cells."""
         key = (ou, ov)
         hit = self._tables.get(key)
         if hit is not None:
@@ -128,7 +130,7 @@ class OccupancyGridSensor:
         if len(self._tables) > 256:
             self._tables.clear()
         runs = ray_runs(samples, s.rows, s.cols)
-        self._tables[key] = hit = (samples, runs, ray, rad)
+        self._tables[key] = hit = (samples, runs, ray, rad, ray_cells(ray, rad, s.rays))
         return hit
 
     # -- geometry ----------------------------------------------------------------------------
@@ -201,19 +203,20 @@ class OccupancyGridSensor:
         grid = np.empty_like(obstacles) if out is None else out
         mounts = self.spec.mounts
         if len(mounts) == 1:
-            cell_states_one(obstacles, *self._reach_from(mounts[0], obstacles, ego_psi),
-                            _STATE_LUT, grid)  # fmt: skip
+            tables, reach = self._reach_from(mounts[0], obstacles, ego_psi)
+            cell_states_by_ray(obstacles, *tables[4], reach, _STATE_LUT, grid)
             return grid
         visible = self._visible
         visible.fill(0)
         for mount in mounts:
-            mark_visible(*self._reach_from(mount, obstacles, ego_psi), visible)
+            tables, reach = self._reach_from(mount, obstacles, ego_psi)
+            mark_visible(tables[3], tables[2], reach, visible)
         cell_states(obstacles, visible, _STATE_LUT, grid)
         return grid
 
     def _reach_from(self, mount: SensorMount, obstacles: np.ndarray, ego_psi: float):
-        """``(rad, ray, reach)``: per cell its radius [samples] and ray from ``mount``, per
-        ray how far [samples] it sees (see :func:`~gridsim.sensors.rays.mark_visible`)."""
+        """The tables of ``mount`` (:meth:`_tables_for`) and per ray how far [samples] it sees
+        (see :func:`~gridsim.sensors.rays.mark_visible`)."""
         s = self.spec
         north_up = s.orientation == "north_up"
         up_dir = ego_psi if north_up else np.pi / 2  # direction of the heading in the grid
@@ -222,13 +225,13 @@ class OccupancyGridSensor:
         # round: to the nearest even on ties, as np.rint
         ou = min(max(round(mx / s.cell_size), -(s.cols // 2)), s.cols // 2)
         ov = min(max(round(-my / s.cell_size), -(s.rows // 2)), s.rows // 2)
-        _, runs, ray, rad = self._tables_for(ou, ov)
-        first_hits(obstacles, *runs, self._hits)
+        tables = self._tables_for(ou, ov)
+        first_hits(obstacles, *tables[1], self._hits)
         reach = self._hits.astype(np.float32) + np.float32(self._depth)
         if mount.fov < 2 * np.pi:
             off = np.angle(np.exp(1j * (self._theta - (up_dir + mount.yaw))))
             reach[np.abs(off) > 0.5 * mount.fov] = -np.inf
-        return rad, ray, reach
+        return tables, reach
 
 
 def observe(sensor: OccupancyGridSensor, world, out: np.ndarray | None = None) -> np.ndarray:

@@ -83,12 +83,30 @@ def cell_states(obstacles: np.ndarray, visible: np.ndarray, lut: np.ndarray, out
             out[r, c] = lut[obstacles[r, c] + 2 * visible[r, c]]
 
 
+def ray_cells(ray: np.ndarray, rad: np.ndarray, n_rays: int) -> tuple[np.ndarray, ...]:
+    """The cells of each ray in order of radius, for :func:`cell_states_by_ray`: flat cell
+    indices ``(rows * cols,)`` and their radii (float32), grouped by ray (ray ``k``'s at
+    ``offsets[k]:offsets[k + 1]``), given each cell's ``ray`` and radius ``rad``
+    ``(rows, cols)``."""
+    order = np.lexsort((rad.ravel(), ray.ravel()))
+    offsets = np.searchsorted(ray.ravel()[order], np.arange(n_rays + 1)).astype(np.int32)
+    return order.astype(index_dtype(rad.size)), rad.ravel()[order], offsets
+
+
 @kernel
-def cell_states_one(obstacles, rad, ray, reach, lut, out) -> None:
-    """:func:`mark_visible` into a cleared grid, then :func:`cell_states`, in one pass (one
-    mount)."""
-    rows, cols = obstacles.shape
-    for r in range(rows):
-        for c in range(cols):
-            seen = 1 if rad[r, c] <= reach[ray[r, c]] else 0
-            out[r, c] = lut[obstacles[r, c] + 2 * seen]
+def cell_states_by_ray(obstacles, cells, cell_rad, offsets, reach, lut, out) -> None:
+    """``out = lut[obstacles + 2 * visible]`` (uint8, C-contiguous) where a cell is visible if
+    its radius is within the ``reach`` of its ray (as :func:`mark_visible` into a cleared
+    grid, then :func:`cell_states`): per ray only its visible cells are visited, nearest
+    first (the tables of :func:`ray_cells`)."""
+    seen = obstacles.reshape(-1)
+    flat = out.reshape(-1)
+    for c in range(len(flat)):
+        flat[c] = lut[seen[c]]
+    for k in range(len(reach)):
+        r = reach[k]
+        for j in range(offsets[k], offsets[k + 1]):
+            if not cell_rad[j] <= r:
+                break
+            c = cells[j]
+            flat[c] = lut[seen[c] + 2]
