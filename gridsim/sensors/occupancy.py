@@ -102,6 +102,8 @@ class OccupancyGridSensor:
         self._depth = spec.hit_depth / spec.cell_size / self._dr
         self._range = spec.max_range / spec.cell_size / self._dr
         self._tables: dict[tuple[int, int], tuple] = {}
+        #: Half the grid's diagonal [m]: what lies farther from the ego is not in the grid.
+        self.radius = 0.5 * np.hypot(rows, cols) * spec.cell_size
         self._obstacles = np.empty((rows, cols), np.uint8)
         self._visible = np.empty((rows, cols), np.uint8)
         self._hits = np.empty(spec.rays, np.int64)
@@ -220,11 +222,13 @@ class OccupancyGridSensor:
         s = self.spec
         north_up = s.orientation == "north_up"
         up_dir = ego_psi if north_up else np.pi / 2  # direction of the heading in the grid
-        c, sn = np.cos(up_dir), np.sin(up_dir)
-        mx, my = mount.x * c - mount.y * sn, mount.x * sn + mount.y * c
-        # round: to the nearest even on ties, as np.rint
-        ou = min(max(round(mx / s.cell_size), -(s.cols // 2)), s.cols // 2)
-        ov = min(max(round(-my / s.cell_size), -(s.rows // 2)), s.rows // 2)
+        ou = ov = 0  # a mount at the rear axle, whatever the heading
+        if mount.x != 0.0 or mount.y != 0.0:
+            c, sn = np.cos(up_dir), np.sin(up_dir)
+            mx, my = mount.x * c - mount.y * sn, mount.x * sn + mount.y * c
+            # round: to the nearest even on ties, as np.rint
+            ou = min(max(round(mx / s.cell_size), -(s.cols // 2)), s.cols // 2)
+            ov = min(max(round(-my / s.cell_size), -(s.rows // 2)), s.rows // 2)
         tables = self._tables_for(ou, ov)
         first_hits(obstacles, *tables[1], self._hits)
         reach = self._hits.astype(np.float32) + np.float32(self._depth)
@@ -237,9 +241,8 @@ class OccupancyGridSensor:
 def observe(sensor: OccupancyGridSensor, world, out: np.ndarray | None = None) -> np.ndarray:
     """The occupancy grid of ``sensor`` around the ego of ``world`` (a :class:`World`), in
     ``out`` if given (see :meth:`OccupancyGridSensor.render`)."""
-    spec = sensor.spec
     ego_xy, psi = world.ego[:2], float(world.ego[2])
-    radius = 0.5 * np.hypot(spec.rows, spec.cols) * spec.cell_size
+    radius = sensor.radius
     f = world.traffic.fleet
     boxes = near_corners(f.active, f.x, f.y, f.psi, f.length, f.width, float(ego_xy[0]),
                          float(ego_xy[1]), float(radius))  # fmt: skip
