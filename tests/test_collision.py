@@ -78,3 +78,34 @@ def test_lane_follower_stays_on_road_and_steering_away_goes_off_road():
     first = events.index(True)
     assert all(events[first:])  # once off the road it stays off
     assert not world.road.is_drivable(world.ego_center()[None])[0]
+
+
+def test_edges_near_the_ego_give_the_contacts_of_all_edges(monkeypatch):
+    """pymunk is given and asked about only the road edges near the ego: the contacts are
+    the same as with every loaded edge given to it and asked about (random edges, an ego
+    moving between checks, touching edges or not)."""
+    from gridsim.world import collision_kernels
+
+    rng = np.random.default_rng(8)
+    cases = []
+    for _ in range(100):
+        edges = rng.uniform(-15, 15, (int(rng.integers(0, 12)), 4))
+        edges[: len(edges) // 2, 2:] = edges[: len(edges) // 2, :2]  # some of zero length
+        cases.append((edges, [(rng.normal(0, 4, 2), float(rng.uniform(-4, 4))) for _ in range(4)]))
+
+    def contacts():
+        out, none_near = [], 0
+        for edges, poses in cases:
+            cc = CollisionChecker(4.5, 1.8)
+            cc.set_boundaries(edges, 1, np.zeros(2))
+            for center, psi in poses:
+                near = collision_kernels.near_segments(cc._edges, *center, cc._core_reach)
+                none_near += not len(near)
+                out.append(cc.check(center, psi, traffic(), np.array([], int)))
+        return out, none_near
+
+    filtered, none_near = contacts()
+    monkeypatch.setattr(collision_kernels, "near_segments", lambda e, *_: np.arange(len(e)))
+    everything, _ = contacts()
+    assert filtered == everything
+    assert 0 < none_near < len(filtered) and sum(bool(c.boundaries) for c in everything) > 50

@@ -506,3 +506,34 @@ def test_reward_space_is_reachable_on_the_made_env():
     assert env.reward_space.shape == (3,) and env.reward_space is env.unwrapped.reward_space
     with pytest.raises(RuntimeError, match="reset"):
         env.step(env.action_space.sample())
+
+
+def test_compiled_setpoint_path_equals_numpy():
+    """The trajectory action's compiled clip, grid -> world map and path (points within 1 mm
+    of the one before dropped, as a polyline) give the same bits as the NumPy code they
+    replaced."""
+    import math
+
+    from gridsim.envs.actions_kernels import setpoint_path
+    from gridsim.frames import grid_to_world
+    from gridsim.road.polyline import Polyline
+
+    env = GridSimEnv()
+    box = env.action_space
+    rng = np.random.default_rng(21)
+    for _ in range(2000):
+        a = rng.normal(0, 1, (5, 2)) * rng.choice([1e-4, 1.0, 20.0, 200.0])
+        a[rng.random(5) < 0.2] = 0.0  # repeated points
+        ego, rotation = rng.uniform(-1e3, 1e3, 2), float(rng.choice([0.0, rng.uniform(-4, 4)]))
+        pts = grid_to_world(np.clip(a, box.low, box.high), ego, rotation)
+        path_pts = np.vstack([ego, pts])
+        keep = np.concatenate([[True], np.hypot(*np.diff(path_pts, axis=0).T) > 1e-3])
+        got, first, arrays = setpoint_path(a, box.low, box.high, float(ego[0]), float(ego[1]),
+                                           math.cos(rotation), math.sin(rotation))  # fmt: skip
+        assert np.array_equal(got, pts)
+        assert first == float(np.hypot(*(pts[0] - ego)))
+        assert np.array_equal(arrays[0], path_pts[keep])
+        if keep.sum() >= 2:
+            want, path = Polyline(path_pts[keep]), Polyline.from_segments(arrays)
+            for name in Polyline.__slots__:
+                assert np.array_equal(getattr(path, name), getattr(want, name)), name

@@ -8,8 +8,9 @@ import numpy as np
 import gridsim.jit as jit
 
 _CALL = (
-    "import numpy as np; from gridsim.sensors.rays import first_hits as f;"
-    "f(np.zeros((4, 4), np.uint8), np.zeros((3, 5, 2), np.int16), np.empty(3, np.int64));"
+    "import numpy as np; from gridsim.sensors.rays import mark_visible as f;"
+    "f(np.zeros((4, 4), np.float32), np.zeros((4, 4), np.intp), np.zeros(3, np.float32),"
+    " np.zeros((4, 4), np.uint8));"
     "print(sum(f.stats.cache_hits.values()), sum(f.stats.cache_misses.values()))"
 )
 

@@ -129,3 +129,39 @@ def test_set_points_behind_the_ego_make_it_stop():
         speeds.append(env.world.ego[3])
     assert np.all(np.diff(speeds) <= 1e-9)
     assert speeds[-1] == pytest.approx(0.0, abs=1e-6)
+
+
+def _numpy_positions(ref, times):
+    """The NumPy look-up that :func:`gridsim.envs.human_reference_kernels.positions`
+    replaced (``ref`` complete)."""
+    t, xy = ref.t, ref.xy
+    x = np.interp(times, t, xy[:, 0])
+    y = np.interp(times, t, xy[:, 1])
+    late = times > t[-1]
+    if np.any(late):
+        extra = times[late] - t[-1]
+        x[late] += extra * ref.v[-1] * np.cos(ref.psi[-1])
+        y[late] += extra * ref.v[-1] * np.sin(ref.psi[-1])
+    return np.stack([x, y], axis=1)
+
+
+def test_compiled_reference_look_up_equals_numpy():
+    """Positions (interpolated, and extrapolated past the end) and their grid-frame copy
+    give the same bits as ``np.interp`` and :func:`~gridsim.frames.world_to_grid`."""
+    from gridsim.envs.human_reference import ReferenceTrajectory
+    from gridsim.frames import world_to_grid
+
+    rng = np.random.default_rng(12)
+    for _ in range(300):
+        n = int(rng.integers(2, 700))
+        t = np.cumsum(rng.choice([0.1, 0.04, rng.uniform(0.01, 1.0)], n)) - 0.1
+        xy = np.cumsum(rng.normal(0, 1.5, (n, 2)), axis=0) + rng.uniform(-1e4, 1e4, 2)
+        ref = ReferenceTrajectory(t, xy, rng.uniform(-7, 7, n), rng.uniform(0, 30, n))
+        times = np.concatenate([rng.uniform(t[0] - 1, t[-1] + 5, 7), t[rng.integers(0, n, 3)]])
+        ego, rotation = xy[rng.integers(0, n)] + rng.normal(0, 2, 2), float(rng.uniform(-4, 4))
+        want = _numpy_positions(ref, times)
+        world, grid = ref.positions_in_grid(times, ego, rotation)
+        assert np.array_equal(world, want)
+        assert np.array_equal(ref.positions(times), want)
+        assert grid.dtype == np.float32
+        assert np.array_equal(grid, world_to_grid(want, ego, rotation).astype(np.float32))

@@ -302,3 +302,38 @@ def test_compiled_polyline_queries_are_bit_identical_to_numpy():
         want_xy, want_h = _numpy_frenet(line, s, d)
         got = np.array([line.frenet_one(a, b) for a, b in zip(s, d, strict=True)])
         assert np.array_equal(got[:, :2], want_xy) and np.array_equal(got[:, 2], want_h)
+
+
+def test_compiled_near_boxes_equal_numpy():
+    """The compiled look-up of the boxes near a point equals the NumPy comparisons it
+    replaced (boxes touching the square exactly included)."""
+    from gridsim.road.base import near
+
+    rng = np.random.default_rng(17)
+    for _ in range(500):
+        n = int(rng.integers(0, 80))
+        lo = rng.uniform(-100, 100, (n, 2))
+        boxes = np.hstack([lo, lo + rng.uniform(0, 30, (n, 2))])
+        cx, cy = rng.uniform(-100, 100, 2)
+        radius = float(rng.choice([45.25, rng.uniform(0, 60)]))
+        boxes[: n // 4, 0] = cx + radius  # on the square's edge
+        want = np.flatnonzero(
+            (boxes[:, 0] <= cx + radius)
+            & (boxes[:, 2] >= cx - radius)
+            & (boxes[:, 1] <= cy + radius)
+            & (boxes[:, 3] >= cy - radius)
+        )
+        assert np.array_equal(near(boxes, np.array([cx, cy]), radius), want)
+
+
+def test_compiled_point_ahead_equals_project_then_frenet_one():
+    """``Polyline.ahead_of`` (one kernel call) gives the bits of :meth:`Polyline.project`
+    followed by :meth:`Polyline.frenet_one` at the arc length plus the distance ahead."""
+    rng = np.random.default_rng(23)
+    for _ in range(500):
+        pts = np.cumsum(rng.normal(0, 3, (int(rng.integers(2, 12)), 2)), axis=0)
+        line = Polyline(pts, float(rng.uniform(-50, 50)))
+        x, y = pts[0] + rng.normal(0, 15, 2)
+        ahead, d = float(rng.uniform(0, 20)), float(rng.normal(0, 2))
+        s = float(line.project(np.array([[x, y]]))[0][0])
+        assert line.ahead_of(x, y, ahead, d) == line.frenet_one(s + ahead, d)

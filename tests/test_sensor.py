@@ -155,8 +155,9 @@ def test_bad_grid_spec_is_rejected(kwargs):
 
 @pytest.mark.parametrize("density", [0.0, 0.01, 0.1, 0.5])
 def test_compiled_ray_walk_equals_the_polar_remap(density):
-    """The compiled ray walk finds the same first hits as remapping the whole polar image
-    (OpenCV, nearest neighbour, outside the grid = obstacle) and taking the first obstacle."""
+    """The compiled ray walk (one cell per run of equal samples) finds the same first hits as
+    remapping the whole polar image (OpenCV, nearest neighbour, outside the grid = obstacle)
+    and taking the first obstacle."""
     import cv2
 
     from gridsim.sensors.rays import first_hits
@@ -164,11 +165,122 @@ def test_compiled_ray_walk_equals_the_polar_remap(density):
     sensor = OccupancyGridSensor(GridSpec())
     rng = np.random.default_rng(3)
     for ou, ov in [(0, 0), (5, -3), (-64, 64)]:
-        samples, _, _ = sensor._tables_for(ou, ov)
+        samples, runs = sensor._tables_for(ou, ov)[:2]
         obstacles = (rng.random((128, 128)) < density).astype(np.uint8)
         polar = cv2.remap(obstacles, samples, None, cv2.INTER_NEAREST,
                           borderMode=cv2.BORDER_CONSTANT, borderValue=1)  # fmt: skip
         polar[:, -1] = 1
         hits = np.empty(len(samples), np.int64)
-        first_hits(obstacles, samples, hits)
+        first_hits(obstacles, *runs, hits)
         np.testing.assert_array_equal(hits, np.argmax(polar.view(bool), axis=1))
+
+
+def _numpy_inset_half_pixel(quads):
+    """The NumPy half-pixel inset that :func:`~gridsim.sensors.occupancy_kernels.pixel_quads`
+    replaced (before its rounding to fixed point)."""
+    sign_l = np.array([-1.0, 1.0, 1.0, -1.0])[:, None]
+    sign_w = np.array([-1.0, -1.0, 1.0, 1.0])[:, None]
+    e_l = quads[:, 1] - quads[:, 0]
+    e_w = quads[:, 3] - quads[:, 0]
+    n_l = np.linalg.norm(e_l, axis=1, keepdims=True)
+    n_w = np.linalg.norm(e_w, axis=1, keepdims=True)
+    u_l = e_l / np.maximum(n_l, 1e-9) * np.minimum(0.5, 0.5 * n_l)
+    u_w = e_w / np.maximum(n_w, 1e-9) * np.minimum(0.5, 0.5 * n_w)
+    return quads - sign_l * u_l[:, None, :] - sign_w * u_w[:, None, :]
+
+
+def _random_fleet(rng, n):
+    active = rng.random(n) < 0.7
+    x, y = rng.uniform(-80, 80, n), rng.uniform(-80, 80, n)
+    psi = rng.uniform(-10, 10, n)
+    length, width = rng.uniform(0.0, 20.0, n), rng.uniform(0.0, 3.0, n)
+    return active, x, y, psi, length, width
+
+
+def test_compiled_footprint_corners_equal_numpy():
+    """``observe``'s compiled range test and corners give the same bits as the NumPy code
+    they replaced (``Fleet.footprints``, ``np.hypot``, ``box_corners``)."""
+    from gridsim.sensors.occupancy_kernels import near_corners
+
+    rng = np.random.default_rng(7)
+    for n in [0, 1, 5, 40, 300]:
+        active, x, y, psi, length, width = fleet = _random_fleet(rng, n)
+        ex, ey = rng.uniform(-30, 30, 2)
+        radius = 0.5 * np.hypot(128, 128) * 0.5
+        a = active
+        reach = radius + 0.5 * np.hypot(length[a], width[a])
+        near = np.hypot(x[a] - ex, y[a] - ey) <= reach
+        want = box_corners(x[a][near], y[a][near], psi[a][near], length[a][near],
+                           width[a][near])  # fmt: skip
+        got = near_corners(*fleet, float(ex), float(ey), float(radius))
+        assert got.shape == want.shape and np.array_equal(got, want)
+
+
+def test_compiled_pixel_quads_equal_numpy():
+    """The compiled half-pixel inset and fixed-point rounding give the same int32 corners
+    as the NumPy code they replaced, for boxes mapped to pixels (north-up and heading-up
+    affine maps), tiny and degenerate boxes, and arbitrary quadrilaterals."""
+    from gridsim.sensors.occupancy_kernels import pixel_quads
+
+    rng = np.random.default_rng(11)
+    sensor = OccupancyGridSensor(GridSpec())
+    heading_up = OccupancyGridSensor(GridSpec(orientation="heading_up"))
+    for _ in range(200):
+        _, x, y, psi, length, width = _random_fleet(rng, 30)
+        length[:3], width[:3] = 0.0, rng.uniform(0, 0.2, 3)  # degenerate and tiny boxes
+        boxes = box_corners(x, y, psi, length, width)
+        ego = rng.uniform(-20, 20, 2)
+        for s in (sensor, heading_up):
+            a = s.world_to_pixel(ego, float(rng.uniform(-4, 4)))
+            px = boxes @ a[:, :2].T + a[:, 2]
+            want = np.rint(_numpy_inset_half_pixel(px) * 16).astype(np.int32)
+            assert np.array_equal(pixel_quads(px), want)
+        quads = rng.normal(0, 30, (30, 4, 2)) * rng.choice([1e-3, 1.0, 10.0], (30, 1, 1))
+        want = np.rint(_numpy_inset_half_pixel(quads) * 16).astype(np.int32)
+        assert np.array_equal(pixel_quads(quads), want)
+
+
+def test_cell_states_by_ray_equal_marking_then_states():
+    """``cell_states_by_ray`` (one mount: per ray its cells nearest first, up to its reach)
+    equals ``mark_visible`` into a cleared grid followed by ``cell_states``."""
+    from gridsim.sensors.occupancy import _STATE_LUT
+    from gridsim.sensors.rays import cell_states, cell_states_by_ray, mark_visible
+
+    rng = np.random.default_rng(5)
+    sensor = OccupancyGridSensor(GridSpec())
+    for ou, ov in [(0, 0), (3, -2), (-64, 64)]:
+        _, _, ray, rad, by_ray = sensor._tables_for(ou, ov)
+        for _ in range(20):
+            obstacles = (rng.random((128, 128)) < 0.1).astype(np.uint8)
+            reach = rng.uniform(-1, 200, len(sensor._theta)).astype(np.float32)
+            reach[rng.random(len(reach)) < 0.1] = -np.inf
+            reach[rng.random(len(reach)) < 0.1] = rad.ravel()[rng.integers(0, rad.size)]  # ties
+            visible = np.zeros_like(obstacles)
+            mark_visible(rad, ray, reach, visible)
+            want = np.empty_like(obstacles)
+            cell_states(obstacles, visible, _STATE_LUT, want)
+            got = np.empty_like(obstacles)
+            cell_states_by_ray(obstacles, *by_ray, reach, _STATE_LUT, got)
+            assert np.array_equal(got, want)
+
+
+def test_north_up_pixel_map_equals_the_matrix_product():
+    """The north-up world -> pixel map, built from floats and applied compiled, gives the
+    same bits as the matrix products (``rot @ ego``, ``points @ a[:, :2].T + a[:, 2]``) it
+    replaced; a heading-up map still goes through ``@``."""
+    from gridsim.sensors.occupancy_kernels import diagonal_map
+
+    rng = np.random.default_rng(9)
+    for cell_size, rows, cols in [(0.5, 128, 128), (0.3, 64, 100), (1.0, 7, 9)]:
+        sensor = OccupancyGridSensor(GridSpec(rows=rows, cols=cols, cell_size=cell_size))
+        k = 1.0 / cell_size
+        rot = np.array([[k, 0.0], [0.0, -k]])
+        for _ in range(300):
+            ego = rng.normal(0, 1, 2) * rng.choice([1e-3, 10.0, 1e4])
+            t = np.array([cols / 2 - 0.5, rows / 2 - 0.5]) - rot @ ego
+            want = np.hstack([rot, t[:, None]])
+            a = sensor.world_to_pixel(ego, float(rng.uniform(-4, 4)))
+            assert np.array_equal(a, want)
+            points = ego + rng.normal(0, 40, (int(rng.integers(0, 60)), 2))
+            assert np.array_equal(diagonal_map(points, a), points @ a[:, :2].T + a[:, 2])
+            assert np.array_equal(sensor._to_pixels(points, a), points @ a[:, :2].T + a[:, 2])

@@ -7,13 +7,14 @@ set-point times that the action asks for (used by the fitness term l1).
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
 import numpy as np
 from gymnasium import spaces
 
-from gridsim.frames import grid_to_world
+from gridsim.envs import actions_kernels as kernels
 from gridsim.road.polyline import Polyline
 from gridsim.vehicle.control import PursuitGains, follow_path
 from gridsim.vehicle.kinematics import PSI, BicycleParams, V, step_bicycle
@@ -35,7 +36,7 @@ def _real(action, kind: str) -> np.ndarray:
         raise ValueError(f"{kind} action must hold real numbers (integers or floats), got dtype "
                          f"{raw.dtype}: {raw.tolist()!r}")  # fmt: skip
     a = raw.astype(np.float64)
-    if not np.all(np.isfinite(a)):
+    if not np.isfinite(a).all():
         raise ValueError(f"{kind} action contains NaN or infinite values: {raw.tolist()}")
     return a
 
@@ -96,14 +97,14 @@ class TrajectoryAction(ActionType):
                 f"trajectory action must have shape ({self.horizon}, 2), got {a.shape}"
             )
         box = self.space
-        pts = grid_to_world(np.clip(a, box.low, box.high), world.ego[:2], rotation)
-        origin = world.ego[:2].copy()
-        speed = float(np.hypot(*(pts[0] - origin))) / self.period
-        path_pts = np.vstack([origin, pts])
-        keep = np.concatenate([[True], np.hypot(*np.diff(path_pts, axis=0).T) > 1e-3])
+        ex, ey = float(world.ego[0]), float(world.ego[1])
+        c, s = math.cos(rotation), math.sin(rotation)
+        pts, first, path_arrays = kernels.setpoint_path(a, box.low, box.high, ex, ey, c, s)
+        speed = float(first) / self.period
         heading = np.array([np.cos(world.ego[PSI]), np.sin(world.ego[PSI])])
-        ahead = float(np.dot(pts[0] - origin, heading)) > 0.0
-        path = Polyline(path_pts[keep]) if keep.sum() >= 2 and ahead else None
+        ahead = float(np.dot(pts[0] - world.ego[:2], heading)) > 0.0
+        # (a path of 2 or more points has 2 or more distinct ones: they are 1 mm apart)
+        path = Polyline.from_segments(path_arrays) if len(path_arrays[0]) >= 2 and ahead else None
         gains = TRACKING_GAINS
         params = self.params
 

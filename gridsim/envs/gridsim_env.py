@@ -110,7 +110,10 @@ class GridSimEnv(gym.Env):
         )
         self.renderer = TopDownRenderer() if render_mode else None
         self.world = None
+        # The last grids, a ring: the newest at index _newest (the observation puts them in
+        # order, oldest first).
         self._grids = np.zeros(self.observation_space["grids"].shape, np.uint8)
+        self._newest = len(self._grids) - 1
         self._last_plan = None
 
     # -- episode ----------------------------------------------------------------------------
@@ -129,14 +132,16 @@ class GridSimEnv(gym.Env):
         self._terminated = False
         grid = observe(self.sensor, self.world)
         self._grids[:] = grid[None]
+        self._newest = len(self._grids) - 1
         self._look_ahead()
         return self._observation(), self._info(terms=np.zeros(3, np.float32))
 
     def _look_ahead(self) -> None:
         """Reference positions at the coming set-point times, world and grid frames."""
         w = self.world
-        self._ref_future = self.reference.positions(w.time + self._setpoint_times)
-        self._ref_future_grid = self._to_grid(self._ref_future).astype(np.float32)
+        self._ref_future, self._ref_future_grid = self.reference.positions_in_grid(
+            w.time + self._setpoint_times, w.ego[:2], grid_rotation(self._orientation, w.ego[PSI])
+        )
 
     def _to_grid(self, points: np.ndarray) -> np.ndarray:
         """World points ``(N, 2)`` [m] in the ego's grid frame (rear axle at the origin)."""
@@ -186,14 +191,14 @@ class GridSimEnv(gym.Env):
         world = self.world
         rotation = grid_rotation(self._orientation, world.ego[PSI])
         control, plan = self.action_kind.controller(world, action, rotation)
-        l1 = float(np.sum((plan - self._ref_future) ** 2))
+        l1 = float(((plan - self._ref_future) ** 2).sum())
         l2 = l3 = 0.0
         v_lo, v_hi = self.cfg.speed_range
         result = None
         for _ in range(self._ticks):
-            before = world.ego[:2].copy()
+            x0, y0 = world.ego[0], world.ego[1]  # NumPy scalars: np.hypot of their differences
             result = world.tick(*control(world))
-            self._travelled += float(np.hypot(*(world.ego[:2] - before)))
+            self._travelled += float(np.hypot(world.ego[0] - x0, world.ego[1] - y0))
             l2 += abs(result.steer_rate)
             v = world.ego[V]
             l3 += v if v_lo <= v <= v_hi else 0.0
@@ -201,8 +206,8 @@ class GridSimEnv(gym.Env):
                 break
         self._last_accel, self._last_rate = result.accel, result.steer_rate
         self._last_plan = plan
-        self._grids[:-1] = self._grids[1:]
-        self._grids[-1] = observe(self.sensor, world)
+        self._newest = (self._newest + 1) % len(self._grids)
+        observe(self.sensor, world, out=self._grids[self._newest])
         self._look_ahead()
         tol = self.cfg.env.destination_tolerance
         reached = self.reference.reached(world.ego[:2], self._travelled, tol)
@@ -221,7 +226,9 @@ class GridSimEnv(gym.Env):
         ego = np.array([w.ego[V], w.ego[DELTA], self._last_accel, self._last_rate,
                         np.cos(heading), np.sin(heading)], np.float32)  # fmt: skip
         dest = self._ref_future_grid[-1].copy()  # the reference at the end of the horizon
-        return {"grids": self._grids.copy(), "ego": ego, "destination": dest}
+        k = self._newest + 1
+        grids = np.concatenate((self._grids[k:], self._grids[:k]))  # oldest first
+        return {"grids": grids, "ego": ego, "destination": dest}
 
     def _info(self, terms: np.ndarray, reached: bool = False) -> dict[str, Any]:
         w = self.world
@@ -249,7 +256,7 @@ class GridSimEnv(gym.Env):
         overlay = [(self._ref_future, REFERENCE_COLOUR)]
         if self._last_plan is not None:
             overlay.append((self._last_plan, PLAN_COLOUR))
-        return self.renderer.render(w, self._grids[-1], overlay)
+        return self.renderer.render(w, self._grids[self._newest], overlay)
 
 
 def make_env(**kwargs: Any) -> GridSimEnv:

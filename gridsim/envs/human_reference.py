@@ -15,10 +15,12 @@ same seeds advance one shadow world.
 
 from __future__ import annotations
 
+import math
 from collections import OrderedDict
 
 import numpy as np
 
+from gridsim.envs import human_reference_kernels as kernels
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import Scenario
 from gridsim.scenario.parts import road_lane_width, synthetic_tracks
@@ -33,6 +35,8 @@ _CACHE: OrderedDict[tuple[str, int], HumanReference] = OrderedDict()
 _CACHE_SIZE = 64
 #: A destination counts as reached after driving this share of the reference's length.
 REACHED_SHARE = 0.9
+_ORIGIN = np.zeros(2)
+_NO_END = (math.nan, math.nan, math.nan)  # never read: see ReferenceTrajectory._end
 
 
 class ReferenceTrajectory:
@@ -43,6 +47,9 @@ class ReferenceTrajectory:
     def __init__(self, t: np.ndarray, xy: np.ndarray, psi: np.ndarray, v: np.ndarray) -> None:
         self.t = t
         self._xy, self._psi, self._v = xy, psi, v
+        # float64 views (copies if need be) for the compiled look-up (np.interp converts so)
+        self._t64, self._xy64 = np.asarray(t, np.float64), np.asarray(xy, np.float64)
+        self._tail: tuple[float, float, float] | None = None
         self._ready = len(t)  # samples known so far (all of them here)
         self._destination: np.ndarray | None = None
         self._length: float | None = None
@@ -78,21 +85,33 @@ class ReferenceTrajectory:
 
     def positions(self, times: np.ndarray) -> np.ndarray:
         """Positions ``(N, 2)`` at ``times`` [s] (interpolated; extrapolated past the end)."""
+        return self.positions_in_grid(times, _ORIGIN, 0.0)[0]
+
+    def positions_in_grid(
+        self, times: np.ndarray, ego_xy: np.ndarray, rotation: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`positions` ``(N, 2)`` [m, world], and the same in the grid frame of an ego
+        at ``ego_xy`` [m, world] with grid ``rotation`` [rad] (float32, see
+        :func:`~gridsim.frames.world_to_grid`)."""
         times = np.asarray(times, dtype=np.float64)
         if len(times) and not self.complete:
             # Interpolation reads the two samples around each time: the one after the
             # latest must be known (np.interp on that prefix equals it on the whole).
             self._advance(int(np.searchsorted(self.t, times.max(), side="right")) + 2)
-        n = self._ready
-        t, xy = self.t[:n], self._xy[:n]
-        x = np.interp(times, t, xy[:, 0])
-        y = np.interp(times, t, xy[:, 1])
-        late = times > self.t[-1]
-        if np.any(late):
-            extra = times[late] - self.t[-1]
-            x[late] += extra * self._v[-1] * np.cos(self._psi[-1])
-            y[late] += extra * self._v[-1] * np.sin(self._psi[-1])
-        return np.stack([x, y], axis=1)
+        return kernels.positions(times, self._t64, self._xy64, self._ready, self._end(),
+                                 float(ego_xy[0]), float(ego_xy[1]), math.cos(rotation),
+                                 math.sin(rotation))  # fmt: skip
+
+    def _end(self) -> tuple[float, float, float]:
+        """Speed [m/s] and cos, sin of the heading of the last sample, to extrapolate past
+        the end (needed only once the reference is complete: a time past the end completes
+        it)."""
+        if self._tail is None:
+            if not self.complete:
+                return _NO_END
+            v, psi = self._v[-1], self._psi[-1]
+            self._tail = (float(v), float(np.cos(psi)), float(np.sin(psi)))
+        return self._tail
 
     # -- the destination -----------------------------------------------------------------------
     @property

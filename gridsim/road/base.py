@@ -14,6 +14,7 @@ import cv2
 import numpy as np
 
 from gridsim.errors import DataError
+from gridsim.road import base_kernels
 from gridsim.road.polyline import Polyline
 
 #: The most cells of a static road's drivable-area raster (1e8: 2 km x 2 km at 0.2 m; the
@@ -44,14 +45,7 @@ def bbox_of(polys: list[np.ndarray]) -> np.ndarray:
 
 def near(boxes: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:
     """Indices of the boxes that intersect the square of half-size ``radius`` around ``center``."""
-    cx, cy = float(center[0]), float(center[1])
-    hit = (
-        (boxes[:, 0] <= cx + radius)
-        & (boxes[:, 2] >= cx - radius)
-        & (boxes[:, 1] <= cy + radius)
-        & (boxes[:, 3] >= cy - radius)
-    )
-    return np.flatnonzero(hit)
+    return base_kernels.near(boxes, float(center[0]), float(center[1]), float(radius))
 
 
 class Road(ABC):

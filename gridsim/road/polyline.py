@@ -26,9 +26,18 @@ class Polyline:
             raise ValueError(f"a polyline needs at least 2 points of shape (M, 2), got {pts.shape}")
         if not np.isfinite(pts).all():
             raise ValueError("polyline points must be finite")
-        self.points, self._seg, self._seg_len, self._heading, self.s = kernels.segments(
-            np.ascontiguousarray(pts), float(s_start)
-        )
+        self._set(kernels.segments(np.ascontiguousarray(pts), float(s_start)))
+
+    @classmethod
+    def from_segments(cls, arrays: tuple[np.ndarray, ...]) -> Polyline:
+        """The polyline of :func:`~gridsim.road.polyline_kernels.segments`' arrays (computed
+        from finite points, e.g. by another kernel), without checking the points again."""
+        line = cls.__new__(cls)
+        line._set(arrays)
+        return line
+
+    def _set(self, arrays: tuple[np.ndarray, ...]) -> None:
+        self.points, self._seg, self._seg_len, self._heading, self.s = arrays
         if len(self.points) < 2:
             raise ValueError("a polyline needs at least 2 distinct points")
         self._seg_len_pow2 = np.float_power(self._seg_len, 2.0)  # libm's pow (see track)
@@ -71,6 +80,12 @@ class Polyline:
         """:meth:`frenet_to_world` of one point: ``(x, y, heading)`` as floats."""
         return kernels.frenet_one(self.points, self._seg, self._seg_len, self.s, self._heading,
                                   float(s), float(d))  # fmt: skip
+
+    def ahead_of(self, x: float, y: float, ahead: float, d: float) -> tuple[float, float, float]:
+        """:meth:`frenet_one` at ``ahead`` [m] past the projection (:meth:`project`) of the
+        point ``(x, y)`` [m], lateral offset ``d`` [m]."""
+        return kernels.ahead_of(self.points, self._seg, self._seg_len, self.s, self._heading,
+                                float(x), float(y), float(ahead), float(d))  # fmt: skip
 
     def frenet_to_world(self, s, d) -> tuple[np.ndarray, np.ndarray]:
         """World points and path headings for lane coordinates ``(s, d)``."""

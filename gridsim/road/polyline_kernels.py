@@ -57,6 +57,17 @@ def project(points, seg, seg_len, s_cum, xy, lo, hi, s_out, d_out, seg_out) -> N
 
 
 @kernel
+def ahead_of(points, seg, seg_len, s_cum, heading, x, y, ahead, d) -> tuple[float, float, float]:
+    """:func:`frenet_one` at ``ahead`` [m] past the nearest point to ``(x, y)`` on the whole
+    curve (found by :func:`project`), lateral offset ``d`` [m]."""
+    xy = np.empty((1, 2))
+    xy[0, 0], xy[0, 1] = x, y
+    s_out, d_out, seg_out = np.empty(1), np.empty(1), np.empty(1, np.int64)
+    project(points, seg, seg_len, s_cum, xy, 0, len(seg), s_out, d_out, seg_out)
+    return frenet_one(points, seg, seg_len, s_cum, heading, s_out[0] + ahead, d)
+
+
+@kernel
 def _foot(points, seg, seg_len_pow2, i, x, y) -> float:
     """Parameter of the foot of ``(x, y)`` on the line through segment ``i``
     (``seg_len_pow2``: squared segment lengths computed by libm's ``pow``, as the NumPy scalar

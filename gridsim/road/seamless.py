@@ -219,7 +219,7 @@ class SeamlessRoad(Road):
         if self._ref_s[-1] < self._ego_s + p.keep_ahead:
             self._extend_to(self._ego_s + p.keep_ahead + self._chunk)
             changed = True
-        cut = np.searchsorted(self._ref_s, self._ego_s - p.keep_behind)
+        cut = self._ref_s.searchsorted(self._ego_s - p.keep_behind)
         if cut > self._chunk / p.sample_spacing:
             self._ref, self._ref_h, self._ref_s = (
                 self._ref[cut:],

@@ -27,7 +27,16 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
-from gridsim.sensors.rays import cell_states, first_hits, mark_visible
+from gridsim.sensors.occupancy_kernels import diagonal_map, near_corners, pixel_quads
+from gridsim.sensors.rays import (
+    cell_states,
+    cell_states_by_ray,
+    first_hits,
+    index_dtype,
+    mark_visible,
+    ray_cells,
+    ray_runs,
+)
 
 FREE, UNKNOWN, OCCUPIED = 0, 128, 255
 # obstacle + 2 * visible -> cell state
@@ -74,26 +83,6 @@ class GridSpec:
             raise ValueError(f"ray_step must be in [0.1, 2] cells, got {self.ray_step}")
 
 
-_SIGN_L = np.array([-1.0, 1.0, 1.0, -1.0])[:, None]
-_SIGN_W = np.array([-1.0, -1.0, 1.0, 1.0])[:, None]
-
-
-def _inset_half_pixel(quads: np.ndarray) -> np.ndarray:
-    """Move each side of the rectangles ``(N, 4, 2)`` (pixel units, corners ordered as
-    :func:`~gridsim.vehicle.kinematics.box_corners`) half a pixel inwards.
-
-    OpenCV's fill covers every pixel an edge touches; insetting by half a pixel turns that into
-    "cells whose centre lies inside the footprint" (exactly for axis-aligned boxes).
-    """
-    e_l = quads[:, 1] - quads[:, 0]
-    e_w = quads[:, 3] - quads[:, 0]
-    n_l = np.linalg.norm(e_l, axis=1, keepdims=True)
-    n_w = np.linalg.norm(e_w, axis=1, keepdims=True)
-    u_l = e_l / np.maximum(n_l, 1e-9) * np.minimum(0.5, 0.5 * n_l)
-    u_w = e_w / np.maximum(n_w, 1e-9) * np.minimum(0.5, 0.5 * n_w)
-    return quads - _SIGN_L * u_l[:, None, :] - _SIGN_W * u_w[:, None, :]
-
-
 class OccupancyGridSensor:
     """Renders :class:`GridSpec` grids from the drivable area and vehicle footprints."""
 
@@ -113,14 +102,17 @@ class OccupancyGridSensor:
         self._depth = spec.hit_depth / spec.cell_size / self._dr
         self._range = spec.max_range / spec.cell_size / self._dr
         self._tables: dict[tuple[int, int], tuple] = {}
+        #: Half the grid's diagonal [m]: what lies farther from the ego is not in the grid.
+        self.radius = 0.5 * np.hypot(rows, cols) * spec.cell_size
         self._obstacles = np.empty((rows, cols), np.uint8)
         self._visible = np.empty((rows, cols), np.uint8)
         self._hits = np.empty(spec.rays, np.int64)
 
     def _tables_for(self, ou: int, ov: int):
-        """Ray samples ``(rays, samples, 2)`` (whole cells, column and row) and per-cell
-        (ray, radius) tables for a mount ``(ou, ov)`` cells off the grid centre; cached, as
-        mounts snap to whole cells."""
+        """Ray samples ``(rays, samples, 2)`` (whole cells, column and row), their walk tables
+        (:func:`~gridsim.sensors.rays.ray_runs`), per-cell (ray, radius) tables and the cells
+        of each ray (:func:`~gridsim.sensors.rays.ray_cells`) for a mount ``(ou, ov)`` cells
+        off the grid centre; cached, as mounts snap to whole cells."""
         key = (ou, ov)
         hit = self._tables.get(key)
         if hit is not None:
@@ -134,11 +126,13 @@ class OccupancyGridSensor:
         du, dv = u - u0, v - v0
         ang = np.mod(np.arctan2(-dv, du), 2 * np.pi)
         ray = np.rint(ang / (2 * np.pi) * s.rays).astype(np.intp) % s.rays
+        ray = ray.astype(index_dtype(s.rays))
         rad = (np.hypot(du, dv) / self._dr).astype(np.float32)
         rad[rad > self._range] = np.inf  # out of range: never visible
         if len(self._tables) > 256:
             self._tables.clear()
-        self._tables[key] = hit = (samples, ray, rad)
+        runs = ray_runs(samples, s.rows, s.cols)
+        self._tables[key] = hit = (samples, runs, ray, rad, ray_cells(ray, rad, s.rays))
         return hit
 
     # -- geometry ----------------------------------------------------------------------------
@@ -146,14 +140,25 @@ class OccupancyGridSensor:
         """Affine map ``(2, 3)``: world metres -> pixel coordinates (u = column, v = row)."""
         s = self.spec
         k = 1.0 / s.cell_size
+        cu, cv = s.cols / 2 - 0.5, s.rows / 2 - 0.5
         if s.orientation == "north_up":
-            rot = np.array([[k, 0.0], [0.0, -k]])
-        else:  # up = heading, right = heading - 90 deg
-            c, sn = np.cos(ego_psi), np.sin(ego_psi)
-            rot = np.array([[sn * k, -c * k], [-c * k, -sn * k]])
-        centre = np.array([s.cols / 2 - 0.5, s.rows / 2 - 0.5])
-        t = centre - rot @ np.asarray(ego_xy, dtype=np.float64)
+            # A scale: each product of ``rot @ ego_xy`` is one rounding plus an exact zero.
+            x, y = float(ego_xy[0]), float(ego_xy[1])
+            return np.array([[k, 0.0, cu - k * x], [0.0, -k, cv - -k * y]])
+        # up = heading, right = heading - 90 deg
+        c, sn = np.cos(ego_psi), np.sin(ego_psi)
+        rot = np.array([[sn * k, -c * k], [-c * k, -sn * k]])
+        t = np.array([cu, cv]) - rot @ np.asarray(ego_xy, dtype=np.float64)
         return np.hstack([rot, t[:, None]])
+
+    @staticmethod
+    def _to_pixels(points: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """``points`` ``(N, 2)`` [m, world] mapped by the affine map ``a`` ``(2, 3)`` to pixel
+        coordinates. A diagonal map (north-up) is compiled: each coordinate is one product
+        plus an exact zero, the same bits as the BLAS product that other maps go through."""
+        if a[0, 1] == 0.0 and a[1, 0] == 0.0:
+            return diagonal_map(points, a)
+        return points @ a[:, :2].T + a[:, 2]
 
     def cell_centers(self, ego_xy: np.ndarray, ego_psi: float) -> np.ndarray:
         """World coordinates ``(rows, cols, 2)`` [m] of every cell centre."""
@@ -177,57 +182,68 @@ class OccupancyGridSensor:
         m = self._obstacles
         m.fill(1)
         if drivable:
-            px = np.rint((np.concatenate(drivable) @ a[:, :2].T + a[:, 2]) * 16).astype(np.int32)
+            px = np.rint(self._to_pixels(np.concatenate(drivable), a) * 16).astype(np.int32)
             start = 0
             for poly in drivable:  # one call per polygon: a multi-polygon call XORs overlaps
                 cv2.fillPoly(m, [px[start : start + len(poly)]], 0, cv2.LINE_8, shift=4)
                 start += len(poly)
         if len(boxes):
-            px = _inset_half_pixel(boxes @ a[:, :2].T + a[:, 2])
-            for quad in np.rint(px * 16).astype(np.int32):
+            # Each side moved half a pixel inwards: OpenCV's fill covers every pixel an edge
+            # touches, the inset turns that into "cells whose centre lies inside the
+            # footprint" (exactly for axis-aligned boxes).
+            corners = self._to_pixels(boxes.reshape(-1, 2), a).reshape(boxes.shape)
+            for quad in pixel_quads(corners):
                 cv2.fillConvexPoly(m, quad, 1, cv2.LINE_8, shift=4)
         return m
 
-    def render(self, ego_xy, ego_psi, drivable: list[np.ndarray], boxes: np.ndarray) -> np.ndarray:
-        """The occupancy grid (values :data:`FREE`, :data:`UNKNOWN`, :data:`OCCUPIED`)."""
+    def render(
+        self, ego_xy, ego_psi, drivable: list[np.ndarray], boxes: np.ndarray, out=None
+    ) -> np.ndarray:
+        """The occupancy grid (values :data:`FREE`, :data:`UNKNOWN`, :data:`OCCUPIED`), in
+        ``out`` (uint8 ``(rows, cols)``, C-contiguous) if given."""
         obstacles = self.obstacle_mask(ego_xy, ego_psi, drivable, boxes)
+        grid = np.empty_like(obstacles) if out is None else out
+        mounts = self.spec.mounts
+        if len(mounts) == 1:
+            tables, reach = self._reach_from(mounts[0], obstacles, ego_psi)
+            cell_states_by_ray(obstacles, *tables[4], reach, _STATE_LUT, grid)
+            return grid
         visible = self._visible
         visible.fill(0)
-        for mount in self.spec.mounts:
-            self._mark_visible_from(mount, obstacles, ego_psi, visible)
-        grid = np.empty_like(obstacles)
+        for mount in mounts:
+            tables, reach = self._reach_from(mount, obstacles, ego_psi)
+            mark_visible(tables[3], tables[2], reach, visible)
         cell_states(obstacles, visible, _STATE_LUT, grid)
         return grid
 
-    def _mark_visible_from(
-        self, mount: SensorMount, obstacles: np.ndarray, ego_psi: float, visible: np.ndarray
-    ) -> None:
-        """Set ``visible`` to 1 on the cells seen from ``mount``."""
+    def _reach_from(self, mount: SensorMount, obstacles: np.ndarray, ego_psi: float):
+        """The tables of ``mount`` (:meth:`_tables_for`) and per ray how far [samples] it sees
+        (see :func:`~gridsim.sensors.rays.mark_visible`)."""
         s = self.spec
         north_up = s.orientation == "north_up"
         up_dir = ego_psi if north_up else np.pi / 2  # direction of the heading in the grid
-        c, sn = np.cos(up_dir), np.sin(up_dir)
-        mx, my = mount.x * c - mount.y * sn, mount.x * sn + mount.y * c
-        ou = int(np.clip(np.rint(mx / s.cell_size), -(s.cols // 2), s.cols // 2))
-        ov = int(np.clip(np.rint(-my / s.cell_size), -(s.rows // 2), s.rows // 2))
-        samples, ray, rad = self._tables_for(ou, ov)
-        first_hits(obstacles, samples, self._hits)
+        ou = ov = 0  # a mount at the rear axle, whatever the heading
+        if mount.x != 0.0 or mount.y != 0.0:
+            c, sn = np.cos(up_dir), np.sin(up_dir)
+            mx, my = mount.x * c - mount.y * sn, mount.x * sn + mount.y * c
+            # round: to the nearest even on ties, as np.rint
+            ou = min(max(round(mx / s.cell_size), -(s.cols // 2)), s.cols // 2)
+            ov = min(max(round(-my / s.cell_size), -(s.rows // 2)), s.rows // 2)
+        tables = self._tables_for(ou, ov)
+        first_hits(obstacles, *tables[1], self._hits)
         reach = self._hits.astype(np.float32) + np.float32(self._depth)
         if mount.fov < 2 * np.pi:
             off = np.angle(np.exp(1j * (self._theta - (up_dir + mount.yaw))))
             reach[np.abs(off) > 0.5 * mount.fov] = -np.inf
-        mark_visible(rad, ray, reach, visible)
+        return tables, reach
 
 
-def observe(sensor: OccupancyGridSensor, world) -> np.ndarray:
-    """The occupancy grid of ``sensor`` around the ego of ``world`` (a :class:`World`)."""
-    from gridsim.vehicle.kinematics import box_corners
-
-    spec = sensor.spec
+def observe(sensor: OccupancyGridSensor, world, out: np.ndarray | None = None) -> np.ndarray:
+    """The occupancy grid of ``sensor`` around the ego of ``world`` (a :class:`World`), in
+    ``out`` if given (see :meth:`OccupancyGridSensor.render`)."""
     ego_xy, psi = world.ego[:2], float(world.ego[2])
-    radius = 0.5 * np.hypot(spec.rows, spec.cols) * spec.cell_size
-    x, y, h, length, width = world.traffic.fleet.footprints()
-    reach = radius + 0.5 * np.hypot(length, width)
-    near = np.hypot(x - ego_xy[0], y - ego_xy[1]) <= reach
-    boxes = box_corners(x[near], y[near], h[near], length[near], width[near])
-    return sensor.render(ego_xy, psi, world.road.drivable_polygons(ego_xy, radius), boxes)
+    radius = sensor.radius
+    f = world.traffic.fleet
+    boxes = near_corners(f.active, f.x, f.y, f.psi, f.length, f.width, float(ego_xy[0]),
+                         float(ego_xy[1]), float(radius))  # fmt: skip
+    return sensor.render(ego_xy, psi, world.road.drivable_polygons(ego_xy, radius), boxes, out)

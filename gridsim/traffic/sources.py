@@ -249,7 +249,8 @@ class SeamlessTraffic(SyntheticTraffic):
         self._sync_lanes()
         f = self.fleet
         self._chain_profiles(f.tick(dt, ego, (self.behind, self.ahead)))  # out: recycled
-        if f.active[: self.count].all():
+        kept = f.active[: self.count]
+        if np.count_nonzero(kept) == len(kept):  # all active (cheaper than .all())
             return
         idle = np.flatnonzero(~f.active[: self.count])
         # One attempt per tick, out of the sensor's sight: ahead if it

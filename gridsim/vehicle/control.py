@@ -69,7 +69,9 @@ def follow_path(
 ) -> tuple[float, float]:
     """Pure pursuit along ``path`` (at lateral ``offset`` [m], positive left). ``s`` is the
     vehicle's arc length on the path if already known."""
+    ahead = pursuit_lookahead(state[V], gains)
     if s is None:
-        s = float(path.project(state[None, :2])[0][0])
-    x, y, _ = path.frenet_one(s + pursuit_lookahead(state[V], gains), offset)
+        x, y, _ = path.ahead_of(state[0], state[1], ahead, offset)
+    else:
+        x, y, _ = path.frenet_one(s + ahead, offset)
     return pursuit_inputs(state, (x, y), target_speed, params, gains)

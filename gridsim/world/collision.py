@@ -22,6 +22,10 @@ EDGE_TOLERANCE = 0.3
 BOUNDARY_RADIUS = 40.0
 #: The edges are reloaded after the ego moved this far [m] (must stay well below the radius).
 BOUNDARY_RELOAD = 20.0
+#: pymunk is asked about (and given) only the road edges that pass within the ego core's
+#: bounding circle plus this margin [m] (far more than any rounding: it cannot report a
+#: farther one).
+EDGE_QUERY_MARGIN = 1.0
 
 
 @dataclass(frozen=True)
@@ -56,13 +60,19 @@ class CollisionChecker:
         shrink = 2 * edge_tolerance
         core = (max(ego_length - shrink, 0.1), max(ego_width - shrink, 0.1))
         self._ego_core = _box(self._ego_body, *core)
+        # The ego's two boxes share a group: a query with one does not report the other
+        # (the queries skip the ego's body anyway; this spares pymunk's callback for it).
+        self._ego_shape.filter = self._ego_core.filter = pymunk.ShapeFilter(group=1)
         self.space.add(self._ego_body, self._ego_shape, self._ego_core)
         self._ego_radius = 0.5 * np.hypot(ego_length, ego_width)
+        self._core_reach = 0.5 * float(np.hypot(*core)) + EDGE_QUERY_MARGIN
+        self._edges = np.zeros((0, 4))  # the loaded road edges' segments
+        self._edge_index = np.zeros(0, np.int64)  # their indices in the road's segments
+        self._boundary_shapes: dict[int, pymunk.Segment] = {}
         self._shapes: dict[int, tuple[pymunk.Body, pymunk.Poly]] = {}
         self._placed: set[int] = set()
-        self._boundary_shapes: list[pymunk.Segment] = []
         self._road_version = -1
-        self._boundary_center = np.array([np.inf, np.inf])
+        self._boundary_center = (np.inf, np.inf)
 
     def __deepcopy__(self, memo) -> CollisionChecker:
         """A fresh checker: its pymunk space only caches shapes near the ego (edges within
@@ -72,31 +82,25 @@ class CollisionChecker:
 
     def set_boundaries(self, segments: np.ndarray, version: int, center: np.ndarray) -> None:
         """Load the road-edge segments ``(M, 4)`` within :data:`BOUNDARY_RADIUS` of ``center``
-        as static shapes; reloads only when the road ``version`` changed or the ego moved more
-        than :data:`BOUNDARY_RELOAD` metres since the last load."""
-        moved = np.hypot(*(np.asarray(center) - self._boundary_center))
+        (made static pymunk shapes when first near the ego: :meth:`_load_edges`); reloads only
+        when the road ``version`` changed or the ego moved more than :data:`BOUNDARY_RELOAD`
+        metres since the last load."""
+        bx, by = self._boundary_center
+        moved = np.hypot(float(center[0]) - bx, float(center[1]) - by)
         if version == self._road_version and moved < BOUNDARY_RELOAD:
             return
         if self._boundary_shapes:
-            self.space.remove(*self._boundary_shapes)
+            self.space.remove(*self._boundary_shapes.values())
         mid_x = 0.5 * (segments[:, 0] + segments[:, 2])
         mid_y = 0.5 * (segments[:, 1] + segments[:, 3])
         half = 0.5 * np.hypot(segments[:, 2] - segments[:, 0], segments[:, 3] - segments[:, 1])
         near = np.flatnonzero(
             np.hypot(mid_x - center[0], mid_y - center[1]) - half <= BOUNDARY_RADIUS
         )
-        static = self.space.static_body
-        shapes = []
-        for k in near:
-            x0, y0, x1, y1 = segments[k]
-            seg = pymunk.Segment(static, (x0, y0), (x1, y1), 0.0)
-            seg.gridsim_index = int(k)
-            shapes.append(seg)
-        if shapes:
-            self.space.add(*shapes)
-        self._boundary_shapes = shapes
+        self._boundary_shapes = {}  # the pymunk shapes made so far, by index into _edges
+        self._edges, self._edge_index = np.ascontiguousarray(segments[near], np.float64), near
         self._road_version = version
-        self._boundary_center = np.array(center, dtype=np.float64)
+        self._boundary_center = (float(center[0]), float(center[1]))
 
     def _shape_for(self, index: int, length: float, width: float) -> pymunk.Body:
         """The kinematic body of participant ``index``, its box resized if needed."""
@@ -165,12 +169,30 @@ class CollisionChecker:
             self.space.reindex_shapes_for_body(body)
         self._placed = placed
 
+    def _load_edges(self, near: np.ndarray) -> None:
+        """Make the loaded edges ``near`` (indices into ``_edges``) static pymunk shapes, if
+        not yet done: a query reports only shapes that touch the ego, and no edge farther
+        than the core's reach can."""
+        static, made = self.space.static_body, self._boundary_shapes
+        new = []
+        for j in near.tolist():
+            if j not in made:
+                x0, y0, x1, y1 = self._edges[j]
+                made[j] = seg = pymunk.Segment(static, (x0, y0), (x1, y1), 0.0)
+                seg.gridsim_index = int(self._edge_index[j])
+                new.append(seg)
+        if new:
+            self.space.add(*new)
+
     def _query(self, ego_center, ego_psi) -> Contact:
         """The contacts of the ego box with what is placed and loaded."""
         placed = self._placed
-        if not placed and not self._boundary_shapes:
+        cx, cy = float(ego_center[0]), float(ego_center[1])
+        near_edges = collision_kernels.near_segments(self._edges, cx, cy, self._core_reach)
+        if not placed and not len(near_edges):
             return Contact()  # nothing loaded the ego could touch
-        self._ego_body.position = (float(ego_center[0]), float(ego_center[1]))
+        self._load_edges(near_edges)
+        self._ego_body.position = (cx, cy)
         self._ego_body.angle = float(ego_psi)
         self.space.reindex_shapes_for_body(self._ego_body)
         ego = self._ego_body
@@ -179,9 +201,9 @@ class CollisionChecker:
             for hit in (self.space.shape_query(self._ego_shape) if placed else ())
             if hit.shape.body.body_type == pymunk.Body.KINEMATIC and hit.shape.body is not ego
         ]
-        edges = [  # none unless road edges are loaded
+        edges = [  # none unless a loaded road edge comes near
             hit.shape.gridsim_index
-            for hit in (self.space.shape_query(self._ego_core) if self._boundary_shapes else ())
+            for hit in (self.space.shape_query(self._ego_core) if len(near_edges) else ())
             if hit.shape.body.body_type == pymunk.Body.STATIC
         ]
         return Contact(tuple(sorted(vehicles)), tuple(sorted(edges)))

@@ -105,7 +105,7 @@ class World:
             self._checked = False  # the next checked tick cannot trust last.off_road
             return self.last
         contact = self.check_contacts()
-        moved = float(np.hypot(*(self.ego[:2] - previous[:2])))
+        moved = float(np.hypot(self.ego[0] - previous[0], self.ego[1] - previous[1]))
         trusted, self._checked = self._checked, True
         if contact.boundaries:
             off_road = True

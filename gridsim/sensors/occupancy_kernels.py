@@ -1,0 +1,75 @@
+"""Compiled footprint preparation for the occupancy grid: the same operations, in the same
+order, as the NumPy code they replaced (``observe``'s range test and
+:func:`~gridsim.vehicle.kinematics.box_corners`; the half-pixel inset and fixed-point
+rounding before OpenCV's fill), and the world -> pixel map when it is diagonal (for other
+maps the bits are BLAS's: NumPy's ``@`` stays)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gridsim.jit import kernel
+
+# Corner signs along the length and the width (rear-right, front-right, front-left,
+# rear-left), as in box_corners.
+_LX = np.array([-1.0, 1.0, 1.0, -1.0])
+_LY = np.array([-1.0, -1.0, 1.0, 1.0])
+
+
+@kernel
+def near_corners(active, x, y, psi, length, width, ex, ey, radius):
+    """Corners ``(N, 4, 2)`` [m, world] of the active footprints (centres ``x, y``, headings
+    ``psi`` [rad], sizes ``length x width`` [m]) whose bounding circle reaches within
+    ``radius`` [m] of the ego ``(ex, ey)``, in fleet order."""
+    idx = np.empty(len(x), np.int64)
+    n = 0
+    for i in range(len(x)):
+        if active[i]:
+            reach = radius + 0.5 * np.hypot(length[i], width[i])
+            if np.hypot(x[i] - ex, y[i] - ey) <= reach:
+                idx[n] = i
+                n += 1
+    out = np.empty((n, 4, 2))
+    for m in range(n):
+        i = idx[m]
+        c, s = np.cos(psi[i]), np.sin(psi[i])
+        hl, hw = 0.5 * length[i], 0.5 * width[i]
+        for k in range(4):
+            dx, dy = hl * _LX[k], hw * _LY[k]
+            out[m, k, 0] = x[i] + c * dx - s * dy
+            out[m, k, 1] = y[i] + s * dx + c * dy
+    return out
+
+
+@kernel
+def pixel_quads(quads):
+    """The rectangles ``quads`` ``(N, 4, 2)`` [pixels, corners ordered as box_corners] with
+    each side moved half a pixel inwards, in OpenCV's 4-bit fixed point (int32, x 16)."""
+    out = np.empty(quads.shape, np.int32)
+    for m in range(quads.shape[0]):
+        u = np.empty((2, 2))  # unit-ish side vectors scaled to the inset: length, width
+        for side in range(2):
+            corner = 1 if side == 0 else 3
+            e0 = quads[m, corner, 0] - quads[m, 0, 0]
+            e1 = quads[m, corner, 1] - quads[m, 0, 1]
+            n = np.sqrt(e0 * e0 + e1 * e1)
+            scale = np.minimum(0.5, 0.5 * n)
+            u[side, 0] = e0 / np.maximum(n, 1e-9) * scale
+            u[side, 1] = e1 / np.maximum(n, 1e-9) * scale
+        for k in range(4):
+            for j in range(2):
+                p = quads[m, k, j] - _LX[k] * u[0, j] - _LY[k] * u[1, j]
+                out[m, k, j] = np.int32(np.rint(p * 16))
+    return out
+
+
+@kernel
+def diagonal_map(points, a):
+    """``points @ a[:, :2].T + a[:, 2]`` for points ``(N, 2)`` and an affine map ``a``
+    ``(2, 3)`` whose off-diagonal entries are zero: the same bits in any evaluation order."""
+    out = np.empty(points.shape)
+    for i in range(points.shape[0]):
+        x, y = points[i, 0], points[i, 1]
+        out[i, 0] = (x * a[0, 0] + y * a[0, 1]) + a[0, 2]
+        out[i, 1] = (x * a[1, 0] + y * a[1, 1]) + a[1, 2]
+    return out
