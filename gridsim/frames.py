@@ -72,3 +72,22 @@ def grid_to_pixel(
     p = np.asarray(points, dtype=np.float64)
     right, up = (p[..., 0], p[..., 1]) if orientation == "north_up" else (-p[..., 1], p[..., 0])
     return np.stack([cols / 2 - 0.5 + right / cell_size, rows / 2 - 0.5 - up / cell_size], axis=-1)
+
+
+def world_to_pixel(
+    ego_xy: np.ndarray, ego_psi: float, rows: int, cols: int, cell_size: float, orientation: str
+) -> np.ndarray:
+    """Affine map ``(2, 3)``: world points [m] -> fractional pixel coordinates (column u, row
+    v) of the occupancy grid around the ego at ``ego_xy`` [m] with heading ``ego_psi`` [rad]
+    (the same pixels as :func:`world_to_grid` then :func:`grid_to_pixel`)."""
+    k = 1.0 / cell_size
+    cu, cv = cols / 2 - 0.5, rows / 2 - 0.5
+    if orientation == "north_up":
+        # A scale: each product of ``rot @ ego_xy`` is one rounding plus an exact zero.
+        x, y = float(ego_xy[0]), float(ego_xy[1])
+        return np.array([[k, 0.0, cu - k * x], [0.0, -k, cv - -k * y]])
+    # up = heading, right = heading - 90 deg
+    c, sn = np.cos(ego_psi), np.sin(ego_psi)
+    rot = np.array([[sn * k, -c * k], [-c * k, -sn * k]])
+    t = np.array([cu, cv]) - rot @ np.asarray(ego_xy, dtype=np.float64)
+    return np.hstack([rot, t[:, None]])

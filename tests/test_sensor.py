@@ -284,3 +284,16 @@ def test_north_up_pixel_map_equals_the_matrix_product():
             points = ego + rng.normal(0, 40, (int(rng.integers(0, 60)), 2))
             assert np.array_equal(diagonal_map(points, a), points @ a[:, :2].T + a[:, 2])
             assert np.array_equal(sensor._to_pixels(points, a), points @ a[:, :2].T + a[:, 2])
+
+
+@pytest.mark.parametrize("orientation", ["north_up", "heading_up"])
+def test_the_sensor_pixel_map_is_the_grid_frame_then_its_pixels(orientation):
+    from gridsim.frames import grid_rotation, grid_to_pixel, world_to_grid, world_to_pixel
+
+    rng = np.random.default_rng(4)
+    ego, psi = rng.normal(size=2) * 50.0, float(rng.uniform(-np.pi, np.pi))
+    points = ego + rng.normal(size=(200, 2)) * 20.0
+    affine = world_to_pixel(ego, psi, 96, 128, 0.5, orientation)
+    direct = points @ affine[:, :2].T + affine[:, 2]
+    grid = world_to_grid(points, ego, grid_rotation(orientation, psi))
+    np.testing.assert_allclose(direct, grid_to_pixel(grid, 96, 128, 0.5, orientation), atol=1e-9)

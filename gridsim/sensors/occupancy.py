@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from gridsim.frames import world_to_pixel
 from gridsim.sensors.occupancy_kernels import diagonal_map, near_corners, pixel_quads
 from gridsim.sensors.rays import (
     cell_states,
@@ -139,17 +140,7 @@ class OccupancyGridSensor:
     def world_to_pixel(self, ego_xy: np.ndarray, ego_psi: float) -> np.ndarray:
         """Affine map ``(2, 3)``: world metres -> pixel coordinates (u = column, v = row)."""
         s = self.spec
-        k = 1.0 / s.cell_size
-        cu, cv = s.cols / 2 - 0.5, s.rows / 2 - 0.5
-        if s.orientation == "north_up":
-            # A scale: each product of ``rot @ ego_xy`` is one rounding plus an exact zero.
-            x, y = float(ego_xy[0]), float(ego_xy[1])
-            return np.array([[k, 0.0, cu - k * x], [0.0, -k, cv - -k * y]])
-        # up = heading, right = heading - 90 deg
-        c, sn = np.cos(ego_psi), np.sin(ego_psi)
-        rot = np.array([[sn * k, -c * k], [-c * k, -sn * k]])
-        t = np.array([cu, cv]) - rot @ np.asarray(ego_xy, dtype=np.float64)
-        return np.hstack([rot, t[:, None]])
+        return world_to_pixel(ego_xy, ego_psi, s.rows, s.cols, s.cell_size, s.orientation)
 
     @staticmethod
     def _to_pixels(points: np.ndarray, a: np.ndarray) -> np.ndarray:
