@@ -15,6 +15,7 @@ from gridsim.frames import setpoint_times
 from gridsim.road.city import CityParams
 from gridsim.road.seamless import SeamlessParams
 from gridsim.sensors.occupancy import GridSpec
+from gridsim.vehicle.kinematics import BicycleParams
 
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
@@ -46,15 +47,16 @@ class SimulationConfig(Strict):
 
 
 class VehicleConfig(Strict):
-    """The ego vehicle's geometry and limits."""
+    """The ego vehicle's geometry and limits: :class:`BicycleParams`' defaults, but a scenario
+    ego's top speed (20 m/s) and its steering limits in degrees (35 deg, 45 deg/s)."""
 
-    length: Annotated[float, Field(gt=0, le=25)] = 4.5
-    width: Annotated[float, Field(gt=0, le=4)] = 1.8
-    wheelbase: Annotated[float, Field(gt=0, le=10)] = 2.7
-    v_min: Annotated[float, Field(ge=0, le=100)] = 0.0
+    length: Annotated[float, Field(gt=0, le=25)] = BicycleParams.length
+    width: Annotated[float, Field(gt=0, le=4)] = BicycleParams.width
+    wheelbase: Annotated[float, Field(gt=0, le=10)] = BicycleParams.wheelbase
+    v_min: Annotated[float, Field(ge=0, le=100)] = BicycleParams.v_min
     v_max: Annotated[float, Field(gt=0, le=100)] = 20.0
-    a_max: Annotated[float, Field(gt=0, le=20)] = 2.0
-    b_max: Annotated[float, Field(gt=0, le=20)] = 6.0
+    a_max: Annotated[float, Field(gt=0, le=20)] = BicycleParams.a_max
+    b_max: Annotated[float, Field(gt=0, le=20)] = BicycleParams.b_max
     max_steer_deg: Annotated[float, Field(gt=0, lt=90)] = 35.0
     max_steer_rate_deg: Annotated[float, Field(gt=0, le=360)] = 45.0
 
