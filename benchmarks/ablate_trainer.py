@@ -29,6 +29,15 @@ VARIANTS = {
     "warm-start": ["--pretrain-episodes", "12"],
     "warm-start-one-generation": ["--pretrain-episodes", "12", "--generations", "1"],
     "warm-start-no-skip": ["--pretrain-episodes", "12", "--no-skip"],
+    "warm-start-evolve-head": ["--pretrain-episodes", "12", "--evolve", "head", "--sigma", "0.01"],
+    "warm-start-evolve-readout": [
+        "--pretrain-episodes",
+        "12",
+        "--evolve",
+        "readout",
+        "--sigma",
+        "0.02",
+    ],
     "warm-start-grid-frame": [
         "--pretrain-episodes",
         "12",
