@@ -3,7 +3,8 @@
 The ego-centred **grid frame** of observations, actions and labels: origin at the ego's rear
 axle; with ``north_up`` grids the axes are parallel to the world's (x east, y north), with
 ``heading_up`` grids they are the body axes (x forward, y left). Either way the frame
-matches the occupancy grid the network sees.
+matches the occupancy grid the network sees; :func:`grid_to_pixel` and
+:func:`world_to_pixel` give its pixels.
 
 The **set-point times** of a plan, and the **ego feature vector** of an observation
 (:data:`EGO_FEATURES`, read by name through the ``EGO_*`` indices).

@@ -146,11 +146,13 @@ def test_evolve_scopes_are_checked():
     with pytest.raises(RunError, match=r"unknown evolve scope 'cnn'; choose from \['all', "):
         TrainConfig(pretrain_episodes=2, evolve="cnn")
     with pytest.raises(RunError, match="evolve 'head' keeps the warm start's encoder: give "
-                                       "pretrain or pretrain_episodes"):  # fmt: skip
+                                       "--pretrain or --pretrain-episodes"):  # fmt: skip
         TrainConfig(evolve="head")
     with pytest.raises(ValueError, match=r"the network has no parameters \['nope'\]"):
         mutation_mask(_tiny_net(), ("nope",))
     assert mutation_mask(_tiny_net(), None) is None
+    with pytest.raises(ValueError, match="no parameter to evolve"):
+        mutation_mask(_tiny_net(), ())
 
 
 def test_a_missing_pretraining_dataset_is_a_clear_error(tmp_path, capsys):

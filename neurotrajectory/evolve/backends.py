@@ -196,6 +196,7 @@ class ProcessBackend(RemoteBackend):
             parent, child = ctx.Pipe()
             proc = ctx.Process(target=_serve, args=(child, spec), daemon=True)
             proc.start()
+            child.close()  # the worker's end: a worker that dies then ends our recv with EOF
             self.conns.append(parent)
             self.procs.append(proc)
         for conn in self.conns:

@@ -60,6 +60,8 @@ def mutation_mask(net: nn.Module, evolved: tuple[str, ...] | None) -> np.ndarray
     unknown = set(evolved) - {name for name, _ in net.named_parameters()}
     if unknown:
         raise ValueError(f"the network has no parameters {sorted(unknown)}")
+    if not evolved:
+        raise ValueError("no parameter to evolve: every child would equal its parent")
     return np.concatenate([np.full(p.numel(), name in evolved, np.float32)
                            for name, p in net.named_parameters()])  # fmt: skip
 

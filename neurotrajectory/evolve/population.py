@@ -41,7 +41,7 @@ class Population:
         self.net = net
         self.genome_size = count_parameters(net)
         self.table = noise_table(table_size(self.genome_size))
-        self.mask = mutation_mask(net, net.evolved(evolve))
+        self.mask = None if evolve == "all" else mutation_mask(net, net.evolved(evolve))
         self.genomes: np.ndarray | None = None
 
     def advance(self, recipes: list[Recipe]) -> None:

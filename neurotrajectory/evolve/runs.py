@@ -102,7 +102,7 @@ class TrainConfig:
     #: how the DAgger windows are labelled (see :data:`neurotrajectory.data.windows.DAGGER_LABELS`)
     dagger_labels: str = "rejoin"
     #: what mutation changes (:data:`~neurotrajectory.model.EVOLVE_SCOPES`); a scope other
-    #: than "all" keeps the warm start's encoder and evolves the planning head on it
+    #: than "all" keeps the warm start's weights outside the scope and evolves the scope's
     evolve: str = "all"
 
     #: What format-1 configurations (saved before these fields existed) meant.
@@ -168,7 +168,8 @@ class TrainConfig:
                            f"{list(EVOLVE_SCOPES)}")  # fmt: skip
         if self.evolve != "all" and not (self.pretrain or self.pretrain_episodes):
             raise RunError(f"evolve {self.evolve!r} keeps the warm start's encoder: give "
-                           "pretrain or pretrain_episodes (or evolve 'all')")  # fmt: skip
+                           "--pretrain or --pretrain-episodes (TrainConfig.pretrain / "
+                           "pretrain_episodes), or evolve 'all'")  # fmt: skip
         if self.prior is not None and self.prior not in PRIORS:
             raise RunError(f"unknown prior {self.prior!r}; choose from {list(PRIORS)}")
 
