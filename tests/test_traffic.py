@@ -166,6 +166,47 @@ def test_generated_traffic_stops_for_an_ego_standing_across_its_path():
     assert hit and f.mode[0] == REPLAY
 
 
+def _left_turn(ego_start: float, ego_speed: float = 7.0):
+    """A generated car at 7 m/s on a path that runs along x and turns left (radius 8 m, from
+    x = 30 m) across the next lane (centre y = 3.5 m), where an ego comes the other way at
+    ``ego_speed`` from x = ``ego_start``. Returns the fleet after 12 s, whether the two
+    footprints ever overlapped, and the highest y [m] the car's footprint reached while the
+    ego had not yet passed it."""
+    f = Fleet(1)
+    th = np.linspace(0.0, np.pi / 2, 19)
+    points = np.vstack([[0.0, 0.0], np.c_[30 + 8 * np.sin(th), 8 - 8 * np.cos(th)], [38.0, 100.0]])
+    s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(points, axis=0).T))]
+    path = f.paths.add_path(points, s)
+    prof = f.profiles.add(np.array([0.0, 100.0]), np.array([[0, 7, 0, 0], [700, 7, 0, 0]]))
+    f.place(0, path=path, s=10.0, profile=prof, tau=0.0, geometric=False)
+    x, hit, reach = ego_start, False, -np.inf
+    for _ in range(120):
+        f.tick(0.1, EgoPose(x, 3.5, np.pi, ego_speed, 4.5, 1.8))
+        x -= 0.1 * ego_speed
+        car = box_corners(f.x[0], f.y[0], f.psi[0], f.length[0], f.width[0])
+        hit |= overlap(car, box_corners(x, 3.5, np.pi, 4.5, 1.8))
+        if x - 2.25 > car[:, 0].min():  # the ego's rear has not passed the car
+            reach = max(reach, car[:, 1].max())
+    return f, hit, reach
+
+
+@pytest.mark.parametrize("ego_start", [58.0, 61.0, 64.0, 67.0, 70.0])
+def test_a_turning_car_waits_for_an_oncoming_ego_before_its_lane(ego_start):
+    """The car would reach the ego's lane just as the ego gets there. It used to see the
+    ego only once its path ahead touched the ego's footprint, and drove into it or stopped
+    with its nose in the ego's lane; it now waits before the lane and then turns."""
+    f, hit, reach = _left_turn(ego_start)
+    assert not hit
+    assert reach < 3.5 - 0.9  # the car kept out of the ego's lane (its right edge at 2.6 m)
+    assert f.y[0] > 20.0 and f.mode[0] == REPLAY  # and then completed its turn
+
+
+def test_a_turning_car_does_not_wait_for_an_ego_far_away():
+    f, hit, _ = _left_turn(ego_start=120.0)
+    assert not hit and f.leader[0] == -1
+    assert f.v[0] == pytest.approx(7.0) and f.s[0] == pytest.approx(10.0 + 7.0 * 12.0)
+
+
 def brute_force_leaders(f: Fleet, ego: EgoPose):
     """O(N^2) reference for Fleet.find_leaders on straight parallel lanes."""
     idx = np.flatnonzero(f.active)

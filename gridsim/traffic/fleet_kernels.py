@@ -127,6 +127,62 @@ def same_path(idx, path, s, length, v, psi, lookahead):
     return a[:n], b[:n], gap[:n], lead_v[:n]
 
 
+#: m: spacing of the samples of a participant's path ahead in :func:`swept_conflict`
+SWEEP_STEP = 0.5
+#: s: a participant yields to an ego that reaches the conflict this long after it would
+#: have cleared it (or clears it this long before the participant gets there)
+SWEEP_BUFFER = 1.0
+
+
+@kernel
+def swept_conflict(paths, path_id, s, d, length, width, v, ego, margin, horizon, buckets):
+    """Gap [m] from a participant's front to where its path ahead enters the ego's footprint
+    swept forward over ``horizon`` [s] (at the ego's speed, along its heading; both boxes
+    grown by the participant's half width and ``margin``), if the ego will be at that place
+    while the participant passes it (give or take :data:`SWEEP_BUFFER`); else inf.
+
+    The participant is at arc length ``s`` [m], offset ``d`` [m] on path ``path_id``, with
+    footprint ``length`` x ``width`` [m] and speed ``v`` [m/s] (at least 1 m/s is assumed);
+    ``ego``: ``(x, y, v, length, width, cos psi, sin psi)``. A participant whose front is
+    already inside the swept footprint is committed: it gets inf (it clears the way rather
+    than stopping in it)."""
+    ex, ey, ev, e_len, e_wid, e_c, e_s = ego
+    ev = max(ev, 0.0)
+    half_along = 0.5 * e_len + 0.5 * width + margin  # ego box + participant, along the ego
+    half_across = 0.5 * e_wid + 0.5 * width + margin
+    ahead = half_along + ev * horizon
+    vp = max(v, 1.0)
+    u_front = 0.5 * length
+    u_last = u_front + vp * horizon  # the front's travel within the horizon
+    u_in, a_in = -1.0, 0.0
+    u = u_front
+    while u <= u_last + 2.0 * ahead:
+        px, py, _ = frenet_one(paths, path_id, s + u, d, buckets)
+        a = (px - ex) * e_c + (py - ey) * e_s
+        b = (py - ey) * e_c - (px - ex) * e_s
+        inside = -half_along < a < ahead and abs(b) < half_across
+        if u_in < 0:
+            if inside:
+                if u == u_front:
+                    return np.inf  # committed
+                u_in, a_in = u, a
+            elif u > u_last:
+                return np.inf  # no conflict within the horizon
+        elif not inside:
+            break
+        u += SWEEP_STEP
+    if u_in < 0:
+        return np.inf
+    # the participant passes the conflict from its front's arrival to its rear's departure
+    p_in, p_out = (u_in - u_front) / vp, (u + u_front) / vp
+    if ev < 1e-3:  # a standing ego: the swept footprint is where it stands
+        return u_in - u_front
+    e_in, e_out = (a_in - half_along) / ev, (a_in + half_along) / ev
+    if e_in < p_out + SWEEP_BUFFER and e_out > p_in - SWEEP_BUFFER:
+        return u_in - u_front
+    return np.inf
+
+
 @kernel
 def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin, crossing_horizon):
     """Candidates ``(a, b = -2, gap, lead_v)`` of participants that have the ego ahead on
@@ -137,7 +193,10 @@ def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin, crossing_horizon
     replaying a recorded track's exact pose) so is an ego crossing the path or coming the
     other way (its footprint taken across the path), within ``crossing_horizon`` [s] at the
     participant's speed (at least 1 m/s) and only if it would not have cleared the path by
-    the time the participant got there: generated traffic does not drive into the ego."""
+    the time the participant got there; and, failing that, an ego that will pass through the
+    participant's path ahead within ``crossing_horizon`` (:func:`swept_conflict`: a car
+    about to turn across the ego's lane waits before the lane): generated traffic does not
+    drive into the ego."""
     x, y, s, d, path_id, length, width, v, recorded = fleet
     ex, ey, ev, e_len, e_wid, e_c, e_s = ego
     m = len(idx)
@@ -156,7 +215,8 @@ def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin, crossing_horizon
             elif not recorded[i]:
                 cross[q] = abs(c[q] * e_s - sn[q] * e_c)
                 crossing_gap[q] = lon[q] - 0.5 * (length[i] + e_len * -dot[q] + e_wid * cross[q])
-                if crossing_gap[q] < max(v[i], 1.0) * crossing_horizon:
+                swept = (max(v[i], 1.0) + max(ev, 0.0)) * crossing_horizon
+                if crossing_gap[q] < swept + e_len + width[i] + 2.0 * margin:
                     near[n] = q
                     n += 1
     buckets = n > SMALL_QUERY
@@ -174,7 +234,7 @@ def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin, crossing_horizon
             continue
         g = crossing_gap[q]
         reach = 0.5 * (width[i] + e_len * cross[q] + e_wid * -dot[q]) + margin
-        if off < reach:
+        if g < max(v[i], 1.0) * crossing_horizon and off < reach:
             # only if the ego is still across the path when the participant gets there
             nx, ny = -np.sin(h), np.cos(h)  # the path's left normal
             side = (ex - px) * nx + (ey - py) * ny
@@ -186,6 +246,12 @@ def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin, crossing_horizon
                 a[k], gap[k] = q, g
                 lead_v[k] = ev * dot[q]
                 k += 1
+                continue
+        g = swept_conflict(paths, path_id[i], s[i], d[i], length[i], width[i], v[i], ego,
+                           margin, crossing_horizon, buckets)  # fmt: skip
+        if g < np.inf:
+            a[k], gap[k], lead_v[k] = q, g, 0.0
+            k += 1
     return a[:k], np.full(k, -2, np.int64), gap[:k], lead_v[:k]
 
 
