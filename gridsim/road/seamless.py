@@ -232,6 +232,22 @@ class SeamlessRoad(Road):
         if changed:
             self._rebuild()
 
+    def tracking(self) -> tuple | None:
+        """What a compiled tick needs to follow the ego as :meth:`update` does, while the road
+        stays as it is: ``(reference line's tracking_data, reference arc lengths, segment
+        tracked, keep_ahead, keep_behind, trim threshold [samples])``; None before the first
+        :meth:`update`. See :meth:`set_tracked`."""
+        if self._hint is None:
+            return None
+        p = self.p
+        return (self._ref_line.tracking_data(), self._ref_s, self._hint, p.keep_ahead,
+                p.keep_behind, self._chunk / p.sample_spacing)  # fmt: skip
+
+    def set_tracked(self, ego_s: float, hint: int) -> None:
+        """The ego's arc length [m] and segment as :meth:`update` would have tracked them
+        (for a compiled tick that found the road needs neither extending nor trimming)."""
+        self._ego_s, self._hint = ego_s, hint
+
     # -- queries ----------------------------------------------------------------------------
     @property
     def lanes(self) -> list[Lane]:

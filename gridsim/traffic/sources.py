@@ -247,8 +247,22 @@ class SeamlessTraffic(SyntheticTraffic):
 
     def tick(self, dt: float, ego: EgoPose) -> None:
         self._sync_lanes()
+        self.refill(self.fleet.tick(dt, ego, (self.behind, self.ahead)), ego)
+
+    def tick_data(self, dt: float) -> tuple | None:
+        """:meth:`Fleet.tick_data` for :meth:`tick`, and the participants kept: for a compiled
+        tick that leaves :meth:`refill` to Python whenever it has work. None while the fleet's
+        lanes are not the road's or some path has no lane corridor (then only :meth:`tick`
+        ticks it right)."""
+        if self.road.version != self._version or not self.fleet.paths.all_in_corridors:
+            return None
+        return (*self.fleet.tick_data(dt, (self.behind, self.ahead)), self.count)
+
+    def refill(self, ended: np.ndarray, ego: EgoPose) -> None:
+        """The rest of :meth:`tick` after the fleet's: participants whose profile ran out
+        (``ended``) continue with a new one; one idle participant may respawn."""
         f = self.fleet
-        self._chain_profiles(f.tick(dt, ego, (self.behind, self.ahead)))  # out: recycled
+        self._chain_profiles(ended)  # out: recycled
         kept = f.active[: self.count]
         if np.count_nonzero(kept) == len(kept):  # all active (cheaper than .all())
             return

@@ -74,6 +74,12 @@ class CollisionChecker:
         self._road_version = -1
         self._boundary_center = (np.inf, np.inf)
 
+    @property
+    def ego_box(self) -> tuple[float, float, float]:
+        """The ego box's length and width [m] and its bounding circle's radius [m] (the broad
+        phase's)."""
+        return float(self._args[0]), float(self._args[1]), float(self._ego_radius)
+
     def __deepcopy__(self, memo) -> CollisionChecker:
         """A fresh checker: its pymunk space only caches shapes near the ego (edges within
         :data:`BOUNDARY_RADIUS` of where they were loaded, traffic boxes placed per check) and
