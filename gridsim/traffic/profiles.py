@@ -64,7 +64,8 @@ class HumanProfiles:
     def scale_for(self, i: int, v_mean: float) -> float:
         """The feasible scale closest to giving profile ``i`` a mean speed of ``v_mean``."""
         k = v_mean / (0.5 * (self._v_lo[i] + self._v_hi[i]))
-        return float(np.clip(k, *self.scale_range(i)))
+        lo, hi = self.scale_range(i)
+        return float(min(max(k, lo), hi))  # np.clip's bits, without its call overhead
 
     def draw(self, rng: np.random.Generator) -> tuple[int, float]:
         """A random profile and scale, for a random mean speed within the bounds."""
@@ -74,7 +75,8 @@ class HumanProfiles:
     def continue_from(self, rng: np.random.Generator, v_now: float) -> tuple[int, float]:
         """A random profile and the scale that starts it at (about) ``v_now``."""
         i = int(rng.integers(len(self)))
-        return i, float(np.clip(v_now / max(self.v[i][0], 0.1), *self.scale_range(i)))
+        lo, hi = self.scale_range(i)
+        return i, float(min(max(v_now / max(self.v[i][0], 0.1), lo), hi))  # as np.clip
 
 
 @lru_cache(maxsize=16)

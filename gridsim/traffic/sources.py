@@ -6,6 +6,7 @@ every :meth:`tick` (recycling participants that fall out of range on endless roa
 
 from __future__ import annotations
 
+import copy
 import math
 from abc import ABC, abstractmethod
 from functools import lru_cache
@@ -14,6 +15,7 @@ import numpy as np
 
 from gridsim.road.city import CityRoad
 from gridsim.road.seamless import SeamlessRoad
+from gridsim.seeding import copy_generator
 from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
 from gridsim.traffic.profiles import HumanProfiles, SpeedBounds, human_profiles
 from gridsim.traffic.tables import TableBank
@@ -144,6 +146,16 @@ class SyntheticTraffic(TrafficSource):
         self._sizes = self.profiles.sizes
         self.rng = np.random.default_rng(0)
 
+    def __deepcopy__(self, memo) -> SyntheticTraffic:
+        """A deep copy whose random stream is copied through its state
+        (:func:`~gridsim.seeding.copy_generator`)."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        memo.setdefault(id(self.rng), copy_generator(self.rng))
+        for name, value in vars(self).items():
+            setattr(new, name, copy.deepcopy(value, memo))
+        return new
+
     # -- helpers shared by the road-specific sources ------------------------------------------
     def _clear(
         self, x: float, y: float, heading: float, length: float, width: float, ego: EgoPose
@@ -168,8 +180,8 @@ class SyntheticTraffic(TrafficSource):
         """Place participant ``i`` at ``(path, s)`` with a fresh profile if the spot is free."""
         prof, k, tau = drawn or self._draw()
         length, width = self._sizes[prof]
-        (p,), (h,) = self.fleet.paths.frenet_to_world(np.array([path]), np.array([s]), np.zeros(1))
-        if not self._clear(p[0], p[1], h, length, width, ego):
+        x, y, h = self.fleet.paths.point(path, s, 0.0)
+        if not self._clear(x, y, h, length, width, ego):
             return False
         self.fleet.place(i, path=path, s=s, profile=prof, tau=tau, k=k, length=length, width=width)
         return True
