@@ -4,8 +4,9 @@
 On a seamless road a batch runs the human driver, the ego's step, the road's tracking, the
 fleet's tick and the samples, and rules near misses out where the boxes are clearly apart.
 Python takes over for a tick that gives way to a vehicle (a revision), grows or trims the
-road, or chains a new profile or respawns a participant (they draw random numbers), and
-pymunk decides the near misses the compiled test cannot rule out. The ticks are the same
+road, or respawns a participant (it draws random numbers: the new profiles of participants
+whose profile ran out are drawn ahead, from a copy of the stream), and pymunk decides the
+near misses the compiled test cannot rule out. The ticks are the same
 either way (same bits: ``tests/test_shadow_world.py``); other roads always tick in Python.
 """
 
@@ -24,6 +25,8 @@ from gridsim.world.world import World
 _NO_SAMPLES = (np.zeros((0, 2)), np.zeros(0), np.zeros(0))
 #: Chain samples a batch needs beyond its last tick's (see ``ProfileChain.at``).
 _CHAIN_AHEAD = 3
+#: Profile draws a batch is given for the participants whose profile runs out.
+_DRAWS = 16
 
 
 class ShadowWorld:
@@ -60,14 +63,14 @@ class ShadowWorld:
             args = self._batch(end, record) if self._compiled else None
             if args is not None:
                 out = self.samples if record else _NO_SAMPLES
-                status, k_next, t, ego, hint, road_s, road_hint, accel, rate, ended = kernels.ticks(
-                    k, end, *args, yielding, out
-                )
+                done = kernels.ticks(k, end, *args, yielding, out)
+                status, k_next, t, ego, hint, road_s, road_hint, accel, rate, ended, used = done
                 if k_next > k or status == kernels.TRAFFIC:  # some tick was started
                     w.ego, w.time = np.array(ego), t
                     self.driver.follower.set_tracked(hint)
                     w.road.set_tracked(road_s, road_hint)
                     w.unchecked(accel, rate)
+                    w.traffic.drew(used)
                 k = k_next
                 if status == kernels.DONE or status == kernels.CHECK:
                     return k, status == kernels.CHECK
@@ -97,9 +100,9 @@ class ShadowWorld:
         samples, or None if the next tick must run in Python."""
         w, d = self.world, self.driver
         road, traffic = w.road.tracking(), w.traffic.tick_data(w.dt)
-        hint = d.follower.tracked(w)
-        if road is None or traffic is None or hint is None:
+        if road is None or traffic is None:
             return None
+        hint = d.follower.tracked(w)
         c = d.chain
         c.extend(end + _CHAIN_AHEAD)  # what ProfileChain.at would compute on the way
         p = w.ego_params
@@ -111,5 +114,6 @@ class ShadowWorld:
             (c.times, c.speeds, c.offsets, c.ready),
             road,
             traffic,
+            w.traffic.continuation(_DRAWS),
             (*self.checker.ego_box, record),
         )

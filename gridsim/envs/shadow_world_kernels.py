@@ -3,8 +3,8 @@ human driver, the ego's step, the seamless road's tracking, the fleet's tick and
 sample, tick after tick in one call, built from the very kernels and float functions the
 Python tick calls (same operations, same order: same bits).
 
-A batch stops where Python has work (see :func:`ticks`): it never draws random numbers, never
-grows or trims the road and never asks pymunk.
+A batch stops where Python has work (see :func:`ticks`): it never draws random numbers (the
+profile draws it may use come drawn), never grows or trims the road and never asks pymunk.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from gridsim.jit import kernel
 from gridsim.road.polyline_kernels import track
 from gridsim.traffic.fleet_kernels import FleetState
 from gridsim.traffic.fleet_kernels import tick as fleet_tick
-from gridsim.traffic.profile_kernels import chain_at
+from gridsim.traffic.profile_kernels import chain_at, continue_profiles
 from gridsim.vehicle.kinematics import step_one
 from gridsim.world.collision_kernels import may_touch
 from gridsim.world.scripted_driver_kernels import follower_inputs
@@ -34,25 +34,27 @@ _NO_CROSS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros
 
 
 @kernel
-def ticks(k, end, clock, ego, params, driver, chain, road, traffic, near, yielding, out):
+def ticks(k, end, clock, ego, params, driver, chain, road, traffic, renew, near, yielding, out):
     """Tick the shadow world for samples ``k`` to ``end - 1`` until one needs Python.
 
     ``clock``: ``(time [s], dt [s])``; ``ego``: its state ``(x, y, psi, v, delta)``;
     ``params``: ``(step_one limits, follower_inputs params)``; ``driver``:
     ``(route tracking_data, segment tracked, follower settings)``; ``chain``: the profile
     chain's ``(times, speeds, offsets, ready)``; ``road``: :meth:`SeamlessRoad.tracking`;
-    ``traffic``: :meth:`SeamlessTraffic.tick_data`; ``near``: the near-miss box ``(length,
+    ``traffic``: :meth:`SeamlessTraffic.tick_data`; ``renew``:
+    :meth:`SeamlessTraffic.continuation` (the profiles of participants whose profile runs
+    out, as long as its draws last); ``near``: the near-miss box ``(length,
     width, radius)`` [m] and whether to test it; ``yielding``: per tick, whether the driver
     gives way then (Python's :func:`conflict_free_accel`); ``out``: the sample arrays ``(xy,
     psi, v)``, written from ``k`` on if not empty.
 
     Stops before a tick that gives way, needs more of the chain, has non-finite inputs or
     would grow or trim the road (:data:`BEFORE`: nothing of it done); after the fleet's tick
-    when a profile ran out or a participant is idle (:data:`TRAFFIC`: the refill, the clock
+    when a participant is idle or the draws ran out (:data:`TRAFFIC`: the refill, the clock
     and the sample are Python's); after a recorded tick whose near miss the compiled test
     cannot rule out (:data:`CHECK`). Returns ``(status, next sample, time, ego state, route
     segment, road's arc length and segment, applied acceleration and steering rate of the last
-    tick, the participants whose profile ran out)``.
+    tick, the participants whose profile ran out, the draws used)``.
     """
     t, dt = clock
     x, y, psi, v, delta = ego
@@ -68,7 +70,8 @@ def ticks(k, end, clock, ego, params, driver, chain, road, traffic, near, yieldi
     f = FleetState(*state)
     fleet = (f.x, f.y, f.active, f.length, f.width, f.v)
     ego_length, ego_width, center_offset = driver_params[0], driver_params[1], driver_params[2]
-    status, ended = DONE, _NO_CROSS[0]
+    draws, firsts, bounds, renewed = renew
+    status, ended, used = DONE, _NO_CROSS[0], 0
     road_s, applied, rate = np.nan, np.nan, np.nan
     while k < end:
         tick = int(t / dt + 0.5)
@@ -97,9 +100,12 @@ def ticks(k, end, clock, ego, params, driver, chain, road, traffic, near, yieldi
         idle = False
         for i in range(count):
             idle = idle or not f.active[i]
-        if len(ended) or idle:
+        if idle or len(ended) > len(draws) - used:
             status = TRAFFIC
             break
+        if len(ended):
+            continue_profiles(ended, draws[used:], firsts, bounds, renewed)
+            used += len(ended)
         t += dt
         if record:
             xy_out[k, 0], xy_out[k, 1], psi_out[k], v_out[k] = x, y, psi, v
@@ -107,4 +113,5 @@ def ticks(k, end, clock, ego, params, driver, chain, road, traffic, near, yieldi
         if check and may_touch(state, (cx, cy, psi, box_length, box_width), radius, APART):
             status = CHECK
             break
-    return status, k, t, (x, y, psi, v, delta), hint, road_s, road_hint, applied, rate, ended
+    ego = (x, y, psi, v, delta)
+    return status, k, t, ego, hint, road_s, road_hint, applied, rate, ended, used

@@ -17,6 +17,7 @@ from gridsim.road.city import CityRoad
 from gridsim.road.seamless import SeamlessRoad
 from gridsim.seeding import copy_generator
 from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
+from gridsim.traffic.profile_kernels import continue_profiles
 from gridsim.traffic.profiles import HumanProfiles, SpeedBounds, human_profiles
 from gridsim.traffic.tables import TableBank
 from gridsim.traffic.track import Track
@@ -187,12 +188,27 @@ class SyntheticTraffic(TrafficSource):
         return True
 
     def _chain_profiles(self, ended: np.ndarray) -> None:
-        """Give participants whose profile ran out a new one, keeping speed and offset."""
-        f = self.fleet
-        for i in ended:
-            prof, k = self.profiles.continue_from(self.rng, f.v[i])
-            f.profile[i], f.tau[i], f.k[i] = prof, 0.0, k
-            f.d_bias[i] = f.d[i] - self.profiles.d[prof][0]
+        """Give participants whose profile ran out a new one, keeping speed and offset
+        (``HumanProfiles.continue_from`` each, in turn: ``integers(n, size=m)`` draws what
+        ``m`` calls of ``integers(n)`` draw)."""
+        if len(ended):
+            draws = self.rng.integers(len(self.profiles), size=len(ended))
+            continue_profiles(ended, draws, *self.continuation()[1:])
+
+    def continuation(self, ahead: int = 0) -> tuple:
+        """What :func:`~gridsim.traffic.profile_kernels.continue_profiles` takes after the
+        ended participants: the next ``ahead`` profile draws (from a copy of the random
+        stream: :meth:`drew` then takes the ones used), the profiles' first values, the speed
+        bounds, the fleet's arrays."""
+        f, b = self.fleet, self.profiles.bounds
+        draws = copy_generator(self.rng).integers(len(self.profiles), size=ahead)
+        return (draws, self.profiles.firsts, (b.v_min, b.v_max),
+                (f.profile, f.tau, f.k, f.d_bias, f.v, f.d))  # fmt: skip
+
+    def drew(self, used: int) -> None:
+        """Advance the random stream past ``used`` draws of :meth:`continuation`."""
+        if used:
+            self.rng.integers(len(self.profiles), size=used)
 
 
 class SeamlessTraffic(SyntheticTraffic):

@@ -42,12 +42,10 @@ class LaneFollower:
         """Inputs ``(acceleration [m/s^2], steering rate [rad/s])`` for the current state."""
         return self.inputs(world, self.speed, 0.0)
 
-    def tracked(self, world) -> int | None:
-        """The route segment tracked on ``world``'s current route, None if not following it
-        yet (see :meth:`set_tracked`)."""
-        if world.route is self._route and world is self._world:
-            return self._hint
-        return None
+    def tracked(self, world) -> int:
+        """The route segment :meth:`inputs` tracks the ego from on ``world``'s current route
+        (see :meth:`set_tracked`)."""
+        return self._hint_on(world, world.route)
 
     def set_tracked(self, hint: int) -> None:
         """The segment as :meth:`inputs` would have tracked it (for compiled ticks)."""
