@@ -50,6 +50,10 @@ class ShadowWorld:
             and isinstance(driver.follower, LaneFollower)
             and world.ego_params._scalar
         )
+        if self._compiled:  # what does not change from tick to tick
+            p = world.ego_params
+            self._params = (step_limits(p), driver_limits(p))
+            self._box = checker.ego_box
 
     def advance(
         self, k: int, end: int, yielding: np.ndarray, record: bool = True
@@ -60,7 +64,7 @@ class ShadowWorld:
         last one needs that test."""
         w = self.world
         while k < end:
-            args = self._batch(end, record) if self._compiled else None
+            args = self._batch(k, end, record) if self._compiled else None
             if args is not None:
                 out = self.samples if record else _NO_SAMPLES
                 done = kernels.ticks(k, end, *args, yielding, out)
@@ -95,9 +99,9 @@ class ShadowWorld:
             xy[k], psi[k], v[k] = ego[:2], ego[2], ego[3]
         return k + 1
 
-    def _batch(self, end: int, record: bool) -> tuple | None:
-        """The arguments of a compiled batch up to sample ``end`` but the tick flags and the
-        samples, or None if the next tick must run in Python."""
+    def _batch(self, k: int, end: int, record: bool) -> tuple | None:
+        """The arguments of a compiled batch of samples ``k`` to ``end - 1`` but the tick
+        flags and the samples, or None if the next tick must run in Python."""
         w, d = self.world, self.driver
         road, traffic = w.road.tracking(), w.traffic.tick_data(w.dt)
         if road is None or traffic is None:
@@ -105,15 +109,16 @@ class ShadowWorld:
         hint = d.follower.tracked(w)
         c = d.chain
         c.extend(end + _CHAIN_AHEAD)  # what ProfileChain.at would compute on the way
-        p = w.ego_params
+        # profiles run out on about one tick in seven: no draws ahead for a tick or two
+        draws = _DRAWS if end - k > 2 else 0
         return (
             (w.time, w.dt),
             tuple(w.ego.tolist()),
-            (step_limits(p), driver_limits(p)),
+            self._params,
             (w.route.tracking_data(), hint, d.follower.settings),
             (c.times, c.speeds, c.offsets, c.ready),
             road,
             traffic,
-            w.traffic.continuation(_DRAWS),
-            (*self.checker.ego_box, record),
+            w.traffic.continuation(draws),
+            (*self._box, record),
         )

@@ -23,6 +23,7 @@ from gridsim.traffic.tables import TableBank
 from gridsim.traffic.track import Track
 
 _SPAWN_CLEARANCE = 6.0  # free distance [m] kept around a new participant, beyond the footprints
+_NONE = np.zeros(0, np.int64)
 #: free distance [m] between a participant spawned on a city street and the ego, whatever
 #: their headings (between the circles around both footprints)
 CITY_EGO_CLEARANCE = 5.0
@@ -201,7 +202,9 @@ class SyntheticTraffic(TrafficSource):
         stream: :meth:`drew` then takes the ones used), the profiles' first values, the speed
         bounds, the fleet's arrays."""
         f, b = self.fleet, self.profiles.bounds
-        draws = copy_generator(self.rng).integers(len(self.profiles), size=ahead)
+        draws = _NONE
+        if ahead:
+            draws = copy_generator(self.rng).integers(len(self.profiles), size=ahead)
         return (draws, self.profiles.firsts, (b.v_min, b.v_max),
                 (f.profile, f.tau, f.k, f.d_bias, f.v, f.d))  # fmt: skip
 
