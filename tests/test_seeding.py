@@ -17,3 +17,22 @@ def test_streams_are_the_seed_sequences_of_their_numbers():
     old = np.random.default_rng(np.random.SeedSequence([5, 0x4E1D])).integers(0, 2**30, 8)
     new = stream(np.int64(5), Salt.HELDOUT_EPISODES).integers(0, 2**30, 8)
     np.testing.assert_array_equal(old, new)
+
+
+def test_a_copied_generator_draws_what_a_deep_copy_draws():
+    import copy
+
+    from gridsim.seeding import copy_generator
+
+    g = np.random.default_rng(123)
+    g.uniform(size=3)
+    g.integers(5)  # may leave half a 64-bit word buffered
+    fast, deep = copy_generator(g), copy.deepcopy(g)
+    assert fast.bit_generator.state == deep.bit_generator.state
+
+    def draws(rng):
+        return [rng.integers(7, size=5), rng.uniform(size=3), rng.permutation(6), rng.integers(9)]
+
+    expected = draws(deep)
+    assert all(np.array_equal(a, b) for a, b in zip(draws(fast), expected, strict=True))
+    assert all(np.array_equal(a, b) for a, b in zip(draws(g), expected, strict=True))  # apart

@@ -449,3 +449,29 @@ def test_city_traffic_never_appears_next_to_the_ego(monkeypatch):
                 break
         assert len(gaps) > reset_spawns  # participants were respawned during the episode
     assert min(gaps) >= CITY_EGO_CLEARANCE - 1e-9
+
+
+def test_compiled_profile_continuation_equals_continue_from():
+    """``_chain_profiles`` (one array draw, compiled scales) gives what a loop of
+    ``HumanProfiles.continue_from`` gave: the same profiles, scales, biases and stream."""
+    import copy
+
+    from gridsim.scenario.build import build_world
+    from gridsim.scenario.loader import load_scenario
+    from gridsim.seeding import copy_generator
+
+    world = build_world(load_scenario("seamless", {"traffic": {"participants": 40}}), 4)
+    traffic = world.traffic
+    f, rng = traffic.fleet, np.random.default_rng(9)
+    f.v[:] = rng.uniform(0.0, 40.0, f.capacity)
+    f.v[:3] = 0.0
+    for ended in (np.array([3, 0, 17, 5], np.int64), np.arange(f.capacity), np.zeros(0, np.int64)):
+        expected, stream = copy.deepcopy(f), copy_generator(traffic.rng)
+        for i in ended:  # the loop _chain_profiles ran before
+            prof, k = traffic.profiles.continue_from(stream, expected.v[i])
+            expected.profile[i], expected.tau[i], expected.k[i] = prof, 0.0, k
+            expected.d_bias[i] = expected.d[i] - traffic.profiles.d[prof][0]
+        traffic._chain_profiles(ended)
+        for name in ("profile", "tau", "k", "d_bias"):
+            assert getattr(f, name).tobytes() == getattr(expected, name).tobytes()
+        assert traffic.rng.bit_generator.state == stream.bit_generator.state

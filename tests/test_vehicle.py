@@ -172,3 +172,46 @@ def test_one_vehicle_step_is_bit_identical_to_the_batched_step(v_switch):
         assert one.state.tobytes() == batched.state[0].tobytes()
         assert float(one.accel) == float(batched.accel[0])
         assert float(one.steer_rate) == float(batched.steer_rate[0])
+
+
+@pytest.mark.parametrize("v_switch", [np.inf, 7.0])
+def test_compiled_one_vehicle_step_is_bit_identical_to_python(v_switch):
+    """``step_one`` inside a kernel (the reference's shadow ticks) gives the Python floats'
+    bits."""
+    from numba import njit
+
+    from gridsim.vehicle.kinematics import step_limits, step_one
+
+    compiled = njit(lambda *a: step_one(*a))
+    limits = step_limits(BicycleParams(v_switch=v_switch, v_max=30.0, v_min=-2.0))
+    rng = np.random.default_rng(12)
+    for _ in range(3000):
+        state = [*rng.uniform(-500, 500, 2), rng.uniform(-7, 7), rng.uniform(-3, 32),
+                 rng.uniform(-0.6, 0.6)]  # fmt: skip
+        args = (*(float(s) for s in state), float(rng.uniform(-9, 9)), float(rng.uniform(-2, 2)))
+        assert compiled(*args, limits, 0.1) == step_one(*args, limits, 0.1)
+
+
+def test_compiled_pursuit_and_idm_are_bit_identical_to_python():
+    """``pursuit_one`` and ``idm_accel_pow`` compiled give what Python computes on floats
+    (the IDM's powers are libm's ``pow`` there, not ``x * x``)."""
+    from numba import njit
+
+    from gridsim.vehicle.control import PursuitGains, pursuit_inputs, pursuit_one
+    from gridsim.vehicle.idm import IDMParams, idm_accel, idm_accel_pow
+
+    pursuit, idm = njit(lambda *a: pursuit_one(*a)), njit(lambda *a: idm_accel_pow(*a))
+    p, g = BicycleParams(), PursuitGains()
+    limits = (p.wheelbase, p.delta_max, p.b_max, p.a_max, p.v_delta_max, g.steer_time,
+              g.speed_gain)  # fmt: skip
+    rng = np.random.default_rng(13)
+    for _ in range(20000):
+        state = np.array([*rng.uniform(-500, 500, 2), rng.uniform(-7, 7), rng.uniform(0, 32),
+                          rng.uniform(-0.6, 0.6)])  # fmt: skip
+        target = state[:2] + rng.uniform(-30, 30, 2)
+        speed = float(rng.uniform(0, 35))
+        assert pursuit(*state.tolist(), *target.tolist(), speed, limits) == pursuit_inputs(
+            state, target, speed, p, g
+        )
+        args = (state[3], speed, float(rng.uniform(-2, 80)), float(rng.uniform(-10, 10)))
+        assert idm(*args, *IDMParams().values) == float(idm_accel(*args, *IDMParams().values))

@@ -21,6 +21,7 @@ from collections import OrderedDict
 import numpy as np
 
 from gridsim.envs import human_reference_kernels as kernels
+from gridsim.envs.shadow_world import ShadowWorld
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import Scenario
 from gridsim.scenario.parts import road_lane_width, synthetic_tracks
@@ -170,6 +171,9 @@ MAX_REVISIONS = 12
 #: [m] at each end and each side, so that a policy that follows the reference with small
 #: tracking errors keeps clear as well.
 NEAR_MISS_AHEAD, NEAR_MISS_SIDE = 0.5, 0.15
+#: Whether shadow worlds tick in compiled batches where they can (:mod:`gridsim.envs.shadow_world`;
+#: the same samples either way, the tests compare them).
+COMPILED_SHADOW = True
 
 
 class HumanReference(ReferenceTrajectory):
@@ -202,6 +206,7 @@ class HumanReference(ReferenceTrajectory):
         self.revisions: list[tuple[int, int, tuple[int, ...]]] = []
         #: Samples whose (near) collision no revision could avoid.
         self.collisions: list[int] = []
+        self._yielding = np.zeros(n + 1, bool)  # per tick: whether some revision covers it
         self._restart()
         self._ready = 0
         self._known_length = 0.0  # running sum of the final path's length [m]
@@ -212,6 +217,8 @@ class HumanReference(ReferenceTrajectory):
         self._driver = HumanDriver(self._chain, yield_to=self._yield_to)
         p = w.ego_params
         self._near = CollisionChecker(p.length + 2 * NEAR_MISS_AHEAD, p.width + 2 * NEAR_MISS_SIDE)
+        self._shadow = ShadowWorld(w, self._driver, self._near, (self._xy, self._psi, self._v),
+                                   compiled=COMPILED_SHADOW)  # fmt: skip
         self._xy[0], self._psi[0], self._v[0] = w.ego[:2], w.ego[2], w.ego[3]
         self._front = 1  # samples simulated (the last ``_lag`` of them may still be revised)
 
@@ -222,14 +229,11 @@ class HumanReference(ReferenceTrajectory):
     def _simulate(self, front: int) -> None:
         """Simulate up to ``front`` samples, revising after collisions."""
         while self._front < front:
-            k = self._front
-            w = self._world
-            w.tick(*self._driver(w), check=False)  # the near-miss test below is its check
-            self._xy[k], self._psi[k], self._v[k] = w.ego[:2], w.ego[2], w.ego[3]
-            self._front = k + 1
-            near = w.contacts(self._near)  # no road edges loaded: vehicles only
-            if near.vehicles:
-                self._revise(k, near.vehicles)
+            self._front, check = self._shadow.advance(self._front, front, self._yielding)
+            if check:  # the near-miss test (no road edges loaded: vehicles only)
+                near = self._world.contacts(self._near)
+                if near.vehicles:
+                    self._revise(self._front - 1, near.vehicles)
 
     def _revise(self, k: int, vehicles) -> None:
         """Revise from before sample ``k`` giving way to ``vehicles``; a contact with a vehicle
@@ -241,10 +245,10 @@ class HumanReference(ReferenceTrajectory):
         start = max(k - self._lag, self._ready, 1)
         self.collisions = [c for c in self.collisions if c <= start]  # to be driven again
         self.revisions.append((start, k + self._after, tuple(sorted(culprits))))
+        self._yielding[start : k + self._after + 1] = True
         self._restart()
-        while self._front < start:  # replay: the same ticks as before up to ``start``
-            self._world.tick(*self._driver(self._world), check=False)
-            self._front += 1
+        # replay: the same ticks as before up to ``start``
+        self._front, _ = self._shadow.advance(self._front, start, self._yielding, record=False)
 
     def _advance(self, ready: int) -> None:
         n = len(self.t)
@@ -257,7 +261,7 @@ class HumanReference(ReferenceTrajectory):
             self._known_length += float(np.hypot(*(self._xy[k] - self._xy[k - 1])))
         self._ready = max(self._ready, final)
         if self.complete:
-            self._world = self._driver = None  # free the shadow world
+            self._world = self._driver = self._shadow = None  # free the shadow world
 
     def _could_reach(self, travelled: float, tolerance: float) -> bool:
         """False when ``travelled`` is short of the reached share of the part known so far

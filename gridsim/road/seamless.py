@@ -18,6 +18,7 @@ import numpy as np
 
 from gridsim.road.base import Lane, Road, bbox_of, near
 from gridsim.road.polyline import Polyline
+from gridsim.seeding import copy_generator
 
 _MAX_HEADING = np.deg2rad(75.0)
 _CHUNK = 24  # reference points per drivable polygon chunk
@@ -58,7 +59,7 @@ class _PieceGenerator:
         modified in place; the parameters are frozen)."""
         new = copy.copy(self)
         memo[id(self)] = new
-        new.rng = copy.deepcopy(self.rng, memo)
+        new.rng = copy_generator(self.rng)
         return new
 
     def _straight(self, length: float):
@@ -190,22 +191,30 @@ class SeamlessRoad(Road):
         for i in range(self.p.lanes):
             centre = Polyline(self._lane_pts[i], self._lane_s[i, 0])
             self._lanes.append(Lane(centre, self.p.lane_width))
-        half = 0.5 * self.p.lanes * self.p.lane_width
-        normal = np.stack([-np.sin(self._ref_h), np.cos(self._ref_h)], axis=1)
-        self._left = self._ref + half * normal
-        self._right = self._ref - half * normal
-        m = len(self._ref)
-        starts = np.arange(0, m - 1, _CHUNK)
-        self._chunks = [
-            np.vstack([self._left[a : a + _CHUNK + 1], self._right[a : a + _CHUNK + 1][::-1]])
-            for a in starts
-        ]
-        self._chunk_boxes = bbox_of(self._chunks)
-        self._segments = np.vstack([_simplified_segments(e) for e in (self._left, self._right)])
-        marks = [self._ref + (o + 0.5 * self.p.lane_width) * normal for o in self._offsets[:-1]]
-        self._marking_chunks = [mk[a : a + _CHUNK + 1] for mk in marks for a in starts]
-        self._marking_boxes = bbox_of(self._marking_chunks)
+        # The polygons, edges and markings are derived on first use (a shadow world uses
+        # none of them), into a dict that copies sharing this geometry share too.
+        self._derived: dict[str, object] = {}
         self.version += 1
+
+    def _derive(self, name: str):
+        """The derived geometry ``name`` (made with all the others of its kind on first use)."""
+        d = self._derived
+        if name not in d:
+            half = 0.5 * self.p.lanes * self.p.lane_width
+            normal = np.stack([-np.sin(self._ref_h), np.cos(self._ref_h)], axis=1)
+            starts = np.arange(0, len(self._ref) - 1, _CHUNK)
+            if name in ("chunks", "segments"):
+                left, right = self._ref + half * normal, self._ref - half * normal
+                chunks = [np.vstack([left[a : a + _CHUNK + 1], right[a : a + _CHUNK + 1][::-1]])
+                          for a in starts]  # fmt: skip
+                d["chunks"] = chunks, bbox_of(chunks)
+                d["segments"] = np.vstack([_simplified_segments(e) for e in (left, right)])
+            else:
+                width = self.p.lane_width
+                marks = [self._ref + (o + 0.5 * width) * normal for o in self._offsets[:-1]]
+                chunks = [mk[a : a + _CHUNK + 1] for mk in marks for a in starts]
+                d["markings"] = chunks, bbox_of(chunks)
+        return d[name]
 
     def update(self, ego_xy: np.ndarray) -> None:
         x, y = float(ego_xy[0]), float(ego_xy[1])
@@ -232,6 +241,22 @@ class SeamlessRoad(Road):
         if changed:
             self._rebuild()
 
+    def tracking(self) -> tuple | None:
+        """What a compiled tick needs to follow the ego as :meth:`update` does, while the road
+        stays as it is: ``(reference line's tracking_data, reference arc lengths, segment
+        tracked, keep_ahead, keep_behind, trim threshold [samples])``; None before the first
+        :meth:`update`. See :meth:`set_tracked`."""
+        if self._hint is None:
+            return None
+        p = self.p
+        return (self._ref_line.tracking_data(), self._ref_s, self._hint, p.keep_ahead,
+                p.keep_behind, self._chunk / p.sample_spacing)  # fmt: skip
+
+    def set_tracked(self, ego_s: float, hint: int) -> None:
+        """The ego's arc length [m] and segment as :meth:`update` would have tracked them
+        (for a compiled tick that found the road needs neither extending nor trimming)."""
+        self._ego_s, self._hint = ego_s, hint
+
     # -- queries ----------------------------------------------------------------------------
     @property
     def lanes(self) -> list[Lane]:
@@ -257,13 +282,15 @@ class SeamlessRoad(Road):
         return len(self._ref)
 
     def drivable_polygons(self, center, radius):
-        return [self._chunks[i] for i in near(self._chunk_boxes, center, radius)]
+        chunks, boxes = self._derive("chunks")
+        return [chunks[i] for i in near(boxes, center, radius)]
 
     def boundary_segments(self):
-        return self._segments
+        return self._derive("segments")
 
     def lane_markings(self, center, radius):
-        return [self._marking_chunks[i] for i in near(self._marking_boxes, center, radius)]
+        chunks, boxes = self._derive("markings")
+        return [chunks[i] for i in near(boxes, center, radius)]
 
     def _project(self, xy: np.ndarray):
         """Project onto the reference line, searching near the ego first."""

@@ -245,9 +245,15 @@ class Fleet:
         than ``window = (behind, ahead)`` metres behind or ahead of the ego, measured along
         its heading. Returns the indices whose profile ran out this tick (recorded vehicles
         are deactivated; synthetic ones must be given a new profile by the caller)."""
-        return kernels.tick(self.state, _ego(ego), self._cross_candidates(),
-                            self.paths.kernel_data(), self.profiles.kernel_data(),
-                            *self._settings, dt, _decay(dt), (-window[0], window[1]))  # fmt: skip
+        state, paths, profiles, settings, decay, window = self.tick_data(dt, window)
+        return kernels.tick(state, _ego(ego), self._cross_candidates(), paths, profiles,
+                            *settings, dt, decay, window)  # fmt: skip
+
+    def tick_data(self, dt: float, window: tuple[float, float] = _EVERYWHERE) -> tuple:
+        """The arguments of the compiled tick but the ego and the cross-path candidates:
+        ``(state, paths, profiles, settings, decay, (lo, hi))``."""
+        return (self.state, self.paths.kernel_data(), self.profiles.kernel_data(),
+                self._settings, _decay(dt), (-window[0], window[1]))  # fmt: skip
 
     def footprints(self) -> tuple[np.ndarray, ...]:
         """``(x, y, psi, length, width)`` of the active participants (centre poses)."""

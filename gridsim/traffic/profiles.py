@@ -11,7 +11,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from gridsim.traffic.profile_kernels import chain_at, chain_samples
+from gridsim.traffic.profile_kernels import chain_at, chain_samples, start_scale
 from gridsim.traffic.track import Track
 
 #: Samples computed beyond those :meth:`ProfileChain.at` needs, so that it extends the chain
@@ -51,6 +51,7 @@ class HumanProfiles:
         self.sizes = np.array([(tr.length, tr.width) for tr in tracks])
         self._v_lo = np.array([max(v.min(), 0.1) for v in self.v])
         self._v_hi = np.array([max(v.max(), 0.1) for v in self.v])
+        self._firsts: tuple[np.ndarray, ...] | None = None
 
     def __len__(self) -> int:
         return len(self.t)
@@ -64,7 +65,8 @@ class HumanProfiles:
     def scale_for(self, i: int, v_mean: float) -> float:
         """The feasible scale closest to giving profile ``i`` a mean speed of ``v_mean``."""
         k = v_mean / (0.5 * (self._v_lo[i] + self._v_hi[i]))
-        return float(np.clip(k, *self.scale_range(i)))
+        lo, hi = self.scale_range(i)
+        return float(min(max(k, lo), hi))  # np.clip's bits, without its call overhead
 
     def draw(self, rng: np.random.Generator) -> tuple[int, float]:
         """A random profile and scale, for a random mean speed within the bounds."""
@@ -74,7 +76,19 @@ class HumanProfiles:
     def continue_from(self, rng: np.random.Generator, v_now: float) -> tuple[int, float]:
         """A random profile and the scale that starts it at (about) ``v_now``."""
         i = int(rng.integers(len(self)))
-        return i, float(np.clip(v_now / max(self.v[i][0], 0.1), *self.scale_range(i)))
+        b = self.bounds
+        return i, start_scale(v_now, self.v[i][0], self._v_lo[i], self._v_hi[i], b.v_min, b.v_max)
+
+    @property
+    def firsts(self) -> tuple[np.ndarray, ...]:
+        """Per profile: first speed [m/s] and offset [m], lowest and highest speed [m/s] (as
+        :meth:`continue_from` floors them), for
+        :func:`~gridsim.traffic.profile_kernels.continue_profiles`."""
+        if self._firsts is None:
+            v0 = np.array([v[0] for v in self.v])
+            d0 = np.array([d[0] for d in self.d])
+            self._firsts = (v0, d0, self._v_lo, self._v_hi)
+        return self._firsts
 
 
 @lru_cache(maxsize=16)

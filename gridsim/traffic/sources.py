@@ -6,6 +6,7 @@ every :meth:`tick` (recycling participants that fall out of range on endless roa
 
 from __future__ import annotations
 
+import copy
 import math
 from abc import ABC, abstractmethod
 from functools import lru_cache
@@ -14,12 +15,15 @@ import numpy as np
 
 from gridsim.road.city import CityRoad
 from gridsim.road.seamless import SeamlessRoad
+from gridsim.seeding import copy_generator
 from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
+from gridsim.traffic.profile_kernels import continue_profiles
 from gridsim.traffic.profiles import HumanProfiles, SpeedBounds, human_profiles
 from gridsim.traffic.tables import TableBank
 from gridsim.traffic.track import Track
 
 _SPAWN_CLEARANCE = 6.0  # free distance [m] kept around a new participant, beyond the footprints
+_NONE = np.zeros(0, np.int64)
 #: free distance [m] between a participant spawned on a city street and the ego, whatever
 #: their headings (between the circles around both footprints)
 CITY_EGO_CLEARANCE = 5.0
@@ -144,6 +148,16 @@ class SyntheticTraffic(TrafficSource):
         self._sizes = self.profiles.sizes
         self.rng = np.random.default_rng(0)
 
+    def __deepcopy__(self, memo) -> SyntheticTraffic:
+        """A deep copy whose random stream is copied through its state
+        (:func:`~gridsim.seeding.copy_generator`)."""
+        new = copy.copy(self)
+        memo[id(self)] = new
+        memo.setdefault(id(self.rng), copy_generator(self.rng))
+        for name, value in vars(self).items():
+            setattr(new, name, copy.deepcopy(value, memo))
+        return new
+
     # -- helpers shared by the road-specific sources ------------------------------------------
     def _clear(
         self, x: float, y: float, heading: float, length: float, width: float, ego: EgoPose
@@ -168,19 +182,36 @@ class SyntheticTraffic(TrafficSource):
         """Place participant ``i`` at ``(path, s)`` with a fresh profile if the spot is free."""
         prof, k, tau = drawn or self._draw()
         length, width = self._sizes[prof]
-        (p,), (h,) = self.fleet.paths.frenet_to_world(np.array([path]), np.array([s]), np.zeros(1))
-        if not self._clear(p[0], p[1], h, length, width, ego):
+        x, y, h = self.fleet.paths.point(path, s, 0.0)
+        if not self._clear(x, y, h, length, width, ego):
             return False
         self.fleet.place(i, path=path, s=s, profile=prof, tau=tau, k=k, length=length, width=width)
         return True
 
     def _chain_profiles(self, ended: np.ndarray) -> None:
-        """Give participants whose profile ran out a new one, keeping speed and offset."""
-        f = self.fleet
-        for i in ended:
-            prof, k = self.profiles.continue_from(self.rng, f.v[i])
-            f.profile[i], f.tau[i], f.k[i] = prof, 0.0, k
-            f.d_bias[i] = f.d[i] - self.profiles.d[prof][0]
+        """Give participants whose profile ran out a new one, keeping speed and offset
+        (``HumanProfiles.continue_from`` each, in turn: ``integers(n, size=m)`` draws what
+        ``m`` calls of ``integers(n)`` draw)."""
+        if len(ended):
+            draws = self.rng.integers(len(self.profiles), size=len(ended))
+            continue_profiles(ended, draws, *self.continuation()[1:])
+
+    def continuation(self, ahead: int = 0) -> tuple:
+        """What :func:`~gridsim.traffic.profile_kernels.continue_profiles` takes after the
+        ended participants: the next ``ahead`` profile draws (from a copy of the random
+        stream: :meth:`drew` then takes the ones used), the profiles' first values, the speed
+        bounds, the fleet's arrays."""
+        f, b = self.fleet, self.profiles.bounds
+        draws = _NONE
+        if ahead:
+            draws = copy_generator(self.rng).integers(len(self.profiles), size=ahead)
+        return (draws, self.profiles.firsts, (b.v_min, b.v_max),
+                (f.profile, f.tau, f.k, f.d_bias, f.v, f.d))  # fmt: skip
+
+    def drew(self, used: int) -> None:
+        """Advance the random stream past ``used`` draws of :meth:`continuation`."""
+        if used:
+            self.rng.integers(len(self.profiles), size=used)
 
 
 class SeamlessTraffic(SyntheticTraffic):
@@ -247,8 +278,22 @@ class SeamlessTraffic(SyntheticTraffic):
 
     def tick(self, dt: float, ego: EgoPose) -> None:
         self._sync_lanes()
+        self.refill(self.fleet.tick(dt, ego, (self.behind, self.ahead)), ego)
+
+    def tick_data(self, dt: float) -> tuple | None:
+        """:meth:`Fleet.tick_data` for :meth:`tick`, and the participants kept: for a compiled
+        tick that leaves :meth:`refill` to Python whenever it has work. None while the fleet's
+        lanes are not the road's or some path has no lane corridor (then only :meth:`tick`
+        ticks it right)."""
+        if self.road.version != self._version or not self.fleet.paths.all_in_corridors:
+            return None
+        return (*self.fleet.tick_data(dt, (self.behind, self.ahead)), self.count)
+
+    def refill(self, ended: np.ndarray, ego: EgoPose) -> None:
+        """The rest of :meth:`tick` after the fleet's: participants whose profile ran out
+        (``ended``) continue with a new one; one idle participant may respawn."""
         f = self.fleet
-        self._chain_profiles(f.tick(dt, ego, (self.behind, self.ahead)))  # out: recycled
+        self._chain_profiles(ended)  # out: recycled
         kept = f.active[: self.count]
         if np.count_nonzero(kept) == len(kept):  # all active (cheaper than .all())
             return

@@ -193,6 +193,10 @@ class PathBank(TableBank):
         table_kernels.frenet(self.kernel_data(), slots, s, d, buckets, xy, h)
         return xy, h
 
+    def point(self, slot: int, s: float, d: float) -> tuple[float, float, float]:
+        """:meth:`frenet_to_world` of one point: ``(x, y)`` [m] and the heading [rad]."""
+        return table_kernels.frenet_one(self.kernel_data(), slot, s, d, False)
+
     def kernel_data(self) -> tuple:
         """The flat arrays that :func:`~gridsim.traffic.table_kernels.frenet_one` reads: the
         table's, then the segments' normals and headings."""

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gridsim.jit import jitable
 from gridsim.road.polyline import Polyline
 from gridsim.vehicle.kinematics import BicycleParams, V
 
@@ -35,19 +36,31 @@ def pursuit_inputs(
 ) -> tuple[float, float]:
     """Inputs steering the rear axle toward ``target_xy`` [m, world] at ``target_speed`` [m/s]."""
     x, y, psi, v, delta = state.tolist()  # [x, y, psi, v, delta], see kinematics
-    dx, dy = float(target_xy[0]) - x, float(target_xy[1]) - y
+    p, g = params, gains
+    limits = (p.wheelbase, p.delta_max, p.b_max, p.a_max, p.v_delta_max, g.steer_time,
+              g.speed_gain)  # fmt: skip
+    return pursuit_one(x, y, psi, v, delta, float(target_xy[0]), float(target_xy[1]),
+                       target_speed, limits)  # fmt: skip
+
+
+@jitable
+def pursuit_one(x, y, psi, v, delta, tx, ty, target_speed, limits):
+    """:func:`pursuit_inputs` on floats (the same bits compiled): acceleration [m/s^2] and
+    steering rate [rad/s] toward ``(tx, ty)`` [m, world]; ``limits``: ``(wheelbase,
+    delta_max, b_max, a_max, v_delta_max, steer_time, speed_gain)``."""
+    wheelbase, delta_max, b_max, a_max, v_delta_max, steer_time, speed_gain = limits
+    dx, dy = tx - x, ty - y
     c, s = math.cos(psi), math.sin(psi)
     fwd, left = c * dx + s * dy, -s * dx + c * dy
     dist2 = max(fwd * fwd + left * left, 1e-6)
-    delta_cmd = math.atan(2.0 * params.wheelbase * left / dist2)
-    delta_cmd = _clip(delta_cmd, -params.delta_max, params.delta_max)
-    steer_rate = (delta_cmd - delta) / gains.steer_time
-    accel = gains.speed_gain * (target_speed - v)
-    return _clip(accel, -params.b_max, params.a_max), _clip(
-        steer_rate, -params.v_delta_max, params.v_delta_max
-    )
+    delta_cmd = math.atan(2.0 * wheelbase * left / dist2)
+    delta_cmd = _clip(delta_cmd, -delta_max, delta_max)
+    steer_rate = (delta_cmd - delta) / steer_time
+    accel = speed_gain * (target_speed - v)
+    return _clip(accel, -b_max, a_max), _clip(steer_rate, -v_delta_max, v_delta_max)
 
 
+@jitable
 def _clip(x: float, lo: float, hi: float) -> float:
     """``float(np.clip(x, lo, hi))`` for finite Python scalars, without its overhead."""
     return float(min(max(x, lo), hi))

@@ -23,9 +23,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, fields
+from functools import lru_cache
 from typing import NamedTuple
 
 import numpy as np
+
+from gridsim.jit import jitable
 
 X, Y, PSI, V, DELTA = range(5)
 STATE_SIZE = 5
@@ -166,23 +169,42 @@ def _step_one(
     same operations in the same order (``math`` and NumPy share libm), hence the same bits,
     without the per-call overhead of some 40 array operations."""
     x0, y0, psi0, v0, d0 = state.tolist()
-    vd_lo = max(-p.v_delta_max, (-p.delta_max - d0) / dt)
-    vd_hi = min(p.v_delta_max, (p.delta_max - d0) / dt)
+    x1, y1, psi1, v1, d1, a, vd = step_one(x0, y0, psi0, v0, d0, accel, steer_rate,
+                                           step_limits(p), dt)  # fmt: skip
+    return StepResult(np.array([x1, y1, psi1, v1, d1]), np.array(a), np.array(vd))
+
+
+@lru_cache(maxsize=16)
+def step_limits(p: BicycleParams) -> tuple:
+    """The limits of one vehicle (scalar fields) as :func:`step_one` takes them."""
+    return (p.wheelbase, p.v_min, p.v_max, p.a_max, p.b_max, p.delta_max, p.v_delta_max,
+            p.v_switch)  # fmt: skip
+
+
+@jitable
+def step_one(x0, y0, psi0, v0, d0, accel, steer_rate, limits, dt):
+    """One vehicle's step on floats: the new ``(x, y, psi, v, delta)`` and the applied
+    acceleration [m/s^2] and steering rate [rad/s]. ``limits``: ``(wheelbase, v_min, v_max,
+    a_max, b_max, delta_max, v_delta_max, v_switch)`` of :class:`BicycleParams`. Compiled
+    (inside a kernel) it gives the same bits (``math`` is libm there too)."""
+    wheelbase, v_min, v_max, a_max, b_max, delta_max, v_delta_max, v_switch = limits
+    vd_lo = max(-v_delta_max, (-delta_max - d0) / dt)
+    vd_hi = min(v_delta_max, (delta_max - d0) / dt)
     vd = float(min(max(steer_rate, vd_lo), vd_hi))
-    a = float(min(max(accel, -p.b_max), p.a_max))
+    a = float(min(max(accel, -b_max), a_max))
     v1 = v0 + a * dt
     vh = v0 + (0.5 * dt) * a
-    if math.isfinite(p.v_switch):
-        c = p.a_max * p.v_switch
-        if v0 > p.v_switch and a * v0 >= c:
+    if math.isfinite(v_switch):
+        c = a_max * v_switch
+        if v0 > v_switch and a * v0 >= c:
             v1 = math.sqrt(v0 * v0 + 2.0 * c * dt)
             vh = math.sqrt(v0 * v0 + c * dt)
-    v1_clipped = float(min(max(v1, p.v_min), p.v_max))
+    v1_clipped = float(min(max(v1, v_min), v_max))
     if v1_clipped != v1:
         vh = 0.5 * (v0 + v1_clipped)
         v1 = v1_clipped
     ddt = vd * dt
-    inv_l = 1.0 / p.wheelbase
+    inv_l = 1.0 / wheelbase
     w0 = v0 * math.tan(d0) * inv_l
     wh = vh * math.tan(d0 + 0.5 * ddt) * inv_l
     w1 = v1 * math.tan(d0 + ddt) * inv_l
@@ -190,8 +212,7 @@ def _step_one(
     psi1 = psi0 + dt / 6.0 * (w0 + 4.0 * wh + w1)
     x1 = x0 + dt / 6.0 * (v0 * math.cos(psi0) + 4.0 * vh * math.cos(psih) + v1 * math.cos(psi1))
     y1 = y0 + dt / 6.0 * (v0 * math.sin(psi0) + 4.0 * vh * math.sin(psih) + v1 * math.sin(psi1))
-    out = np.array([x1, y1, psi1, v1, d0 + ddt])
-    return StepResult(out, np.array((v1 - v0) / dt), np.array(vd))
+    return x1, y1, psi1, v1, d0 + ddt, (v1 - v0) / dt, vd
 
 
 def rear_axle_of(centre: np.ndarray, heading, center_offset) -> np.ndarray:

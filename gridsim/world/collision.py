@@ -52,18 +52,12 @@ class CollisionChecker:
         self, ego_length: float, ego_width: float, edge_tolerance: float = EDGE_TOLERANCE
     ) -> None:
         self._args = (ego_length, ego_width, edge_tolerance)
-        self.space = pymunk.Space()
-        self._ego_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-        self._ego_shape = _box(self._ego_body, ego_length, ego_width)
         # Against road edges, a wheel on the line is not yet off the road: a box smaller by
         # ``edge_tolerance`` on every side is tested.
         shrink = 2 * edge_tolerance
         core = (max(ego_length - shrink, 0.1), max(ego_width - shrink, 0.1))
-        self._ego_core = _box(self._ego_body, *core)
-        # The ego's two boxes share a group: a query with one does not report the other
-        # (the queries skip the ego's body anyway; this spares pymunk's callback for it).
-        self._ego_shape.filter = self._ego_core.filter = pymunk.ShapeFilter(group=1)
-        self.space.add(self._ego_body, self._ego_shape, self._ego_core)
+        self._core = core
+        self._space: pymunk.Space | None = None  # made on first use: see space
         self._ego_radius = 0.5 * np.hypot(ego_length, ego_width)
         self._core_reach = 0.5 * float(np.hypot(*core)) + EDGE_QUERY_MARGIN
         self._edges = np.zeros((0, 4))  # the loaded road edges' segments
@@ -73,6 +67,27 @@ class CollisionChecker:
         self._placed: set[int] = set()
         self._road_version = -1
         self._boundary_center = (np.inf, np.inf)
+
+    @property
+    def space(self) -> pymunk.Space:
+        """The pymunk space with the ego's boxes, made on first use (a checker that never
+        meets anything, such as a shadow world's, never needs one)."""
+        if self._space is None:
+            self._ego_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+            self._ego_shape = _box(self._ego_body, self._args[0], self._args[1])
+            self._ego_core = _box(self._ego_body, *self._core)
+            # The ego's two boxes share a group: a query with one does not report the other
+            # (the queries skip the ego's body anyway; this spares pymunk's callback for it).
+            self._ego_shape.filter = self._ego_core.filter = pymunk.ShapeFilter(group=1)
+            self._space = pymunk.Space()
+            self._space.add(self._ego_body, self._ego_shape, self._ego_core)
+        return self._space
+
+    @property
+    def ego_box(self) -> tuple[float, float, float]:
+        """The ego box's length and width [m] and its bounding circle's radius [m] (the broad
+        phase's)."""
+        return float(self._args[0]), float(self._args[1]), float(self._ego_radius)
 
     def __deepcopy__(self, memo) -> CollisionChecker:
         """A fresh checker: its pymunk space only caches shapes near the ego (edges within
@@ -192,18 +207,19 @@ class CollisionChecker:
         if not placed and not len(near_edges):
             return Contact()  # nothing loaded the ego could touch
         self._load_edges(near_edges)
+        space = self.space
         self._ego_body.position = (cx, cy)
         self._ego_body.angle = float(ego_psi)
-        self.space.reindex_shapes_for_body(self._ego_body)
+        space.reindex_shapes_for_body(self._ego_body)
         ego = self._ego_body
         vehicles = [  # none can touch unless the broad phase placed one
             hit.shape.body.gridsim_index
-            for hit in (self.space.shape_query(self._ego_shape) if placed else ())
+            for hit in (space.shape_query(self._ego_shape) if placed else ())
             if hit.shape.body.body_type == pymunk.Body.KINEMATIC and hit.shape.body is not ego
         ]
         edges = [  # none unless a loaded road edge comes near
             hit.shape.gridsim_index
-            for hit in (self.space.shape_query(self._ego_core) if len(near_edges) else ())
+            for hit in (space.shape_query(self._ego_core) if len(near_edges) else ())
             if hit.shape.body.body_type == pymunk.Body.STATIC
         ]
         return Contact(tuple(sorted(vehicles)), tuple(sorted(edges)))

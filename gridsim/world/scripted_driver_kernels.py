@@ -1,6 +1,6 @@
 """Compiled part of the scripted drivers (:mod:`gridsim.world.scripted_drivers`): the ego's
-position on its route, its pure-pursuit target and the leader on the route. Same operations,
-in the same order, as the NumPy code they replaced (same bits)."""
+position on its route, its pure-pursuit target, the leader on the route and the inputs that
+follow. Same operations, in the same order, as the NumPy code they replaced (same bits)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,8 @@ import numpy as np
 
 from gridsim.jit import kernel
 from gridsim.road.polyline_kernels import frenet_one, project, track
+from gridsim.vehicle.control import pursuit_one
+from gridsim.vehicle.idm import idm_accel_pow
 
 
 @kernel
@@ -72,3 +74,29 @@ def route_inputs(route, fleet, ego, hint, look, offset, window, lookahead):
     pose = (x, y, psi, s, length, width, center_offset)
     gap, lead_v = route_leader(fleet, pose, (points, seg, seg_len, s_cum), j, window, lookahead)
     return s, d, j, tx, ty, gap, lead_v
+
+
+@kernel
+def follower_inputs(route, fleet, ego, params, hint, speed, offset, settings):
+    """A lane follower's inputs without giving way, in one call: acceleration [m/s^2] and
+    steering rate [rad/s] keeping lateral ``offset`` [m] from ``route`` at up to ``speed``
+    [m/s] (pure pursuit, and the IDM behind :func:`route_leader`'s leader), then the rear
+    axle's arc length and lateral offset [m] and its segment (:func:`route_inputs`).
+
+    ``ego``: the state ``(x, y, psi, v, delta)``; ``params``: ``(length, width,
+    center_offset, wheelbase, delta_max, b_max, a_max, v_delta_max)``; ``settings``:
+    ``((min_lookahead, lookahead_time, steer_time, speed_gain), idm values, window,
+    lookahead)``. The IDM's powers are libm's ``pow``, as Python computes them on floats."""
+    x, y, psi, v, delta = ego
+    length, width, center_offset, wheelbase, delta_max, b_max, a_max, v_delta_max = params
+    gains, idm, window, lookahead = settings
+    min_lookahead, lookahead_time, steer_time, speed_gain = gains
+    look = min_lookahead + lookahead_time * max(v, 0.0)
+    s_rear, d_rear, j, tx, ty, gap, lead_v = route_inputs(
+        route, fleet, (x, y, psi, length, width, center_offset), hint, look, offset, window,
+        lookahead)  # fmt: skip
+    limits = (wheelbase, delta_max, b_max, a_max, v_delta_max, steer_time, speed_gain)
+    accel, steer_rate = pursuit_one(x, y, psi, v, delta, tx, ty, speed, limits)
+    if np.isfinite(gap):
+        accel = min(accel, idm_accel_pow(v, speed, gap, v - lead_v, *idm))
+    return min(max(accel, -b_max), a_max), steer_rate, s_rear, d_rear, j

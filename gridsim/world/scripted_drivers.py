@@ -4,14 +4,15 @@ human driver of the reference's shadow world."""
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from functools import lru_cache
 
 import numpy as np
 
 from gridsim.traffic.profiles import ProfileChain
-from gridsim.vehicle.control import PursuitGains, pursuit_inputs, pursuit_lookahead
-from gridsim.vehicle.idm import IDMParams, idm_accel
-from gridsim.vehicle.kinematics import V, centre_of
-from gridsim.world.scripted_driver_kernels import route_inputs
+from gridsim.vehicle.control import PursuitGains
+from gridsim.vehicle.idm import IDMParams
+from gridsim.vehicle.kinematics import BicycleParams, V, centre_of
+from gridsim.world.scripted_driver_kernels import follower_inputs
 
 
 class LaneFollower:
@@ -35,10 +36,20 @@ class LaneFollower:
         # copies of a world share their immutable routes)
         self._world = self._route = None
         self._hint = 0
+        self._settings = None
 
     def __call__(self, world) -> tuple[float, float]:
         """Inputs ``(acceleration [m/s^2], steering rate [rad/s])`` for the current state."""
         return self.inputs(world, self.speed, 0.0)
+
+    def tracked(self, world) -> int:
+        """The route segment :meth:`inputs` tracks the ego from on ``world``'s current route
+        (see :meth:`set_tracked`)."""
+        return self._hint_on(world, world.route)
+
+    def set_tracked(self, hint: int) -> None:
+        """The segment as :meth:`inputs` would have tracked it (for compiled ticks)."""
+        self._hint = hint
 
     def _hint_on(self, world, route) -> int:
         """The segment of ``route`` to track the ego from: the last one, or on a new route
@@ -55,22 +66,32 @@ class LaneFollower:
         with ``yield_to`` (fleet indices), also giving way to those vehicles
         (:func:`conflict_free_accel`)."""
         route = world.route
-        p, f, ego = world.ego_params, world.traffic.fleet, world.ego
-        pose = (float(ego[0]), float(ego[1]), float(ego[2]), p.length, p.width, p.center_offset)
-        s_rear, d_rear, self._hint, tx, ty, gap, lead_v = route_inputs(
-            route.tracking_data(), (f.x, f.y, f.active, f.length, f.width, f.v), pose,
-            self._hint_on(world, route), pursuit_lookahead(ego[V], self.gains), float(offset),
-            96, self.lookahead)  # fmt: skip
-        accel, steer_rate = pursuit_inputs(ego, (tx, ty), speed, p, self.gains)
-        if np.isfinite(gap):
-            v = ego[V]
-            # the shared formula on floats (NumPy scalars: its powers are libm's pow, as before)
-            a_idm = idm_accel(float(v), float(speed), gap, float(v - lead_v), *self.idm.values)
-            accel = min(accel, float(a_idm))
-        accel = min(max(accel, -p.b_max), p.a_max)
+        f = world.traffic.fleet
+        accel, steer_rate, s_rear, d_rear, self._hint = follower_inputs(
+            route.tracking_data(), (f.x, f.y, f.active, f.length, f.width, f.v),
+            tuple(world.ego.tolist()), driver_limits(world.ego_params),
+            self._hint_on(world, route), float(speed), float(offset), self.settings)  # fmt: skip
         if len(yield_to):
             accel = conflict_free_accel(world, route, s_rear, d_rear, accel, yield_to)
         return accel, steer_rate
+
+    @property
+    def settings(self) -> tuple:
+        """Pursuit gains, IDM parameters, projection window and leader look-ahead, as
+        :func:`~gridsim.world.scripted_driver_kernels.follower_inputs` takes them."""
+        if self._settings is None:
+            g = self.gains
+            gains = (g.min_lookahead, g.lookahead_time, g.steer_time, g.speed_gain)
+            self._settings = (gains, self.idm.values, 96, float(self.lookahead))
+        return self._settings
+
+
+@lru_cache(maxsize=16)
+def driver_limits(p: BicycleParams) -> tuple[float, ...]:
+    """The ego's size and limits as :func:`~gridsim.world.scripted_driver_kernels.follower_inputs`
+    takes them."""
+    return tuple(float(a) for a in (p.length, p.width, p.center_offset, p.wheelbase,
+                                    p.delta_max, p.b_max, p.a_max, p.v_delta_max))  # fmt: skip
 
 
 #: Prediction horizon [s] and step [s] of :func:`conflict_free_accel`.

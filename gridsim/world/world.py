@@ -101,9 +101,7 @@ class World:
         self.traffic.tick(self.dt, pose)
         self.time += self.dt
         if not check:
-            self.last = TickResult(float(step.accel), float(step.steer_rate), Contact(), False)
-            self._checked = False  # the next checked tick cannot trust last.off_road
-            return self.last
+            return self.unchecked(float(step.accel), float(step.steer_rate))
         contact = self.check_contacts()
         moved = float(np.hypot(self.ego[0] - previous[0], self.ego[1] - previous[1]))
         trusted, self._checked = self._checked, True
@@ -115,6 +113,13 @@ class World:
         else:
             off_road = not bool(self.road.is_drivable(self.ego_center()[None])[0])
         self.last = TickResult(float(step.accel), float(step.steer_rate), contact, off_road)
+        return self.last
+
+    def unchecked(self, accel: float, steer_rate: float) -> TickResult:
+        """Record a tick that applied ``accel`` [m/s^2] and ``steer_rate`` [rad/s] without the
+        contact and road-edge tests (:meth:`tick` with ``check=False``, or compiled ticks)."""
+        self.last = TickResult(accel, steer_rate, Contact(), False)
+        self._checked = False  # the next checked tick cannot trust last.off_road
         return self.last
 
     def check_contacts(self) -> Contact:
