@@ -18,7 +18,7 @@ from neurotrajectory.data.windows import DAGGER_LABELS, GROUPS
 from neurotrajectory.evolve.backends import BACKENDS, BackendError
 from neurotrajectory.evolve.pareto import PICKS
 from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
-from neurotrajectory.model import EVOLVE_SCOPES, PRESETS, PRIORS
+from neurotrajectory.model import ACTIVATIONS, EVOLVE_SCOPES, PRESETS, PRIORS
 
 DEFAULT_OUT = "runs/default"
 
@@ -332,6 +332,12 @@ def build_parser() -> argparse.ArgumentParser:
         choices=["ego", "grid"],
         help="frame of the network's residual on its prior (default ego: along and across "
         "the heading)",
+    )
+    t.add_argument(
+        "--activation",
+        default=None,
+        choices=sorted(ACTIVATIONS),
+        help="the network's hidden activation (default: the preset's, sigmoid)",
     )
     t.add_argument(
         "--no-skip",

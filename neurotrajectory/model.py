@@ -34,7 +34,7 @@ from torch import nn
 from gridsim.frames import EGO_ACCEL, EGO_COS, EGO_SIN, EGO_SPEED, EGO_STEERING
 from neurotrajectory.curves import CurveLimits, destination_curves
 
-_ACTIVATIONS = {"sigmoid": nn.Sigmoid, "relu": nn.ReLU, "tanh": nn.Tanh}
+ACTIVATIONS = {"sigmoid": nn.Sigmoid, "relu": nn.ReLU, "tanh": nn.Tanh}
 DESTINATION_SCALE = 20.0  # m: destination inputs are divided by this
 
 
@@ -140,9 +140,9 @@ class NetConfig:
     def __post_init__(self) -> None:
         object.__setattr__(self, "channels", tuple(self.channels))
         object.__setattr__(self, "limits", tuple(float(x) for x in self.limits))
-        if self.activation not in _ACTIVATIONS:
+        if self.activation not in ACTIVATIONS:
             raise ValueError(
-                f"activation must be one of {sorted(_ACTIVATIONS)}, got {self.activation!r}"
+                f"activation must be one of {sorted(ACTIVATIONS)}, got {self.activation!r}"
             )
         if self.prior not in PRIORS:
             raise ValueError(f"prior must be one of {list(PRIORS)}, got {self.prior!r}")
@@ -224,7 +224,7 @@ class GridEncoder(nn.Module):
 
     def __init__(self, cfg: NetConfig) -> None:
         super().__init__()
-        act = _ACTIVATIONS[cfg.activation]
+        act = ACTIVATIONS[cfg.activation]
         c1, c2, c3 = cfg.channels
         self.pool = nn.AvgPool2d(cfg.pool) if cfg.pool > 1 else nn.Identity()
         self.cnn = nn.Sequential(

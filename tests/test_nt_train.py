@@ -251,10 +251,19 @@ def test_train_config_checks_every_field():
         ({"episode_seconds": float("nan")}, "episode_seconds must be a finite number, got nan"),
         ({"backend": "gpu"}, "unknown backend 'gpu'; choose from ['local', 'processes', 'ray']"),
         ({"elite_fraction": 1.0}, "elite_fraction must be in (0, 1), got 1.0"),
+        ({"activation": "gelu"}, "unknown activation 'gelu'; choose from ['relu', 'sigmoid', "),
     ]:
         with pytest.raises(RunError) as info:
             TrainConfig(**bad)
         assert text in str(info.value)
+
+
+def test_the_activation_reaches_the_network_and_old_configs_keep_the_presets():
+    assert TrainConfig(preset="tiny", activation="tanh").net.activation == "tanh"
+    assert (
+        TrainConfig(preset="tiny").net == PRESETS["tiny"]
+        and PRESETS["tiny"].activation == "sigmoid"
+    )
 
 
 def test_unusable_out_and_video_paths_are_refused_before_training(tmp_path, capsys, monkeypatch):
@@ -336,7 +345,7 @@ _OTHER_VALUES = {
     "--pretrain-validation": "0.5", "--dagger-rounds": "1", "--dagger-weight": "0.5",
     "--dagger-labels": "human", "--prior": "none", "--frame": "grid", "--no-skip": None,
     "--fixed-episodes": None, "--unconstrained": None, "--validation-episodes": "3",
-    "--evolve": "head",
+    "--evolve": "head", "--activation": "tanh",
 }  # fmt: skip
 #: ``train`` flags that are about the command, not the run's configuration.
 _COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quiet"}

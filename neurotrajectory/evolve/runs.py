@@ -46,6 +46,7 @@ from neurotrajectory.evolve.genome import genome_mismatch, initial_genome, set_g
 from neurotrajectory.evolve.pareto import hypervolume, minimised, non_dominated_sort
 from neurotrajectory.evolve.population import Population, Source, Start
 from neurotrajectory.model import (
+    ACTIVATIONS,
     EVOLVE_SCOPES,
     PRESETS,
     PRIORS,
@@ -104,6 +105,8 @@ class TrainConfig:
     #: what mutation changes (:data:`~neurotrajectory.model.EVOLVE_SCOPES`); a scope other
     #: than "all" keeps the warm start's weights outside the scope and evolves the scope's
     evolve: str = "all"
+    #: the network's hidden activation (:attr:`NetConfig.activation`); None: the preset's
+    activation: str | None = None
 
     #: What format-1 configurations (saved before these fields existed) meant.
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human"}
@@ -159,6 +162,9 @@ class TrainConfig:
                            "record >= 2 or set pretrain_validation to 0")  # fmt: skip
         if not self.episode_seconds > 0:
             raise RunError(f"episode_seconds must be > 0, got {self.episode_seconds}")
+        if self.activation is not None and self.activation not in ACTIVATIONS:
+            raise RunError(f"unknown activation {self.activation!r}; choose from "
+                           f"{sorted(ACTIVATIONS)}")  # fmt: skip
         if self.frame not in ("ego", "grid"):
             raise RunError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
         if not 0 <= self.pretrain_validation < 1:
@@ -183,6 +189,8 @@ class TrainConfig:
     def net(self) -> NetConfig:
         """The preset's network with the configured prior."""
         base = replace(PRESETS[self.preset], frame=self.frame, skip=self.skip)
+        if self.activation is not None:
+            base = replace(base, activation=self.activation)
         return base if self.prior is None else replace(base, prior=self.prior)
 
     def episode_seeds(self, generation: int) -> tuple[int, ...]:
