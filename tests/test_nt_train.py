@@ -258,12 +258,16 @@ def test_train_config_checks_every_field():
         assert text in str(info.value)
 
 
-def test_the_activation_reaches_the_network_and_old_configs_keep_the_presets():
+def test_the_activation_reaches_the_network_and_old_configs_keep_the_presets(tmp_path):
     assert TrainConfig(preset="tiny", activation="tanh").net.activation == "tanh"
-    assert (
-        TrainConfig(preset="tiny").net == PRESETS["tiny"]
-        and PRESETS["tiny"].activation == "sigmoid"
-    )
+    assert PRESETS["tiny"].activation == "sigmoid"
+    run = Run.create(tmp_path / "run", TrainConfig(preset="tiny"))
+    assert run.config.net == PRESETS["tiny"]
+    stored = json.loads((run.out / "config.json").read_text())
+    assert stored["train"]["activation"] == "sigmoid"  # stored resolved: no clash on resume
+    del stored["train"]["activation"]  # a run saved before the field: the preset's
+    (run.out / "config.json").write_text(json.dumps(stored))
+    assert Run.open(run.out, activation="sigmoid").config.net == PRESETS["tiny"]
 
 
 def test_unusable_out_and_video_paths_are_refused_before_training(tmp_path, capsys, monkeypatch):

@@ -59,7 +59,8 @@ class FleetParams:
     resume_speed_tol: float = 0.5
     lateral_margin: float = 0.2
     #: s: an ego crossing a synthetic participant's path (or coming the other way) is its
-    #: leader once the participant would reach it within this time (see ``ego_ahead``)
+    #: leader once the participant would reach it within this time; also how far ahead in
+    #: time both are swept to find a conflict before it (see ``ego_ahead``, ``swept_conflict``)
     crossing_horizon: float = 2.0
     #: Bounds applied to synthetic (non-recorded) participants in replay.
     v_min: float = 0.0

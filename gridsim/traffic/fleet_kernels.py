@@ -196,7 +196,8 @@ def ego_ahead(idx, fleet, c, sn, ego, paths, lookahead, margin, crossing_horizon
     the time the participant got there; and, failing that, an ego that will pass through the
     participant's path ahead within ``crossing_horizon`` (:func:`swept_conflict`: a car
     about to turn across the ego's lane waits before the lane): generated traffic does not
-    drive into the ego."""
+    drive into the ego. An ego at less than 90 degrees to the participant's heading takes the
+    same-direction branch, and never the sweep."""
     x, y, s, d, path_id, length, width, v, recorded = fleet
     ex, ey, ev, e_len, e_wid, e_c, e_s = ego
     m = len(idx)

@@ -105,7 +105,8 @@ class TrainConfig:
     #: what mutation changes (:data:`~neurotrajectory.model.EVOLVE_SCOPES`); a scope other
     #: than "all" keeps the warm start's weights outside the scope and evolves the scope's
     evolve: str = "all"
-    #: the network's hidden activation (:attr:`NetConfig.activation`); None: the preset's
+    #: the network's hidden activation (:attr:`NetConfig.activation`); None (and configs
+    #: saved before the field existed): the preset's
     activation: str | None = None
 
     #: What format-1 configurations (saved before these fields existed) meant.
@@ -115,6 +116,8 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
+        if self.activation is None and self.preset in PRESETS:  # stored resolved
+            object.__setattr__(self, "activation", PRESETS[self.preset].activation)
         self._check()
 
     #: The smallest value of each integer field.
@@ -189,8 +192,7 @@ class TrainConfig:
     def net(self) -> NetConfig:
         """The preset's network with the configured prior."""
         base = replace(PRESETS[self.preset], frame=self.frame, skip=self.skip)
-        if self.activation is not None:
-            base = replace(base, activation=self.activation)
+        base = replace(base, activation=self.activation)
         return base if self.prior is None else replace(base, prior=self.prior)
 
     def episode_seeds(self, generation: int) -> tuple[int, ...]:
