@@ -165,7 +165,7 @@ class TrainConfig:
                            "record >= 2 or set pretrain_validation to 0")  # fmt: skip
         if not self.episode_seconds > 0:
             raise RunError(f"episode_seconds must be > 0, got {self.episode_seconds}")
-        if self.activation is not None and self.activation not in ACTIVATIONS:
+        if self.activation not in ACTIVATIONS:  # None was resolved in __post_init__
             raise RunError(f"unknown activation {self.activation!r}; choose from "
                            f"{sorted(ACTIVATIONS)}")  # fmt: skip
         if self.frame not in ("ego", "grid"):
@@ -190,9 +190,9 @@ class TrainConfig:
 
     @property
     def net(self) -> NetConfig:
-        """The preset's network with the configured prior."""
-        base = replace(PRESETS[self.preset], frame=self.frame, skip=self.skip)
-        base = replace(base, activation=self.activation)
+        """The preset's network with the configured frame, skip read-out, activation and prior."""
+        base = replace(PRESETS[self.preset], frame=self.frame, skip=self.skip,
+                       activation=self.activation)  # fmt: skip
         return base if self.prior is None else replace(base, prior=self.prior)
 
     def episode_seeds(self, generation: int) -> tuple[int, ...]:
