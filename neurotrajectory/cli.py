@@ -69,7 +69,8 @@ def _cmd_heldout(args: argparse.Namespace) -> int:
     problem = output_problem(Path(args.out), directory=False)
     if problem:
         raise RunError(f"--out {args.out}: {problem}")
-    _heldout(Run.open(args.run), args.episodes, args.seconds, args.pick, args.out)
+    _heldout(Run.open(args.run), args.episodes, args.seconds, args.pick, args.out,
+             args.plan_smoothing)  # fmt: skip
     return 0
 
 
@@ -82,13 +83,18 @@ def _check_video(path: str) -> None:
 
 
 def _heldout(
-    run: Run, episodes: int, seconds: float | None = None, pick: str = "knee", out=None
+    run: Run,
+    episodes: int,
+    seconds: float | None = None,
+    pick: str = "knee",
+    out=None,
+    smoothing: float | None = None,
 ) -> None:
-    """Drive a front member on held-out episodes; write ``out`` (default the run's
-    ``heldout.json``), print a summary."""
+    """Drive a front member on held-out episodes (``smoothing``: instead of the run's plan
+    smoothing); write ``out`` (default the run's ``heldout.json``), print a summary."""
     from neurotrajectory.compare.front import heldout
 
-    report = heldout(run.out, episodes, pick, seconds)
+    report = heldout(run.out, episodes, pick, seconds, smoothing)
     path = Path(out) if out else run.out / "heldout.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     write_json(path, report)
@@ -340,6 +346,15 @@ def build_parser() -> argparse.ArgumentParser:
         help="the network's hidden activation (default: the preset's, sigmoid)",
     )
     t.add_argument(
+        "--plan-smoothing",
+        dest="plan_smoothing",
+        type=float,
+        default=None,
+        metavar="KEEP",
+        help="in closed loop, keep this share of the previous plan in each new one, in [0, 1) "
+        "(default 0.7; 0: follow every plan as given)",
+    )
+    t.add_argument(
         "--no-skip",
         dest="skip",
         action="store_const",
@@ -407,6 +422,14 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=None,
         help="length of each episode [s] (default: the run's episode length)",
+    )
+    h.add_argument(
+        "--plan-smoothing",
+        dest="plan_smoothing",
+        type=float,
+        default=None,
+        metavar="KEEP",
+        help="drive with this plan smoothing instead of the run's (see train --plan-smoothing)",
     )
     h.add_argument("--out", required=True, help="JSON report to write")
     h.set_defaults(func=_cmd_heldout)

@@ -31,6 +31,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from gridsim.envs.plan_smoothing import PlanSmoother, check_keep
 from gridsim.frames import EGO_ACCEL, EGO_COS, EGO_SIN, EGO_SPEED, EGO_STEERING
 from neurotrajectory.curves import CurveLimits, destination_curves
 
@@ -123,6 +124,9 @@ class NetConfig:
     limits: tuple[float, float, float, float] = astuple(CurveLimits())
     frame: str = "ego"  # the residual's frame: "ego" (heading-aligned) or "grid"
     skip: bool = True  # add a linear read-out of the kinematic features
+    #: closed loop: the share of the previous plan kept in each plan the car follows
+    #: (:mod:`gridsim.envs.plan_smoothing`; 0: every plan as the network gives it)
+    smoothing: float = 0.0
 
     #: What configurations saved before ``frame`` and ``skip`` existed meant.
     LEGACY = {"frame": "grid", "skip": False}
@@ -148,6 +152,7 @@ class NetConfig:
             raise ValueError(f"prior must be one of {list(PRIORS)}, got {self.prior!r}")
         if self.frame not in ("ego", "grid"):
             raise ValueError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
+        object.__setattr__(self, "smoothing", check_keep(self.smoothing, "smoothing"))
         if self.grid_size % (self.pool * 8):
             raise ValueError(
                 f"grid_size {self.grid_size} must be divisible by pool * 8 = {self.pool * 8}"
@@ -573,13 +578,17 @@ class PopulationNet:
 
 
 class NetPolicy:
-    """A trained network as a GridSim-v0 policy (trajectory action)."""
+    """A trained network as a GridSim-v0 policy (trajectory action), its plans smoothed by
+    ``smoothing`` (default: the network's ``cfg.smoothing``; see :class:`PlanSmoother`)."""
 
     action_type = "trajectory"
 
-    def __init__(self, net: TrajectoryNet) -> None:
+    def __init__(self, net: TrajectoryNet, smoothing: float | None = None) -> None:
         self.net = net.eval()
+        keep = net.cfg.smoothing if smoothing is None else smoothing
+        self.smoother = PlanSmoother(keep) if check_keep(keep) > 0 else None
 
     @torch.no_grad()
     def __call__(self, env, obs, info):
-        return self.net(*observation_tensors(obs))[0].numpy()
+        plan = self.net(*observation_tensors(obs))[0].numpy()
+        return plan if self.smoother is None else self.smoother(env, plan)

@@ -152,10 +152,12 @@ def training_digests(out: Path) -> dict[str, str]:
 
 
 #: Short runs down the paths the warm-started golden run does not take (``train`` settings):
-#: generation 0 from random weights, and a warm start evaluated by worker processes.
+#: generation 0 from random weights (plans followed as given), and a warm start evaluated by
+#: worker processes.
 TRAINING_PATHS = {
     "random_init": dict(preset="tiny", population=4, generations=3, episodes=1,
-                        episode_seconds=3.0, seed=5, validation_episodes=2, batch=3),
+                        episode_seconds=3.0, seed=5, validation_episodes=2, batch=3,
+                        plan_smoothing=0.0),
     "warm_start_processes": dict(preset="tiny", population=4, generations=2, episodes=1,
                                  episode_seconds=3.0, seed=4, pretrain_episodes=2,
                                  pretrain_epochs=1, validation_episodes=1, batch=2,

@@ -99,6 +99,7 @@ def test_runs_saved_before_the_ego_frame_keep_their_network(tmp_path):
     old = Run.open(run.out).config
     assert (old.frame, old.skip, old.pretrain_validation) == ("grid", False, 0.0)
     assert old.dagger_labels == "human"  # DAgger's labels before rejoin_labels
+    assert old.plan_smoothing == old.net.smoothing == 0.0  # plans followed as given
     assert (old.net.frame, old.net.skip) == ("grid", False)
     assert NetConfig.from_dict({"history": 5}).skip is False
     new = Run.open(Run.create(tmp_path / "new", TrainConfig(preset="tiny")).out).config

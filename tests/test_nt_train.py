@@ -185,16 +185,18 @@ def test_episodes_are_drawn_anew_and_heldout_seeds_are_never_trained_on():
     assert fixed.episode_seeds(0) == fixed.episode_seeds(9)
 
 
-def test_training_improves_a_tiny_problem(tmp_path):
+@pytest.mark.parametrize(("keep", "factor"), [(0.0, 0.5), (0.7, 0.75)])
+def test_training_improves_a_tiny_problem(tmp_path, keep, factor):
     """From networks that keep the ego's speed and heading (and their random residuals), on a
     fixed episode, evolution brings the best l1 (distance to the human's set-points) well
-    down."""
+    down; less with plan smoothing, where each plan the car follows is only 30 % the
+    network's new one (measured: to 0.46 and 0.64 of the first generation's best)."""
     cfg = TrainConfig(preset="tiny", prior="constant_velocity", population=8, generations=6,
-                      episodes=1, episode_seconds=3.0, seed=2,
-                      resample_episodes=False)  # fmt: skip
+                      episodes=1, episode_seconds=3.0, seed=2, resample_episodes=False,
+                      plan_smoothing=keep)  # fmt: skip
     Run.create(tmp_path / "run", cfg).train(progress=False)
     best = [min(f[0] for f in g["fitness"]) for g in history(tmp_path / "run")]
-    assert best[-1] < 0.5 * best[0], best
+    assert best[-1] < factor * best[0], best
 
 
 # -- run folders: nothing is written before every argument is checked ---------------------------
@@ -252,6 +254,10 @@ def test_train_config_checks_every_field():
         ({"backend": "gpu"}, "unknown backend 'gpu'; choose from ['local', 'processes', 'ray']"),
         ({"elite_fraction": 1.0}, "elite_fraction must be in (0, 1), got 1.0"),
         ({"activation": "gelu"}, "unknown activation 'gelu'; choose from ['relu', 'sigmoid', "),
+        (
+            {"plan_smoothing": 1.0},
+            "plan_smoothing (the share of the previous plan kept) must be in [0, 1), got 1.0",
+        ),
     ]:
         with pytest.raises(RunError) as info:
             TrainConfig(**bad)
@@ -261,13 +267,47 @@ def test_train_config_checks_every_field():
 def test_the_activation_reaches_the_network_and_old_configs_keep_the_presets(tmp_path):
     assert TrainConfig(preset="tiny", activation="tanh").net.activation == "tanh"
     assert PRESETS["tiny"].activation == "sigmoid"
-    run = Run.create(tmp_path / "run", TrainConfig(preset="tiny"))
+    run = Run.create(tmp_path / "run", TrainConfig(preset="tiny", plan_smoothing=0.0))
     assert run.config.net == PRESETS["tiny"]
     stored = json.loads((run.out / "config.json").read_text())
     assert stored["train"]["activation"] == "sigmoid"  # stored resolved: no clash on resume
     del stored["train"]["activation"]  # a run saved before the field: the preset's
     (run.out / "config.json").write_text(json.dumps(stored))
     assert Run.open(run.out, activation="sigmoid").config.net == PRESETS["tiny"]
+
+
+def test_plan_smoothing_reaches_the_network_and_old_runs_keep_none(tmp_path):
+    assert TrainConfig().plan_smoothing == 0.7
+    run = Run.create(tmp_path / "run", TrainConfig(preset="tiny", plan_smoothing=0.5))
+    assert run.config.net.smoothing == 0.5
+    stored = json.loads((run.out / "config.json").read_text())
+    assert stored["train"]["plan_smoothing"] == 0.5
+    del stored["train"]["plan_smoothing"]  # a run saved before the field: no smoothing
+    (run.out / "config.json").write_text(json.dumps(stored))
+    assert Run.open(run.out).config.net == PRESETS["tiny"]
+
+
+def test_heldout_drives_with_the_run_s_plan_smoothing_or_the_one_asked(tmp_path, capsys):
+    out = tmp_path / "run"
+    args = ["--preset", "tiny", "--population", "4", "--generations", "1", "--episodes", "1",
+            "--episode-seconds", "2", "--validation-episodes", "0", "--quiet"]  # fmt: skip
+    assert (
+        main(["train", *args, "--plan-smoothing", "0.6", "--out", str(out), "--heldout", "2"]) == 0
+    )
+    first = json.loads((out / "heldout.json").read_text())
+    assert first["plan_smoothing"] == 0.6
+    report = tmp_path / "none.json"
+    assert main(["heldout", "--run", str(out), "--episodes", "2", "--plan-smoothing", "0",
+                 "--out", str(report)]) == 0  # fmt: skip
+    second = json.loads(report.read_text())
+    assert second["plan_smoothing"] == 0.0 and second["seeds"] == first["seeds"]
+    assert second["network"]["l2"] != first["network"]["l2"]  # the jitter is not filtered
+    # the destination curve's plans are followed as the network's: smoothed alike
+    assert second["destination curve"]["l2"] != first["destination curve"]["l2"]
+    bad = ["heldout", "--run", str(out), "--episodes", "1", "--plan-smoothing", "1.5",
+           "--out", str(tmp_path / "bad.json")]  # fmt: skip
+    assert main(bad) == 2
+    assert "must be in [0, 1), got 1.5" in capsys.readouterr().err
 
 
 def test_unusable_out_and_video_paths_are_refused_before_training(tmp_path, capsys, monkeypatch):
@@ -349,7 +389,7 @@ _OTHER_VALUES = {
     "--pretrain-validation": "0.5", "--dagger-rounds": "1", "--dagger-weight": "0.5",
     "--dagger-labels": "human", "--prior": "none", "--frame": "grid", "--no-skip": None,
     "--fixed-episodes": None, "--unconstrained": None, "--validation-episodes": "3",
-    "--evolve": "head", "--activation": "tanh",
+    "--evolve": "head", "--activation": "tanh", "--plan-smoothing": "0.5",
 }  # fmt: skip
 #: ``train`` flags that are about the command, not the run's configuration.
 _COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quiet"}

@@ -30,7 +30,7 @@ from gridsim.envs.actions import ACTION_TYPES
 from gridsim.envs.human_reference import ReferenceTrajectory, human_reference, reference_from_track
 from gridsim.envs.vector_guard import refuse_scalar_reward_vectorization
 from gridsim.errors import ScenarioError
-from gridsim.frames import EGO_FEATURES, grid_rotation, world_to_grid
+from gridsim.frames import EGO_FEATURES, grid_rotation, grid_to_world, world_to_grid
 from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
@@ -143,17 +143,27 @@ class GridSimEnv(gym.Env):
             w.time + self._setpoint_times, w.ego[:2], grid_rotation(self._orientation, w.ego[PSI])
         )
 
-    def _to_grid(self, points: np.ndarray) -> np.ndarray:
-        """World points ``(N, 2)`` [m] in the ego's grid frame (rear axle at the origin)."""
-        w = self.world
+    def to_grid(self, points: np.ndarray) -> np.ndarray:
+        """World points ``(N, 2)`` [m] in the ego's grid frame now (rear axle at the origin)."""
+        w = self._current_world("to_grid")
         return world_to_grid(points, w.ego[:2], grid_rotation(self._orientation, w.ego[PSI]))
+
+    def to_world(self, points: np.ndarray) -> np.ndarray:
+        """Points ``(N, 2)`` [m] of the ego's grid frame now (an action's set-points) in the
+        world frame."""
+        w = self._current_world("to_world")
+        return grid_to_world(points, w.ego[:2], grid_rotation(self._orientation, w.ego[PSI]))
+
+    def _current_world(self, caller: str):
+        if self.world is None:
+            raise RuntimeError(f"call reset() before {caller}()")
+        return self.world
 
     def reference_in_grid(self, times: np.ndarray) -> np.ndarray:
         """The reference's positions ``(N, 2)`` [m] at absolute episode ``times`` [s] (within
         the look-ahead), in the ego's grid frame like ``info["reference_setpoints"]``."""
-        if self.world is None:
-            raise RuntimeError("call reset() before reference_in_grid()")
-        return self._to_grid(self.reference.positions(np.asarray(times, np.float64)))
+        self._current_world("reference_in_grid")
+        return self.to_grid(self.reference.positions(np.asarray(times, np.float64)))
 
     def _reference(self, seed: int) -> ReferenceTrajectory:
         cfg = self.cfg

@@ -7,6 +7,8 @@ from collections.abc import Sequence
 import gymnasium as gym
 import numpy as np
 
+from gridsim.envs.plan_smoothing import PlanSmoother
+
 #: Default weights for [l1, l2, l3]: squared set-point error and steering rate are costs,
 #: speed a reward (l1 is in m^2 summed over the horizon, hence its small weight).
 DEFAULT_WEIGHTS = (-0.01, -0.5, 0.1)
@@ -33,3 +35,19 @@ class LinearScalarization(gym.RewardWrapper):
 
     def reward(self, reward) -> float:
         return float(np.dot(self.weights, reward))
+
+
+class PlanSmoothing(gym.ActionWrapper):
+    """Steps GridSim-v0 (trajectory action) with each action blended with the plan before it:
+    ``keep`` is the share of the previous plan kept (see :mod:`gridsim.envs.plan_smoothing`).
+    The reward's ``l1`` and ``info`` describe the plan followed, the blended one."""
+
+    def __init__(self, env: gym.Env, keep: float) -> None:
+        super().__init__(env)
+        if getattr(env.unwrapped, "action_type", None) != "trajectory":
+            raise ValueError("PlanSmoothing blends trajectory actions: make the environment "
+                             "with action_type='trajectory'")  # fmt: skip
+        self.smoother = PlanSmoother(keep)
+
+    def action(self, action):
+        return self.smoother(self.env, action)

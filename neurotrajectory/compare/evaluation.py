@@ -153,7 +153,8 @@ def _evaluate_group(
     log(f"{group}: {len(train)} train / {len(test)} test windows; training End2End")
     e2e = End2End.train(train, setting, cfg.end2end)
     e2e.save(out / "models" / f"end2end-{group}")
-    nt = NetPredictor(front.nets[front.picked])
+    picked = front.nets[front.picked]
+    nt = NetPredictor(picked)
     methods = {"constant velocity": ConstantVelocity(setting),
                "destination curve": DestinationCurve(setting), "DWA": DWA(setting),
                "End2End": e2e}  # fmt: skip
@@ -167,9 +168,11 @@ def _evaluate_group(
     loop = {}
     if cfg.closed_loop_episodes:
         policies = {"human reference": Reference()}
-        policies |= {n: TrajectoryPolicy(methods[n])
+        # every trajectory planner's plans are followed alike: smoothed as the network's
+        keep = picked.cfg.smoothing
+        policies |= {n: TrajectoryPolicy(methods[n], keep)
                      for n in ("constant velocity", "destination curve", "DWA")}  # fmt: skip
-        policies |= {"End2End": CommandPolicy(e2e), NT_PICKED: TrajectoryPolicy(nt)}
+        policies |= {"End2End": CommandPolicy(e2e), NT_PICKED: TrajectoryPolicy(nt, keep)}
         rng = stream(cfg.seed, Salt.CLOSED_LOOP_EPISODES)
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
         bar = tqdm(policies.items(), desc=f"closed loop {group} ({len(seeds)} episodes each)",

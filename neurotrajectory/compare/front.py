@@ -67,8 +67,11 @@ def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[T
     return run, fitness, genomes, nets
 
 
-def load_front_member(run_dir: str | Path, pick: str) -> tuple[Run, NetPolicy, dict]:
-    """The run, a policy for the chosen front member, and that member's fitness."""
+def load_front_member(
+    run_dir: str | Path, pick: str, smoothing: float | None = None
+) -> tuple[Run, NetPolicy, dict]:
+    """The run, a policy for the chosen front member (its plans smoothed as the run's, or by
+    ``smoothing``), and that member's fitness."""
     run, fitness, _, nets = load_front(run_dir)
     k = pick_member(fitness, pick)
     member = {
@@ -78,34 +81,40 @@ def load_front_member(run_dir: str | Path, pick: str) -> tuple[Run, NetPolicy, d
         "l2": float(fitness[k, 1]),
         "l3": float(fitness[k, 2]),
     }
-    return run, NetPolicy(nets[k]), member
+    return run, NetPolicy(nets[k], smoothing), member
 
 
 def heldout(
-    run_dir: str | Path, episodes: int, pick: str = "knee", seconds: float | None = None
+    run_dir: str | Path,
+    episodes: int,
+    pick: str = "knee",
+    seconds: float | None = None,
+    smoothing: float | None = None,
 ) -> dict:
     """Closed-loop statistics of the picked front member on ``episodes`` episodes that no
     generation trained on (:meth:`~neurotrajectory.evolve.runs.TrainConfig.heldout_seeds`; on a
     recorded scene trained on some ``ego_tracks``, the scene's other tracks that can be the
     ego), each
     ``seconds`` long (default: as long as the training episodes), beside the destination
-    curve's on the same episodes."""
+    curve's on the same episodes, both plans smoothed alike: as the run's, or by ``smoothing``."""
     from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
     from neurotrajectory.compare.closed_loop import drive_episodes, summarise
     from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
 
-    run, policy, member = load_front_member(run_dir, pick)
+    run, policy, member = load_front_member(run_dir, pick, smoothing)
     cfg = run.config
     seeds = list(cfg.heldout_seeds(episodes))
     seconds = cfg.episode_seconds if seconds is None else float(seconds)
     ego = {"track": _other_tracks(cfg.scenario, cfg.ego_tracks)} if cfg.ego_tracks else None
     rows = drive_episodes(cfg.scenario, policy, seeds, seconds, ego=ego)
     env = GridSimEnv(cfg.scenario, **cfg.overrides)
-    curve = TrajectoryPolicy(DestinationCurve(Setting.from_env(env)))
+    keep = run.net_config.smoothing if smoothing is None else smoothing
+    curve = TrajectoryPolicy(DestinationCurve(Setting.from_env(env)), keep)
     baseline = drive_episodes(cfg.scenario, curve, seeds, seconds, ego=ego)
     return {
         "member": member,
         "episode_seconds": seconds,
+        "plan_smoothing": keep,
         **({"ego_tracks": ego["track"]} if ego else {}),
         "seeds": seeds,
         "network": summarise(rows),

@@ -13,6 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
+from gridsim.envs.plan_smoothing import PlanSmoother, check_keep
 from gridsim.frames import setpoint_times
 from gridsim.scenario.parts import vehicle_params
 from gridsim.scenario.schema import VehicleConfig
@@ -72,12 +73,16 @@ def observation_batch(obs: dict, env) -> Windows:
 
 
 class TrajectoryPolicy:
-    """A predictor driving GridSim-v0 through the trajectory action."""
+    """A predictor driving GridSim-v0 through the trajectory action, its plans smoothed by
+    ``smoothing`` (the share of the previous plan kept, see :class:`PlanSmoother`; 0: none).
+    One policy drives one environment at a time."""
 
     action_type = "trajectory"
 
-    def __init__(self, predictor: Predictor) -> None:
+    def __init__(self, predictor: Predictor, smoothing: float = 0.0) -> None:
         self.predictor = predictor
+        self.smoother = PlanSmoother(smoothing) if check_keep(smoothing) > 0 else None
 
     def __call__(self, env, obs, info) -> np.ndarray:
-        return self.predictor.predict(observation_batch(obs, env))[0].astype(np.float32)
+        plan = self.predictor.predict(observation_batch(obs, env))[0].astype(np.float32)
+        return plan if self.smoother is None else self.smoother(env, plan)

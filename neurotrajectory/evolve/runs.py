@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
+from gridsim.envs.plan_smoothing import check_keep
 from gridsim.errors import GridSimError
 from gridsim.outputs import new_folder_problem, read_manifest, write_json, write_npz
 from gridsim.seeding import Salt, stream
@@ -108,11 +109,15 @@ class TrainConfig:
     #: the network's hidden activation (:attr:`NetConfig.activation`); None (and configs
     #: saved before the field existed): the preset's
     activation: str | None = None
+    #: closed loop: the share of the previous plan kept in each plan the car follows (in
+    #: training, held-out episodes, evaluation and videos; see NetConfig.smoothing)
+    plan_smoothing: float = 0.7
 
     #: What format-1 configurations (saved before these fields existed) meant.
-    LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human"}
+    LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human",
+              "plan_smoothing": 0.0}  # fmt: skip
     #: Fields added within format 2, and what a format-2 configuration without them meant.
-    LATER = {"dagger_labels": "human"}
+    LATER = {"dagger_labels": "human", "plan_smoothing": 0.0}
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
@@ -170,6 +175,10 @@ class TrainConfig:
                            f"{sorted(ACTIVATIONS)}")  # fmt: skip
         if self.frame not in ("ego", "grid"):
             raise RunError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
+        try:
+            check_keep(self.plan_smoothing, "plan_smoothing")
+        except ValueError as exc:
+            raise RunError(str(exc)) from None
         if not 0 <= self.pretrain_validation < 1:
             raise RunError(f"pretrain_validation must be in [0, 1), got {self.pretrain_validation}")
         if self.evolve not in EVOLVE_SCOPES:
@@ -190,9 +199,10 @@ class TrainConfig:
 
     @property
     def net(self) -> NetConfig:
-        """The preset's network with the configured frame, skip read-out, activation and prior."""
+        """The preset's network with the configured frame, skip read-out, activation, plan
+        smoothing and prior."""
         base = replace(PRESETS[self.preset], frame=self.frame, skip=self.skip,
-                       activation=self.activation)  # fmt: skip
+                       activation=self.activation, smoothing=self.plan_smoothing)  # fmt: skip
         return base if self.prior is None else replace(base, prior=self.prior)
 
     def episode_seeds(self, generation: int) -> tuple[int, ...]:
