@@ -110,3 +110,16 @@ def cell_states_by_ray(obstacles, cells, cell_rad, offsets, reach, lut, out) -> 
                 break
             c = cells[j]
             flat[c] = lut[seen[c] + 2]
+
+
+@kernel
+def grid_states(obstacles, cells, firsts, counts, ends, depth, by_ray, cell_rad, offsets, lut,
+                hits, out) -> None:  # fmt: skip
+    """One mount seeing all around: :func:`first_hits` into ``hits``, the reach of each ray
+    ``float32(hit) + depth`` (``depth`` float32, as NumPy's ``hits.astype(np.float32) +
+    np.float32(depth)``) and :func:`cell_states_by_ray` into ``out``, in one call."""
+    first_hits(obstacles, cells, firsts, counts, ends, hits)
+    reach = np.empty(len(hits), np.float32)
+    for k in range(len(hits)):
+        reach[k] = np.float32(hits[k]) + depth
+    cell_states_by_ray(obstacles, by_ray, cell_rad, offsets, reach, lut, out)
