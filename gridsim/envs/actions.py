@@ -105,15 +105,45 @@ class TrajectoryAction(ActionType):
         ahead = float(np.dot(pts[0] - world.ego[:2], heading)) > 0.0
         # (a path of 2 or more points has 2 or more distinct ones: they are 1 mm apart)
         path = Polyline.from_segments(path_arrays) if len(path_arrays[0]) >= 2 and ahead else None
-        gains = TRACKING_GAINS
-        params = self.params
+        return PathControl(path, speed, self.params, TRACKING_GAINS), pts
 
-        def control(w) -> tuple[float, float]:
-            if path is None:  # nothing ahead to drive to: brake to a stop, hold the wheel
-                return -min(params.b_max, w.ego[V] / w.dt), 0.0
-            return follow_path(w.ego, path, speed, params, gains)
 
-        return control, pts
+#: The path arrays :meth:`PathControl.kernel_data` hands over when there is no path (read-only,
+#: as a polyline's: one compiled signature).
+_NO_PATH = tuple(np.zeros(shape) for shape in [(0, 2), (0, 2), (0,), (0,), (0,)])
+for _a in _NO_PATH:
+    _a.flags.writeable = False
+
+
+class PathControl:
+    """The trajectory action's controller: pure pursuit along ``path`` at ``speed`` [m/s]
+    (:func:`~gridsim.vehicle.control.follow_path`), or a stop when ``path`` is None. Called
+    with a world, it gives the inputs ``(accel, steer rate)``; :meth:`tick` ticks the world
+    with them (compiled where it can: :meth:`~gridsim.world.world.World.tick_following`)."""
+
+    __slots__ = ("path", "speed", "params", "gains")
+
+    def __init__(self, path: Polyline | None, speed: float, params: BicycleParams,
+                 gains: PursuitGains) -> None:  # fmt: skip
+        self.path, self.speed, self.params, self.gains = path, speed, params, gains
+
+    def __call__(self, w) -> tuple[float, float]:
+        if self.path is None:  # nothing ahead to drive to: brake to a stop, hold the wheel
+            return -min(self.params.b_max, w.ego[V] / w.dt), 0.0
+        return follow_path(w.ego, self.path, self.speed, self.params, self.gains)
+
+    def tick(self, w):
+        """``w.tick(*self(w))`` (the same bits)."""
+        return w.tick_following(self)
+
+    def kernel_data(self) -> tuple:
+        """What :func:`~gridsim.world.world_kernels.follow_tick` takes as ``follow``."""
+        p, g, path = self.params, self.gains, self.path
+        limits = tuple(float(v) for v in (p.wheelbase, p.delta_max, p.b_max, p.a_max,
+                                          p.v_delta_max, g.steer_time, g.speed_gain))  # fmt: skip
+        arrays = _NO_PATH if path is None else path.pursuit_data()
+        return (path is not None, arrays, float(self.speed), float(g.min_lookahead),
+                float(g.lookahead_time), limits, float(p.b_max))  # fmt: skip
 
 
 class ControlAction(ActionType):

@@ -205,9 +205,10 @@ class GridSimEnv(gym.Env):
         l2 = l3 = 0.0
         v_lo, v_hi = self.cfg.speed_range
         result = None
+        tick = getattr(control, "tick", None)  # the controller's own (compiled) tick
         for _ in range(self._ticks):
             x0, y0 = world.ego[0], world.ego[1]  # NumPy scalars: np.hypot of their differences
-            result = world.tick(*control(world))
+            result = tick(world) if tick is not None else world.tick(*control(world))
             self._travelled += float(np.hypot(world.ego[0] - x0, world.ego[1] - y0))
             l2 += abs(result.steer_rate)
             v = world.ego[V]

@@ -9,8 +9,9 @@ import numpy as np
 
 from gridsim.road.base import Road
 from gridsim.road.polyline import Polyline
+from gridsim.road.seamless import SeamlessRoad
 from gridsim.traffic.fleet import EgoPose
-from gridsim.traffic.sources import TrafficSource
+from gridsim.traffic.sources import SeamlessTraffic, TrafficSource
 from gridsim.traffic.track import Track
 from gridsim.vehicle.kinematics import (
     PSI,
@@ -21,7 +22,9 @@ from gridsim.vehicle.kinematics import (
     Y,
     centre_xy,
     step_bicycle,
+    step_limits,
 )
+from gridsim.world import world_kernels
 from gridsim.world.collision import CollisionChecker, Contact
 
 
@@ -102,6 +105,11 @@ class World:
         self.time += self.dt
         if not check:
             return self.unchecked(float(step.accel), float(step.steer_rate))
+        return self._checked_tick(previous, float(step.accel), float(step.steer_rate))
+
+    def _checked_tick(self, previous: np.ndarray, accel: float, steer_rate: float) -> TickResult:
+        """The rest of a checked :meth:`tick` that moved the ego from ``previous`` applying
+        ``accel`` and ``steer_rate``: the contact and road-edge tests."""
         contact = self.check_contacts()
         moved = float(np.hypot(self.ego[0] - previous[0], self.ego[1] - previous[1]))
         trusted, self._checked = self._checked, True
@@ -112,8 +120,48 @@ class World:
             off_road = False
         else:
             off_road = not bool(self.road.is_drivable(self.ego_center()[None])[0])
-        self.last = TickResult(float(step.accel), float(step.steer_rate), contact, off_road)
+        self.last = TickResult(accel, steer_rate, contact, off_road)
         return self.last
+
+    def tick_following(self, follow) -> TickResult:
+        """A checked :meth:`tick` with the inputs of ``follow(world)``, a
+        :class:`~gridsim.envs.actions.PathControl` (pure pursuit along a path, or a stop): on a
+        seamless road in one compiled call with the traffic's tick
+        (:func:`~gridsim.world.world_kernels.follow_tick`; the same bits), otherwise, or when
+        the road must grow, in Python."""
+        args = self._follow_args(follow)
+        if args is None:
+            return self.tick(*follow(self))
+        status, accel, rate, ego, applied, steer_rate, road_s, road_hint, ended = (
+            world_kernels.follow_tick(*args)
+        )
+        if status == world_kernels.NOT_FINITE:
+            return self.tick(*follow(self))
+        if status == world_kernels.BEFORE:
+            return self.tick(accel, rate)
+        previous, self.ego = self.ego, np.array(ego)
+        self.road.set_tracked(road_s, road_hint)
+        if status == world_kernels.TRAFFIC:
+            self.traffic.refill(ended, self.ego_pose())
+        self.time += self.dt
+        return self._checked_tick(previous, applied, steer_rate)
+
+    def _follow_args(self, follow) -> tuple | None:
+        """The arguments of :func:`~gridsim.world.world_kernels.follow_tick`, or None when
+        this world does not tick compiled."""
+        p = self.ego_params
+        if not (
+            p._scalar
+            and isinstance(self.road, SeamlessRoad)
+            and isinstance(self.traffic, SeamlessTraffic)
+            and self.traffic.road is self.road
+        ):
+            return None
+        road, traffic = self.road.tracking(), self.traffic.tick_data(self.dt)
+        if road is None or traffic is None:
+            return None
+        return (tuple(self.ego.tolist()), step_limits(p), self.dt, follow.kernel_data(), road,
+                traffic, (p.length, p.width, p.center_offset))  # fmt: skip
 
     def unchecked(self, accel: float, steer_rate: float) -> TickResult:
         """Record a tick that applied ``accel`` [m/s^2] and ``steer_rate`` [rad/s] without the
