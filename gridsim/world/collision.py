@@ -100,9 +100,7 @@ class CollisionChecker:
         (made static pymunk shapes when first near the ego: :meth:`_load_edges`); reloads only
         when the road ``version`` changed or the ego moved more than :data:`BOUNDARY_RELOAD`
         metres since the last load."""
-        bx, by = self._boundary_center
-        moved = np.hypot(float(center[0]) - bx, float(center[1]) - by)
-        if version == self._road_version and moved < BOUNDARY_RELOAD:
+        if self.keeps_boundaries(version, float(center[0]), float(center[1])):
             return
         if self._boundary_shapes:
             self.space.remove(*self._boundary_shapes.values())
@@ -116,6 +114,25 @@ class CollisionChecker:
         self._edges, self._edge_index = np.ascontiguousarray(segments[near], np.float64), near
         self._road_version = version
         self._boundary_center = (float(center[0]), float(center[1]))
+
+    def keeps_boundaries(self, version: int, cx: float, cy: float) -> bool:
+        """Whether :meth:`set_boundaries` for road ``version`` around ``(cx, cy)`` would keep
+        the edges loaded (and do nothing)."""
+        bx, by = self._boundary_center
+        return version == self._road_version and np.hypot(cx - bx, cy - by) < BOUNDARY_RELOAD
+
+    def quiet(self, version: int, cx: float, cy: float) -> bool:
+        """Whether the checks of an ego centred at ``(cx, cy)`` on road ``version`` need no
+        more than the broad phases (:func:`broad_phase_data`): no box placed by the last
+        check, the loaded edges kept."""
+        return not self._placed and self.keeps_boundaries(version, cx, cy)
+
+    def broad_phase_data(self) -> tuple:
+        """``(loaded edges, ego radius, core reach)``: what the broad phases of
+        :meth:`check_fleet` (``collision_kernels.within_reach``) and :meth:`_query`
+        (``collision_kernels.near_segments``) read besides the ego and the fleet. When both
+        find nothing and :meth:`quiet` holds, :meth:`check_fleet` reports no contact."""
+        return self._edges, float(self._ego_radius), float(self._core_reach)
 
     def _shape_for(self, index: int, length: float, width: float) -> pymunk.Body:
         """The kinematic body of participant ``index``, its box resized if needed."""

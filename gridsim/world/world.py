@@ -27,6 +27,8 @@ from gridsim.vehicle.kinematics import (
 from gridsim.world import world_kernels
 from gridsim.world.collision import CollisionChecker, Contact
 
+_NO_CONTACT = Contact()
+
 
 @dataclass(frozen=True)
 class TickResult:
@@ -107,10 +109,14 @@ class World:
             return self.unchecked(float(step.accel), float(step.steer_rate))
         return self._checked_tick(previous, float(step.accel), float(step.steer_rate))
 
-    def _checked_tick(self, previous: np.ndarray, accel: float, steer_rate: float) -> TickResult:
+    def _checked_tick(
+        self, previous: np.ndarray, accel: float, steer_rate: float, contact: Contact | None = None
+    ) -> TickResult:
         """The rest of a checked :meth:`tick` that moved the ego from ``previous`` applying
-        ``accel`` and ``steer_rate``: the contact and road-edge tests."""
-        contact = self.check_contacts()
+        ``accel`` and ``steer_rate``: the contact and road-edge tests (``contact``: the
+        contacts if known)."""
+        if contact is None:
+            contact = self.check_contacts()
         moved = float(np.hypot(self.ego[0] - previous[0], self.ego[1] - previous[1]))
         trusted, self._checked = self._checked, True
         if contact.boundaries:
@@ -132,9 +138,8 @@ class World:
         args = self._follow_args(follow)
         if args is None:
             return self.tick(*follow(self))
-        status, accel, rate, ego, applied, steer_rate, road_s, road_hint, ended = (
-            world_kernels.follow_tick(*args)
-        )
+        out = world_kernels.follow_tick(*args)
+        status, accel, rate, ego, applied, steer_rate, road_s, road_hint, ended, center, quiet = out
         if status == world_kernels.NOT_FINITE:
             return self.tick(*follow(self))
         if status == world_kernels.BEFORE:
@@ -144,7 +149,10 @@ class World:
         if status == world_kernels.TRAFFIC:
             self.traffic.refill(ended, self.ego_pose())
         self.time += self.dt
-        return self._checked_tick(previous, applied, steer_rate)
+        contact = None
+        if quiet and self.collision.quiet(self.road.version, *center):
+            contact = _NO_CONTACT  # what check_contacts finds: nothing near
+        return self._checked_tick(previous, applied, steer_rate, contact)
 
     def _follow_args(self, follow) -> tuple | None:
         """The arguments of :func:`~gridsim.world.world_kernels.follow_tick`, or None when
@@ -161,7 +169,8 @@ class World:
         if road is None or traffic is None:
             return None
         return (tuple(self.ego.tolist()), step_limits(p), self.dt, follow.kernel_data(), road,
-                traffic, (p.length, p.width, p.center_offset))  # fmt: skip
+                traffic, (p.length, p.width, p.center_offset),
+                self.collision.broad_phase_data())  # fmt: skip
 
     def unchecked(self, accel: float, steer_rate: float) -> TickResult:
         """Record a tick that applied ``accel`` [m/s^2] and ``steer_rate`` [rad/s] without the

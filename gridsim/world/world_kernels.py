@@ -23,6 +23,7 @@ from gridsim.traffic.fleet_kernels import FleetState
 from gridsim.traffic.fleet_kernels import tick as fleet_tick
 from gridsim.vehicle.control import pursuit_one
 from gridsim.vehicle.kinematics import step_one
+from gridsim.world.collision_kernels import near_segments, within_reach
 
 #: Why the call stopped: the tick is done; before it (Python ticks with the inputs computed);
 #: after the fleet's tick (Python refills the traffic); before it, with a state or an input
@@ -33,23 +34,26 @@ _NO_CROSS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros
 
 
 @kernel
-def follow_tick(ego, step_limits, dt, follow, road, traffic, box):
+def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     """One tick of the ego following a path: ``ego`` its state ``(x, y, psi, v, delta)``;
     ``step_limits`` as :func:`~gridsim.vehicle.kinematics.step_one` takes them; ``follow``:
     ``(has path, the path's (points, segments, segment lengths, arc lengths, headings),
     target speed, min_lookahead, lookahead_time, pursuit_one limits, b_max)``; ``road``:
     :meth:`SeamlessRoad.tracking`; ``traffic``: :meth:`SeamlessTraffic.tick_data`; ``box``:
-    the ego's ``(length, width, center_offset)``.
+    the ego's ``(length, width, center_offset)``; ``broad``:
+    :meth:`CollisionChecker.broad_phase_data`.
 
     Returns ``(status, the commanded acceleration and steering rate, the new ego state, the
     applied acceleration and steering rate, the road's arc length and segment, the
-    participants whose profile ran out)``; with status :data:`BEFORE` only the commanded
+    participants whose profile ran out, the ego's centre, whether the contact test's broad
+    phases found nothing near it)``; with status :data:`BEFORE` only the commanded
     inputs are meaningful, with :data:`NOT_FINITE` none."""
     x, y, psi, v, delta = ego
     none = _NO_CROSS[0]
+    nan = (np.nan, np.nan)
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(psi) and math.isfinite(v)
             and math.isfinite(delta)):  # fmt: skip
-        return NOT_FINITE, np.nan, np.nan, ego, np.nan, np.nan, np.nan, -1, none
+        return NOT_FINITE, np.nan, np.nan, ego, np.nan, np.nan, np.nan, -1, none, nan, False
     has_path, path, speed, min_lookahead, lookahead_time, pursuit_limits, b_max = follow
     if has_path:
         ahead = min_lookahead + lookahead_time * max(v, 0.0)
@@ -59,13 +63,13 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box):
     else:  # nothing ahead to drive to: brake to a stop, hold the wheel
         accel, steer = -min(b_max, v / dt), 0.0
     if not (math.isfinite(accel) and math.isfinite(steer)):
-        return NOT_FINITE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none
+        return NOT_FINITE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none, nan, False
     x1, y1, psi1, v1, d1, a1, r1 = step_one(x, y, psi, v, delta, accel, steer, step_limits, dt)
     line, ref_s, road_hint, keep_ahead, keep_behind, cut_max = road
     points, seg, seg_len, seg_len_pow2, s_road, _ = line
     s1, _, j1 = track(points, seg, seg_len, seg_len_pow2, s_road, x1, y1, road_hint)
     if ref_s[-1] < s1 + keep_ahead or np.searchsorted(ref_s, s1 - keep_behind) > cut_max:
-        return BEFORE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none
+        return BEFORE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none, nan, False
     ego1 = (x1, y1, psi1, v1, d1)
     length, width, center_offset = box
     c, s = math.cos(psi1), math.sin(psi1)
@@ -79,4 +83,10 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box):
     for i in range(count):
         idle = idle or not f.active[i]
     status = TRAFFIC if idle or len(ended) else DONE
-    return status, accel, steer, ego1, a1, r1, s1, j1, ended
+    edges, ego_radius, core_reach = broad
+    quiet = (
+        status == DONE
+        and len(within_reach(f.active, f.x, f.y, f.length, f.width, cx, cy, ego_radius)) == 0
+        and len(near_segments(edges, cx, cy, core_reach)) == 0
+    )
+    return status, accel, steer, ego1, a1, r1, s1, j1, ended, (cx, cy), quiet
