@@ -104,33 +104,55 @@ class TrajectoryAction(ActionType):
         heading = np.array([np.cos(world.ego[PSI]), np.sin(world.ego[PSI])])
         ahead = float(np.dot(pts[0] - world.ego[:2], heading)) > 0.0
         # (a path of 2 or more points has 2 or more distinct ones: they are 1 mm apart)
-        path = Polyline.from_segments(path_arrays) if len(path_arrays[0]) >= 2 and ahead else None
-        return PathControl(path, speed, self.params, TRACKING_GAINS), pts
+        arrays = path_arrays if len(path_arrays[0]) >= 2 and ahead else None
+        return PathControl(arrays, speed, self.params, TRACKING_GAINS, self._pursuit()), pts
+
+    def _pursuit(self) -> tuple:
+        """The constant part of :meth:`PathControl.kernel_data` (made once)."""
+        if self._pursuit_data is None:
+            p, g = self.params, TRACKING_GAINS
+            limits = (p.wheelbase, p.delta_max, p.b_max, p.a_max, p.v_delta_max, g.steer_time,
+                      g.speed_gain)  # fmt: skip
+            self._pursuit_data = (float(g.min_lookahead), float(g.lookahead_time),
+                                  tuple(float(v) for v in limits), float(p.b_max))  # fmt: skip
+        return self._pursuit_data
+
+    _pursuit_data = None
 
 
-#: The path arrays :meth:`PathControl.kernel_data` hands over when there is no path (read-only,
-#: as a polyline's: one compiled signature).
+#: The path arrays :meth:`PathControl.kernel_data` hands over when there is no path.
 _NO_PATH = tuple(np.zeros(shape) for shape in [(0, 2), (0, 2), (0,), (0,), (0,)])
-for _a in _NO_PATH:
-    _a.flags.writeable = False
 
 
 class PathControl:
-    """The trajectory action's controller: pure pursuit along ``path`` at ``speed`` [m/s]
-    (:func:`~gridsim.vehicle.control.follow_path`), or a stop when ``path`` is None. Called
+    """The trajectory action's controller: pure pursuit along the path of ``arrays`` (those
+    of :func:`~gridsim.road.polyline_kernels.segments`) at ``speed`` [m/s]
+    (:func:`~gridsim.vehicle.control.follow_path`), or a stop when ``arrays`` is None. Called
     with a world, it gives the inputs ``(accel, steer rate)``; :meth:`tick` ticks the world
-    with them (compiled where it can: :meth:`~gridsim.world.world.World.tick_following`)."""
+    with them (compiled where it can: :meth:`~gridsim.world.world.World.tick_following`).
+    ``pursuit``: ``(min_lookahead, lookahead_time, pursuit_one limits, b_max)`` of ``params``
+    and ``gains``."""
 
-    __slots__ = ("path", "speed", "params", "gains")
+    __slots__ = ("_arrays", "_path", "speed", "params", "gains", "_pursuit")
 
-    def __init__(self, path: Polyline | None, speed: float, params: BicycleParams,
-                 gains: PursuitGains) -> None:  # fmt: skip
-        self.path, self.speed, self.params, self.gains = path, speed, params, gains
+    def __init__(self, arrays: tuple | None, speed: float, params: BicycleParams,
+                 gains: PursuitGains, pursuit: tuple) -> None:  # fmt: skip
+        self._arrays, self._path = arrays, None
+        self.speed, self.params, self.gains, self._pursuit = speed, params, gains, pursuit
+
+    @property
+    def path(self) -> Polyline | None:
+        """The path followed (None: stop), made on first use (the compiled tick reads the
+        arrays)."""
+        if self._path is None and self._arrays is not None:
+            self._path = Polyline.from_segments(tuple(a.copy() for a in self._arrays))
+        return self._path
 
     def __call__(self, w) -> tuple[float, float]:
-        if self.path is None:  # nothing ahead to drive to: brake to a stop, hold the wheel
+        path = self.path
+        if path is None:  # nothing ahead to drive to: brake to a stop, hold the wheel
             return -min(self.params.b_max, w.ego[V] / w.dt), 0.0
-        return follow_path(w.ego, self.path, self.speed, self.params, self.gains)
+        return follow_path(w.ego, path, self.speed, self.params, self.gains)
 
     def tick(self, w):
         """``w.tick(*self(w))`` (the same bits)."""
@@ -138,12 +160,10 @@ class PathControl:
 
     def kernel_data(self) -> tuple:
         """What :func:`~gridsim.world.world_kernels.follow_tick` takes as ``follow``."""
-        p, g, path = self.params, self.gains, self.path
-        limits = tuple(float(v) for v in (p.wheelbase, p.delta_max, p.b_max, p.a_max,
-                                          p.v_delta_max, g.steer_time, g.speed_gain))  # fmt: skip
-        arrays = _NO_PATH if path is None else path.pursuit_data()
-        return (path is not None, arrays, float(self.speed), float(g.min_lookahead),
-                float(g.lookahead_time), limits, float(p.b_max))  # fmt: skip
+        a = self._arrays
+        # segments' order is (points, segments, lengths, headings, arc lengths)
+        arrays = _NO_PATH if a is None else (a[0], a[1], a[2], a[4], a[3])
+        return (a is not None, arrays, float(self.speed), *self._pursuit)
 
 
 class ControlAction(ActionType):

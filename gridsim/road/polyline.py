@@ -76,11 +76,6 @@ class Polyline:
         :func:`~gridsim.world.scripted_driver_kernels.route_inputs` reads."""
         return self.points, self._seg, self._seg_len, self._seg_len_pow2, self.s, self._heading
 
-    def pursuit_data(self) -> tuple[np.ndarray, ...]:
-        """``(points, segments, segment lengths, cumulative arc length, headings)``: what
-        :func:`~gridsim.road.polyline_kernels.ahead_of` reads."""
-        return self.points, self._seg, self._seg_len, self.s, self._heading
-
     def frenet_one(self, s: float, d: float) -> tuple[float, float, float]:
         """:meth:`frenet_to_world` of one point: ``(x, y, heading)`` as floats."""
         return kernels.frenet_one(self.points, self._seg, self._seg_len, self.s, self._heading,

@@ -72,6 +72,7 @@ class World:
         self.ego_track = ego_track
         self.ego = np.asarray(ego_state, dtype=np.float64).reshape(STATE_SIZE).copy()
         self.time = 0.0
+        self.moved = 0.0  # how far [m] the rear axle moved in the last checked tick
         self.collision = CollisionChecker(ego_params.length, ego_params.width)
         road.update(self.ego[:2])
         traffic.reset(rng, self.ego_pose())
@@ -117,7 +118,7 @@ class World:
         contacts if known)."""
         if contact is None:
             contact = self.check_contacts()
-        moved = float(np.hypot(self.ego[0] - previous[0], self.ego[1] - previous[1]))
+        self.moved = moved = float(np.hypot(self.ego[0] - previous[0], self.ego[1] - previous[1]))
         trusted, self._checked = self._checked, True
         if contact.boundaries:
             off_road = True
