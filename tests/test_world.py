@@ -138,23 +138,25 @@ def _world_state(world):
             road._ego_s, road._hint, world.last, world.traffic.rng.bit_generator.state)  # fmt: skip
 
 
-@pytest.mark.parametrize("seed", [0, 3, 26])
-def test_compiled_path_following_tick_equals_the_python_tick(seed):
+@pytest.mark.parametrize("seed, participants", [(0, None), (3, None), (26, 45)])
+def test_compiled_path_following_tick_equals_the_python_tick(seed, participants):
     """``World.tick_following`` (the trajectory action's controller, the ego's step, the road's
-    tracking and the fleet's tick in one compiled call) leaves a world in the same state, bit
-    for bit, as ``world.tick(*control(world))``: over episodes with noisy set-points, stops
-    (no path), road growth and profile renewals."""
+    tracking, the fleet's tick and the contact test's broad phases in one compiled call)
+    leaves a world in the same state, bit for bit, as ``world.tick(*control(world))``, with
+    the same contacts: over episodes with noisy set-points, stops (no path), road growth,
+    profile renewals, vehicles alongside and collisions."""
     import copy
 
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.frames import grid_rotation
     from gridsim.vehicle.kinematics import PSI
     from gridsim.world import world_kernels
+    from gridsim.world.collision_kernels import within_reach
 
-    env = GridSimEnv()
+    env = GridSimEnv(**({"traffic": {"participants": participants}} if participants else {}))
     _, info = env.reset(seed=seed)
     rng = np.random.default_rng(seed)
-    statuses, stops = set(), 0
+    statuses, stops, alongside, contacts = set(), 0, 0, 0
     original = world_kernels.follow_tick
 
     def spy(*args):
@@ -168,6 +170,8 @@ def test_compiled_path_following_tick_equals_the_python_tick(seed):
             action = info["reference_setpoints"].astype(np.float64)
             if i % 40 < 4:
                 action = action + rng.normal(0, 4, action.shape)
+            if participants and i % 60 < 12:  # swerve into the next lane, speed up
+                action = action * np.array([2.0, 1.0]) + np.array([0.0, 3.5])
             if i % 97 == 0:
                 action = -np.abs(action)  # behind the ego: a stop
             world = env.unwrapped.world
@@ -178,6 +182,10 @@ def test_compiled_path_following_tick_equals_the_python_tick(seed):
             r_python = twin.tick(*control(twin))
             r_compiled = world.tick_following(control)
             assert r_compiled == r_python
+            contacts += r_python.contact.any
+            f, (_, _, radius) = twin.traffic.fleet, twin.collision.ego_box
+            cx, cy = twin.ego_center()
+            alongside += len(within_reach(f.active, f.x, f.y, f.length, f.width, cx, cy, radius))
             for a, b in zip(_world_state(world), _world_state(twin), strict=True):
                 if isinstance(a, list):
                     assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
@@ -191,3 +199,4 @@ def test_compiled_path_following_tick_equals_the_python_tick(seed):
     finally:
         world_kernels.follow_tick = original
     assert stops and statuses >= {world_kernels.DONE, world_kernels.TRAFFIC, world_kernels.BEFORE}
+    assert alongside > 0 and (contacts > 0 or not participants)

@@ -121,18 +121,16 @@ class CollisionChecker:
         bx, by = self._boundary_center
         return version == self._road_version and np.hypot(cx - bx, cy - by) < BOUNDARY_RELOAD
 
-    def quiet(self, version: int, cx: float, cy: float) -> bool:
-        """Whether the checks of an ego centred at ``(cx, cy)`` on road ``version`` need no
-        more than the broad phases (:func:`broad_phase_data`): no box placed by the last
-        check, the loaded edges kept."""
-        return not self._placed and self.keeps_boundaries(version, cx, cy)
-
     def broad_phase_data(self) -> tuple:
-        """``(loaded edges, ego radius, core reach)``: what the broad phases of
+        """``(loaded edges, ego length, width, radius, core reach)``: what the broad phases of
         :meth:`check_fleet` (``collision_kernels.within_reach``) and :meth:`_query`
-        (``collision_kernels.near_segments``) read besides the ego and the fleet. When both
-        find nothing and :meth:`quiet` holds, :meth:`check_fleet` reports no contact."""
-        return self._edges, float(self._ego_radius), float(self._core_reach)
+        (``collision_kernels.near_segments``) read besides the ego and the fleet. When no
+        edge is near, every vehicle the broad phase finds is clearly apart from the ego's box
+        (``collision_kernels.may_touch``) and :meth:`keeps_boundaries` holds, a check reports
+        no contact (and may be skipped: boxes placed by an earlier check stay listed in
+        ``_placed``, and the next check parks them)."""
+        return (self._edges, float(self._args[0]), float(self._args[1]),
+                float(self._ego_radius), float(self._core_reach))  # fmt: skip
 
     def _shape_for(self, index: int, length: float, width: float) -> pymunk.Body:
         """The kinematic body of participant ``index``, its box resized if needed."""

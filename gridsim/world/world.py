@@ -151,7 +151,7 @@ class World:
             self.traffic.refill(ended, self.ego_pose())
         self.time += self.dt
         contact = None
-        if quiet and self.collision.quiet(self.road.version, *center):
+        if quiet and self.collision.keeps_boundaries(self.road.version, *center):
             contact = _NO_CONTACT  # what check_contacts finds: nothing near
         return self._checked_tick(previous, applied, steer_rate, contact)
 

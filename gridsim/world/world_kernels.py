@@ -23,7 +23,7 @@ from gridsim.traffic.fleet_kernels import FleetState
 from gridsim.traffic.fleet_kernels import tick as fleet_tick
 from gridsim.vehicle.control import pursuit_one
 from gridsim.vehicle.kinematics import step_one
-from gridsim.world.collision_kernels import near_segments, within_reach
+from gridsim.world.collision_kernels import APART, may_touch, near_segments
 
 #: Why the call stopped: the tick is done; before it (Python ticks with the inputs computed);
 #: after the fleet's tick (Python refills the traffic); before it, with a state or an input
@@ -45,8 +45,10 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
 
     Returns ``(status, the commanded acceleration and steering rate, the new ego state, the
     applied acceleration and steering rate, the road's arc length and segment, the
-    participants whose profile ran out, the ego's centre, whether the contact test's broad
-    phases found nothing near it)``; with status :data:`BEFORE` only the commanded
+    participants whose profile ran out, the ego's centre, whether the contact test can find
+    nothing: no road edge near, no vehicle that is not clearly apart from the ego's box
+    (:func:`~gridsim.world.collision_kernels.may_touch`, as the reference's shadow world
+    rules near misses out))``; with status :data:`BEFORE` only the commanded
     inputs are meaningful, with :data:`NOT_FINITE` none."""
     x, y, psi, v, delta = ego
     none = _NO_CROSS[0]
@@ -83,10 +85,10 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     for i in range(count):
         idle = idle or not f.active[i]
     status = TRAFFIC if idle or len(ended) else DONE
-    edges, ego_radius, core_reach = broad
+    edges, ego_length, ego_width, ego_radius, core_reach = broad
     quiet = (
         status == DONE
-        and len(within_reach(f.active, f.x, f.y, f.length, f.width, cx, cy, ego_radius)) == 0
+        and not may_touch(state, (cx, cy, psi1, ego_length, ego_width), ego_radius, APART)
         and len(near_segments(edges, cx, cy, core_reach)) == 0
     )
     return status, accel, steer, ego1, a1, r1, s1, j1, ended, (cx, cy), quiet
