@@ -257,11 +257,12 @@ def test_cell_states_by_ray_equal_marking_then_states():
             reach[rng.random(len(reach)) < 0.1] = rad.ravel()[rng.integers(0, rad.size)]  # ties
             visible = np.zeros_like(obstacles)
             mark_visible(rad, ray, reach, visible)
-            want = np.empty_like(obstacles)
-            cell_states(obstacles, visible, _STATE_LUT, want)
-            got = np.empty_like(obstacles)
-            cell_states_by_ray(obstacles, *by_ray, reach, _STATE_LUT, got)
-            assert np.array_equal(got, want)
+            for lut in (_STATE_LUT, np.array([7, 128, 0, 255], np.uint8)):  # unseen alike or not
+                want = np.empty_like(obstacles)
+                cell_states(obstacles, visible, lut, want)
+                got = np.empty_like(obstacles)
+                cell_states_by_ray(obstacles, *by_ray, reach, lut, got)
+                assert np.array_equal(got, want)
 
 
 def test_north_up_pixel_map_equals_the_matrix_product():

@@ -101,7 +101,8 @@ class TrajectoryAction(ActionType):
         c, s = math.cos(rotation), math.sin(rotation)
         pts, first, path_arrays = kernels.setpoint_path(a, box.low, box.high, ex, ey, c, s)
         speed = float(first) / self.period
-        heading = np.array([np.cos(world.ego[PSI]), np.sin(world.ego[PSI])])
+        psi = world.ego[PSI]  # (math's cos and sin are libm's, as NumPy's on a float64 scalar)
+        heading = np.array([math.cos(psi), math.sin(psi)])
         ahead = float(np.dot(pts[0] - world.ego[:2], heading)) > 0.0
         # (a path of 2 or more points has 2 or more distinct ones: they are 1 mm apart)
         arrays = path_arrays if len(path_arrays[0]) >= 2 and ahead else None
