@@ -116,6 +116,7 @@ class OccupancyGridSensor:
         self._obstacles = np.empty((rows, cols), np.uint8)
         self._visible = np.empty((rows, cols), np.uint8)
         self._hits = np.empty(spec.rays, np.int64)
+        self._last_polygons: tuple[list[np.ndarray], np.ndarray | None] = ([], None)
 
     def _tables_for(self, ou: int, ov: int):
         """Ray samples ``(rays, samples, 2)`` (whole cells, column and row), their walk tables
@@ -189,7 +190,7 @@ class OccupancyGridSensor:
         m = self._obstacles
         m.fill(1)
         if drivable:
-            points = np.concatenate(drivable)
+            points = self._concatenated(drivable)
             if a[0, 1] == 0.0 and a[1, 0] == 0.0:
                 px = pixel_points(points, a)
             else:
@@ -204,6 +205,17 @@ class OccupancyGridSensor:
         for quad in quads:
             cv2.fillConvexPoly(m, quad, 1, cv2.LINE_8, shift=4)
         return m
+
+    def _concatenated(self, polygons: list[np.ndarray]) -> np.ndarray:
+        """``np.concatenate(polygons)``, kept while the same polygon arrays come again (a
+        road hands out the same ones until it changes; they are never modified in place)."""
+        last, points = self._last_polygons
+        if len(last) != len(polygons) or any(
+            a is not b for a, b in zip(last, polygons, strict=True)
+        ):
+            points = np.concatenate(polygons)
+            self._last_polygons = (list(polygons), points)
+        return points
 
     def render(
         self, ego_xy, ego_psi, drivable: list[np.ndarray], boxes: np.ndarray, out=None

@@ -86,8 +86,8 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
         idle = idle or not f.active[i]
     status = TRAFFIC if idle or len(ended) else DONE
     edges, ego_length, ego_width, ego_radius, core_reach = broad
-    quiet = (
-        status == DONE
+    quiet = (  # (a refill that renews profiles moves no one; a respawn may)
+        not idle
         and not may_touch(state, (cx, cy, psi1, ego_length, ego_width), ego_radius, APART)
         and len(near_segments(edges, cx, cy, core_reach)) == 0
     )
