@@ -18,6 +18,7 @@ from gridsim.envs import actions_kernels as kernels
 from gridsim.road.polyline import Polyline
 from gridsim.vehicle.control import PursuitGains, follow_path
 from gridsim.vehicle.kinematics import PSI, BicycleParams, V, step_bicycle
+from gridsim.world import world_kernels
 
 Controller = Callable[[object], tuple[float, float]]  # world -> (accel, steer rate)
 #: Tight pursuit for following set-points (cuts corners less than lane keeping needs to).
@@ -162,9 +163,38 @@ class PathControl:
     def kernel_data(self) -> tuple:
         """What :func:`~gridsim.world.world_kernels.follow_tick` takes as ``follow``."""
         a = self._arrays
+        if a is None:
+            return (world_kernels.STOP, _NO_PATH, float(self.speed), *self._pursuit, _NO_HOLD)
         # segments' order is (points, segments, lengths, headings, arc lengths)
-        arrays = _NO_PATH if a is None else (a[0], a[1], a[2], a[4], a[3])
-        return (a is not None, arrays, float(self.speed), *self._pursuit)
+        arrays = (a[0], a[1], a[2], a[4], a[3])
+        return (world_kernels.PURSUIT, arrays, float(self.speed), *self._pursuit, _NO_HOLD)
+
+
+_NO_HOLD = (0.0, 0.0)
+_NO_PURSUIT = (0.0, 0.0, (0.0,) * 7, 0.0)
+
+
+class HeldInputs:
+    """The controller of the control and discrete actions: the inputs ``(accel, steer rate)``
+    held for the decision period. Called with a world, it gives them; :meth:`tick` ticks the
+    world with them (compiled where it can: :meth:`~gridsim.world.world.World.tick_following`)."""
+
+    __slots__ = ("accel", "rate")
+
+    def __init__(self, accel: float, rate: float) -> None:
+        self.accel, self.rate = accel, rate
+
+    def __call__(self, w) -> tuple[float, float]:
+        return self.accel, self.rate
+
+    def tick(self, w):
+        """``w.tick(*self(w))`` (the same bits)."""
+        return w.tick_following(self)
+
+    def kernel_data(self) -> tuple:
+        """What :func:`~gridsim.world.world_kernels.follow_tick` takes as ``follow``."""
+        held = (float(self.accel), float(self.rate))
+        return (world_kernels.HOLD, _NO_PATH, 0.0, *_NO_PURSUIT, held)
 
 
 class ControlAction(ActionType):
@@ -185,7 +215,7 @@ class ControlAction(ActionType):
             raise ValueError(f"control action must have shape (2,), got {a.shape}")
         accel, rate = float(a[0]), float(a[1])
         plan = rollout_controls(world.ego, accel, rate, self.params, self.period, self.horizon)
-        return (lambda w: (accel, rate)), plan
+        return HeldInputs(accel, rate), plan
 
 
 class DiscreteAction(ActionType):
@@ -213,7 +243,7 @@ class DiscreteAction(ActionType):
         accel = {1: p.a_max, 2: -0.5 * p.b_max}.get(k, 0.0)
         steer = {3: rate, 4: -rate}.get(k, 0.0)
         plan = rollout_controls(world.ego, accel, steer, p, self.period, self.horizon)
-        return (lambda w: (accel, steer)), plan
+        return HeldInputs(accel, steer), plan
 
 
 ACTION_TYPES: dict[str, type[ActionType]] = {

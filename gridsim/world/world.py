@@ -132,8 +132,9 @@ class World:
 
     def tick_following(self, follow) -> TickResult:
         """A checked :meth:`tick` with the inputs of ``follow(world)``, a
-        :class:`~gridsim.envs.actions.PathControl` (pure pursuit along a path, or a stop): on a
-        seamless road in one compiled call with the traffic's tick
+        :class:`~gridsim.envs.actions.PathControl` (pure pursuit along a path, or a stop) or
+        :class:`~gridsim.envs.actions.HeldInputs`: on a seamless road in one compiled call
+        with the traffic's tick
         (:func:`~gridsim.world.world_kernels.follow_tick`; the same bits), otherwise, or when
         the road must grow, in Python."""
         args = self._follow_args(follow)

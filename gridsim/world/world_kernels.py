@@ -25,6 +25,8 @@ from gridsim.vehicle.control import pursuit_one
 from gridsim.vehicle.kinematics import step_one
 from gridsim.world.collision_kernels import APART, may_touch, near_segments
 
+#: What the ego does (``follow``'s first item): stop, follow the path, hold the inputs.
+STOP, PURSUIT, HOLD = 0, 1, 2
 #: Why the call stopped: the tick is done; before it (Python ticks with the inputs computed);
 #: after the fleet's tick (Python refills the traffic); before it, with a state or an input
 #: that is not finite (Python computes the inputs and ticks).
@@ -35,10 +37,13 @@ _NO_CROSS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros
 
 @kernel
 def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
-    """One tick of the ego following a path: ``ego`` its state ``(x, y, psi, v, delta)``;
-    ``step_limits`` as :func:`~gridsim.vehicle.kinematics.step_one` takes them; ``follow``:
-    ``(has path, the path's (points, segments, segment lengths, arc lengths, headings),
-    target speed, min_lookahead, lookahead_time, pursuit_one limits, b_max)``; ``road``:
+    """One tick of the ego following a path (or holding its inputs). ``ego``: its state
+    ``(x, y, psi, v, delta)``; ``step_limits``: as
+    :func:`~gridsim.vehicle.kinematics.step_one` takes them; ``follow``: ``(mode, the path's
+    (points, segments, segment lengths, arc lengths, headings), target speed,
+    min_lookahead, lookahead_time, pursuit_one limits, b_max, held inputs)``, where the mode
+    :data:`PURSUIT` follows the path by pure pursuit, :data:`STOP` brakes to a stop holding
+    the wheel and :data:`HOLD` holds ``(accel, steer rate)``; ``road``:
     :meth:`SeamlessRoad.tracking`; ``traffic``: :meth:`SeamlessTraffic.tick_data`; ``box``:
     the ego's ``(length, width, center_offset)``; ``broad``:
     :meth:`CollisionChecker.broad_phase_data`.
@@ -56,8 +61,10 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(psi) and math.isfinite(v)
             and math.isfinite(delta)):  # fmt: skip
         return NOT_FINITE, np.nan, np.nan, ego, np.nan, np.nan, np.nan, -1, none, nan, False
-    has_path, path, speed, min_lookahead, lookahead_time, pursuit_limits, b_max = follow
-    if has_path:
+    mode, path, speed, min_lookahead, lookahead_time, pursuit_limits, b_max, held = follow
+    if mode == HOLD:  # inputs held for the decision period (control and discrete actions)
+        accel, steer = held
+    elif mode == PURSUIT:
         ahead = min_lookahead + lookahead_time * max(v, 0.0)
         points, seg, seg_len, s_cum, heading = path
         tx, ty, _ = ahead_of(points, seg, seg_len, s_cum, heading, x, y, ahead, 0.0)
