@@ -257,11 +257,12 @@ def test_cell_states_by_ray_equal_marking_then_states():
             reach[rng.random(len(reach)) < 0.1] = rad.ravel()[rng.integers(0, rad.size)]  # ties
             visible = np.zeros_like(obstacles)
             mark_visible(rad, ray, reach, visible)
-            want = np.empty_like(obstacles)
-            cell_states(obstacles, visible, _STATE_LUT, want)
-            got = np.empty_like(obstacles)
-            cell_states_by_ray(obstacles, *by_ray, reach, _STATE_LUT, got)
-            assert np.array_equal(got, want)
+            for lut in (_STATE_LUT, np.array([7, 128, 0, 255], np.uint8)):  # unseen alike or not
+                want = np.empty_like(obstacles)
+                cell_states(obstacles, visible, lut, want)
+                got = np.empty_like(obstacles)
+                cell_states_by_ray(obstacles, *by_ray, reach, lut, got)
+                assert np.array_equal(got, want)
 
 
 def test_north_up_pixel_map_equals_the_matrix_product():
@@ -297,3 +298,49 @@ def test_the_sensor_pixel_map_is_the_grid_frame_then_its_pixels(orientation):
     direct = points @ affine[:, :2].T + affine[:, 2]
     grid = world_to_grid(points, ego, grid_rotation(orientation, psi))
     np.testing.assert_allclose(direct, grid_to_pixel(grid, 96, 128, 0.5, orientation), atol=1e-9)
+
+
+def test_fused_grid_kernels_equal_the_separate_calls():
+    """The one-call kernels of ``observe`` give the same bits as the calls they fuse:
+    ``pixel_points`` as ``np.rint(diagonal_map(...) * 16).astype(np.int32)``, ``box_quads``
+    as ``near_corners``, ``diagonal_map`` and ``pixel_quads``, and ``grid_states`` as
+    ``first_hits``, the float32 reach and ``cell_states_by_ray``."""
+    from gridsim.sensors.occupancy import _STATE_LUT
+    from gridsim.sensors.occupancy_kernels import (
+        box_quads,
+        diagonal_map,
+        near_corners,
+        pixel_points,
+        pixel_quads,
+    )
+    from gridsim.sensors.rays import cell_states_by_ray, first_hits, grid_states
+
+    rng = np.random.default_rng(13)
+    sensor = OccupancyGridSensor(GridSpec())
+    for n in [0, 1, 5, 40, 300]:
+        for _ in range(20):
+            fleet = _random_fleet(rng, n)
+            ego = rng.uniform(-30, 30, 2) * rng.choice([1.0, 1e3])
+            fleet = (fleet[0], fleet[1] + ego[0], fleet[2] + ego[1], *fleet[3:])
+            a = sensor.world_to_pixel(ego, float(rng.uniform(-4, 4)))
+            ex, ey, radius = float(ego[0]), float(ego[1]), float(sensor.radius)
+            boxes = near_corners(*fleet, ex, ey, radius)
+            want = pixel_quads(diagonal_map(boxes.reshape(-1, 2), a).reshape(boxes.shape))
+            got = box_quads(*fleet, ex, ey, radius, a)
+            assert got.dtype == want.dtype and np.array_equal(got, want)
+            points = ego + rng.normal(0, 40, (int(rng.integers(0, 300)), 2))
+            want = np.rint(diagonal_map(points, a) * 16).astype(np.int32)
+            assert np.array_equal(pixel_points(points, a), want)
+    depth = np.float32(sensor._depth)
+    for ou, ov in [(0, 0), (5, -3), (-64, 64)]:
+        tables = sensor._tables_for(ou, ov)
+        for density in [0.0, 0.01, 0.1, 0.5]:
+            obstacles = (rng.random((128, 128)) < density).astype(np.uint8)
+            hits = np.empty(len(sensor._theta), np.int64)
+            first_hits(obstacles, *tables[1], hits)
+            want = np.empty_like(obstacles)
+            reach = hits.astype(np.float32) + depth
+            cell_states_by_ray(obstacles, *tables[4], reach, _STATE_LUT, want)
+            got, got_hits = np.empty_like(obstacles), np.empty_like(hits)
+            grid_states(obstacles, *tables[1], depth, *tables[4], _STATE_LUT, got_hits, got)
+            assert np.array_equal(got_hits, hits) and np.array_equal(got, want)

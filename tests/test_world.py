@@ -129,3 +129,119 @@ def test_a_checked_tick_after_unchecked_ones_tests_the_road_itself():
         assert not world.tick(0.0, 0.0, check=False).off_road
     world.ego[1] += 0.01
     assert world.tick(0.0, 0.0).off_road
+
+
+def _world_state(world):
+    f = world.traffic.fleet
+    road = world.road
+    return (world.ego.copy(), world.time, [a.copy() for a in f.state], road.version,
+            road._ego_s, road._hint, world.last, world.traffic.rng.bit_generator.state)  # fmt: skip
+
+
+@pytest.mark.parametrize("seed, participants", [(0, None), (3, None), (26, 45)])
+def test_compiled_path_following_tick_equals_the_python_tick(seed, participants):
+    """``World.tick_following`` (the trajectory action's controller, the ego's step, the road's
+    tracking, the fleet's tick and the contact test's broad phases in one compiled call)
+    leaves a world in the same state, bit for bit, as ``world.tick(*control(world))``, with
+    the same contacts: over episodes with noisy set-points, stops (no path), road growth,
+    profile renewals, vehicles alongside and collisions."""
+    import copy
+
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.frames import grid_rotation
+    from gridsim.vehicle.kinematics import PSI
+    from gridsim.world import world_kernels
+    from gridsim.world.collision_kernels import within_reach
+
+    env = GridSimEnv(**({"traffic": {"participants": participants}} if participants else {}))
+    _, info = env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    statuses, stops, alongside, contacts = set(), 0, 0, 0
+    original = world_kernels.follow_tick
+
+    def spy(*args):
+        out = original(*args)
+        statuses.add(out[0])
+        return out
+
+    world_kernels.follow_tick = spy
+    try:
+        for i in range(400):
+            action = info["reference_setpoints"].astype(np.float64)
+            if i % 40 < 4:
+                action = action + rng.normal(0, 4, action.shape)
+            if participants and i % 60 < 12:  # swerve into the next lane, speed up
+                action = action * np.array([2.0, 1.0]) + np.array([0.0, 3.5])
+            if i % 97 == 0:
+                action = -np.abs(action)  # behind the ego: a stop
+            world = env.unwrapped.world
+            rotation = grid_rotation(env._orientation, world.ego[PSI])
+            control, _ = env.action_kind.controller(world, action, rotation)
+            stops += control.path is None
+            twin = copy.deepcopy(world)
+            r_python = twin.tick(*control(twin))
+            r_compiled = world.tick_following(control)
+            assert r_compiled == r_python
+            contacts += r_python.contact.any
+            f, (_, _, radius) = twin.traffic.fleet, twin.collision.ego_box
+            cx, cy = twin.ego_center()
+            alongside += len(within_reach(f.active, f.x, f.y, f.length, f.width, cx, cy, radius))
+            for a, b in zip(_world_state(world), _world_state(twin), strict=True):
+                if isinstance(a, list):
+                    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+                elif isinstance(a, np.ndarray):
+                    assert np.array_equal(a, b)
+                else:
+                    assert a == b
+            _, _, terminated, truncated, info = env.step(info["reference_setpoints"])
+            if terminated or truncated:
+                _, info = env.reset(seed=seed + i + 1)
+    finally:
+        world_kernels.follow_tick = original
+    assert stops and statuses >= {world_kernels.DONE, world_kernels.TRAFFIC, world_kernels.BEFORE}
+    assert alongside > 0 and (contacts > 0 or not participants)
+
+
+@pytest.mark.parametrize("action_type", ["control", "discrete"])
+def test_compiled_held_inputs_tick_equals_the_python_tick(action_type):
+    """The control and discrete actions' compiled ticks (inputs held) leave a world in the
+    same state, bit for bit, as ``world.tick(*control(world))``."""
+    import copy
+
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.world import world_kernels
+
+    env = GridSimEnv(action_type=action_type)
+    env.reset(seed=5)
+    env.action_space.seed(5)
+    statuses = set()
+    original = world_kernels.follow_tick
+
+    def spy(*args):
+        out = original(*args)
+        statuses.add(out[0])
+        return out
+
+    world_kernels.follow_tick = spy
+    try:
+        for i in range(300):
+            action = env.action_space.sample()
+            if action_type == "control" and i % 3:
+                action = np.array([0.5, 0.0], np.float32)  # mostly straight on
+            world = env.unwrapped.world
+            control, _ = env.action_kind.controller(world, action, 0.0)
+            twin = copy.deepcopy(world)
+            assert world.tick_following(control) == twin.tick(*control(twin))
+            for a, b in zip(_world_state(world), _world_state(twin), strict=True):
+                if isinstance(a, list):
+                    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+                elif isinstance(a, np.ndarray):
+                    assert np.array_equal(a, b)
+                else:
+                    assert a == b
+            _, _, terminated, truncated, _ = env.step(action)
+            if terminated or truncated:
+                env.reset(seed=100 + i)
+    finally:
+        world_kernels.follow_tick = original
+    assert world_kernels.DONE in statuses

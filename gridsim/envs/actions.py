@@ -18,6 +18,7 @@ from gridsim.envs import actions_kernels as kernels
 from gridsim.road.polyline import Polyline
 from gridsim.vehicle.control import PursuitGains, follow_path
 from gridsim.vehicle.kinematics import PSI, BicycleParams, V, step_bicycle
+from gridsim.world import world_kernels
 
 Controller = Callable[[object], tuple[float, float]]  # world -> (accel, steer rate)
 #: Tight pursuit for following set-points (cuts corners less than lane keeping needs to).
@@ -101,19 +102,99 @@ class TrajectoryAction(ActionType):
         c, s = math.cos(rotation), math.sin(rotation)
         pts, first, path_arrays = kernels.setpoint_path(a, box.low, box.high, ex, ey, c, s)
         speed = float(first) / self.period
-        heading = np.array([np.cos(world.ego[PSI]), np.sin(world.ego[PSI])])
+        psi = world.ego[PSI]  # (math's cos and sin are libm's, as NumPy's on a float64 scalar)
+        heading = np.array([math.cos(psi), math.sin(psi)])
         ahead = float(np.dot(pts[0] - world.ego[:2], heading)) > 0.0
         # (a path of 2 or more points has 2 or more distinct ones: they are 1 mm apart)
-        path = Polyline.from_segments(path_arrays) if len(path_arrays[0]) >= 2 and ahead else None
-        gains = TRACKING_GAINS
-        params = self.params
+        arrays = path_arrays if len(path_arrays[0]) >= 2 and ahead else None
+        return PathControl(arrays, speed, self.params, TRACKING_GAINS, self._pursuit()), pts
 
-        def control(w) -> tuple[float, float]:
-            if path is None:  # nothing ahead to drive to: brake to a stop, hold the wheel
-                return -min(params.b_max, w.ego[V] / w.dt), 0.0
-            return follow_path(w.ego, path, speed, params, gains)
+    def _pursuit(self) -> tuple:
+        """The constant part of :meth:`PathControl.kernel_data` (made once)."""
+        if self._pursuit_data is None:
+            p, g = self.params, TRACKING_GAINS
+            limits = (p.wheelbase, p.delta_max, p.b_max, p.a_max, p.v_delta_max, g.steer_time,
+                      g.speed_gain)  # fmt: skip
+            self._pursuit_data = (float(g.min_lookahead), float(g.lookahead_time),
+                                  tuple(float(v) for v in limits), float(p.b_max))  # fmt: skip
+        return self._pursuit_data
 
-        return control, pts
+    _pursuit_data = None
+
+
+#: The path arrays :meth:`PathControl.kernel_data` hands over when there is no path.
+_NO_PATH = tuple(np.zeros(shape) for shape in [(0, 2), (0, 2), (0,), (0,), (0,)])
+
+
+class PathControl:
+    """The trajectory action's controller: pure pursuit along the path of ``arrays`` (those
+    of :func:`~gridsim.road.polyline_kernels.segments`) at ``speed`` [m/s]
+    (:func:`~gridsim.vehicle.control.follow_path`), or a stop when ``arrays`` is None. Called
+    with a world, it gives the inputs ``(accel, steer rate)``; :meth:`tick` ticks the world
+    with them (compiled where it can: :meth:`~gridsim.world.world.World.tick_following`).
+    ``pursuit``: ``(min_lookahead, lookahead_time, pursuit_one limits, b_max)`` of ``params``
+    and ``gains``."""
+
+    __slots__ = ("_arrays", "_path", "speed", "params", "gains", "_pursuit")
+
+    def __init__(self, arrays: tuple | None, speed: float, params: BicycleParams,
+                 gains: PursuitGains, pursuit: tuple) -> None:  # fmt: skip
+        self._arrays, self._path = arrays, None
+        self.speed, self.params, self.gains, self._pursuit = speed, params, gains, pursuit
+
+    @property
+    def path(self) -> Polyline | None:
+        """The path followed (None: stop), made on first use (the compiled tick reads the
+        arrays)."""
+        if self._path is None and self._arrays is not None:
+            self._path = Polyline.from_segments(tuple(a.copy() for a in self._arrays))
+        return self._path
+
+    def __call__(self, w) -> tuple[float, float]:
+        path = self.path
+        if path is None:  # nothing ahead to drive to: brake to a stop, hold the wheel
+            return -min(self.params.b_max, w.ego[V] / w.dt), 0.0
+        return follow_path(w.ego, path, self.speed, self.params, self.gains)
+
+    def tick(self, w):
+        """``w.tick(*self(w))`` (the same bits)."""
+        return w.tick_following(self)
+
+    def kernel_data(self) -> tuple:
+        """What :func:`~gridsim.world.world_kernels.follow_tick` takes as ``follow``."""
+        a = self._arrays
+        if a is None:
+            return (world_kernels.STOP, _NO_PATH, float(self.speed), *self._pursuit, _NO_HOLD)
+        # segments' order is (points, segments, lengths, headings, arc lengths)
+        arrays = (a[0], a[1], a[2], a[4], a[3])
+        return (world_kernels.PURSUIT, arrays, float(self.speed), *self._pursuit, _NO_HOLD)
+
+
+_NO_HOLD = (0.0, 0.0)
+_NO_PURSUIT = (0.0, 0.0, (0.0,) * 7, 0.0)
+
+
+class HeldInputs:
+    """The controller of the control and discrete actions: the inputs ``(accel, steer rate)``
+    held for the decision period. Called with a world, it gives them; :meth:`tick` ticks the
+    world with them (compiled where it can: :meth:`~gridsim.world.world.World.tick_following`)."""
+
+    __slots__ = ("accel", "rate")
+
+    def __init__(self, accel: float, rate: float) -> None:
+        self.accel, self.rate = accel, rate
+
+    def __call__(self, w) -> tuple[float, float]:
+        return self.accel, self.rate
+
+    def tick(self, w):
+        """``w.tick(*self(w))`` (the same bits)."""
+        return w.tick_following(self)
+
+    def kernel_data(self) -> tuple:
+        """What :func:`~gridsim.world.world_kernels.follow_tick` takes as ``follow``."""
+        held = (float(self.accel), float(self.rate))
+        return (world_kernels.HOLD, _NO_PATH, 0.0, *_NO_PURSUIT, held)
 
 
 class ControlAction(ActionType):
@@ -134,7 +215,7 @@ class ControlAction(ActionType):
             raise ValueError(f"control action must have shape (2,), got {a.shape}")
         accel, rate = float(a[0]), float(a[1])
         plan = rollout_controls(world.ego, accel, rate, self.params, self.period, self.horizon)
-        return (lambda w: (accel, rate)), plan
+        return HeldInputs(accel, rate), plan
 
 
 class DiscreteAction(ActionType):
@@ -162,7 +243,7 @@ class DiscreteAction(ActionType):
         accel = {1: p.a_max, 2: -0.5 * p.b_max}.get(k, 0.0)
         steer = {3: rate, 4: -rate}.get(k, 0.0)
         plan = rollout_controls(world.ego, accel, steer, p, self.period, self.horizon)
-        return (lambda w: (accel, steer)), plan
+        return HeldInputs(accel, steer), plan
 
 
 ACTION_TYPES: dict[str, type[ActionType]] = {

@@ -20,6 +20,7 @@ Reward: float32 ``(3,)`` fitness vector ``[l1, l2, l3]`` for the step (see
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import gymnasium as gym
@@ -205,10 +206,10 @@ class GridSimEnv(gym.Env):
         l2 = l3 = 0.0
         v_lo, v_hi = self.cfg.speed_range
         result = None
+        tick = getattr(control, "tick", None)  # the controller's own (compiled) tick
         for _ in range(self._ticks):
-            x0, y0 = world.ego[0], world.ego[1]  # NumPy scalars: np.hypot of their differences
-            result = world.tick(*control(world))
-            self._travelled += float(np.hypot(world.ego[0] - x0, world.ego[1] - y0))
+            result = tick(world) if tick is not None else world.tick(*control(world))
+            self._travelled += world.moved  # np.hypot of the rear axle's displacement
             l2 += abs(result.steer_rate)
             v = world.ego[V]
             l3 += v if v_lo <= v <= v_hi else 0.0
@@ -233,8 +234,9 @@ class GridSimEnv(gym.Env):
         w = self.world
         rotation = grid_rotation(self._orientation, w.ego[PSI])
         heading = w.ego[PSI] - rotation
+        # (math's cos and sin are libm's, as NumPy's on a float64 scalar: see kinematics)
         ego = np.array([w.ego[V], w.ego[DELTA], self._last_accel, self._last_rate,
-                        np.cos(heading), np.sin(heading)], np.float32)  # fmt: skip
+                        math.cos(heading), math.sin(heading)], np.float32)  # fmt: skip
         dest = self._ref_future_grid[-1].copy()  # the reference at the end of the horizon
         k = self._newest + 1
         grids = np.concatenate((self._grids[k:], self._grids[:k]))  # oldest first

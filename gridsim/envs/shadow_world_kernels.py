@@ -19,16 +19,13 @@ from gridsim.traffic.fleet_kernels import FleetState
 from gridsim.traffic.fleet_kernels import tick as fleet_tick
 from gridsim.traffic.profile_kernels import chain_at, continue_profiles
 from gridsim.vehicle.kinematics import step_one
-from gridsim.world.collision_kernels import may_touch
+from gridsim.world.collision_kernels import APART, may_touch
 from gridsim.world.scripted_driver_kernels import follower_inputs
 
 #: Why a batch stopped: all ticks done; before a tick Python must run; after the fleet's
 #: tick of a tick whose traffic needs Python (new profiles, a respawn); after a tick whose
 #: near miss only pymunk can rule out.
 DONE, BEFORE, TRAFFIC, CHECK = 0, 1, 2, 3
-#: A near miss is ruled out without pymunk when the boxes are apart by more than this [m]
-#: along a separating axis (pymunk's rounding is some 1e-12 m).
-APART = 1e-3
 
 _NO_CROSS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
 

@@ -64,7 +64,9 @@ class Road(ABC):
 
     @abstractmethod
     def drivable_polygons(self, center: np.ndarray, radius: float) -> list[np.ndarray]:
-        """Polygons ``(K, 2)`` whose union is the drivable area within ``radius`` of ``center``."""
+        """Polygons ``(K, 2)`` whose union is the drivable area within ``radius`` of ``center``
+        (never modified in place once handed out: the sensor keeps their concatenation while
+        the same arrays come again)."""
 
     @abstractmethod
     def boundary_segments(self) -> np.ndarray:

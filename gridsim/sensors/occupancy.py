@@ -28,11 +28,18 @@ import cv2
 import numpy as np
 
 from gridsim.frames import world_to_pixel
-from gridsim.sensors.occupancy_kernels import diagonal_map, near_corners, pixel_quads
+from gridsim.sensors.occupancy_kernels import (
+    box_quads,
+    diagonal_map,
+    near_corners,
+    pixel_points,
+    pixel_quads,
+)
 from gridsim.sensors.rays import (
     cell_states,
     cell_states_by_ray,
     first_hits,
+    grid_states,
     index_dtype,
     mark_visible,
     ray_cells,
@@ -42,6 +49,7 @@ from gridsim.sensors.rays import (
 FREE, UNKNOWN, OCCUPIED = 0, 128, 255
 # obstacle + 2 * visible -> cell state
 _STATE_LUT = np.array([UNKNOWN, UNKNOWN, FREE, OCCUPIED], np.uint8)
+_NO_QUADS = np.zeros((0, 4, 2), np.int32)
 
 
 @dataclass(frozen=True)
@@ -108,6 +116,7 @@ class OccupancyGridSensor:
         self._obstacles = np.empty((rows, cols), np.uint8)
         self._visible = np.empty((rows, cols), np.uint8)
         self._hits = np.empty(spec.rays, np.int64)
+        self._last_polygons: tuple[list[np.ndarray], np.ndarray | None] = ([], None)
 
     def _tables_for(self, ou: int, ov: int):
         """Ray samples ``(rays, samples, 2)`` (whole cells, column and row), their walk tables
@@ -170,22 +179,43 @@ class OccupancyGridSensor:
         edges are rounded outwards by up to half a cell).
         """
         a = self.world_to_pixel(ego_xy, ego_psi)
+        quads = _NO_QUADS
+        if len(boxes):
+            quads = pixel_quads(self._to_pixels(boxes.reshape(-1, 2), a).reshape(boxes.shape))
+        return self._fill(a, drivable, quads)
+
+    def _fill(self, a: np.ndarray, drivable: list[np.ndarray], quads: np.ndarray) -> np.ndarray:
+        """:meth:`obstacle_mask` for the world -> pixel map ``a`` given the footprints as
+        :func:`~gridsim.sensors.occupancy_kernels.pixel_quads` (int32 ``(N, 4, 2)``)."""
         m = self._obstacles
         m.fill(1)
         if drivable:
-            px = np.rint(self._to_pixels(np.concatenate(drivable), a) * 16).astype(np.int32)
+            points = self._concatenated(drivable)
+            if a[0, 1] == 0.0 and a[1, 0] == 0.0:
+                px = pixel_points(points, a)
+            else:
+                px = np.rint((points @ a[:, :2].T + a[:, 2]) * 16).astype(np.int32)
             start = 0
             for poly in drivable:  # one call per polygon: a multi-polygon call XORs overlaps
                 cv2.fillPoly(m, [px[start : start + len(poly)]], 0, cv2.LINE_8, shift=4)
                 start += len(poly)
-        if len(boxes):
-            # Each side moved half a pixel inwards: OpenCV's fill covers every pixel an edge
-            # touches, the inset turns that into "cells whose centre lies inside the
-            # footprint" (exactly for axis-aligned boxes).
-            corners = self._to_pixels(boxes.reshape(-1, 2), a).reshape(boxes.shape)
-            for quad in pixel_quads(corners):
-                cv2.fillConvexPoly(m, quad, 1, cv2.LINE_8, shift=4)
+        # Each side of a footprint is moved half a pixel inwards (pixel_quads): OpenCV's fill
+        # covers every pixel an edge touches, the inset turns that into "cells whose centre
+        # lies inside the footprint" (exactly for axis-aligned boxes).
+        for quad in quads:
+            cv2.fillConvexPoly(m, quad, 1, cv2.LINE_8, shift=4)
         return m
+
+    def _concatenated(self, polygons: list[np.ndarray]) -> np.ndarray:
+        """``np.concatenate(polygons)``, kept while the same polygon arrays come again (a
+        road hands out the same ones until it changes; they are never modified in place)."""
+        last, points = self._last_polygons
+        if len(last) != len(polygons) or any(
+            a is not b for a, b in zip(last, polygons, strict=True)
+        ):
+            points = np.concatenate(polygons)
+            self._last_polygons = (list(polygons), points)
+        return points
 
     def render(
         self, ego_xy, ego_psi, drivable: list[np.ndarray], boxes: np.ndarray, out=None
@@ -193,8 +223,18 @@ class OccupancyGridSensor:
         """The occupancy grid (values :data:`FREE`, :data:`UNKNOWN`, :data:`OCCUPIED`), in
         ``out`` (uint8 ``(rows, cols)``, C-contiguous) if given."""
         obstacles = self.obstacle_mask(ego_xy, ego_psi, drivable, boxes)
+        return self._states(obstacles, ego_psi, out)
+
+    def _states(self, obstacles: np.ndarray, ego_psi: float, out=None) -> np.ndarray:
+        """The cell states seen from the mounts given the ``obstacles`` mask (see
+        :meth:`render`)."""
         grid = np.empty_like(obstacles) if out is None else out
         mounts = self.spec.mounts
+        if len(mounts) == 1 and mounts[0].fov >= 2 * np.pi:
+            tables = self._tables_for(*self._mount_cell(mounts[0], ego_psi))
+            grid_states(obstacles, *tables[1], np.float32(self._depth), *tables[4], _STATE_LUT,
+                        self._hits, grid)  # fmt: skip
+            return grid
         if len(mounts) == 1:
             tables, reach = self._reach_from(mounts[0], obstacles, ego_psi)
             cell_states_by_ray(obstacles, *tables[4], reach, _STATE_LUT, grid)
@@ -207,19 +247,27 @@ class OccupancyGridSensor:
         cell_states(obstacles, visible, _STATE_LUT, grid)
         return grid
 
-    def _reach_from(self, mount: SensorMount, obstacles: np.ndarray, ego_psi: float):
-        """The tables of ``mount`` (:meth:`_tables_for`) and per ray how far [samples] it sees
-        (see :func:`~gridsim.sensors.rays.mark_visible`)."""
+    def _mount_cell(self, mount: SensorMount, ego_psi: float) -> tuple[int, int]:
+        """Where ``mount`` sits in the grid [whole cells off the centre: column, row]."""
         s = self.spec
-        north_up = s.orientation == "north_up"
-        up_dir = ego_psi if north_up else np.pi / 2  # direction of the heading in the grid
         ou = ov = 0  # a mount at the rear axle, whatever the heading
         if mount.x != 0.0 or mount.y != 0.0:
-            c, sn = np.cos(up_dir), np.sin(up_dir)
+            c, sn = np.cos(self._up_dir(ego_psi)), np.sin(self._up_dir(ego_psi))
             mx, my = mount.x * c - mount.y * sn, mount.x * sn + mount.y * c
             # round: to the nearest even on ties, as np.rint
             ou = min(max(round(mx / s.cell_size), -(s.cols // 2)), s.cols // 2)
             ov = min(max(round(-my / s.cell_size), -(s.rows // 2)), s.rows // 2)
+        return ou, ov
+
+    def _up_dir(self, ego_psi: float) -> float:
+        """The direction of the heading in the grid [rad]."""
+        return ego_psi if self.spec.orientation == "north_up" else np.pi / 2
+
+    def _reach_from(self, mount: SensorMount, obstacles: np.ndarray, ego_psi: float):
+        """The tables of ``mount`` (:meth:`_tables_for`) and per ray how far [samples] it sees
+        (see :func:`~gridsim.sensors.rays.mark_visible`)."""
+        up_dir = self._up_dir(ego_psi)
+        ou, ov = self._mount_cell(mount, ego_psi)
         tables = self._tables_for(ou, ov)
         first_hits(obstacles, *tables[1], self._hits)
         reach = self._hits.astype(np.float32) + np.float32(self._depth)
@@ -235,6 +283,12 @@ def observe(sensor: OccupancyGridSensor, world, out: np.ndarray | None = None) -
     ego_xy, psi = world.ego[:2], float(world.ego[2])
     radius = sensor.radius
     f = world.traffic.fleet
-    boxes = near_corners(f.active, f.x, f.y, f.psi, f.length, f.width, float(ego_xy[0]),
-                         float(ego_xy[1]), float(radius))  # fmt: skip
-    return sensor.render(ego_xy, psi, world.road.drivable_polygons(ego_xy, radius), boxes, out)
+    ex, ey = float(ego_xy[0]), float(ego_xy[1])
+    a = sensor.world_to_pixel(ego_xy, psi)
+    if a[0, 1] == 0.0 and a[1, 0] == 0.0:  # north-up: corners to pixels in one call
+        quads = box_quads(f.active, f.x, f.y, f.psi, f.length, f.width, ex, ey, float(radius), a)
+    else:
+        boxes = near_corners(f.active, f.x, f.y, f.psi, f.length, f.width, ex, ey, float(radius))
+        quads = pixel_quads(sensor._to_pixels(boxes.reshape(-1, 2), a).reshape(boxes.shape))
+    obstacles = sensor._fill(a, world.road.drivable_polygons(ego_xy, radius), quads)
+    return sensor._states(obstacles, psi, out)

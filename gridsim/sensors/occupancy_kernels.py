@@ -73,3 +73,25 @@ def diagonal_map(points, a):
         out[i, 0] = (x * a[0, 0] + y * a[0, 1]) + a[0, 2]
         out[i, 1] = (x * a[1, 0] + y * a[1, 1]) + a[1, 2]
     return out
+
+
+@kernel
+def pixel_points(points, a):
+    """``np.rint(diagonal_map(points, a) * 16).astype(np.int32)``: polygon vertices ``(N, 2)``
+    [m, world] in OpenCV's 4-bit fixed-point pixels, for a diagonal map ``a`` (one pass)."""
+    px = diagonal_map(points, a)
+    out = np.empty(points.shape, np.int32)
+    for i in range(px.shape[0]):
+        for j in range(2):
+            out[i, j] = np.int32(np.rint(px[i, j] * 16))
+    return out
+
+
+@kernel
+def box_quads(active, x, y, psi, length, width, ex, ey, radius, a):
+    """``pixel_quads`` of the footprints of :func:`near_corners` mapped by the diagonal map
+    ``a`` (:func:`diagonal_map`): the same kernels, in one call."""
+    corners = near_corners(active, x, y, psi, length, width, ex, ey, radius)
+    n = corners.shape[0]
+    px = diagonal_map(corners.reshape((n * 4, 2)), a)
+    return pixel_quads(px.reshape((n, 4, 2)))

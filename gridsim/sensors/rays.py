@@ -98,11 +98,14 @@ def cell_states_by_ray(obstacles, cells, cell_rad, offsets, reach, lut, out) -> 
     """``out = lut[obstacles + 2 * visible]`` (uint8, C-contiguous) where a cell is visible if
     its radius is within the ``reach`` of its ray (as :func:`mark_visible` into a cleared
     grid, then :func:`cell_states`): per ray only its visible cells are visited, nearest
-    first (the tables of :func:`ray_cells`)."""
+    first (the tables of :func:`ray_cells`). ``obstacles`` holds 0 and 1 only."""
     seen = obstacles.reshape(-1)
     flat = out.reshape(-1)
-    for c in range(len(flat)):
-        flat[c] = lut[seen[c]]
+    if lut[0] == lut[1]:  # unseen cells are all alike (obstacle or not): one fill
+        flat[:] = lut[0]
+    else:
+        for c in range(len(flat)):
+            flat[c] = lut[seen[c]]
     for k in range(len(reach)):
         r = reach[k]
         for j in range(offsets[k], offsets[k + 1]):
@@ -110,3 +113,16 @@ def cell_states_by_ray(obstacles, cells, cell_rad, offsets, reach, lut, out) -> 
                 break
             c = cells[j]
             flat[c] = lut[seen[c] + 2]
+
+
+@kernel
+def grid_states(obstacles, cells, firsts, counts, ends, depth, by_ray, cell_rad, offsets, lut,
+                hits, out) -> None:  # fmt: skip
+    """One mount seeing all around: :func:`first_hits` into ``hits``, the reach of each ray
+    ``float32(hit) + depth`` (``depth`` float32, as NumPy's ``hits.astype(np.float32) +
+    np.float32(depth)``) and :func:`cell_states_by_ray` into ``out``, in one call."""
+    first_hits(obstacles, cells, firsts, counts, ends, hits)
+    reach = np.empty(len(hits), np.float32)
+    for k in range(len(hits)):
+        reach[k] = np.float32(hits[k]) + depth
+    cell_states_by_ray(obstacles, by_ray, cell_rad, offsets, reach, lut, out)

@@ -100,9 +100,7 @@ class CollisionChecker:
         (made static pymunk shapes when first near the ego: :meth:`_load_edges`); reloads only
         when the road ``version`` changed or the ego moved more than :data:`BOUNDARY_RELOAD`
         metres since the last load."""
-        bx, by = self._boundary_center
-        moved = np.hypot(float(center[0]) - bx, float(center[1]) - by)
-        if version == self._road_version and moved < BOUNDARY_RELOAD:
+        if self.keeps_boundaries(version, float(center[0]), float(center[1])):
             return
         if self._boundary_shapes:
             self.space.remove(*self._boundary_shapes.values())
@@ -116,6 +114,23 @@ class CollisionChecker:
         self._edges, self._edge_index = np.ascontiguousarray(segments[near], np.float64), near
         self._road_version = version
         self._boundary_center = (float(center[0]), float(center[1]))
+
+    def keeps_boundaries(self, version: int, cx: float, cy: float) -> bool:
+        """Whether :meth:`set_boundaries` for road ``version`` around ``(cx, cy)`` would keep
+        the edges loaded (and do nothing)."""
+        bx, by = self._boundary_center
+        return version == self._road_version and np.hypot(cx - bx, cy - by) < BOUNDARY_RELOAD
+
+    def broad_phase_data(self) -> tuple:
+        """``(loaded edges, ego length, width, radius, core reach)``: what the broad phases of
+        :meth:`check_fleet` (``collision_kernels.within_reach``) and :meth:`_query`
+        (``collision_kernels.near_segments``) read besides the ego and the fleet. When no
+        edge is near, every vehicle the broad phase finds is clearly apart from the ego's box
+        (``collision_kernels.may_touch``) and :meth:`keeps_boundaries` holds, a check reports
+        no contact (and may be skipped: boxes placed by an earlier check stay listed in
+        ``_placed``, and the next check parks them)."""
+        return (self._edges, float(self._args[0]), float(self._args[1]),
+                float(self._ego_radius), float(self._core_reach))  # fmt: skip
 
     def _shape_for(self, index: int, length: float, width: float) -> pymunk.Body:
         """The kinematic body of participant ``index``, its box resized if needed."""

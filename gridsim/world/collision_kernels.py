@@ -11,6 +11,10 @@ import numpy as np
 from gridsim.jit import kernel
 from gridsim.traffic.fleet_kernels import FleetState
 
+#: A vehicle contact is ruled out without pymunk when the boxes are apart by more than this
+#: [m] along a separating axis (:func:`boxes_apart`; pymunk's rounding is some 1e-12 m).
+APART = 1e-3
+
 
 @kernel
 def within_reach(active, x, y, length, width, cx, cy, radius):

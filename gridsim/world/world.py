@@ -9,8 +9,9 @@ import numpy as np
 
 from gridsim.road.base import Road
 from gridsim.road.polyline import Polyline
+from gridsim.road.seamless import SeamlessRoad
 from gridsim.traffic.fleet import EgoPose
-from gridsim.traffic.sources import TrafficSource
+from gridsim.traffic.sources import SeamlessTraffic, TrafficSource
 from gridsim.traffic.track import Track
 from gridsim.vehicle.kinematics import (
     PSI,
@@ -21,8 +22,12 @@ from gridsim.vehicle.kinematics import (
     Y,
     centre_xy,
     step_bicycle,
+    step_limits,
 )
+from gridsim.world import world_kernels
 from gridsim.world.collision import CollisionChecker, Contact
+
+_NO_CONTACT = Contact()
 
 
 @dataclass(frozen=True)
@@ -67,6 +72,7 @@ class World:
         self.ego_track = ego_track
         self.ego = np.asarray(ego_state, dtype=np.float64).reshape(STATE_SIZE).copy()
         self.time = 0.0
+        self.moved = 0.0  # how far [m] the rear axle moved in the last checked tick
         self.collision = CollisionChecker(ego_params.length, ego_params.width)
         road.update(self.ego[:2])
         traffic.reset(rng, self.ego_pose())
@@ -102,8 +108,17 @@ class World:
         self.time += self.dt
         if not check:
             return self.unchecked(float(step.accel), float(step.steer_rate))
-        contact = self.check_contacts()
-        moved = float(np.hypot(self.ego[0] - previous[0], self.ego[1] - previous[1]))
+        return self._checked_tick(previous, float(step.accel), float(step.steer_rate))
+
+    def _checked_tick(
+        self, previous: np.ndarray, accel: float, steer_rate: float, contact: Contact | None = None
+    ) -> TickResult:
+        """The rest of a checked :meth:`tick` that moved the ego from ``previous`` applying
+        ``accel`` and ``steer_rate``: the contact and road-edge tests (``contact``: the
+        contacts if known)."""
+        if contact is None:
+            contact = self.check_contacts()
+        self.moved = moved = float(np.hypot(self.ego[0] - previous[0], self.ego[1] - previous[1]))
         trusted, self._checked = self._checked, True
         if contact.boundaries:
             off_road = True
@@ -112,8 +127,52 @@ class World:
             off_road = False
         else:
             off_road = not bool(self.road.is_drivable(self.ego_center()[None])[0])
-        self.last = TickResult(float(step.accel), float(step.steer_rate), contact, off_road)
+        self.last = TickResult(accel, steer_rate, contact, off_road)
         return self.last
+
+    def tick_following(self, follow) -> TickResult:
+        """A checked :meth:`tick` with the inputs of ``follow(world)``, a
+        :class:`~gridsim.envs.actions.PathControl` (pure pursuit along a path, or a stop) or
+        :class:`~gridsim.envs.actions.HeldInputs`: on a seamless road in one compiled call
+        with the traffic's tick
+        (:func:`~gridsim.world.world_kernels.follow_tick`; the same bits), otherwise, or when
+        the road must grow, in Python."""
+        args = self._follow_args(follow)
+        if args is None:
+            return self.tick(*follow(self))
+        out = world_kernels.follow_tick(*args)
+        status, accel, rate, ego, applied, steer_rate, road_s, road_hint, ended, center, quiet = out
+        if status == world_kernels.NOT_FINITE:
+            return self.tick(*follow(self))
+        if status == world_kernels.BEFORE:
+            return self.tick(accel, rate)
+        previous, self.ego = self.ego, np.array(ego)
+        self.road.set_tracked(road_s, road_hint)
+        if status == world_kernels.TRAFFIC:
+            self.traffic.refill(ended, self.ego_pose())
+        self.time += self.dt
+        contact = None
+        if quiet and self.collision.keeps_boundaries(self.road.version, *center):
+            contact = _NO_CONTACT  # what check_contacts finds: nothing near
+        return self._checked_tick(previous, applied, steer_rate, contact)
+
+    def _follow_args(self, follow) -> tuple | None:
+        """The arguments of :func:`~gridsim.world.world_kernels.follow_tick`, or None when
+        this world does not tick compiled."""
+        p = self.ego_params
+        if not (
+            p._scalar
+            and isinstance(self.road, SeamlessRoad)
+            and isinstance(self.traffic, SeamlessTraffic)
+            and self.traffic.road is self.road
+        ):
+            return None
+        road, traffic = self.road.tracking(), self.traffic.tick_data(self.dt)
+        if road is None or traffic is None:
+            return None
+        return (tuple(self.ego.tolist()), step_limits(p), self.dt, follow.kernel_data(), road,
+                traffic, (p.length, p.width, p.center_offset),
+                self.collision.broad_phase_data())  # fmt: skip
 
     def unchecked(self, accel: float, steer_rate: float) -> TickResult:
         """Record a tick that applied ``accel`` [m/s^2] and ``steer_rate`` [rad/s] without the

@@ -1,0 +1,101 @@
+"""A world tick on a seamless road with the ego following a path by pure pursuit, compiled
+(:meth:`~gridsim.world.world.World.tick_following`): the controller
+(:func:`~gridsim.vehicle.control.follow_path`, or a stop when there is no path), the ego's
+step, the road's tracking and the fleet's tick in one call, built from the very kernels and
+float functions the Python tick calls (same operations, same order: same bits), as the
+reference's shadow world does (:mod:`gridsim.envs.shadow_world_kernels`).
+
+It stops where Python has work: before the tick when the road must grow or be trimmed or an
+input is not finite (nothing done: Python ticks with the inputs computed), and after the
+fleet's tick when a participant's profile ran out or one is idle (the refill draws random
+numbers). The contact tests stay in Python.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from gridsim.jit import kernel
+from gridsim.road.polyline_kernels import ahead_of, track
+from gridsim.traffic.fleet_kernels import FleetState
+from gridsim.traffic.fleet_kernels import tick as fleet_tick
+from gridsim.vehicle.control import pursuit_one
+from gridsim.vehicle.kinematics import step_one
+from gridsim.world.collision_kernels import APART, may_touch, near_segments
+
+#: What the ego does (``follow``'s first item): stop, follow the path, hold the inputs.
+STOP, PURSUIT, HOLD = 0, 1, 2
+#: Why the call stopped: the tick is done; before it (Python ticks with the inputs computed);
+#: after the fleet's tick (Python refills the traffic); before it, with a state or an input
+#: that is not finite (Python computes the inputs and ticks).
+DONE, BEFORE, TRAFFIC, NOT_FINITE = 0, 1, 2, 3
+
+_NO_CROSS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+
+
+@kernel
+def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
+    """One tick of the ego following a path (or holding its inputs). ``ego``: its state
+    ``(x, y, psi, v, delta)``; ``step_limits``: as
+    :func:`~gridsim.vehicle.kinematics.step_one` takes them; ``follow``: ``(mode, the path's
+    (points, segments, segment lengths, arc lengths, headings), target speed,
+    min_lookahead, lookahead_time, pursuit_one limits, b_max, held inputs)``, where the mode
+    :data:`PURSUIT` follows the path by pure pursuit, :data:`STOP` brakes to a stop holding
+    the wheel and :data:`HOLD` holds ``(accel, steer rate)``; ``road``:
+    :meth:`SeamlessRoad.tracking`; ``traffic``: :meth:`SeamlessTraffic.tick_data`; ``box``:
+    the ego's ``(length, width, center_offset)``; ``broad``:
+    :meth:`CollisionChecker.broad_phase_data`.
+
+    Returns ``(status, the commanded acceleration and steering rate, the new ego state, the
+    applied acceleration and steering rate, the road's arc length and segment, the
+    participants whose profile ran out, the ego's centre, whether the contact test can find
+    nothing: no road edge near, no vehicle that is not clearly apart from the ego's box
+    (:func:`~gridsim.world.collision_kernels.may_touch`, as the reference's shadow world
+    rules near misses out))``; with status :data:`BEFORE` only the commanded
+    inputs are meaningful, with :data:`NOT_FINITE` none."""
+    x, y, psi, v, delta = ego
+    none = _NO_CROSS[0]
+    nan = (np.nan, np.nan)
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(psi) and math.isfinite(v)
+            and math.isfinite(delta)):  # fmt: skip
+        return NOT_FINITE, np.nan, np.nan, ego, np.nan, np.nan, np.nan, -1, none, nan, False
+    mode, path, speed, min_lookahead, lookahead_time, pursuit_limits, b_max, held = follow
+    if mode == HOLD:  # inputs held for the decision period (control and discrete actions)
+        accel, steer = held
+    elif mode == PURSUIT:
+        ahead = min_lookahead + lookahead_time * max(v, 0.0)
+        points, seg, seg_len, s_cum, heading = path
+        tx, ty, _ = ahead_of(points, seg, seg_len, s_cum, heading, x, y, ahead, 0.0)
+        accel, steer = pursuit_one(x, y, psi, v, delta, tx, ty, speed, pursuit_limits)
+    else:  # nothing ahead to drive to: brake to a stop, hold the wheel
+        accel, steer = -min(b_max, v / dt), 0.0
+    if not (math.isfinite(accel) and math.isfinite(steer)):
+        return NOT_FINITE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none, nan, False
+    x1, y1, psi1, v1, d1, a1, r1 = step_one(x, y, psi, v, delta, accel, steer, step_limits, dt)
+    line, ref_s, road_hint, keep_ahead, keep_behind, cut_max = road
+    points, seg, seg_len, seg_len_pow2, s_road, _ = line
+    s1, _, j1 = track(points, seg, seg_len, seg_len_pow2, s_road, x1, y1, road_hint)
+    if ref_s[-1] < s1 + keep_ahead or np.searchsorted(ref_s, s1 - keep_behind) > cut_max:
+        return BEFORE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none, nan, False
+    ego1 = (x1, y1, psi1, v1, d1)
+    length, width, center_offset = box
+    c, s = math.cos(psi1), math.sin(psi1)
+    cx, cy = x1 + center_offset * c, y1 + center_offset * s
+    pose = (True, cx, cy, v1, length, width, c, s)
+    state, paths, profiles, fleet_settings, decay, window, count = traffic
+    ended = fleet_tick(state, pose, _NO_CROSS, paths, profiles, *fleet_settings, dt, decay,
+                       window)  # fmt: skip
+    f = FleetState(*state)
+    idle = False
+    for i in range(count):
+        idle = idle or not f.active[i]
+    status = TRAFFIC if idle or len(ended) else DONE
+    edges, ego_length, ego_width, ego_radius, core_reach = broad
+    quiet = (  # (a refill that renews profiles moves no one; a respawn may)
+        not idle
+        and not may_touch(state, (cx, cy, psi1, ego_length, ego_width), ego_radius, APART)
+        and len(near_segments(edges, cx, cy, core_reach)) == 0
+    )
+    return status, accel, steer, ego1, a1, r1, s1, j1, ended, (cx, cy), quiet
