@@ -1,5 +1,6 @@
 """Worlds built from scenarios: determinism, all built-ins, the drive command."""
 
+import contextlib
 import json
 import subprocess
 import sys
@@ -138,6 +139,36 @@ def _world_state(world):
             road._ego_s, road._hint, world.last, world.traffic.rng.bit_generator.state)  # fmt: skip
 
 
+def _assert_same_world(a, b):
+    """Worlds ``a`` and ``b`` in the same state (:func:`_world_state`), bit for bit."""
+    for x, y in zip(_world_state(a), _world_state(b), strict=True):
+        if isinstance(x, list):
+            assert all(np.array_equal(p, q) for p, q in zip(x, y, strict=True))
+        elif isinstance(x, np.ndarray):
+            assert np.array_equal(x, y)
+        else:
+            assert x == y
+
+
+@contextlib.contextmanager
+def _follow_tick_statuses():
+    """The set of statuses ``world_kernels.follow_tick`` returns while the block runs."""
+    from gridsim.world import world_kernels
+
+    statuses, original = set(), world_kernels.follow_tick
+
+    def spy(*args):
+        out = original(*args)
+        statuses.add(out[0])
+        return out
+
+    world_kernels.follow_tick = spy
+    try:
+        yield statuses
+    finally:
+        world_kernels.follow_tick = original
+
+
 @pytest.mark.parametrize("seed, participants", [(0, None), (3, None), (26, 45)])
 def test_compiled_path_following_tick_equals_the_python_tick(seed, participants):
     """``World.tick_following`` (the trajectory action's controller, the ego's step, the road's
@@ -156,16 +187,8 @@ def test_compiled_path_following_tick_equals_the_python_tick(seed, participants)
     env = GridSimEnv(**({"traffic": {"participants": participants}} if participants else {}))
     _, info = env.reset(seed=seed)
     rng = np.random.default_rng(seed)
-    statuses, stops, alongside, contacts = set(), 0, 0, 0
-    original = world_kernels.follow_tick
-
-    def spy(*args):
-        out = original(*args)
-        statuses.add(out[0])
-        return out
-
-    world_kernels.follow_tick = spy
-    try:
+    stops, alongside, contacts = 0, 0, 0
+    with _follow_tick_statuses() as statuses:
         for i in range(400):
             action = info["reference_setpoints"].astype(np.float64)
             if i % 40 < 4:
@@ -186,18 +209,10 @@ def test_compiled_path_following_tick_equals_the_python_tick(seed, participants)
             f, (_, _, radius) = twin.traffic.fleet, twin.collision.ego_box
             cx, cy = twin.ego_center()
             alongside += len(within_reach(f.active, f.x, f.y, f.length, f.width, cx, cy, radius))
-            for a, b in zip(_world_state(world), _world_state(twin), strict=True):
-                if isinstance(a, list):
-                    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
-                elif isinstance(a, np.ndarray):
-                    assert np.array_equal(a, b)
-                else:
-                    assert a == b
+            _assert_same_world(world, twin)
             _, _, terminated, truncated, info = env.step(info["reference_setpoints"])
             if terminated or truncated:
                 _, info = env.reset(seed=seed + i + 1)
-    finally:
-        world_kernels.follow_tick = original
     assert stops and statuses >= {world_kernels.DONE, world_kernels.TRAFFIC, world_kernels.BEFORE}
     assert alongside > 0 and (contacts > 0 or not participants)
 
@@ -214,16 +229,7 @@ def test_compiled_held_inputs_tick_equals_the_python_tick(action_type):
     env = GridSimEnv(action_type=action_type)
     env.reset(seed=5)
     env.action_space.seed(5)
-    statuses = set()
-    original = world_kernels.follow_tick
-
-    def spy(*args):
-        out = original(*args)
-        statuses.add(out[0])
-        return out
-
-    world_kernels.follow_tick = spy
-    try:
+    with _follow_tick_statuses() as statuses:
         for i in range(300):
             action = env.action_space.sample()
             if action_type == "control" and i % 3:
@@ -232,16 +238,8 @@ def test_compiled_held_inputs_tick_equals_the_python_tick(action_type):
             control, _ = env.action_kind.controller(world, action, 0.0)
             twin = copy.deepcopy(world)
             assert world.tick_following(control) == twin.tick(*control(twin))
-            for a, b in zip(_world_state(world), _world_state(twin), strict=True):
-                if isinstance(a, list):
-                    assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
-                elif isinstance(a, np.ndarray):
-                    assert np.array_equal(a, b)
-                else:
-                    assert a == b
+            _assert_same_world(world, twin)
             _, _, terminated, truncated, _ = env.step(action)
             if terminated or truncated:
                 env.reset(seed=100 + i)
-    finally:
-        world_kernels.follow_tick = original
     assert world_kernels.DONE in statuses
