@@ -585,8 +585,9 @@ class NetPolicy:
 
     def __init__(self, net: TrajectoryNet, smoothing: float | None = None) -> None:
         self.net = net.eval()
-        keep = net.cfg.smoothing if smoothing is None else smoothing
-        self.smoother = PlanSmoother(keep) if check_keep(keep) > 0 else None
+        #: the share of the previous plan kept (resolved: the network's unless given)
+        self.keep = check_keep(net.cfg.smoothing if smoothing is None else smoothing)
+        self.smoother = PlanSmoother(self.keep) if self.keep > 0 else None
 
     @torch.no_grad()
     def __call__(self, env, obs, info):

@@ -52,6 +52,11 @@ _STATE_LUT = np.array([UNKNOWN, UNKNOWN, FREE, OCCUPIED], np.uint8)
 _NO_QUADS = np.zeros((0, 4, 2), np.int32)
 
 
+def _is_diagonal(a: np.ndarray) -> bool:
+    """Whether the affine map ``a`` ``(2, 3)`` only scales and shifts (a north-up grid's)."""
+    return a[0, 1] == 0.0 and a[1, 0] == 0.0
+
+
 @dataclass(frozen=True)
 class SensorMount:
     """A sensor on the ego: position [m] in the body frame (x forward, y left of the rear
@@ -156,9 +161,16 @@ class OccupancyGridSensor:
         """``points`` ``(N, 2)`` [m, world] mapped by the affine map ``a`` ``(2, 3)`` to pixel
         coordinates. A diagonal map (north-up) is compiled: each coordinate is one product
         plus an exact zero, the same bits as the BLAS product that other maps go through."""
-        if a[0, 1] == 0.0 and a[1, 0] == 0.0:
+        if _is_diagonal(a):
             return diagonal_map(points, a)
         return points @ a[:, :2].T + a[:, 2]
+
+    def _corner_quads(self, boxes: np.ndarray, a: np.ndarray) -> np.ndarray:
+        """The footprints ``boxes`` ``(N, 4, 2)`` [m, world] mapped by ``a`` as
+        :func:`~gridsim.sensors.occupancy_kernels.pixel_quads` (int32 ``(N, 4, 2)``)."""
+        if not len(boxes):
+            return _NO_QUADS
+        return pixel_quads(self._to_pixels(boxes.reshape(-1, 2), a).reshape(boxes.shape))
 
     def cell_centers(self, ego_xy: np.ndarray, ego_psi: float) -> np.ndarray:
         """World coordinates ``(rows, cols, 2)`` [m] of every cell centre."""
@@ -179,10 +191,7 @@ class OccupancyGridSensor:
         edges are rounded outwards by up to half a cell).
         """
         a = self.world_to_pixel(ego_xy, ego_psi)
-        quads = _NO_QUADS
-        if len(boxes):
-            quads = pixel_quads(self._to_pixels(boxes.reshape(-1, 2), a).reshape(boxes.shape))
-        return self._fill(a, drivable, quads)
+        return self._fill(a, drivable, self._corner_quads(boxes, a))
 
     def _fill(self, a: np.ndarray, drivable: list[np.ndarray], quads: np.ndarray) -> np.ndarray:
         """:meth:`obstacle_mask` for the world -> pixel map ``a`` given the footprints as
@@ -191,10 +200,10 @@ class OccupancyGridSensor:
         m.fill(1)
         if drivable:
             points = self._concatenated(drivable)
-            if a[0, 1] == 0.0 and a[1, 0] == 0.0:
+            if _is_diagonal(a):
                 px = pixel_points(points, a)
             else:
-                px = np.rint((points @ a[:, :2].T + a[:, 2]) * 16).astype(np.int32)
+                px = np.rint(self._to_pixels(points, a) * 16).astype(np.int32)
             start = 0
             for poly in drivable:  # one call per polygon: a multi-polygon call XORs overlaps
                 cv2.fillPoly(m, [px[start : start + len(poly)]], 0, cv2.LINE_8, shift=4)
@@ -252,7 +261,8 @@ class OccupancyGridSensor:
         s = self.spec
         ou = ov = 0  # a mount at the rear axle, whatever the heading
         if mount.x != 0.0 or mount.y != 0.0:
-            c, sn = np.cos(self._up_dir(ego_psi)), np.sin(self._up_dir(ego_psi))
+            up_dir = self._up_dir(ego_psi)
+            c, sn = np.cos(up_dir), np.sin(up_dir)
             mx, my = mount.x * c - mount.y * sn, mount.x * sn + mount.y * c
             # round: to the nearest even on ties, as np.rint
             ou = min(max(round(mx / s.cell_size), -(s.cols // 2)), s.cols // 2)
@@ -285,10 +295,10 @@ def observe(sensor: OccupancyGridSensor, world, out: np.ndarray | None = None) -
     f = world.traffic.fleet
     ex, ey = float(ego_xy[0]), float(ego_xy[1])
     a = sensor.world_to_pixel(ego_xy, psi)
-    if a[0, 1] == 0.0 and a[1, 0] == 0.0:  # north-up: corners to pixels in one call
+    if _is_diagonal(a):  # north-up: corners to pixels in one call
         quads = box_quads(f.active, f.x, f.y, f.psi, f.length, f.width, ex, ey, float(radius), a)
     else:
         boxes = near_corners(f.active, f.x, f.y, f.psi, f.length, f.width, ex, ey, float(radius))
-        quads = pixel_quads(sensor._to_pixels(boxes.reshape(-1, 2), a).reshape(boxes.shape))
+        quads = sensor._corner_quads(boxes, a)
     obstacles = sensor._fill(a, world.road.drivable_polygons(ego_xy, radius), quads)
     return sensor._states(obstacles, psi, out)

@@ -108,7 +108,7 @@ def heldout(
     ego = {"track": _other_tracks(cfg.scenario, cfg.ego_tracks)} if cfg.ego_tracks else None
     rows = drive_episodes(cfg.scenario, policy, seeds, seconds, ego=ego)
     env = GridSimEnv(cfg.scenario, **cfg.overrides)
-    keep = run.net_config.smoothing if smoothing is None else smoothing
+    keep = policy.keep  # the curve's plans are smoothed as the member's
     curve = TrajectoryPolicy(DestinationCurve(Setting.from_env(env)), keep)
     baseline = drive_episodes(cfg.scenario, curve, seeds, seconds, ego=ego)
     return {

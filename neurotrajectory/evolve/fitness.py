@@ -141,8 +141,8 @@ class Evaluator:
         obs = [[env.reset(seed=s)[0] for env, s in zip(row, seeds, strict=True)]
                for row in envs]  # fmt: skip
         prev: list[list[np.ndarray | None]] = [[None] * e for _ in range(k_all)]
-        keep = self.net_cfg.smoothing
-        smoothers = [[PlanSmoother(keep) for _ in range(e)] for _ in range(k_all)]
+        keep = self.net_cfg.smoothing  # one plan smoother per environment, if any
+        smoothers = [[PlanSmoother(keep) for _ in range(e)] for _ in range(k_all)] if keep else None
         grid = torch.zeros(k_all, e, t, self.net_cfg.fc1)  # fc1 x CNN features, per frame
         totals = np.zeros((k_all, e, 3))
         done_steps = np.zeros((k_all, e), int)
@@ -190,7 +190,9 @@ class Evaluator:
             plans = net.head(params, grid[rows], ego, dest).numpy()
             for a, k in enumerate(rows):
                 for j in np.flatnonzero(live[k]):
-                    plan = plans[a, j] if keep == 0 else smoothers[k][j](envs[k][j], plans[a, j])
+                    plan = plans[a, j]
+                    if smoothers is not None:
+                        plan = smoothers[k][j](envs[k][j], plan)
                     obs[k][j], reward, terminated, truncated, info = envs[k][j].step(plan)
                     totals[k, j] += reward
                     done_steps[k, j] += 1
