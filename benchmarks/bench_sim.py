@@ -20,7 +20,6 @@ import cv2  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gridsim.scenario import build_sensor, build_world, load_scenario  # noqa: E402
-from gridsim.sensors.occupancy import observe  # noqa: E402
 from gridsim.world.scripted_drivers import LaneFollower  # noqa: E402
 
 cv2.setNumThreads(1)
@@ -69,7 +68,7 @@ def bench_grid(calls: int) -> dict:
     in_range = int(np.sum(f.active & (np.hypot(f.x - world.ego[0], f.y - world.ego[1]) < 50)))
     return report(
         "occupancy_grid_128x128",
-        timed(lambda k: observe(sensor, world), calls),
+        timed(lambda k: sensor.observe(world), calls),
         500.0,
         vehicles_in_range=in_range,
     )

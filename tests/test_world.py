@@ -11,7 +11,7 @@ import pytest
 from gridsim.cli import main
 from gridsim.scenario.build import WORLD_BUILDERS, build_sensor, build_world
 from gridsim.scenario.loader import builtin_scenarios, load_scenario
-from gridsim.sensors import FREE, OCCUPIED, UNKNOWN, observe
+from gridsim.sensors import FREE, OCCUPIED, UNKNOWN
 from gridsim.world.scripted_drivers import LaneFollower
 
 
@@ -26,7 +26,7 @@ def rollout(name, seed, ticks=80):
         f = world.traffic.fleet
         egos.append(world.ego.copy())
         fleets.append(np.concatenate([f.x, f.y, f.psi, f.v, f.active]))
-        grids.append(observe(sensor, world))
+        grids.append(sensor.observe(world))
     return np.array(egos), np.array(fleets), np.array(grids)
 
 

@@ -14,7 +14,6 @@ from gridsim.render.grids import colourise
 from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
-from gridsim.sensors.occupancy import observe
 from gridsim.world.scripted_drivers import LaneFollower
 
 
@@ -45,7 +44,7 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         distance += float(np.hypot(*(world.ego[:2] - prev)))
         collisions += result.collided
         off_road += result.off_road
-        grids[k] = observe(sensor, world)
+        grids[k] = sensor.observe(world)
         times[k] = world.time
     out.mkdir(parents=True, exist_ok=True)
     write_npz(out / "grids.npz", compressed=True, grids=grids, times=times)

@@ -37,7 +37,6 @@ from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
 from gridsim.scenario.loader import Scenario
 from gridsim.scenario.parts import vehicle_params
-from gridsim.sensors.occupancy import observe
 from gridsim.vehicle.kinematics import DELTA, PSI, V
 
 REFERENCE_COLOUR = (255, 255, 255)  # the human reference set-points
@@ -131,7 +130,7 @@ class GridSimEnv(gym.Env):
         self._last_plan = None
         self._travelled = 0.0
         self._terminated = False
-        grid = observe(self.sensor, self.world)
+        grid = self.sensor.observe(self.world)
         self._grids[:] = grid[None]
         self._newest = len(self._grids) - 1
         self._look_ahead()
@@ -218,7 +217,7 @@ class GridSimEnv(gym.Env):
         self._last_accel, self._last_rate = result.accel, result.steer_rate
         self._last_plan = plan
         self._newest = (self._newest + 1) % len(self._grids)
-        observe(self.sensor, world, out=self._grids[self._newest])
+        self.sensor.observe(world, out=self._grids[self._newest])
         self._look_ahead()
         tol = self.cfg.env.destination_tolerance
         reached = self.reference.reached(world.ego[:2], self._travelled, tol)

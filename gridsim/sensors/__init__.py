@@ -7,7 +7,6 @@ from gridsim.sensors.occupancy import (
     GridSpec,
     OccupancyGridSensor,
     SensorMount,
-    observe,
 )
 
 __all__ = [
@@ -17,5 +16,4 @@ __all__ = [
     "GridSpec",
     "OccupancyGridSensor",
     "SensorMount",
-    "observe",
 ]

@@ -234,6 +234,24 @@ class OccupancyGridSensor:
         obstacles = self.obstacle_mask(ego_xy, ego_psi, drivable, boxes)
         return self._states(obstacles, ego_psi, out)
 
+    def observe(self, world, out: np.ndarray | None = None) -> np.ndarray:
+        """The occupancy grid around the ego of ``world`` (a :class:`~gridsim.world.World`:
+        its ego pose, its fleet's footprints and its road's drivable polygons), in ``out``
+        if given (see :meth:`render`)."""
+        ego_xy, psi = world.ego[:2], float(world.ego[2])
+        radius = self.radius
+        f = world.traffic.fleet
+        near = (f.active, f.x, f.y, f.psi, f.length, f.width, float(ego_xy[0]), float(ego_xy[1]),
+                float(radius))  # fmt: skip
+        a = self.world_to_pixel(ego_xy, psi)
+        if _is_diagonal(a):  # north-up: corners to pixels in one call
+            quads = box_quads(*near, a)
+        else:
+            boxes = near_corners(*near)
+            quads = self._corner_quads(boxes, a)
+        obstacles = self._fill(a, world.road.drivable_polygons(ego_xy, radius), quads)
+        return self._states(obstacles, psi, out)
+
     def _states(self, obstacles: np.ndarray, ego_psi: float, out=None) -> np.ndarray:
         """The cell states seen from the mounts given the ``obstacles`` mask (see
         :meth:`render`)."""
@@ -285,20 +303,3 @@ class OccupancyGridSensor:
             off = np.angle(np.exp(1j * (self._theta - (up_dir + mount.yaw))))
             reach[np.abs(off) > 0.5 * mount.fov] = -np.inf
         return tables, reach
-
-
-def observe(sensor: OccupancyGridSensor, world, out: np.ndarray | None = None) -> np.ndarray:
-    """The occupancy grid of ``sensor`` around the ego of ``world`` (a :class:`World`), in
-    ``out`` if given (see :meth:`OccupancyGridSensor.render`)."""
-    ego_xy, psi = world.ego[:2], float(world.ego[2])
-    radius = sensor.radius
-    f = world.traffic.fleet
-    ex, ey = float(ego_xy[0]), float(ego_xy[1])
-    a = sensor.world_to_pixel(ego_xy, psi)
-    if _is_diagonal(a):  # north-up: corners to pixels in one call
-        quads = box_quads(f.active, f.x, f.y, f.psi, f.length, f.width, ex, ey, float(radius), a)
-    else:
-        boxes = near_corners(f.active, f.x, f.y, f.psi, f.length, f.width, ex, ey, float(radius))
-        quads = sensor._corner_quads(boxes, a)
-    obstacles = sensor._fill(a, world.road.drivable_polygons(ego_xy, radius), quads)
-    return sensor._states(obstacles, psi, out)
