@@ -6,17 +6,21 @@ plus one env step), default scenario, for a preset and backend.
 
 Targets (population 32, ``--backend processes --workers 2``, 2 cores): ``default`` 1,500,
 ``paper`` 300 individual-steps/s; ``ratio`` is the measured rate over the target.
+``big_weights_gb_per_s``: how fast the rollouts stream the parameters too big to stay in a
+cache (each individual's copy is read once per decision, for all its episodes at once): the
+``paper`` preset is bound by memory bandwidth, not arithmetic.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 
 from neurotrajectory.evolve.backends import WorkerSpec, make_backend
 from neurotrajectory.evolve.evolution import GAConfig, initial_recipes
-from neurotrajectory.model import PRESETS
+from neurotrajectory.model import PRESETS, PopulationNet
 
 TARGETS = {"default": 1500.0, "paper": 300.0, "tiny": 1500.0}
 
@@ -51,11 +55,19 @@ def main() -> None:
     steps = sum(s["steps"] for s in stats)
     rate = steps / seconds
     target = TARGETS[args.preset]
+    pop_net = PopulationNet(spec.net)
+    big_bytes = 4 * sum(
+        math.prod(shape) for name, shape in pop_net.shapes.items() if name not in pop_net.small
+    )
+    # one forward per individual covers all its episodes (fewer once some have ended)
+    streamed = big_bytes * rate / args.episodes / 1e9
     print(json.dumps({"bench": "individual_steps", "preset": args.preset, "backend": args.backend,
                       "workers": args.workers, "population": args.population,
                       "batch": args.batch, "individual_steps": steps,
                       "individual_steps_per_s": round(rate, 1), "target": target,
-                      "ratio": round(rate / target, 2)}))  # fmt: skip
+                      "ratio": round(rate / target, 2),
+                      "big_weights_mb": round(big_bytes / 1e6, 1),
+                      "big_weights_gb_per_s": round(streamed, 2)}))  # fmt: skip
 
 
 if __name__ == "__main__":
