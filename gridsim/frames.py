@@ -16,6 +16,8 @@ import math
 
 import numpy as np
 
+from gridsim import libm
+
 #: The observation's ego vector, in this order (float32; heading in the grid frame).
 EGO_FEATURES = (
     "speed",  # [m/s]
@@ -35,7 +37,7 @@ def setpoint_times(period: float, horizon: int) -> np.ndarray:
 
 def ego_heading(ego: np.ndarray) -> np.ndarray:
     """The heading [rad, grid frame] of ego vectors ``(..., 6)``."""
-    return np.arctan2(ego[..., EGO_SIN], ego[..., EGO_COS])
+    return libm.arctan2(ego[..., EGO_SIN], ego[..., EGO_COS])
 
 
 def grid_rotation(orientation: str, psi: float) -> float:

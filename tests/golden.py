@@ -13,8 +13,13 @@ commit whose results are known to be right) with::
 :func:`training_digests` and :func:`dataset_digests` guard the trainer the same way: a
 short warm-started training run (its history without timings, front and checkpoint), short
 runs down the trainer's other paths (:data:`TRAINING_PATHS`; a resumed run must match the
-uninterrupted one) and recorded window datasets. The training digests involve torch's CPU
-kernels and hold for this machine type (single-threaded torch, same instruction set).
+uninterrupted one) and recorded window datasets.
+
+The simulator's digests hold on every x86-64 CPU (its transcendental functions go through
+libm: :mod:`gridsim.libm`). The training digests involve torch's CPU kernels (MKL, oneDNN,
+ATen's vectorised functions), whose float rounding depends on the CPU's vendor and instruction
+set: they are recorded per :func:`numerics_platform`, and a platform with no record of its
+own skips those tests (record it with ``python tests/golden.py training training_paths``).
 """
 
 from __future__ import annotations
@@ -31,6 +36,32 @@ from gridsim.scenario import build_world, load_scenario
 from gridsim.world.scripted_drivers import LaneFollower
 
 GOLDEN_PATH = Path(__file__).parent / "data" / "golden_digests.json"
+
+
+def numerics_platform() -> str:
+    """``"<CPU vendor>/<torch CPU capability>"``, e.g. ``"AuthenticAMD/AVX512"``: what torch's
+    float rounding depends on. A record under ``"*/<capability>"`` holds for any vendor."""
+    import torch
+
+    vendor = "unknown"
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("vendor_id"):
+                vendor = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    return f"{vendor}/{torch.backends.cpu.get_cpu_capability()}"
+
+
+def training_golden(golden: dict, section: str) -> dict | None:
+    """The digests of ``section`` recorded for this machine's :func:`numerics_platform`, or
+    None when it has none."""
+    records = golden[section]
+    platform = numerics_platform()
+    return records.get(platform, records.get("*/" + platform.split("/", 1)[1]))
+
+
 SCENARIOS = ("seamless", "inner_city", "us101_3_3", "us101_4_1", "lankershim_1_1", "peachtree_4_8")
 SEEDS = (0, 7)
 POLICIES = ("reference", "reference_shifted", "control", "discrete")
@@ -218,12 +249,13 @@ def record(sections: tuple[str, ...]) -> dict:
             print(name, flush=True)
     if "datasets" in sections:
         out["datasets"] = {f"{c[0]}/{c[2]}": dataset_digests(*c) for c in DATASET_CASES}
+    platform = numerics_platform()
     if "training" in sections:
         with tempfile.TemporaryDirectory() as tmp:
-            out["training"] = training_digests(Path(tmp) / "run")
+            out.setdefault("training", {})[platform] = training_digests(Path(tmp) / "run")
     if "training_paths" in sections:
         with tempfile.TemporaryDirectory() as tmp:
-            out["training_paths"] = {
+            out.setdefault("training_paths", {})[platform] = {
                 name: training_path_digests(Path(tmp) / name, name) for name in TRAINING_PATHS
             }
     return out

@@ -5,6 +5,7 @@ from importlib import resources
 import numpy as np
 import pytest
 
+from gridsim import libm
 from gridsim.errors import DataError
 from gridsim.road.city import CityParams, CityRoad, route_statistics
 from gridsim.road.lanelet import load_lanelet_road
@@ -205,7 +206,7 @@ def _numpy_project(line: Polyline, xy, lo, hi):
 def _numpy_frenet(line: Polyline, s, d):
     seg = np.diff(line.points, axis=0)
     i = np.clip(np.searchsorted(line.s, s, side="right") - 1, 0, len(seg) - 1)
-    h = np.arctan2(seg[i, 1], seg[i, 0])
+    h = libm.arctan2(seg[i, 1], seg[i, 0])
     p = line.points[i] + ((s - line.s[i]) / np.hypot(*seg[i].T))[..., None] * seg[i]
     return p + d[..., None] * np.stack([-np.sin(h), np.cos(h)], axis=-1), h
 
@@ -218,7 +219,7 @@ def _numpy_arrays(points, s_start):
     seg = np.diff(pts, axis=0)
     seg_len = np.hypot(seg[:, 0], seg[:, 1])
     s = s_start + np.concatenate([[0.0], np.cumsum(seg_len)])
-    return pts, seg, seg_len, np.arctan2(seg[:, 1], seg[:, 0]), s
+    return pts, seg, seg_len, libm.arctan2(seg[:, 1], seg[:, 0]), s
 
 
 def _numpy_track(line: Polyline, x, y, hint):

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from gridsim import libm
 from gridsim.road.base import Lane, StaticRoad
 from gridsim.road.polyline import Polyline
 
@@ -45,20 +46,20 @@ def _fillet_path(nodes: np.ndarray, offset: float, radius: float, ds: float) -> 
     for k in range(len(u) - 1):
         u1, u2 = u[k], u[k + 1]
         cross = u1[0] * u2[1] - u1[1] * u2[0]
-        turn = np.arctan2(cross, float(u1 @ u2))
+        turn = libm.arctan2(cross, float(u1 @ u2))
         # Corner: intersection of the two offset lines.
         denom = 1.0 + float(right[k] @ right[k + 1])
         corner = nodes[k + 1] + offset * (right[k] + right[k + 1]) / max(denom, 1e-6)
         if abs(turn) < 1e-3:
             continue
-        t = radius * np.tan(abs(turn) / 2)
+        t = radius * libm.tan(abs(turn) / 2)
         room = 0.45 * min(np.linalg.norm(corner - cursor), np.linalg.norm(ends[k + 1] - corner))
-        r = radius if t <= room else room / np.tan(abs(turn) / 2)
-        t = r * np.tan(abs(turn) / 2)
+        r = radius if t <= room else room / libm.tan(abs(turn) / 2)
+        t = r * libm.tan(abs(turn) / 2)
         a = corner - u1 * t
         sign = np.sign(turn)
         centre = a + sign * r * np.array([-u1[1], u1[0]])
-        h0 = np.arctan2(u1[1], u1[0])
+        h0 = libm.arctan2(u1[1], u1[0])
         n = max(2, int(np.ceil(r * abs(turn) / ds)) + 1)
         phi = h0 + np.linspace(0.0, turn, n)
         arc = centre + sign * r * np.stack([np.sin(phi), -np.cos(phi)], axis=1)
@@ -180,7 +181,7 @@ def route_statistics(route: Polyline, min_curve_deg: float = 5.0) -> tuple[float
     A curve is a maximal run of consecutive segments that turn; runs turning less than
     ``min_curve_deg`` in total count as straight.
     """
-    h = np.unwrap(np.arctan2(*np.diff(route.points, axis=0)[:, ::-1].T))
+    h = np.unwrap(libm.arctan2(*np.diff(route.points, axis=0)[:, ::-1].T))
     seg_len = np.diff(route.s)
     dh = np.diff(h)
     turning = np.abs(dh) > 1e-4

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gridsim import libm
 from gridsim.road import polyline_kernels as kernels
 
 
@@ -128,8 +129,8 @@ class Polyline:
     def offset(self, d: float) -> np.ndarray:
         """Points of the curve offset by ``d`` to the left (vertex normals averaged)."""
         h = self._heading
-        hv = np.concatenate([[h[0]], np.angle(np.exp(1j * h[:-1]) + np.exp(1j * h[1:])), [h[-1]]])
-        half_turn = np.concatenate([[0.0], 0.5 * np.angle(np.exp(1j * (h[1:] - h[:-1]))), [0.0]])
+        hv = np.concatenate([[h[0]], libm.angle(np.exp(1j * h[:-1]) + np.exp(1j * h[1:])), [h[-1]]])
+        half_turn = np.concatenate([[0.0], 0.5 * libm.angle(np.exp(1j * (h[1:] - h[:-1]))), [0.0]])
         scale = 1.0 / np.maximum(np.cos(half_turn), 0.2)
         normal = np.stack([-np.sin(hv), np.cos(hv)], axis=-1)
         return self.points + (d * scale)[:, None] * normal

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from gridsim import libm
 from gridsim.frames import world_to_pixel
 from gridsim.sensors.occupancy_kernels import (
     box_quads,
@@ -139,7 +140,7 @@ class OccupancyGridSensor:
         )
         v, u = np.mgrid[0 : s.rows, 0 : s.cols].astype(np.float64)
         du, dv = u - u0, v - v0
-        ang = np.mod(np.arctan2(-dv, du), 2 * np.pi)
+        ang = np.mod(libm.arctan2(-dv, du), 2 * np.pi)
         ray = np.rint(ang / (2 * np.pi) * s.rays).astype(np.intp) % s.rays
         ray = ray.astype(index_dtype(s.rays))
         rad = (np.hypot(du, dv) / self._dr).astype(np.float32)
@@ -300,6 +301,6 @@ class OccupancyGridSensor:
         first_hits(obstacles, *tables[1], self._hits)
         reach = self._hits.astype(np.float32) + np.float32(self._depth)
         if mount.fov < 2 * np.pi:
-            off = np.angle(np.exp(1j * (self._theta - (up_dir + mount.yaw))))
+            off = libm.angle(np.exp(1j * (self._theta - (up_dir + mount.yaw))))
             reach[np.abs(off) > 0.5 * mount.fov] = -np.inf
         return tables, reach

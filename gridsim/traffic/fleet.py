@@ -31,6 +31,7 @@ from functools import lru_cache
 import numpy as np
 from scipy.spatial import cKDTree
 
+from gridsim import libm
 from gridsim.traffic import fleet_kernels as kernels
 from gridsim.traffic.fleet_kernels import IDM as IDM  # the modes, re-exported
 from gridsim.traffic.fleet_kernels import REPLAY
@@ -265,7 +266,7 @@ class Fleet:
 @lru_cache(maxsize=8)
 def _decay(dt: float) -> float:
     """The factor by which a lateral bias decays over ``dt`` [s] (time constant 2 s)."""
-    return np.exp(-dt / 2.0)
+    return libm.exp(-dt / 2.0)
 
 
 def _ego(ego: EgoPose | None) -> tuple:

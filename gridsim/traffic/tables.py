@@ -10,6 +10,7 @@ import copy
 
 import numpy as np
 
+from gridsim import libm
 from gridsim.traffic import table_kernels
 
 _GAP = 1.0  # separation of tables on the shared key axis
@@ -181,7 +182,7 @@ class PathBank(TableBank):
         return self._corridor_arr[slots]
 
     def _on_rebuild(self) -> None:
-        self._heading = np.arctan2(self._slope[:, 1], self._slope[:, 0])
+        self._heading = libm.arctan2(self._slope[:, 1], self._slope[:, 0])
         self._normal = np.stack([-np.sin(self._heading), np.cos(self._heading)], axis=1)
 
     def frenet_to_world(self, slots, s, d):

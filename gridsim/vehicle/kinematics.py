@@ -28,6 +28,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from gridsim import libm
 from gridsim.jit import jitable
 
 X, Y, PSI, V, DELTA = range(5)
@@ -142,9 +143,9 @@ def step_bicycle(
     # Yaw rate at t = 0, dt/2, dt; Simpson's rule for the heading and the position.
     ddt = vd * dt
     inv_l = 1.0 / p.wheelbase
-    w0 = v0 * np.tan(d0) * inv_l
-    wh = vh * np.tan(d0 + 0.5 * ddt) * inv_l
-    w1 = v1 * np.tan(d0 + ddt) * inv_l
+    w0 = v0 * libm.tan(d0) * inv_l
+    wh = vh * libm.tan(d0 + 0.5 * ddt) * inv_l
+    w1 = v1 * libm.tan(d0 + ddt) * inv_l
     psih = psi0 + dt / 24.0 * (5.0 * w0 + 8.0 * wh - w1)
     psi1 = psi0 + dt / 6.0 * (w0 + 4.0 * wh + w1)
     x1 = x0 + dt / 6.0 * (v0 * np.cos(psi0) + 4.0 * vh * np.cos(psih) + v1 * np.cos(psi1))

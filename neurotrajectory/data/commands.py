@@ -20,6 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from gridsim import libm
+
 STEER_STEP_DEG = 3.0
 STEER_BINS_EACH_SIDE = 10  # +-30 degrees
 N_STEER = 2 * STEER_BINS_EACH_SIDE + 1
@@ -47,7 +49,7 @@ def implied_commands(
     covers the distance to it in ``times[-1]``."""
     last = np.asarray(setpoints, float)[:, -1]
     dist = np.hypot(last[:, 0], last[:, 1])
-    angle = np.arctan2(last[:, 1], last[:, 0]) - heading
+    angle = libm.arctan2(last[:, 1], last[:, 0]) - heading
     angle = np.where(dist >= _MIN_TRAVEL, (angle + np.pi) % (2 * np.pi) - np.pi, 0.0)
     steer = (
         np.clip(

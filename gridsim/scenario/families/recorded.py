@@ -7,6 +7,7 @@ from functools import lru_cache, partial
 
 import numpy as np
 
+from gridsim import libm
 from gridsim.errors import DataError, ScenarioError
 from gridsim.road.base import StaticRoad
 from gridsim.road.lanelet import load_lanelet_road
@@ -126,7 +127,7 @@ def initial_steering(track: Track, params: BicycleParams) -> float:
     if dist < 1.0:
         return 0.0
     curvature = (track.heading[n - 1] - track.heading[0]) / dist
-    delta = np.arctan(params.wheelbase * curvature)
+    delta = libm.arctan(params.wheelbase * curvature)
     return float(np.clip(delta, -params.delta_max, params.delta_max))
 
 

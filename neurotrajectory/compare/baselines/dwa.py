@@ -39,6 +39,7 @@ from dataclasses import dataclass, replace
 import cv2
 import numpy as np
 
+from gridsim import libm
 from gridsim.frames import EGO_SPEED, EGO_STEERING, ego_heading, grid_to_pixel
 from gridsim.sensors.occupancy import FREE, OCCUPIED
 from gridsim.vehicle.kinematics import PSI, V, step_bicycle
@@ -259,7 +260,7 @@ class DWA:
         n = len(v0)
         v_t = np.concatenate([speeds.reshape(n, -1), v_lo[:, None]], axis=1)
         d_t = np.concatenate([steers.reshape(n, -1), d0[:, None]], axis=1)
-        lateral = v_t**2 * np.abs(np.tan(d_t)) / wheelbase[:, None]
+        lateral = v_t**2 * np.abs(libm.tan(d_t)) / wheelbase[:, None]
         valid = lateral <= cfg.max_lateral_accel
         valid[:, -1] = True
         return v_t, d_t, valid
@@ -299,11 +300,11 @@ class DWA:
         dy = destination[:, None, 1] - end[..., 1]
         horizon = float(self.setting.times[-1])
         goal = np.hypot(dx, dy) / max(p.v_max * horizon, 1.0)
-        error = np.abs((end[..., PSI] - np.arctan2(dy, dx) + np.pi) % (2 * np.pi) - np.pi)
+        error = np.abs((end[..., PSI] - libm.arctan2(dy, dx) + np.pi) % (2 * np.pi) - np.pi)
         heading = np.where(np.hypot(dx, dy) < 1.0, 0.0, error)
         proximity = 1.0 / (1.0 + np.maximum(min_gap, 0.0))
         speed = (p.v_max - end[..., V]) / max(p.v_max, 1e-6)
-        lateral = np.max(traj[..., V] ** 2 * np.abs(np.tan(traj[..., 4])), axis=2) / (
+        lateral = np.max(traj[..., V] ** 2 * np.abs(libm.tan(traj[..., 4])), axis=2) / (
             wheelbase[:, None] * cfg.max_lateral_accel
         )
         steer = np.abs(end[..., 4] - d0[:, None]) / max(p.v_delta_max * cfg.control_period, 1e-6)

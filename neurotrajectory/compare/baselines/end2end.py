@@ -20,6 +20,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from gridsim import libm
 from gridsim.outputs import write_json
 from neurotrajectory.compare.predictors import Setting, observation_batch
 from neurotrajectory.data.commands import (
@@ -167,7 +168,7 @@ class CommandPolicy:
         wheelbase = float(batch.vehicle[0, 0])
         speed = max(float(batch.speed[0]), 1.0)
         reach = speed * float(self.model.setting.times[-1])
-        desired = np.arctan(wheelbase * 2.0 * theta / reach)  # arc: chord angle = kappa s / 2
+        desired = libm.arctan(wheelbase * 2.0 * theta / reach)  # arc: chord angle = kappa s / 2
         error = desired - float(batch.ego[0, 1])
         half_step = np.deg2rad(1.5)
         if error > half_step:
