@@ -7,8 +7,9 @@ plus one env step), default scenario, for a preset and backend.
 Targets (population 32, ``--backend processes --workers 2``, 2 cores): ``default`` 1,500,
 ``paper`` 300 individual-steps/s; ``ratio`` is the measured rate over the target.
 ``big_weights_gb_per_s``: how fast the rollouts stream the parameters too big to stay in a
-cache (each individual's copy is read once per decision, for all its episodes at once): the
-``paper`` preset is bound by memory bandwidth, not arithmetic.
+cache (each individual's copy is read once per decision, for all its episodes at once; a lower
+bound, counted as if no episode ended early): the ``paper`` preset is bound by memory
+bandwidth, not arithmetic.
 """
 
 from __future__ import annotations

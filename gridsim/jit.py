@@ -4,7 +4,9 @@ numba is imported only by the modules that define kernels (not by ``import grids
 compiled code is cached next to the source (or in numba's user-wide cache directory when the
 package directory is read-only), so that later processes load it instead of compiling; when
 no cache location is writable at all, kernels are compiled once per process. ``fastmath`` is
-never used: kernels must give the same bits as the NumPy code they replace.
+never used: kernels must give the same bits as the NumPy code they replace. Nor is Intel's
+SVML (numba would vectorise ``math`` calls with it when ``intel-cmplr-lib-rt`` is installed,
+with other results than libm's): ``NUMBA_DISABLE_INTEL_SVML`` is set unless the user set it.
 
 numba checks a cached kernel against its own source file only: after editing a kernel that
 kernels in other modules call (e.g. ``polyline_kernels.project``, called by
@@ -14,10 +16,13 @@ files of the package (a fresh checkout has none), or the callers keep the old co
 
 from __future__ import annotations
 
+import os
 from collections.abc import Callable
 
-import numba
-from numba.extending import register_jitable
+os.environ.setdefault("NUMBA_DISABLE_INTEL_SVML", "1")  # read when numba is first imported
+
+import numba  # noqa: E402
+from numba.extending import register_jitable  # noqa: E402
 
 
 def kernel(fn: Callable) -> Callable:

@@ -1,15 +1,17 @@
-"""Elementary functions of float64 numbers and arrays computed by the C library (libm), so that
-a result does not depend on the CPU it was computed on.
+"""Elementary functions of float64 and float32 numbers and arrays computed by the C library
+(libm), so that a result does not depend on the CPU's vector instructions.
 
 NumPy computes ``arctan2``, ``arctan``, ``tan``, ``exp``, ``power`` and others with its own
 SIMD code on CPUs with AVX-512 (``numpy.show_runtime()`` lists ``X86_V4``); those results differ
 from the C library's, and so between machines, in the last bit for a few percent of inputs. On
-other CPUs NumPy calls the C library, as numba's kernels and Python's ``math`` always do. The
-simulator computes every such function that a result depends on here, and so gives the same bits
-on every machine (``tests/test_golden.py``; ``tests/test_libm.py`` compares with ``math``).
+AVX2 CPUs NumPy calls the C library (``atan2`` for float64, ``atan2f`` for float32), as numba's
+kernels and Python's ``math`` do. The simulator computes every such function that a result
+depends on here (``tests/test_libm.py`` compares with NumPy on AVX2 and with ``math``).
 
-Each function takes Python or NumPy scalars (returns a Python float) or arrays of any shape,
-broadcast together (returns a float64 array).
+Each function takes scalars or arrays of any shape, broadcast together. float32 inputs (all of
+them float32) give float32 results (libm's float function), anything else float64. Python and
+float64 scalars give a Python float, float32 scalars a ``np.float32``. Non-finite inputs and
+overflow give nan / inf as NumPy does (no exception); complex input is refused.
 """
 
 from __future__ import annotations
@@ -20,44 +22,41 @@ from collections.abc import Callable
 import numpy as np
 
 
-def _unary(scalar: Callable[[float], float], name: str):
-    def f(x):
-        if np.ndim(x) == 0:
-            return scalar(float(x))
-        from gridsim import libm_kernels  # numba only when an array first needs it
+def _apply(name: str, scalar: Callable, args: tuple):
+    arrays = [np.asarray(a) for a in args]
+    if any(np.iscomplexobj(a) for a in arrays):
+        raise TypeError(f"gridsim.libm.{name} takes real numbers, got a complex input")
+    dtype = np.float32 if all(a.dtype == np.float32 for a in arrays) else np.float64
+    if dtype == np.float64 and all(a.ndim == 0 for a in arrays):
+        try:
+            return scalar(*(float(a) for a in arrays))
+        except (ValueError, OverflowError):  # math raises where libm gives nan / inf
+            pass
+    from gridsim import libm_kernels  # numba only when an array first needs it
 
-        a = np.ascontiguousarray(x, dtype=np.float64)
-        out = np.empty(a.shape)
-        getattr(libm_kernels, name)(a.reshape(-1), out.reshape(-1))
-        return out
+    arrays = np.broadcast_arrays(*(a.astype(dtype, copy=False) for a in arrays))
+    out = np.empty(arrays[0].shape, dtype)
+    flat = [np.array(a, dtype=dtype, order="C").reshape(-1) for a in arrays]  # own copies
+    getattr(libm_kernels, name)(*flat, out.reshape(-1))
+    if out.ndim == 0:
+        return float(out) if dtype == np.float64 else out[()]
+    return out
+
+
+def _function(name: str, scalar: Callable):
+    def f(*args):
+        return _apply(name, scalar, args)
 
     f.__name__ = f.__qualname__ = name
     f.__doc__ = f"``math.{scalar.__name__}`` of each element (see the module)."
     return f
 
 
-def _binary(scalar: Callable[[float, float], float], name: str):
-    def f(a, b):
-        if np.ndim(a) == 0 and np.ndim(b) == 0:
-            return scalar(float(a), float(b))
-        from gridsim import libm_kernels
-
-        a, b = np.broadcast_arrays(np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64))
-        out = np.empty(a.shape)
-        flat = [np.ascontiguousarray(v).reshape(-1) for v in (a, b)]
-        getattr(libm_kernels, name)(*flat, out.reshape(-1))
-        return out
-
-    f.__name__ = f.__qualname__ = name
-    f.__doc__ = f"``math.{scalar.__name__}`` of each pair of elements (see the module)."
-    return f
-
-
-arctan2 = _binary(math.atan2, "arctan2")
-power = _binary(math.pow, "power")
-arctan = _unary(math.atan, "arctan")
-tan = _unary(math.tan, "tan")
-exp = _unary(math.exp, "exp")
+arctan2 = _function("arctan2", math.atan2)
+power = _function("power", math.pow)
+arctan = _function("arctan", math.atan)
+tan = _function("tan", math.tan)
+exp = _function("exp", math.exp)
 
 
 def angle(z) -> np.ndarray | float:

@@ -39,8 +39,10 @@ GOLDEN_PATH = Path(__file__).parent / "data" / "golden_digests.json"
 
 
 def numerics_platform() -> str:
-    """``"<CPU vendor>/<torch CPU capability>"``, e.g. ``"AuthenticAMD/AVX512"``: what torch's
-    float rounding depends on. A record under ``"*/<capability>"`` holds for any vendor."""
+    """``"<CPU vendor>/<torch CPU capability>/torch <version>"``, e.g.
+    ``"AuthenticAMD/AVX512/torch 2.13.0"``: what torch's float rounding depends on. The record
+    of the first (AVX2) machine, whose vendor was not noted, is stored under ``"*/AVX2/..."``
+    and stands for any vendor."""
     import torch
 
     vendor = "unknown"
@@ -51,13 +53,13 @@ def numerics_platform() -> str:
                 break
     except OSError:
         pass
-    return f"{vendor}/{torch.backends.cpu.get_cpu_capability()}"
+    return f"{vendor}/{torch.backends.cpu.get_cpu_capability()}/torch {torch.__version__}"
 
 
 def training_golden(golden: dict, section: str) -> dict | None:
     """The digests of ``section`` recorded for this machine's :func:`numerics_platform`, or
     None when it has none."""
-    records = golden[section]
+    records = golden.get(section, {})
     platform = numerics_platform()
     return records.get(platform, records.get("*/" + platform.split("/", 1)[1]))
 

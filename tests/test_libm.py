@@ -46,3 +46,57 @@ def test_views_and_other_dtypes_are_read_as_float64():
 def test_angle_is_the_argument_of_complex_numbers():
     z = np.exp(1j * X)
     assert np.array_equal(libm.angle(z), np.vectorize(math.atan2)(z.imag, z.real))
+
+
+def _libm_float_function(name: str):
+    """The C library's float32 function ``name`` (``atan2f``, ...), through ctypes."""
+    import ctypes
+    import ctypes.util
+
+    fn = getattr(ctypes.CDLL(ctypes.util.find_library("m")), name)
+    fn.restype = ctypes.c_float
+    return fn
+
+
+@pytest.mark.parametrize(
+    ("ours", "c_name", "args"),
+    [
+        (libm.arctan2, "atan2f", (X[:3], Y)),
+        (libm.power, "powf", (P[:3], np.float32(4.0))),
+        (libm.arctan, "atanf", (X[:3],)),
+        (libm.tan, "tanf", (X[:3],)),
+        (libm.exp, "expf", (X[:3],)),
+    ],
+)
+def test_float32_inputs_use_the_c_librarys_float_functions(ours, c_name, args):
+    import ctypes
+
+    args32 = tuple(np.asarray(a, dtype=np.float32) for a in args)
+    fn = _libm_float_function(c_name)
+    arrays = np.broadcast_arrays(*args32)
+    expected = np.array(
+        [
+            fn(*(ctypes.c_float(v) for v in vs))
+            for vs in zip(*(a.ravel() for a in arrays), strict=True)
+        ],
+        dtype=np.float32,
+    )
+    out = ours(*args32)
+    assert out.dtype == np.float32
+    assert np.array_equal(out.ravel(), expected)
+    assert ours(*(a.ravel()[0] for a in arrays)) == expected[0]  # a float32 scalar
+    # mixed with float64: computed in float64
+    assert ours(*(a.astype(np.float64) for a in args32)).dtype == np.float64
+
+
+def test_non_finite_inputs_give_nan_or_inf_as_numpy_does():
+    assert math.isnan(libm.tan(math.inf))
+    assert libm.exp(1000.0) == math.inf
+    assert math.isnan(libm.power(-8.0, 1.0 / 3.0))
+    assert libm.power(0.0, -1.0) == math.inf
+    assert np.isnan(libm.arctan(np.array([math.nan])))[0]
+
+
+def test_complex_input_is_refused():
+    with pytest.raises(TypeError, match="libm.exp takes real numbers"):
+        libm.exp(np.array([1j]))
