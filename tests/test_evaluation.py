@@ -168,6 +168,14 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
     assert "| RMSE |" in md and "human (NGSIM)" in md and "simulator" in md
     doc = json.loads((out / "results.json").read_text())
     assert doc["neurotrajectory"]["urban"]["population"] == 4
+    # every closed-loop episode is listed, and the table's figures are their means
+    urban = next(g for g in doc["groups"] if g["group"] == "urban")
+    for method, stats in urban["closed_loop"].items():
+        episodes = stats["per_episode"]
+        assert len(episodes) == stats["episodes"] == 2, method  # 1 seed x 2 urban scenes
+        assert len({e["scenario"] for e in episodes}) == 2
+        assert stats["completed"] == pytest.approx(np.mean([e["completed"] for e in episodes]))
+        assert all(isinstance(e["seed"], int) for e in episodes)
 
 
 def test_evaluation_is_deterministic(tiny_run, tmp_path):

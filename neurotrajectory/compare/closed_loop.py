@@ -78,5 +78,7 @@ def summarise(rows: list[dict]) -> dict:
 def closed_loop(
     scenario: str, policy, seeds: list[int], seconds: float, video: Path | None = None
 ) -> dict:
-    """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``."""
-    return summarise(drive_episodes(scenario, policy, seeds, seconds, video))
+    """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``, with the rows
+    of its episodes (:func:`drive_episodes`) under ``"per_episode"``."""
+    rows = drive_episodes(scenario, policy, seeds, seconds, video)
+    return summarise(rows) | {"per_episode": rows}

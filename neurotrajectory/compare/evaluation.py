@@ -177,14 +177,20 @@ def _evaluate_group(
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
         bar = tqdm(policies.items(), desc=f"closed loop {group} ({len(seeds)} episodes each)",
                    unit="method", leave=False, disable=not progress)  # fmt: skip
+        scenarios = group_scenarios(group, cfg.sources.get(group))
         for name, policy in bar:
             slug = name.lower().replace(" ", "-")
             per = [closed_loop(sc, policy, seeds, cfg.closed_loop_seconds,
                                 out / "videos" / f"{group}-{Path(sc).stem}-{slug}.mp4"
                                 if cfg.videos else None)
-                   for sc in group_scenarios(group, cfg.sources.get(group))]  # fmt: skip
-            loop[name] = {k: float(np.mean([p[k] for p in per])) for k in per[0]}
+                   for sc in scenarios]  # fmt: skip
+            loop[name] = {k: float(np.mean([p[k] for p in per]))
+                          for k in per[0] if k != "per_episode"}  # fmt: skip
             loop[name]["episodes"] = int(sum(p["episodes"] for p in per))
+            # every episode's outcome, to look up the failures (results.json)
+            loop[name]["per_episode"] = [{"scenario": Path(sc).stem, **row}
+                                         for sc, p in zip(scenarios, per, strict=True)
+                                         for row in p["per_episode"]]  # fmt: skip
     return GroupResult(group, ds.manifest["source"], len(train), len(test),
                        len(np.unique(test.track)), scores, loop, best)  # fmt: skip
 
