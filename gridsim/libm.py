@@ -34,7 +34,7 @@ def _apply(name: str, scalar: Callable, args: tuple):
             pass
     from gridsim import libm_kernels  # numba only when an array first needs it
 
-    arrays = np.broadcast_arrays(*(a.astype(dtype, copy=False) for a in arrays))
+    arrays = np.broadcast_arrays(*arrays)
     out = np.empty(arrays[0].shape, dtype)
     flat = [np.array(a, dtype=dtype, order="C").reshape(-1) for a in arrays]  # own copies
     getattr(libm_kernels, name)(*flat, out.reshape(-1))

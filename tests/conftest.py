@@ -11,18 +11,8 @@ uses whatever OpenBLAS picks: see docs/performance.md, bit-identity.
 
 import os
 import sys
-from pathlib import Path
 
+from proc_cpuinfo import cpuinfo_field
 
-def _cpu_flags() -> set[str]:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("flags"):
-                return set(line.split(":", 1)[1].split())
-    except OSError:
-        pass
-    return set()
-
-
-if "numpy" not in sys.modules and {"avx2", "fma"} <= _cpu_flags():
+if "numpy" not in sys.modules and {"avx2", "fma"} <= set(cpuinfo_field("flags").split()):
     os.environ.setdefault("OPENBLAS_CORETYPE", "Haswell")

@@ -30,6 +30,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+from proc_cpuinfo import cpuinfo_field
 
 from gridsim.envs import ENV_ID
 from gridsim.scenario import build_world, load_scenario
@@ -45,14 +46,7 @@ def numerics_platform() -> str:
     and stands for any vendor."""
     import torch
 
-    vendor = "unknown"
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("vendor_id"):
-                vendor = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    vendor = cpuinfo_field("vendor_id") or "unknown"
     return f"{vendor}/{torch.backends.cpu.get_cpu_capability()}/torch {torch.__version__}"
 
 
