@@ -16,6 +16,7 @@ from gridsim.outputs import output_problem, write_json
 from neurotrajectory.compare.front import heldout_problem
 from neurotrajectory.data.windows import DAGGER_LABELS, GROUPS
 from neurotrajectory.evolve.backends import BACKENDS, BackendError
+from neurotrajectory.evolve.evolution import SELECTIONS
 from neurotrajectory.evolve.pareto import PICKS
 from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
 from neurotrajectory.model import ACTIVATIONS, EVOLVE_SCOPES, PRESETS, PRIORS
@@ -98,11 +99,14 @@ def _heldout(
     path = Path(out) if out else run.out / "heldout.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     write_json(path, report)
-    net, curve = report["network"], report["destination curve"]
-    print(f"{pick} member on {episodes} held-out episodes of {report['episode_seconds']:g} s: "
-          f"completed {net['completed']:.0%} (destination curve {curve['completed']:.0%}), "
-          f"progress {net['progress']:.0%} of the human's, "
-          f"mean l1 {net['l1']:.0f} m^2 (destination curve {curve['l1']:.0f})")  # fmt: skip
+    print(f"{pick} member on {episodes} held-out episodes of {report['episode_seconds']:g} s:")
+    rows = [(f"{pick} member", report["network"]), ("its warm start", report.get("warm_start")),
+            ("destination curve", report["destination curve"])]  # fmt: skip
+    for name, r in rows:
+        if r is not None:
+            print(f"  {name:<18} completed {r['completed']:4.0%}  progress {r['progress']:4.0%} "
+                  f"of the human's  mean l1 {r['l1']:8.0f} m^2  steering "
+                  f"{r['mean_steer_rate']:.2f} rad/s")  # fmt: skip
 
 
 def _rollout(
@@ -313,6 +317,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="how the DAgger windows are labelled: 'rejoin' (default), the human's path "
         "shifted by the ego's offset from the human, the shift fading out over the horizon; "
         "'human', the human's next set-points from there",
+    )
+    t.add_argument(
+        "--selection",
+        choices=list(SELECTIONS),
+        default=None,
+        help="how parents are selected: 'pareto' (default), constrained NSGA-II on the three "
+        "objectives; 'anchored', with a warm start: the warm start stays in every generation "
+        "and a member whose l1 is worse than its is ranked as a constraint violation",
     )
     t.add_argument(
         "--evolve",

@@ -56,15 +56,27 @@ def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[T
     except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as exc:
         raise RunError(f"{path}: unreadable front ({type(exc).__name__}: {exc})") from None
     cfg = scenario_net_config(run.config.scenario, run.config.overrides, base)
-    nets = []
-    for genome in genomes:
-        net = TrajectoryNet(cfg)
-        problem = genome_mismatch(net, genome.shape[-1])
-        if problem:
-            raise RunError(f"{path}: {problem}")
-        set_genome(net, genome)
-        nets.append(net.eval())
-    return run, fitness, genomes, nets
+    return run, fitness, genomes, [_net(cfg, genome, path) for genome in genomes]
+
+
+def _net(cfg: NetConfig, genome: np.ndarray, path: Path) -> TrajectoryNet:
+    """A network of ``cfg`` with the weights ``genome`` (read from ``path``)."""
+    net = TrajectoryNet(cfg)
+    problem = genome_mismatch(net, genome.shape[-1])
+    if problem:
+        raise RunError(f"{path}: {problem}")
+    set_genome(net, genome)
+    return net.eval()
+
+
+def load_warm_start(run: Run, smoothing: float | None = None) -> NetPolicy | None:
+    """A policy for the run's warm start (generation 0's parent; its plans smoothed as the
+    run's, or by ``smoothing``), or None for a run without one."""
+    genome = run.warm_start_genome()
+    if genome is None:
+        return None
+    cfg = scenario_net_config(run.config.scenario, run.config.overrides, run.net_config)
+    return NetPolicy(_net(cfg, genome, run.out / "warm_start.npz"), smoothing)
 
 
 def load_front_member(
@@ -96,7 +108,8 @@ def heldout(
     recorded scene trained on some ``ego_tracks``, the scene's other tracks that can be the
     ego), each
     ``seconds`` long (default: as long as the training episodes), beside the destination
-    curve's on the same episodes, both plans smoothed alike: as the run's, or by ``smoothing``."""
+    curve's and, if the run has one, its warm start's (``"warm_start"``: what evolution started
+    from) on the same episodes, all plans smoothed alike: as the run's, or by ``smoothing``."""
     from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
     from neurotrajectory.compare.closed_loop import drive_episodes, summarise
     from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
@@ -111,6 +124,8 @@ def heldout(
     keep = policy.keep  # the curve's plans are smoothed as the member's
     curve = TrajectoryPolicy(DestinationCurve(Setting.from_env(env)), keep)
     baseline = drive_episodes(cfg.scenario, curve, seeds, seconds, ego=ego)
+    warm = load_warm_start(run, keep)
+    started = None if warm is None else drive_episodes(cfg.scenario, warm, seeds, seconds, ego=ego)
     return {
         "member": member,
         "episode_seconds": seconds,
@@ -118,8 +133,10 @@ def heldout(
         **({"ego_tracks": ego["track"]} if ego else {}),
         "seeds": seeds,
         "network": summarise(rows),
+        **({"warm_start": summarise(started)} if started else {}),
         "destination curve": summarise(baseline),
         "episodes": rows,
+        **({"warm_start_episodes": started} if started else {}),
     }
 
 

@@ -103,6 +103,14 @@ class Backend(ABC):
         """Fitness ``(size, 3)`` and per-individual episode statistics on the episodes
         ``seeds``."""
 
+    @abstractmethod
+    def evaluate_members(
+        self, indices: list[int], seeds: tuple[int, ...]
+    ) -> tuple[np.ndarray, list[dict]]:
+        """Fitness ``(len(indices), 3)`` and episode statistics of the individuals
+        ``indices`` (in that order) on the episodes ``seeds``; the ``j``-th goes to worker
+        ``j % workers`` (an individual's result does not depend on where it runs)."""
+
     def close(self) -> None:  # noqa: B027 - optional
         pass
 
@@ -121,6 +129,20 @@ def _jobs(size: int, workers: int, seeds: tuple[int, ...]) -> list:
     return [(list(range(k, size, workers)), tuple(seeds)) for k in range(workers)]
 
 
+def _members(indices: list[int], parts: list[list[Evaluated]]):
+    """The results of ``parts`` in the order of ``indices`` (no index twice)."""
+    found = {i: (f, s) for part in parts for i, f, s in part}
+    return (np.array([found[i][0] for i in indices]).reshape(len(indices), 3),
+            [found[i][1] for i in indices])  # fmt: skip
+
+
+def _check_members(indices: list[int]) -> list[int]:
+    indices = [int(i) for i in indices]
+    if len(set(indices)) != len(indices):
+        raise BackendError(f"evaluate_members: an index twice in {indices}")
+    return indices
+
+
 class LocalBackend(Backend):
     """One worker in this process; its population is the trainer's (made once)."""
 
@@ -136,6 +158,10 @@ class LocalBackend(Backend):
 
     def evaluate(self, size, seeds):
         return _collect(size, [self.worker.evaluate((list(range(size)), seeds))])
+
+    def evaluate_members(self, indices, seeds):
+        indices = _check_members(indices)
+        return _members(indices, [self.worker.evaluate((indices, tuple(seeds)))])
 
 
 def _serve(conn, spec: WorkerSpec) -> None:
@@ -183,6 +209,11 @@ class RemoteBackend(Backend):
 
     def evaluate(self, size, seeds):
         return _collect(size, self._all("evaluate", _jobs(size, self.workers, seeds)))
+
+    def evaluate_members(self, indices, seeds):
+        indices = _check_members(indices)
+        jobs = [(indices[k :: self.workers], tuple(seeds)) for k in range(self.workers)]
+        return _members(indices, self._all("evaluate", jobs))
 
 
 class ProcessBackend(RemoteBackend):

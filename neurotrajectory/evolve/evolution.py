@@ -12,6 +12,14 @@ so that no evaluation is spent on an exact copy. All draws come from a generator
 (run seed, generation): a run is reproducible and resumable. Generation 0 is drawn the same
 way (:func:`initial_recipes`), or around a warm start's genome (:func:`warm_start_recipes`,
 from a stream of its own).
+
+**Anchored selection** (``SELECTIONS["anchored"]``, with a warm start): the warm start's genome
+stays in every generation as individual 0, the *anchor*, evaluated on the same episodes as
+everyone else; a member whose l1 is worse than the anchor's on those episodes violates a
+constraint (:func:`anchored_violation`: below any member that kept every episode going,
+above any that lost time), and the elites are the first front's members nearest its knee
+(not its extremes). Selection then keeps the planner at least as close to the human as the
+warm start and searches for members closer still, trading l2 and l3 only among those.
 """
 
 from __future__ import annotations
@@ -22,7 +30,27 @@ import numpy as np
 
 from gridsim.seeding import Salt, stream
 from neurotrajectory.evolve.genome import Recipe
-from neurotrajectory.evolve.pareto import minimised, rank_and_crowding
+from neurotrajectory.evolve.pareto import knee_distance, minimised, rank_and_crowding
+
+#: How a generation's parents are selected: ``pareto``, constrained NSGA-II on the three
+#: objectives; ``anchored``, the same with the warm start kept as individual 0 and its l1 as
+#: a constraint (see the module docstring).
+SELECTIONS = ("pareto", "anchored")
+
+#: The anchor's index in every generation of an anchored run.
+ANCHOR = 0
+
+
+def anchored_violation(fitness: np.ndarray, lost: np.ndarray, anchor: int = ANCHOR) -> np.ndarray:
+    """The constraint violation of anchored selection: a member that lost episode time
+    (``lost`` > 0, the share lost) scores ``1 + lost``, above any that did not; among those,
+    a member whose l1 exceeds the anchor's by the share ``x`` scores ``x / (1 + x)`` (in
+    [0, 1)), and one no worse than the anchor 0."""
+    fitness = np.asarray(fitness, dtype=np.float64)
+    lost = np.asarray(lost, dtype=np.float64)
+    ref = fitness[anchor, 0]
+    excess = np.maximum(fitness[:, 0] - ref, 0.0) / max(abs(ref), 1e-9)
+    return np.where(lost > 0, 1.0 + lost, excess / (1.0 + excess))
 
 
 @dataclass(frozen=True)
@@ -75,17 +103,27 @@ def next_generation(
     genome_size: int,
     table_size: int,
     violation: np.ndarray | None = None,
+    anchored: bool = False,
 ) -> tuple[list[Recipe], np.ndarray]:
     """Recipes of the next population from the fitness ``(K, 3)`` of this one (and its
-    constraint ``violation`` ``(K,)``, if any). Also returns the (constrained) Pareto rank of
-    every individual of this generation."""
+    constraint ``violation`` ``(K,)``, if any; ``anchored``: the violation of
+    :func:`anchored_violation`, and individual :data:`ANCHOR` is carried over as the next
+    generation's anchor). Also returns the (constrained) Pareto rank of every individual of
+    this generation."""
     k = config.population
-    rank, crowd = rank_and_crowding(minimised(fitness), violation)
+    f = minimised(fitness)
+    rank, crowd = rank_and_crowding(f, violation)
     rng = generation_rng(seed, generation)
-    # Elites: the first front, least crowded first, capped.
     front = np.flatnonzero(rank == 0)
     cap = max(1, int(round(config.elite_fraction * k)))
-    elites = front[np.argsort(-crowd[front], kind="stable")][:cap]
+    if anchored:
+        # the anchor first, then the first front's members nearest its knee
+        others = front[front != ANCHOR]
+        near = others[np.argsort(knee_distance(f[others]), kind="stable")] if len(others) else []
+        elites = [ANCHOR, *near[: cap - 1]]
+    else:
+        # the first front, least crowded first, capped
+        elites = front[np.argsort(-crowd[front], kind="stable")][:cap]
     recipes = [Recipe(parent=int(i)) for i in elites]
 
     def tournament() -> int:

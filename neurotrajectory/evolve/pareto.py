@@ -101,15 +101,22 @@ def minimised(fitness: np.ndarray) -> np.ndarray:
 PICKS = ("knee", "best-l1", "best-l2", "best-l3")
 
 
+def knee_distance(f: np.ndarray) -> np.ndarray:
+    """Each point's distance from the ideal point after scaling each (minimised) objective of
+    ``f`` ``(N, M)`` to [0, 1] over the points; the knee is the nearest."""
+    f = np.asarray(f, dtype=np.float64)
+    lo, hi = f.min(axis=0), f.max(axis=0)
+    z = (f - lo) / np.where(hi > lo, hi - lo, 1.0)
+    return np.hypot.reduce(z, axis=1)
+
+
 def pick_member(fitness: np.ndarray, pick: str) -> int:
     """Index into the front: ``best-lK`` optimises one objective; ``knee`` is the member
     closest to the ideal point after scaling each (minimised) objective to [0, 1] over
-    the front."""
+    the front (:func:`knee_distance`)."""
     f = minimised(fitness)
     if pick == "knee":
-        lo, hi = f.min(axis=0), f.max(axis=0)
-        z = (f - lo) / np.where(hi > lo, hi - lo, 1.0)
-        return int(np.argmin(np.hypot.reduce(z, axis=1)))
+        return int(np.argmin(knee_distance(f)))
     if pick in PICKS:
         return int(np.argmin(f[:, PICKS.index(pick) - 1]))
     raise ValueError(f"unknown pick {pick!r}; choose from {list(PICKS)}")

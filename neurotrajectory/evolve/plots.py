@@ -1,5 +1,6 @@
-"""Plots of a run: objectives per generation (the paper's Fig. 6), the Pareto front and the
-hypervolume per generation. Written headless (Agg) into ``<run>/plots/``."""
+"""Plots of a run: objectives per generation (the paper's Fig. 6), the Pareto front, the
+hypervolume per generation and the learning curve (each generation's knee on the validation
+episodes, beside the warm start). Written headless (Agg) into ``<run>/plots/``."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from neurotrajectory.evolve.pareto import pick_member  # noqa: E402
 
@@ -70,7 +72,37 @@ def plot_run(out: str | Path, history: list[dict]) -> list[Path]:
     ax.set_ylabel("hypervolume (normalised to generation 0)")
     fig.tight_layout()
     paths.append(_save(fig, folder / "hypervolume.png"))
-    return paths
+    curve = learning_curve(folder / "learning_curve.png", history)
+    return paths + ([curve] if curve else [])
+
+
+def learning_curve(path: Path, history: list[dict]) -> Path | None:
+    """Each generation's knee on the validation episodes (``knee_validation``), one panel per
+    objective, with the warm start on the same episodes as a line; generations whose knee
+    lost episode time (a collision or leaving the road) are crossed. None without
+    validation scores."""
+    points = [(h["generation"], h["knee_validation"]) for h in history if "knee_validation" in h]
+    if not points:
+        return None
+    gens = np.array([g for g, _ in points])
+    warm = history[0].get("warm_start_validation")
+    lost = np.array([v["violation"] > 0 for _, v in points])
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    for ax, key, name in zip(axes, ("l1", "l2", "l3"), NAMES, strict=True):
+        y = np.array([v[key] for _, v in points])
+        ax.plot(gens, y, marker="o", ms=4, color="tab:blue", label="knee of the generation")
+        if lost.any():
+            ax.scatter(gens[lost], y[lost], s=60, marker="x", color="black", zorder=3,
+                       label="the knee lost an episode")  # fmt: skip
+        if warm is not None:
+            ax.axhline(warm[key], color="tab:orange", ls="--", label="warm start")
+        ax.set_xlabel("generation")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        ax.set_title(name, fontsize=9)
+    axes[0].legend(fontsize=8)
+    fig.suptitle("learning curve: on the validation episodes (none trained on)", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path)
 
 
 def _save(fig, path: Path) -> Path:

@@ -2,7 +2,9 @@
 
 A run directory holds ``config.json`` (the resolved configuration), ``checkpoint.npz``
 (the last complete generation: its population and fitness, written atomically),
-``history.json`` (every generation's fitness vectors, Pareto ranks, hypervolume, timing),
+``history.json`` (every generation's fitness vectors, Pareto ranks, hypervolume, timing and,
+with validation episodes, its knee's validation score: the learning curve),
+``warm_start.npz`` (the warm start's genome, generation 0's parent, if the run has one),
 ``front.npz`` / ``front.json`` (the final Pareto front: weights and fitness) and ``plots/``.
 A resumed run continues after the last complete generation and gives the same result as an
 uninterrupted run with the same seed.
@@ -37,14 +39,17 @@ from neurotrajectory.data.windows import (
 )
 from neurotrajectory.evolve.backends import BACKENDS, WorkerSpec, make_backend
 from neurotrajectory.evolve.evolution import (
+    ANCHOR,
+    SELECTIONS,
     GAConfig,
+    anchored_violation,
     initial_recipes,
     next_generation,
     warm_start_recipes,
 )
 from neurotrajectory.evolve.fitness import net_config_for, scenario_net_config
 from neurotrajectory.evolve.genome import genome_mismatch, initial_genome, set_genome
-from neurotrajectory.evolve.pareto import hypervolume, minimised, non_dominated_sort
+from neurotrajectory.evolve.pareto import hypervolume, minimised, non_dominated_sort, pick_member
 from neurotrajectory.evolve.population import Population, Source, Start
 from neurotrajectory.model import (
     ACTIVATIONS,
@@ -59,6 +64,7 @@ from neurotrajectory.model import (
 
 FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
 PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
+WARM_START_FILE = "warm_start.npz"  # the warm start's genome in a run folder
 
 
 class RunError(RuntimeError):
@@ -112,12 +118,15 @@ class TrainConfig:
     #: closed loop: the share of the previous plan kept in each plan the car follows (in
     #: training, held-out episodes, evaluation and videos; see NetConfig.smoothing)
     plan_smoothing: float = 0.7
+    #: how parents are selected (:data:`~neurotrajectory.evolve.evolution.SELECTIONS`):
+    #: "anchored" keeps the warm start in every generation and its l1 as a constraint
+    selection: str = "pareto"
 
     #: What format-1 configurations (saved before these fields existed) meant.
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human",
-              "plan_smoothing": 0.0}  # fmt: skip
+              "plan_smoothing": 0.0, "selection": "pareto"}  # fmt: skip
     #: Fields added within format 2, and what a format-2 configuration without them meant.
-    LATER = {"dagger_labels": "human", "plan_smoothing": 0.0}
+    LATER = {"dagger_labels": "human", "plan_smoothing": 0.0, "selection": "pareto"}
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
@@ -190,6 +199,17 @@ class TrainConfig:
                            "pretrain_episodes), or evolve 'all'")  # fmt: skip
         if self.prior is not None and self.prior not in PRIORS:
             raise RunError(f"unknown prior {self.prior!r}; choose from {list(PRIORS)}")
+        if self.selection not in SELECTIONS:
+            raise RunError(f"unknown selection {self.selection!r}; choose from "
+                           f"{list(SELECTIONS)}")  # fmt: skip
+        if self.anchored and not (self.pretrain or self.pretrain_episodes):
+            raise RunError("selection 'anchored' keeps the warm start as the anchor: give "
+                           "--pretrain or --pretrain-episodes, or selection 'pareto'")  # fmt: skip
+
+    @property
+    def anchored(self) -> bool:
+        """The warm start is kept in every generation and its l1 is a constraint."""
+        return self.selection == "anchored"
 
     @property
     def ga(self) -> GAConfig:
@@ -332,8 +352,13 @@ class Run:
                            f"({self.config.population})")  # fmt: skip
         return gen, pop, fit, violation
 
-    def _violation(self, violation: np.ndarray) -> np.ndarray | None:
-        """What selection sees of the constraint (nothing for unconstrained runs)."""
+    def _violation(self, violation: np.ndarray, fitness: np.ndarray) -> np.ndarray | None:
+        """What selection sees of the constraint: the share of episode time lost (nothing for
+        unconstrained runs); anchored, with l1 worse than the anchor's below that
+        (:func:`~neurotrajectory.evolve.evolution.anchored_violation`)."""
+        if self.config.anchored:
+            lost = violation if self.config.constrained else np.zeros(len(fitness))
+            return anchored_violation(fitness, lost)
         return violation if self.config.constrained else None
 
     def load_history(self) -> list[dict]:
@@ -393,8 +418,10 @@ class Run:
             fitness, stats = backend.evaluate(cfg.population, cfg.episode_seeds(gen))
             violation = np.array([s.get("lost", 0.0) for s in stats])
             recipes, rank = self._next_generation(population, gen, fitness, violation)
-            history.append(self._record(gen, fitness, violation, rank, stats,
-                                        time.perf_counter() - t0, history))  # fmt: skip
+            record = self._record(gen, fitness, violation, rank, stats,
+                                  time.perf_counter() - t0, history)  # fmt: skip
+            record |= self._validate_knee(backend, gen, fitness, rank, source)
+            history.append(record)
             write_npz(
                 self.out / "checkpoint.npz",
                 generation=np.array(gen),
@@ -430,15 +457,35 @@ class Run:
         """The recipes of the generation after ``gen`` and its (constrained) Pareto ranks."""
         cfg = self.config
         return next_generation(fitness, cfg.ga, cfg.seed, gen, population.genome_size,
-                               len(population.table), self._violation(violation))  # fmt: skip
+                               len(population.table), self._violation(violation, fitness),
+                               anchored=cfg.anchored)  # fmt: skip
+
+    def _validate_knee(self, backend, gen, fitness, rank, source: Source) -> dict:
+        """The learning curve's point of generation ``gen``: its knee (picked from its first
+        front on its own episodes) evaluated on the validation episodes; in generation 0 of a
+        warm-started run also the warm start (individual 0). Nothing without validation
+        episodes."""
+        seeds = self.config.validation_seeds
+        if not seeds:
+            return {}
+        front = np.flatnonzero(rank == 0)
+        knee = int(front[pick_member(fitness[front], "knee")])
+        warm = gen == 0 and source is Source.WARM_START
+        members = [knee] + ([ANCHOR] if warm and knee != ANCHOR else [])
+        fit, stats = backend.evaluate_members(members, seeds)
+        scores = {i: _score(i, f, s) for i, f, s in zip(members, fit, stats, strict=True)}
+        out = {"knee_validation": scores[knee]}
+        if warm:
+            out["warm_start_validation"] = scores[ANCHOR]
+        return out
 
     def _warm_start(self, probe: TrajectoryNet) -> np.ndarray:
-        """The warm start's genome; writes ``pretrain.json``. Fits the network to the
-        pre-training windows; each DAgger round then drives the fitted network on the
-        pre-training episodes, labels every state it visits with the human's next set-points
-        from there, and fits a fresh start to all windows so far (same seed, same held-out
-        tracks, validated on human windows only; ``dagger_weight`` weighs the visited windows),
-        so that the network learns to recover from its own mistakes."""
+        """The warm start's genome; writes ``pretrain.json`` and :data:`WARM_START_FILE`.
+        Fits the network to the pre-training windows; each DAgger round then drives the
+        fitted network on the pre-training episodes, labels every state it visits with the
+        human's next set-points from there, and fits a fresh start to all windows so far (same
+        seed, same held-out tracks, validated on human windows only; ``dagger_weight`` weighs
+        the visited windows), so that the network learns to recover from its own mistakes."""
         from neurotrajectory.evolve.warm_start import pretrain_genome
 
         cfg = self.config
@@ -466,7 +513,21 @@ class Run:
         if rounds:
             stats |= {"dagger": rounds, "dagger_weight": cfg.dagger_weight}
         write_json(self.out / "pretrain.json", {**source, **stats})
+        write_npz(self.out / WARM_START_FILE, genome=base,
+                  net=np.array(json.dumps(self.net_config.to_dict())))  # fmt: skip
         return base
+
+    def warm_start_genome(self) -> np.ndarray | None:
+        """The warm start's genome (generation 0's parent), or None for a run without one
+        (or saved before warm starts were kept)."""
+        path = self.out / WARM_START_FILE
+        if not path.exists():
+            return None
+        try:
+            with np.load(path) as data:
+                return data["genome"]
+        except Exception as exc:
+            raise RunError(f"{path}: unreadable warm start ({type(exc).__name__}: {exc})") from None
 
     def _pretrain_windows(self):
         """The warm start's windows, where they came from, and the episodes of the training
@@ -530,7 +591,7 @@ class Run:
             backend.load(population)
             fitness, stats = backend.evaluate(len(population), seeds)
             violation = np.array([s.get("lost", 0.0) for s in stats])
-        rank = non_dominated_sort(minimised(fitness), self._violation(violation))
+        rank = non_dominated_sort(minimised(fitness), self._violation(violation, fitness))
         members = np.flatnonzero(rank == 0)
         write_npz(
             self.out / "front.npz",
@@ -555,8 +616,11 @@ class Run:
             ],  # fmt: skip
             "hypervolume": [h["hypervolume"] for h in self.load_history()],
         }
+        history = self.load_history()
+        if seeds and history and "warm_start_validation" in history[0]:
+            summary["warm_start"] = history[0]["warm_start_validation"]  # on the same episodes
         write_json(self.out / "front.json", summary)
-        plot_run(self.out, self.load_history())
+        plot_run(self.out, history)
         return summary
 
 
@@ -642,3 +706,9 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
         raise RunError(f"--pretrain {config.pretrain} has no track of scene {scene!r}, which "
                        f"{config.scenario!r} replays: record windows of that scene")  # fmt: skip
     return replace(config, ego_tracks=tuple(ids))
+
+
+def _score(index: int, fitness: np.ndarray, stats: dict) -> dict:
+    """A member's fitness and lost share on some episodes, as the history keeps it."""
+    return {"index": index, "l1": float(fitness[0]), "l2": float(fitness[1]),
+            "l3": float(fitness[2]), "violation": float(stats.get("lost", 0.0))}  # fmt: skip

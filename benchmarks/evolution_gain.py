@@ -1,0 +1,100 @@
+"""What evolution buys over its warm start: each group's documented recipe
+(``docs/neurotrajectory.md``) trained with a given seed and selection, then its knee, its warm
+start and the destination curve driven on the same held-out episodes (seamless and
+inner-city: 40 episodes of 20 s; recorded groups: 20 of the run's held-out tracks, 10 s).
+Prints one JSON line per run; the runs stay in ``--out`` (``GROUP-sSEED-VARIANT/``).
+
+    python benchmarks/evolution_gain.py --out runs/gain --groups seamless --seeds 3 4 \\
+        --variants pareto anchored
+
+Choose settings on development seeds (3, 4, ...); report on 0, 1, 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+COMMON = ["--population", "24", "--generations", "25", "--episodes", "2", "--backend",
+          "processes", "--workers", "2", "--heldout", "0", "--quiet"]  # fmt: skip
+
+#: Each group's recipe: the training flags, the dataset it records first (``record`` flags, or
+#: None), and the held-out drive (episodes, seconds).
+GROUPS = {
+    "seamless": (["--scenario", "seamless", "--pretrain-episodes", "12",
+                  "--episode-seconds", "15"], None, (40, 20.0)),
+    "inner_city": (["--scenario", "inner_city", "--pretrain-episodes", "96", "--activation",
+                    "tanh", "--episode-seconds", "15", "--validation-episodes", "32"], None,
+                   (40, 20.0)),
+    "highway": (["--scenario", "us101_4_1", "--episode-seconds", "10"],
+                ["--scenario", "highway", "--split", "train"], (20, 10.0)),
+    "urban": (["--scenario", "lankershim_1_1", "--episode-seconds", "10"],
+              ["--scenario", "urban", "--split", "train"], (20, 10.0)),
+}  # fmt: skip
+
+#: Flags added to the recipe.
+VARIANTS = {
+    "pareto": ["--selection", "pareto"],
+    "anchored": ["--selection", "anchored"],
+    "anchored-4-episodes": ["--selection", "anchored", "--episodes", "4"],
+    "one-generation": ["--generations", "1"],
+}
+
+
+def _nt(*args: str) -> float:
+    """Run ``neurotrajectory ARGS``; its wall time [s]."""
+    t0 = time.perf_counter()
+    subprocess.run([sys.executable, "-m", "neurotrajectory", *args], check=True,
+                   stdout=subprocess.DEVNULL)  # fmt: skip
+    return time.perf_counter() - t0
+
+
+def _row(summary: dict) -> dict:
+    return {k: round(summary[k], 3) for k in ("completed", "collision", "off_road", "progress",
+                                              "l1", "mean_steer_rate")}  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=True, help="a folder for the runs and datasets")
+    ap.add_argument("--groups", nargs="+", default=list(GROUPS), choices=list(GROUPS))
+    ap.add_argument("--seeds", nargs="+", type=int, default=[3])
+    ap.add_argument("--variants", nargs="+", default=["pareto", "anchored"],
+                    choices=list(VARIANTS))  # fmt: skip
+    args = ap.parse_args()
+    root = Path(args.out)
+    for group in args.groups:
+        flags, record, (episodes, seconds) = GROUPS[group]
+        if record is not None:  # the train side of evaluate's split (its seed 0)
+            data = root / f"data-{group}"
+            if not data.exists():
+                _nt("record", *record, "--out", str(data))
+            flags = [*flags, "--pretrain", str(data)]
+        for seed in args.seeds:
+            for variant in args.variants:
+                run = root / f"{group}-s{seed}-{variant}"
+                train_s = None
+                if not (run / "front.json").exists():
+                    train_s = _nt("train", *flags, *COMMON, *VARIANTS[variant], "--seed",
+                                  str(seed), "--out", str(run))  # fmt: skip
+                report = run / f"heldout-{episodes}x{seconds:g}s.json"
+                drive_s = None
+                if not report.exists():
+                    drive_s = _nt("heldout", "--run", str(run), "--episodes", str(episodes),
+                                  "--seconds", str(seconds), "--out", str(report))  # fmt: skip
+                r = json.loads(report.read_text())
+                print(json.dumps({
+                    "group": group, "seed": seed, "variant": variant,
+                    "train_s": train_s and round(train_s), "heldout_s": drive_s and round(drive_s),
+                    "episodes": f"{episodes} x {seconds:g} s", "knee": _row(r["network"]),
+                    "warm_start": _row(r["warm_start"]) if "warm_start" in r else None,
+                    "curve": _row(r["destination curve"]),
+                }), flush=True)  # fmt: skip
+
+
+if __name__ == "__main__":
+    main()
