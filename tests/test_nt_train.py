@@ -160,7 +160,9 @@ def test_train_and_rollout_commands(tmp_path, capsys):
     video = str(out / "knee.mp4")
     assert main(["train", *args, "--out", str(out), "--video", video, "--heldout", "2"]) == 0
     assert (out / "knee.mp4").stat().st_size > 1000
-    assert "knee member on 2 held-out episodes of 3 s: completed" in capsys.readouterr().out
+    printed = capsys.readouterr().out
+    assert "knee member on 2 held-out episodes of 3 s:" in printed
+    assert "  knee member        completed" in printed and "destination curve  completed" in printed
     report = json.loads((out / "heldout.json").read_text())
     assert report["seeds"] == list(Run.open(out).config.heldout_seeds(2))
     assert len(report["episodes"]) == 2 and 0 <= report["network"]["completed"] <= 1
@@ -390,6 +392,7 @@ _OTHER_VALUES = {
     "--dagger-labels": "human", "--prior": "none", "--frame": "grid", "--no-skip": None,
     "--fixed-episodes": None, "--unconstrained": None, "--validation-episodes": "3",
     "--evolve": "head", "--activation": "tanh", "--plan-smoothing": "0.5",
+    "--selection": "anchored",
 }  # fmt: skip
 #: ``train`` flags that are about the command, not the run's configuration.
 _COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quiet"}

@@ -87,6 +87,27 @@ def test_the_anchored_front_is_no_worse_than_the_warm_start_on_validation_l1(anc
         assert member["violation"] == 0 and member["l1"] <= warm["l1"]
 
 
+def test_the_best_validated_knee_is_kept_as_a_final_candidate(anchored_run):
+    run = Run.open(anchored_run)
+    scores = [h["knee_validation"] for h in _history(anchored_run)]
+    best_gen = min(range(len(scores)), key=lambda g: (scores[g]["violation"], scores[g]["l1"]))
+    with np.load(anchored_run / "best_knee.npz") as best:
+        assert int(best["generation"]) == best_gen
+        genome = best["genome"]
+    f, _ = _evaluator(run).evaluate(genome)
+    assert f.tolist() == [scores[best_gen][k] for k in ("l1", "l2", "l3")]
+    summary = json.loads((anchored_run / "front.json").read_text())
+    _, population, _, _ = run.load_checkpoint()
+    if any(np.array_equal(genome, g) for g in population):
+        assert "best_knee" not in summary  # the last population holds it
+    else:
+        assert summary["best_knee"] == {"generation": best_gen, "index": len(population)}
+    # the front's members: the candidates' own genomes
+    with np.load(anchored_run / "front.npz") as front:
+        for i, g in zip(front["indices"], front["genomes"], strict=True):
+            assert np.array_equal(g, population[i] if i < len(population) else genome)
+
+
 def test_an_anchored_run_resumes_to_the_same_result(anchored_run, tmp_path):
     out = tmp_path / "run"
     Run.create(out, TrainConfig(selection="anchored", **WARM)).train(progress=False, stop_after=1)

@@ -19,7 +19,9 @@ everyone else; a member whose l1 is worse than the anchor's on those episodes vi
 constraint (:func:`anchored_violation`: below any member that kept every episode going,
 above any that lost time), and the elites are the first front's members nearest its knee
 (not its extremes). Selection then keeps the planner at least as close to the human as the
-warm start and searches for members closer still, trading l2 and l3 only among those.
+warm start and searches for members closer still, trading l2 and l3 only among those. The
+run keeps the best validated knee of any generation as a candidate for the final front
+(:meth:`~neurotrajectory.evolve.runs.Run.finish`).
 """
 
 from __future__ import annotations

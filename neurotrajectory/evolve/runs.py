@@ -65,6 +65,7 @@ from neurotrajectory.model import (
 FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
 PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
 WARM_START_FILE = "warm_start.npz"  # the warm start's genome in a run folder
+BEST_KNEE_FILE = "best_knee.npz"  # anchored runs: the best validated knee of any generation
 
 
 class RunError(RuntimeError):
@@ -421,6 +422,8 @@ class Run:
             record = self._record(gen, fitness, violation, rank, stats,
                                   time.perf_counter() - t0, history)  # fmt: skip
             record |= self._validate_knee(backend, gen, fitness, rank, source)
+            if cfg.anchored and "knee_validation" in record:
+                self._keep_best_knee(population, gen, record["knee_validation"], history)
             history.append(record)
             write_npz(
                 self.out / "checkpoint.npz",
@@ -459,6 +462,31 @@ class Run:
         return next_generation(fitness, cfg.ga, cfg.seed, gen, population.genome_size,
                                len(population.table), self._violation(violation, fitness),
                                anchored=cfg.anchored)  # fmt: skip
+
+    def _keep_best_knee(self, population: Population, gen: int, score: dict, history) -> None:
+        """Keep generation ``gen``'s knee (``score``: on the validation episodes) in
+        :data:`BEST_KNEE_FILE` if it is better than every earlier generation's: it lost less
+        episode time, or as little and its l1 is lower (the first of equals is kept)."""
+
+        def key(v: dict) -> tuple[float, float]:
+            return (v["violation"], v["l1"])
+
+        earlier = [key(h["knee_validation"]) for h in history if "knee_validation" in h]
+        if earlier and not key(score) < min(earlier):
+            return
+        write_npz(self.out / BEST_KNEE_FILE, genome=population.genomes[score["index"]],
+                  generation=np.array(gen))  # fmt: skip
+
+    def _best_knee(self) -> tuple[int, np.ndarray] | None:
+        """``(generation, genome)`` of :data:`BEST_KNEE_FILE`, or None."""
+        path = self.out / BEST_KNEE_FILE
+        if not path.exists():
+            return None
+        try:
+            with np.load(path) as data:
+                return int(data["generation"]), data["genome"]
+        except Exception as exc:
+            raise RunError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
 
     def _validate_knee(self, backend, gen, fitness, rank, source: Source) -> dict:
         """The learning curve's point of generation ``gen``: its knee (picked from its first
@@ -579,7 +607,9 @@ class Run:
     def finish(self, backend) -> dict:
         """Write the final front and the plots from the checkpoint and history. With
         ``validation_episodes``, the final population is evaluated again on them (more
-        episodes than a generation's, none trained on) and the front is chosen on that."""
+        episodes than a generation's, none trained on) and the front is chosen on that;
+        anchored, with the best validated knee of any generation as one more candidate
+        (index ``population``), unless the last population holds it."""
         from neurotrajectory.evolve.plots import plot_run
 
         ckpt = self.load_checkpoint()
@@ -587,6 +617,11 @@ class Run:
             raise RunError(f"{self.out}: no complete generation yet")
         gen, population, fitness, violation = ckpt
         seeds = self.config.validation_seeds
+        best = self._best_knee() if self.config.anchored and seeds else None
+        if best is not None and not any(np.array_equal(best[1], g) for g in population):
+            population = np.vstack([population, best[1][None]])  # a candidate too
+        else:
+            best = None
         if seeds:
             backend.load(population)
             fitness, stats = backend.evaluate(len(population), seeds)
@@ -619,6 +654,8 @@ class Run:
         history = self.load_history()
         if seeds and history and "warm_start_validation" in history[0]:
             summary["warm_start"] = history[0]["warm_start_validation"]  # on the same episodes
+        if best is not None:  # the last candidate: the best validated knee of any generation
+            summary["best_knee"] = {"generation": best[0], "index": len(population) - 1}
         write_json(self.out / "front.json", summary)
         plot_run(self.out, history)
         return summary
