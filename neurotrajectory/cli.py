@@ -75,6 +75,29 @@ def _cmd_heldout(args: argparse.Namespace) -> int:
     return 0
 
 
+def _goal_flag(parser: argparse.ArgumentParser, who: str) -> None:
+    """The ``--goal-seconds`` flag (the scenario's ``env.goal_seconds``)."""
+    parser.add_argument(
+        "--goal-seconds",
+        dest="goal_seconds",
+        type=_positive_seconds,
+        default=None,
+        metavar="S",
+        help=f"{who} S seconds ahead, beyond the last set-point (>= the horizon's 2.5 s; "
+        "default: at the last set-point, where the human will be)",
+    )
+
+
+def _positive_seconds(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected seconds, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number of seconds > 0, got {text}")
+    return value
+
+
 def _check_video(path: str) -> None:
     from gridsim.video import video_problem
 
@@ -153,7 +176,8 @@ def _cmd_record(args: argparse.Namespace) -> int:
     name, source = (args.group, args.scenario) if args.group else (args.scenario, None)
     with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:
         ds = record_group(name, args.episodes, args.seed, args.stride, args.episode_seconds,
-                          progress=bar.update, source=source)  # fmt: skip
+                          progress=bar.update, source=source,
+                          goal_seconds=args.goal_seconds)  # fmt: skip
     if args.split:  # the side evaluate --seed S --test-fraction F uses
         sides = dict(zip(("train", "test"), split_by_track(ds.windows, args.test_fraction,
                                                            args.seed), strict=True))  # fmt: skip
@@ -195,6 +219,7 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         end2end=TrainSettings(epochs=args.e2e_epochs, seed=args.seed),
         closed_loop_episodes=args.closed_loop_episodes,
         closed_loop_seconds=args.closed_loop_seconds, videos=args.videos,
+        goal_seconds=args.goal_seconds,
     )  # fmt: skip
     log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     group_runs = {}
@@ -318,6 +343,7 @@ def build_parser() -> argparse.ArgumentParser:
         "shifted by the ego's offset from the human, the shift fading out over the horizon; "
         "'human', the human's next set-points from there",
     )
+    _goal_flag(t, "the network is given the destination")
     t.add_argument(
         "--selection",
         choices=list(SELECTIONS),
@@ -483,6 +509,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.3,
         help="share of the tracks on the test side of --split",
     )
+    _goal_flag(d, "the windows see the destination")
     d.add_argument("--out", required=True, help="dataset folder (created)")
     d.add_argument("--quiet", action="store_true", help="no progress bar")
     d.set_defaults(func=_cmd_record)
@@ -496,6 +523,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="GROUP=RUN",
         help="another run for one group (repeatable)",
     )
+    _goal_flag(e, "every planner is given the destination")
     e.add_argument("--out", required=True, help="evaluation folder (created)")
     e.add_argument(
         "--data",

@@ -4,7 +4,8 @@ The destination curve is the floor a learned planner that is told its destinatio
 and the prior the network can refine (``NetConfig.prior = "destination_curve"``). From the
 ego's speed and heading it drives a circular arc that leaves the rear axle tangent to the
 heading and passes through the destination (then straight on), at the constant acceleration
-that covers the arc's length by the destination time (the end of the horizon). The curve is
+that covers the arc's length by the destination time (the end of the horizon, or the goal time
+beyond it: the set-points are then where the car is on the way). The curve is
 kinematically feasible: the curvature is at most the vehicle's ``tan(delta_max) / wheelbase``
 (a destination inside that turning circle is approached by turning at the limit until the
 closest point to it, then straight on), the acceleration within ``[-b_max, a_max]`` and the
@@ -75,13 +76,15 @@ def curve_to(
     dest: tuple[float, float],
     times: np.ndarray,
     limits: CurveLimits,
+    arrive: float | None = None,
 ) -> np.ndarray:
-    """Set-points ``(T, 2)`` [m, grid frame] at ``times`` [s] (the last is the destination
-    time) for an ego at the grid origin with ``speed`` [m/s] and heading (``cos_h``,
-    ``sin_h``) in the grid frame, heading for ``dest`` (x, y) [m, grid frame]."""
+    """Set-points ``(T, 2)`` [m, grid frame] at ``times`` [s] for an ego at the grid origin
+    with ``speed`` [m/s] and heading (``cos_h``, ``sin_h``) in the grid frame, heading for
+    ``dest`` (x, y) [m, grid frame] to arrive at time ``arrive`` [s] (default: the last
+    set-point's time)."""
     dx, dy = float(dest[0]), float(dest[1])
     fwd, left = cos_h * dx + sin_h * dy, -sin_h * dx + cos_h * dy
-    horizon = float(times[-1])
+    horizon = float(times[-1]) if arrive is None else float(arrive)
     v = min(max(float(speed), 0.0), limits.v_max)
     curvature = length = 0.0
     if fwd > 0.0:  # else not ahead: stop
@@ -104,13 +107,18 @@ def curve_to(
 
 
 def destination_curves(
-    ego: np.ndarray, dest: np.ndarray, times: np.ndarray, limits: CurveLimits
+    ego: np.ndarray,
+    dest: np.ndarray,
+    times: np.ndarray,
+    limits: CurveLimits,
+    arrive: float | None = None,
 ) -> np.ndarray:
     """:func:`curve_to` for a batch: ``ego`` ``(N, 6)`` (GridSim-v0's ego features: speed
-    first, cos / sin of the heading last), ``dest`` ``(N, 2)`` [m] -> ``(N, T, 2)`` float32."""
+    first, cos / sin of the heading last), ``dest`` ``(N, 2)`` [m] reached at ``arrive`` [s]
+    (default: the last of ``times``) -> ``(N, T, 2)`` float32."""
     ego = np.asarray(ego, np.float64).reshape(-1, ego.shape[-1])
     dest = np.asarray(dest, np.float64).reshape(-1, 2)
     out = np.empty((len(ego), len(times), 2), np.float32)
     for n in range(len(ego)):
-        out[n] = curve_to(ego[n, 0], ego[n, 4], ego[n, 5], dest[n], times, limits)
+        out[n] = curve_to(ego[n, 0], ego[n, 4], ego[n, 5], dest[n], times, limits, arrive)
     return out

@@ -83,7 +83,8 @@ def kinematic_features(cfg: NetConfig, ego, dest, prior) -> torch.Tensor:
 
 
 def _destination_curve_prior(cfg: NetConfig, ego, dest, times) -> torch.Tensor:
-    curves = destination_curves(ego.numpy(), dest.numpy(), times.numpy(), cfg.curve_limits)
+    curves = destination_curves(ego.numpy(), dest.numpy(), times.numpy(), cfg.curve_limits,
+                                cfg.goal_seconds)  # fmt: skip
     return torch.from_numpy(curves)
 
 
@@ -127,6 +128,9 @@ class NetConfig:
     #: closed loop: the share of the previous plan kept in each plan the car follows
     #: (:mod:`gridsim.envs.plan_smoothing`; 0: every plan as the network gives it)
     smoothing: float = 0.0
+    #: how far ahead the destination input lies [s] (the scenario's ``env.goal_seconds``);
+    #: None: at the last set-point
+    goal_seconds: float | None = None
 
     #: What configurations saved before ``frame`` and ``skip`` existed meant.
     LEGACY = {"frame": "grid", "skip": False}
@@ -159,7 +163,12 @@ class NetConfig:
             )
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The fields, less ``goal_seconds`` when it is None (so that configurations saved
+        before it existed read and compare the same)."""
+        d = asdict(self)
+        if d["goal_seconds"] is None:
+            del d["goal_seconds"]
+        return d
 
     @property
     def curve_limits(self) -> CurveLimits:

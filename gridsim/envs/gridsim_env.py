@@ -9,7 +9,8 @@ Observation (``Dict``):
   steering rate [rad/s] applied in the last tick, and cos / sin of the heading in the grid
   frame (``heading_up``: 1, 0).
 - ``destination``: float32 ``(2,)``, where the reference is at the end of the horizon
-  (``t + horizon * setpoint_period``), in the grid frame [m].
+  (``t + horizon * setpoint_period``), or ``env.goal_seconds`` ahead if the scenario sets it
+  (a goal beyond the horizon: no planner is given its last set-point), in the grid frame [m].
 
 The grid frame has its origin at the rear axle; its axes are the world's (north_up) or the
 body's (heading_up): see :mod:`gridsim.frames`.
@@ -89,6 +90,9 @@ class GridSimEnv(gym.Env):
         self._ticks = cfg.ticks_per_decision
         e = cfg.env
         self._setpoint_times = e.setpoint_times
+        # the reference is looked up at the set-point times, and at the goal's beyond them
+        far = e.goal_seconds is not None and e.goal_time > e.horizon_time
+        self._look_times = np.append(e.setpoint_times, e.goal_time) if far else e.setpoint_times
         self.metadata = {**self.metadata, "render_fps": 1.0 / e.decision_period}
         # Spaces depend only on the scenario, not on the episode.
         params = vehicle_params(cfg.ego.vehicle)
@@ -139,9 +143,12 @@ class GridSimEnv(gym.Env):
     def _look_ahead(self) -> None:
         """Reference positions at the coming set-point times, world and grid frames."""
         w = self.world
-        self._ref_future, self._ref_future_grid = self.reference.positions_in_grid(
-            w.time + self._setpoint_times, w.ego[:2], grid_rotation(self._orientation, w.ego[PSI])
+        world, grid = self.reference.positions_in_grid(
+            w.time + self._look_times, w.ego[:2], grid_rotation(self._orientation, w.ego[PSI])
         )
+        h = len(self._setpoint_times)
+        self._ref_future, self._ref_future_grid = world[:h], grid[:h]
+        self._goal_grid = grid[-1]  # the destination observed: the last set-point's or beyond
 
     def to_grid(self, points: np.ndarray) -> np.ndarray:
         """World points ``(N, 2)`` [m] in the ego's grid frame now (rear axle at the origin)."""
@@ -170,8 +177,8 @@ class GridSimEnv(gym.Env):
         track = self.world.ego_track
         if track is not None:
             return reference_from_track(track, self.world.ego_params.center_offset)
-        horizon = cfg.env.horizon_time
-        return human_reference(self.scenario, seed, cfg.simulation.duration + horizon)
+        ahead = max(cfg.env.horizon_time, cfg.env.goal_time)
+        return human_reference(self.scenario, seed, cfg.simulation.duration + ahead)
 
     @property
     def time_limit(self) -> float:
@@ -236,7 +243,7 @@ class GridSimEnv(gym.Env):
         # (math's cos and sin are libm's, as NumPy's on a float64 scalar: see kinematics)
         ego = np.array([w.ego[V], w.ego[DELTA], self._last_accel, self._last_rate,
                         math.cos(heading), math.sin(heading)], np.float32)  # fmt: skip
-        dest = self._ref_future_grid[-1].copy()  # the reference at the end of the horizon
+        dest = self._goal_grid.copy()  # the reference at the goal time
         k = self._newest + 1
         grids = np.concatenate((self._grids[k:], self._grids[:k]))  # oldest first
         return {"grids": grids, "ego": ego, "destination": dest}

@@ -212,6 +212,18 @@ class EnvConfig(Strict):
         Field(description="[v_min, v_max] counted by l3 [m/s]; default: the traffic bounds"),
     ] = None
     destination_tolerance: Annotated[float, Field(gt=0, le=50)] = 2.0
+    goal_seconds: Annotated[
+        float | None,
+        Field(gt=0, le=30, description="how far ahead the observed destination lies [s]: "
+              "where the reference will be then; default: the end of the horizon (the last "
+              "set-point's time), >= it"),
+    ] = None  # fmt: skip
+
+    @property
+    def goal_time(self) -> float:
+        """How far ahead the observed destination lies [s] (``goal_seconds``, by default the
+        end of the horizon)."""
+        return self.horizon_time if self.goal_seconds is None else float(self.goal_seconds)
 
     @property
     def setpoint_times(self) -> np.ndarray:
@@ -251,6 +263,11 @@ class ScenarioConfig(Strict):
                 f"env.decision_period ({self.env.decision_period}) must be a whole multiple of "
                 f"simulation.dt ({dt})"
             )
+        goal = self.env.goal_seconds
+        if goal is not None and goal < self.env.horizon_time - 1e-9:
+            raise ValueError(f"env.goal_seconds ({goal:g}) must be >= the horizon's "
+                             f"{self.env.horizon_time:g} s (env.horizon x env.setpoint_period): "
+                             "the destination lies at or beyond the last set-point")  # fmt: skip
         if self.env.speed_range is not None and self.env.speed_range[0] > self.env.speed_range[1]:
             raise ValueError(f"env.speed_range {list(self.env.speed_range)} must be [min, max]")
         return self

@@ -31,13 +31,17 @@ def drive_episodes(
     seconds: float,
     video: Path | None = None,
     ego: dict | None = None,
+    goal_seconds: float | None = None,
 ) -> list[dict]:
     """One row of statistics per episode of ``policy`` on ``scenario`` (episodes of
-    ``seconds``, one per seed; ``ego`` overrides the scenario's ego section); with ``video``,
-    the first episode is also exported there."""
+    ``seconds``, one per seed; ``ego`` overrides the scenario's ego section, ``goal_seconds``
+    its ``env.goal_seconds``); with ``video``, the first episode is also exported there."""
+    more = ({"ego": ego} if ego else {}) | (
+        {"env": {"goal_seconds": goal_seconds}} if goal_seconds is not None else {}
+    )
     env = GridSimEnv(scenario, action_type=policy.action_type,
                      render_mode="rgb_array" if video else None,
-                     simulation={"duration": seconds}, **({"ego": ego} if ego else {}))  # fmt: skip
+                     simulation={"duration": seconds}, **more)  # fmt: skip
     ticks, dt = env.cfg.ticks_per_decision, env.cfg.simulation.dt
     rows = []
     for k, seed in enumerate(seeds):
@@ -76,9 +80,14 @@ def summarise(rows: list[dict]) -> dict:
 
 
 def closed_loop(
-    scenario: str, policy, seeds: list[int], seconds: float, video: Path | None = None
+    scenario: str,
+    policy,
+    seeds: list[int],
+    seconds: float,
+    video: Path | None = None,
+    goal_seconds: float | None = None,
 ) -> dict:
     """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``, with the rows
     of its episodes (:func:`drive_episodes`) under ``"per_episode"``."""
-    rows = drive_episodes(scenario, policy, seeds, seconds, video)
+    rows = drive_episodes(scenario, policy, seeds, seconds, video, goal_seconds=goal_seconds)
     return summarise(rows) | {"per_episode": rows}

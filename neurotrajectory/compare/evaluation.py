@@ -71,6 +71,9 @@ class EvalConfig:
     videos: bool = False  # export the first closed-loop episode of each method and scenario
     #: Groups of the user's scenarios: name -> folder or glob of scenario files.
     sources: dict[str, str] = field(default_factory=dict)
+    #: how far ahead every planner's destination lies [s] (``env.goal_seconds``); None: at
+    #: the last set-point, where the human will be
+    goal_seconds: float | None = None
 
     def __post_init__(self) -> None:
         unknown = [g for g in self.groups if g not in GROUPS and g not in self.sources]
@@ -107,11 +110,17 @@ def _dataset(
                 f"{data_dir / group}: holds only the {ds.manifest['split']['side']} side of a "
                 "split (record --split); evaluation needs the whole group's windows"
             )
+        if ds.manifest.get("goal_seconds") != cfg.goal_seconds:
+            raise DatasetError(f"{data_dir / group}: recorded with goal_seconds "
+                               f"{ds.manifest.get('goal_seconds')}, the evaluation asks "
+                               f"{cfg.goal_seconds}: record it with the same "
+                               "--goal-seconds")  # fmt: skip
         return ds
     log(f"{group}: recording windows")
     with tqdm(desc=f"record {group}", unit="episode", leave=False, disable=not progress) as bar:
         ds = record_group(group, cfg.episodes, cfg.seed, duration=cfg.episode_seconds,
-                          progress=bar.update, source=cfg.sources.get(group))  # fmt: skip
+                          progress=bar.update, source=cfg.sources.get(group),
+                          goal_seconds=cfg.goal_seconds)  # fmt: skip
     save_dataset(ds, out / "data" / group)
     return ds
 
@@ -130,7 +139,7 @@ class Front:
                 "population": c.population, "generations": c.generations,
                 "episodes": c.episodes, "episode_seconds": c.episode_seconds,
                 "front_size": len(self.nets), "picked_member": self.picked,
-                "pick": pick}  # fmt: skip
+                "pick": pick, "goal_seconds": c.goal_seconds}  # fmt: skip
 
 
 def _load_fronts(runs: dict[str, str | Path], pick: str) -> dict[str, Front]:
@@ -182,7 +191,7 @@ def _evaluate_group(
             slug = name.lower().replace(" ", "-")
             per = [closed_loop(sc, policy, seeds, cfg.closed_loop_seconds,
                                 out / "videos" / f"{group}-{Path(sc).stem}-{slug}.mp4"
-                                if cfg.videos else None)
+                                if cfg.videos else None, cfg.goal_seconds)
                    for sc in scenarios]  # fmt: skip
             loop[name] = {k: float(np.mean([p[k] for p in per]))
                           for k in per[0] if k != "per_episode"}  # fmt: skip
@@ -217,6 +226,13 @@ def evaluate(
         raise DatasetError(f"runs given for groups {unknown} that are not evaluated")
     runs = {g: group_runs.get(g, run_dir) for g in cfg.groups}
     fronts = _load_fronts(runs, cfg.pick)  # fails before anything is written
+    for group, front in fronts.items():
+        trained = front.run.config.goal_seconds
+        if trained != cfg.goal_seconds:
+            said = "at the last set-point" if trained is None else f"{trained:g} s ahead"
+            raise DatasetError(f"{group}: the run {front.run.out} was trained with the "
+                               f"destination {said}; evaluate it with the same --goal-seconds "
+                               "(or train a run for this setting)")  # fmt: skip
     data_dir = Path(data_dir) if data_dir is not None else None
     out.mkdir(parents=True, exist_ok=True)
     write_json(out / "eval_config.json",

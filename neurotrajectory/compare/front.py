@@ -119,13 +119,15 @@ def heldout(
     seeds = list(cfg.heldout_seeds(episodes))
     seconds = cfg.episode_seconds if seconds is None else float(seconds)
     ego = {"track": _other_tracks(cfg.scenario, cfg.ego_tracks)} if cfg.ego_tracks else None
-    rows = drive_episodes(cfg.scenario, policy, seeds, seconds, ego=ego)
+    goal = cfg.goal_seconds
+    rows = drive_episodes(cfg.scenario, policy, seeds, seconds, ego=ego, goal_seconds=goal)
     env = GridSimEnv(cfg.scenario, **cfg.overrides)
     keep = policy.keep  # the curve's plans are smoothed as the member's
     curve = TrajectoryPolicy(DestinationCurve(Setting.from_env(env)), keep)
-    baseline = drive_episodes(cfg.scenario, curve, seeds, seconds, ego=ego)
+    baseline = drive_episodes(cfg.scenario, curve, seeds, seconds, ego=ego, goal_seconds=goal)
     warm = load_warm_start(run, keep)
-    started = None if warm is None else drive_episodes(cfg.scenario, warm, seeds, seconds, ego=ego)
+    started = None if warm is None else drive_episodes(cfg.scenario, warm, seeds, seconds,
+                                                       ego=ego, goal_seconds=goal)  # fmt: skip
     return {
         "member": member,
         "episode_seconds": seconds,

@@ -23,27 +23,36 @@ from neurotrajectory.data.windows import Windows
 
 @dataclass(frozen=True)
 class Setting:
-    """Set-point ``times`` ``(tau_o,)`` [s], the grid's cell size [m] and orientation, and the
-    ego's limits (``params``: geometry is taken per window from ``Windows.vehicle``)."""
+    """Set-point ``times`` ``(tau_o,)`` [s], the grid's cell size [m] and orientation, the
+    ego's limits (``params``: geometry is taken per window from ``Windows.vehicle``) and
+    ``goal_time`` [s]: how far ahead the destination lies (the last set-point's time, or
+    beyond it)."""
 
     times: np.ndarray
     cell_size: float
     orientation: str
     params: BicycleParams
+    goal_time: float
 
     @classmethod
     def from_manifest(cls, manifest: dict) -> Setting:
         times = setpoint_times(manifest["setpoint_period"], manifest["horizon"])
         s = manifest["sensor"]
         params = vehicle_params(VehicleConfig(**manifest["vehicle"]))
-        return cls(times, float(s["cell_size"]), s["orientation"], params)
+        goal = manifest.get("goal_seconds") or float(times[-1])
+        return cls(times, float(s["cell_size"]), s["orientation"], params, float(goal))
 
     @classmethod
     def from_env(cls, env) -> Setting:
         cfg = env.unwrapped.cfg
         times = cfg.env.setpoint_times
         params = env.unwrapped.action_kind.params
-        return cls(times, cfg.sensor.cell_size, cfg.sensor.orientation, params)
+        return cls(times, cfg.sensor.cell_size, cfg.sensor.orientation, params, cfg.env.goal_time)
+
+    @property
+    def far_goal(self) -> bool:
+        """The destination lies beyond the last set-point."""
+        return self.goal_time > float(self.times[-1]) + 1e-9
 
 
 class Predictor(Protocol):

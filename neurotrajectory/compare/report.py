@@ -64,6 +64,12 @@ def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
         runs.setdefault(text, []).append(group)
     for text, groups in runs.items():
         lines.append(f"NeuroTrajectory for {', '.join(groups)}: run {text}.")
+    goals = {info.get("goal_seconds") for info in run_info.values()}
+    goal = goals.pop() if len(goals) == 1 else None
+    lines += ["", "Setting: every planner is given the destination "
+              + ("at the last set-point (where the human will be at the end of the horizon)."
+                 if goal is None else f"{goal:g} s ahead, beyond the last set-point (a goal "
+                 "beyond the horizon: no planner is given a set-point).")]  # fmt: skip
     lines += ["", "Metres, held-out windows (tracks never shared with End2End's training "
               "windows); each cell: " + " / ".join(methods) + ".", ""]  # fmt: skip
     head = ["metric"] + [f"{GROUP_TITLES.get(r.group, r.group)} [{r.source}]" for r in results]

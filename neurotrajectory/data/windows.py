@@ -138,11 +138,15 @@ def scenario_episodes(
     duration: float | None = None,
     seeds: list[int] | None = None,
     tracks: Iterable[str] | None = None,
+    goal_seconds: float | None = None,
 ) -> tuple[list[PlannedEpisode], dict]:
     """The episodes of ``scenario`` to record and their provenance. On a recorded scene, every
     track (or the ids in ``tracks``) is driven once as the ego for its recorded duration
     (``episodes`` and ``seed`` do not apply); elsewhere ``episodes`` episodes with seeds drawn
-    from ``seed`` (or the episode ``seeds`` given), ``duration`` [s] long if given."""
+    from ``seed`` (or the episode ``seeds`` given), ``duration`` [s] long if given. With
+    ``goal_seconds``, every episode observes the destination that far ahead
+    (``env.goal_seconds``)."""
+    goal = {"env": {"goal_seconds": float(goal_seconds)}} if goal_seconds is not None else {}
     base = load_scenario(scenario)
     if isinstance(base.config.road, RecordedRoadConfig):
         scene = scene_of(base)
@@ -151,7 +155,7 @@ def scenario_episodes(
                   if wanted is None or t.track_id in wanted]  # fmt: skip
         out = [PlannedEpisode(f"{scene}/{t.track_id}", 0,
                        {"ego": {"track": t.track_id},
-                        "simulation": {"duration": max(float(t.duration), 0.1)}})
+                        "simulation": {"duration": max(float(t.duration), 0.1)}, **goal})
                for t in chosen]  # fmt: skip
         return out, {"scene": scene, "tracks": len(out)}
     if seeds is None:
@@ -159,26 +163,33 @@ def scenario_episodes(
             raise DatasetError(f"episodes must be >= 1, got {episodes}")
         rng = stream(seed, Salt.RECORDED_EPISODES)
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=episodes)]
-    overrides = {"simulation": {"duration": duration}} if duration else {}
+    overrides = ({"simulation": {"duration": duration}} if duration else {}) | goal
     out = [PlannedEpisode(f"{scenario}/seed{s}", int(s), overrides) for s in seeds]
     return out, {"episodes": len(out), "episode_seeds": [int(s) for s in seeds]}
 
 
 def episodes_of(
-    windows: Windows, scenario: str, duration: float | None = None
+    windows: Windows,
+    scenario: str,
+    duration: float | None = None,
+    goal_seconds: float | None = None,
 ) -> list[PlannedEpisode]:
     """The episodes of ``scenario`` that ``windows`` were recorded from (by their track
     labels, in order; windows of other scenarios are ignored), to drive them again;
-    ``duration`` [s] for generated scenarios (recorded tracks keep their own)."""
+    ``duration`` [s] for generated scenarios (recorded tracks keep their own), the destination
+    ``goal_seconds`` ahead if given."""
     base = load_scenario(scenario)
     labels = list(dict.fromkeys(windows.track.tolist()))  # in the order they were recorded
     if isinstance(base.config.road, RecordedRoadConfig):
         prefix = scene_of(base) + "/"
         ids = [t[len(prefix) :] for t in labels if t.startswith(prefix)]
-        return scenario_episodes(scenario, tracks=ids)[0] if ids else []
+        return scenario_episodes(scenario, tracks=ids, goal_seconds=goal_seconds)[0] if ids else []
     prefix = f"{scenario}/seed"
     seeds = [int(t[len(prefix) :]) for t in labels if t.startswith(prefix)]
-    return scenario_episodes(scenario, seeds=seeds, duration=duration)[0] if seeds else []
+    if not seeds:
+        return []
+    return scenario_episodes(scenario, seeds=seeds, duration=duration,
+                             goal_seconds=goal_seconds)[0]  # fmt: skip
 
 
 #: How the states a policy drove to are labelled (DAgger): ``human``, the human's next
@@ -300,20 +311,24 @@ def record_scenario(
     duration: float | None = None,
     progress: Callable[[int], None] | None = None,
     seeds: list[int] | None = None,
+    goal_seconds: float | None = None,
 ) -> tuple[Windows, dict]:
     """Windows of one scenario (the ego drives the reference; see :func:`scenario_episodes`
-    for the episodes) and their provenance."""
-    plan, source = scenario_episodes(scenario, episodes, seed, duration, seeds)
+    for the episodes, ``goal_seconds`` for the destination) and their provenance."""
+    plan, source = scenario_episodes(scenario, episodes, seed, duration, seeds,
+                                     goal_seconds=goal_seconds)  # fmt: skip
     windows = drive_windows(scenario, plan, stride, progress=progress)
     if windows is None:
         raise DatasetError("no windows were recorded")
     cfg = load_scenario(scenario).config
+    goal = cfg.env.goal_seconds if goal_seconds is None else float(goal_seconds)
     meta = {"scenario": scenario, **source, "horizon": cfg.env.horizon,
             "history": cfg.env.history, "setpoint_period": cfg.env.setpoint_period,
             "decision_period": cfg.env.decision_period, "stride": stride,
             "sensor": {"rows": cfg.sensor.rows, "cols": cfg.sensor.cols,
                        "cell_size": cfg.sensor.cell_size, "orientation": cfg.sensor.orientation},
-            "vehicle": cfg.ego.vehicle.model_dump()}  # fmt: skip
+            "vehicle": cfg.ego.vehicle.model_dump(),
+            **({"goal_seconds": goal} if goal is not None else {})}  # fmt: skip
     return windows, meta
 
 
@@ -336,6 +351,7 @@ def record_group(
     duration: float | None = None,
     progress: Callable[[int], None] | None = None,
     source: str | None = None,
+    goal_seconds: float | None = None,
 ) -> Dataset:
     """Windows of a scenario group (see :func:`group_scenarios`: of :data:`GROUPS`, or the
     files of the folder or glob ``source``), or of one scenario. ``stride`` defaults to every
@@ -345,13 +361,14 @@ def record_group(
     parts, metas = [], []
     for scenario in scenarios:
         s = stride or (RECORDED_STRIDE if recorded[scenario] else GENERATED_STRIDE)
-        w, meta = record_scenario(scenario, episodes, seed, s, duration, progress)
+        w, meta = record_scenario(scenario, episodes, seed, s, duration, progress,
+                                  goal_seconds=goal_seconds)  # fmt: skip
         parts.append(w)
         metas.append(meta)
     first = metas[0]
     for m in metas[1:]:
-        for key in ("horizon", "history", "setpoint_period", "sensor"):
-            if m[key] != first[key]:
+        for key in ("horizon", "history", "setpoint_period", "sensor", "goal_seconds"):
+            if m.get(key) != first.get(key):
                 raise DatasetError(f"group {name!r}: scenarios differ in {key}")
     manifest = {
         "format": FORMAT_VERSION,
@@ -370,6 +387,7 @@ def record_group(
                 "vehicle",
             )
         },  # fmt: skip
+        **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),
         "scenarios": metas,
         "versions": _versions(),
     }

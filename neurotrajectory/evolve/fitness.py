@@ -44,7 +44,7 @@ class EpisodeStats:
 
 def net_config_for(cfg: ScenarioConfig, base: NetConfig) -> NetConfig:
     """``base`` with the sizes and limits a scenario dictates (history, horizon, grid, period,
-    the ego's limits); no environment is built."""
+    the ego's limits, the goal time); no environment is built."""
     if cfg.sensor.rows != cfg.sensor.cols:
         raise ValueError(
             f"the network needs square grids, got {cfg.sensor.rows} x {cfg.sensor.cols}"
@@ -55,6 +55,7 @@ def net_config_for(cfg: ScenarioConfig, base: NetConfig) -> NetConfig:
         "grid_size": cfg.sensor.rows,
         "setpoint_period": cfg.env.setpoint_period,
         "limits": astuple(CurveLimits.from_params(vehicle_params(cfg.ego.vehicle))),
+        "goal_seconds": cfg.env.goal_seconds,
     }
     return NetConfig(**{**base.to_dict(), **sizes})
 

@@ -122,6 +122,9 @@ class TrainConfig:
     #: how parents are selected (:data:`~neurotrajectory.evolve.evolution.SELECTIONS`):
     #: "anchored" keeps the warm start in every generation and its l1 as a constraint
     selection: str = "pareto"
+    #: how far ahead the destination the network is given lies [s] (the scenario's
+    #: ``env.goal_seconds``); None: the scenario's (by default the last set-point's time)
+    goal_seconds: float | None = None
 
     #: What format-1 configurations (saved before these fields existed) meant.
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human",
@@ -200,6 +203,12 @@ class TrainConfig:
                            "pretrain_episodes), or evolve 'all'")  # fmt: skip
         if self.prior is not None and self.prior not in PRIORS:
             raise RunError(f"unknown prior {self.prior!r}; choose from {list(PRIORS)}")
+        if self.goal_seconds is not None:
+            g = self.goal_seconds
+            if isinstance(g, bool) or not isinstance(g, int | float | np.number):
+                raise RunError(f"goal_seconds must be a number, got {g!r}")
+            if not (math.isfinite(g) and g > 0):
+                raise RunError(f"goal_seconds must be a finite number > 0, got {g}")
         if self.selection not in SELECTIONS:
             raise RunError(f"unknown selection {self.selection!r}; choose from "
                            f"{list(SELECTIONS)}")  # fmt: skip
@@ -256,7 +265,8 @@ class TrainConfig:
     @property
     def overrides(self) -> dict:
         tracks = {"ego": {"track": list(self.ego_tracks)}} if self.ego_tracks else {}
-        return {"simulation": {"duration": self.episode_seconds}, **tracks}
+        goal = {"env": {"goal_seconds": self.goal_seconds}} if self.goal_seconds else {}
+        return {"simulation": {"duration": self.episode_seconds}, **tracks, **goal}
 
     #: Fields that may differ between a run and its resumption (they do not change results).
     RESUMABLE = ("generations", "backend", "workers", "ray_address", "batch")
@@ -571,7 +581,8 @@ class Run:
         _check_pretrain_episodes(cfg)
         seeds = list(cfg.pretrain_seeds)
         episodes, _ = scenario_episodes(cfg.scenario, seeds=seeds,
-                                        duration=PRETRAIN_EPISODE_SECONDS)  # fmt: skip
+                                        duration=PRETRAIN_EPISODE_SECONDS,
+                                        goal_seconds=cfg.goal_seconds)  # fmt: skip
         windows = drive_windows(cfg.scenario, episodes, GENERATED_STRIDE)
         if windows is None:
             raise RunError(f"--pretrain-episodes: no windows were recorded on {cfg.scenario!r}")
@@ -674,9 +685,9 @@ def _checked(config: TrainConfig):
     try:
         env = GridSimEnv(config.scenario, **config.overrides)
     except GridSimError as exc:
-        raise RunError(
-            f"--episode-seconds {config.episode_seconds:g} on {config.scenario}: {exc}"
-        ) from None
+        goal = f" --goal-seconds {config.goal_seconds:g}" if config.goal_seconds else ""
+        raise RunError(f"--episode-seconds {config.episode_seconds:g}{goal} on "
+                       f"{config.scenario}: {exc}") from None  # fmt: skip
     try:
         env.reset(seed=0)  # builds a world: the map, the traffic and its library
     except GridSimError as exc:
@@ -685,13 +696,31 @@ def _checked(config: TrainConfig):
     windows = None
     if config.pretrain:
         windows = _pretrain_data(config.pretrain)
-        problem = size_mismatch(probe.cfg, windows)
+        problem = size_mismatch(probe.cfg, windows) or _goal_mismatch(config, env.cfg.env)
         if problem:
             raise RunError(f"--pretrain {config.pretrain}: {problem}")
         _dagger_episodes(config, windows)
     elif config.pretrain_episodes:
         _check_pretrain_episodes(config)
     return _with_training_tracks(config, windows), windows
+
+
+def _goal_mismatch(config: TrainConfig, env) -> str | None:
+    """Why the dataset ``config.pretrain`` was recorded with another destination than the run
+    gives its network (``env``: the run's :class:`~gridsim.scenario.schema.EnvConfig`)."""
+    data = load_dataset(config.pretrain).manifest.get("goal_seconds")
+    run = env.goal_seconds
+    if data == run:
+        return None
+
+    def said(goal):
+        return "at the last set-point" if goal is None else f"{goal:g} s ahead"
+
+    flag = "leave out --goal-seconds" if data is None else f"--goal-seconds {data:g}"
+    return (
+        f"its windows see the destination {said(data)}, the run's network "
+        f"{said(run)}: record them with the run's --goal-seconds, or {flag}"
+    )
 
 
 def _pretrain_data(folder: str):
@@ -706,7 +735,7 @@ def _dagger_episodes(config: TrainConfig, windows) -> list:
     """The episodes of the training scenario the pre-training ``windows`` were recorded on
     (to drive again); a :class:`RunError` if DAgger rounds need them and there are none."""
 
-    episodes = episodes_of(windows, config.scenario, PRETRAIN_EPISODE_SECONDS)
+    episodes = episodes_of(windows, config.scenario, PRETRAIN_EPISODE_SECONDS, config.goal_seconds)
     if config.dagger_rounds and not episodes:
         raise RunError(f"--dagger-rounds: --pretrain {config.pretrain} holds no episode of the "
                        f"training scenario {config.scenario!r} to drive again")  # fmt: skip

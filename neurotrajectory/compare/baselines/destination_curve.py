@@ -21,5 +21,7 @@ class DestinationCurve:
         self.limits = CurveLimits.from_params(setting.params)
 
     def predict(self, batch: Windows) -> np.ndarray:
-        curves = destination_curves(batch.ego, batch.destination, self.setting.times, self.limits)
+        s = self.setting
+        curves = destination_curves(batch.ego, batch.destination, s.times, self.limits,
+                                    s.goal_time if s.far_goal else None)  # fmt: skip
         return curves.astype(np.float64)

@@ -18,7 +18,8 @@ cells count as obstacles (``unknown="occupied"``, the default) or only add cost
 (``"penalise"``); points beyond the grid are unknown but never reject.
 
 Among the admissible rollouts the one of least weighted cost wins: distance to the
-destination at the end of the horizon, heading error, obstacle proximity, speed deficit,
+destination at the end of the horizon (a goal beyond the horizon: the share of the straight
+way to it a steady drive covers by then), heading error, obstacle proximity, speed deficit,
 lateral acceleration and steering change. If no rollout is admissible (``feasible`` false),
 the test is relaxed step by step and the least-cost rollout of the first step that leaves
 any is taken (``Plan.level``): without the braking check (:data:`NO_BRAKING_CHECK`; a
@@ -215,8 +216,7 @@ class DWA:
         # the admissibility test, then its relaxations: without the braking check, then
         # only the first rollout step
         tests = [clear.all(axis=2), clear[..., :k_check].all(axis=2), clear[..., 0]]
-        cost = self._cost(traj, batch.destination.astype(np.float64), min_gap, unseen, d0,
-                          wheelbase)  # fmt: skip
+        cost = self._cost(traj, self._goal(batch), min_gap, unseen, d0, wheelbase)
         if cfg.w_late_collision and k_check + 1 < traj.shape[2]:
             late_gap, _ = self._sample(clearance, unknown, traj[:, :, k_check + 1 :, :3], offsets)
             late_hits = np.mean(late_gap.min(axis=3) - radius[..., None] < 0.0, axis=2)
@@ -291,6 +291,14 @@ class DWA:
         gap = np.where(inside, clearance[w, v, u], np.inf)
         unseen = np.mean(~inside | unknown[w, v, u], axis=(2, 3))
         return gap, unseen
+
+    def _goal(self, batch) -> np.ndarray:
+        """Where the rollouts should end ``(n, 2)`` [m, grid frame]: the destination; for a goal
+        beyond the horizon, the point on the straight line to it that a steady drive passes at
+        the horizon's end (the share horizon / goal time of the way)."""
+        goal = batch.destination.astype(np.float64)
+        s = self.setting
+        return goal * (float(s.times[-1]) / s.goal_time) if s.far_goal else goal
 
     def _cost(self, traj, destination, min_gap, unseen, d0, wheelbase) -> np.ndarray:
         """Weighted cost ``(n, S)`` of rollouts ``traj`` ``(n, S, K + 1, 5)``."""
