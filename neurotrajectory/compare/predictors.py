@@ -25,34 +25,34 @@ from neurotrajectory.data.windows import Windows
 class Setting:
     """Set-point ``times`` ``(tau_o,)`` [s], the grid's cell size [m] and orientation, the
     ego's limits (``params``: geometry is taken per window from ``Windows.vehicle``) and
-    ``goal_time`` [s]: how far ahead the destination lies (the last set-point's time, or
-    beyond it)."""
+    ``goal_time`` [s]: how far ahead the destination lies (None: at the last set-point)."""
 
     times: np.ndarray
     cell_size: float
     orientation: str
     params: BicycleParams
-    goal_time: float
+    goal_time: float | None = None
 
     @classmethod
     def from_manifest(cls, manifest: dict) -> Setting:
         times = setpoint_times(manifest["setpoint_period"], manifest["horizon"])
         s = manifest["sensor"]
         params = vehicle_params(VehicleConfig(**manifest["vehicle"]))
-        goal = manifest.get("goal_seconds") or float(times[-1])
-        return cls(times, float(s["cell_size"]), s["orientation"], params, float(goal))
+        return cls(times, float(s["cell_size"]), s["orientation"], params,
+                   manifest.get("goal_seconds"))  # fmt: skip
 
     @classmethod
     def from_env(cls, env) -> Setting:
         cfg = env.unwrapped.cfg
         times = cfg.env.setpoint_times
         params = env.unwrapped.action_kind.params
-        return cls(times, cfg.sensor.cell_size, cfg.sensor.orientation, params, cfg.env.goal_time)
+        return cls(times, cfg.sensor.cell_size, cfg.sensor.orientation, params,
+                   cfg.env.goal_seconds)  # fmt: skip
 
     @property
     def far_goal(self) -> bool:
         """The destination lies beyond the last set-point."""
-        return self.goal_time > float(self.times[-1]) + 1e-9
+        return self.goal_time is not None and self.goal_time > float(self.times[-1]) + 1e-9
 
 
 class Predictor(Protocol):
