@@ -348,9 +348,10 @@ def build_parser() -> argparse.ArgumentParser:
         "--selection",
         choices=list(SELECTIONS),
         default=None,
-        help="how parents are selected: 'pareto' (default), constrained NSGA-II on the three "
-        "objectives; 'anchored', with a warm start: the warm start stays in every generation "
-        "and a member whose l1 is worse than its is ranked as a constraint violation",
+        help="how parents are selected: 'anchored' (the default with a warm start): the warm "
+        "start stays in every generation and a member whose l1 is worse than its is ranked "
+        "as a constraint violation; 'pareto' (the default without): constrained NSGA-II on "
+        "the three objectives",
     )
     t.add_argument(
         "--evolve",

@@ -28,6 +28,9 @@ import hashlib
 import json
 from pathlib import Path
 
+import openblas_pin  # noqa: F401  (before NumPy: recorded with the kernels the tests use)
+
+# isort: split
 import gymnasium as gym
 import numpy as np
 from proc_cpuinfo import cpuinfo_field
@@ -176,14 +179,15 @@ def training_digests(out: Path) -> dict[str, str]:
 
     config = TrainConfig(preset="tiny", population=4, generations=2, episodes=1,
                          episode_seconds=3.0, seed=3, pretrain_episodes=2, pretrain_epochs=2,
-                         dagger_rounds=1, validation_episodes=2, batch=3)  # fmt: skip
+                         dagger_rounds=1, validation_episodes=2, batch=3,
+                         selection="pareto")  # fmt: skip
     Run.create(out, config).train(progress=False)
     return run_digests(out)
 
 
 #: Short runs down the paths the warm-started golden run does not take (``train`` settings):
-#: generation 0 from random weights (plans followed as given), and a warm start evaluated by
-#: worker processes.
+#: generation 0 from random weights (plans followed as given), a warm start evaluated by
+#: worker processes, and anchored selection (recorded later: a platform may lack it).
 TRAINING_PATHS = {
     "random_init": dict(preset="tiny", population=4, generations=3, episodes=1,
                         episode_seconds=3.0, seed=5, validation_episodes=2, batch=3,
@@ -191,7 +195,10 @@ TRAINING_PATHS = {
     "warm_start_processes": dict(preset="tiny", population=4, generations=2, episodes=1,
                                  episode_seconds=3.0, seed=4, pretrain_episodes=2,
                                  pretrain_epochs=1, validation_episodes=1, batch=2,
-                                 backend="processes", workers=2),
+                                 backend="processes", workers=2, selection="pareto"),
+    "anchored": dict(preset="tiny", population=5, generations=3, episodes=1,
+                     episode_seconds=3.0, seed=6, pretrain_episodes=2, pretrain_epochs=1,
+                     validation_episodes=2, batch=2, selection="anchored"),
 }  # fmt: skip
 
 

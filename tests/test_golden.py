@@ -55,7 +55,11 @@ def test_a_short_training_run_is_bit_identical_to_golden(tmp_path):
 
 @pytest.mark.parametrize("name", TRAINING_PATHS)
 def test_the_trainers_other_paths_are_bit_identical_to_golden(name, tmp_path):
-    assert training_path_digests(tmp_path / name, name) == _training("training_paths")[name]
+    recorded = _training("training_paths")
+    if name not in recorded:
+        pytest.skip(f"no {name} digests recorded for {numerics_platform()} "
+                    "(python tests/golden.py training_paths)")  # fmt: skip
+    assert training_path_digests(tmp_path / name, name) == recorded[name]
 
 
 def test_a_run_resumed_on_worker_processes_is_bit_identical_to_golden(tmp_path):

@@ -79,8 +79,9 @@ def plot_run(out: str | Path, history: list[dict]) -> list[Path]:
 def learning_curve(path: Path, history: list[dict]) -> Path | None:
     """Each generation's knee on the validation episodes (``knee_validation``), one panel per
     objective, with the warm start on the same episodes as a line; generations whose knee
-    lost episode time (a collision or leaving the road) are crossed. None without
-    validation scores."""
+    lost episode time (a collision or leaving the road) are crossed, and a panel whose values
+    span more than 20x (lost time is counted at the worst values) has a log axis. None
+    without validation scores."""
     points = [(h["generation"], h["knee_validation"]) for h in history if "knee_validation" in h]
     if not points:
         return None
@@ -95,7 +96,11 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
             ax.scatter(gens[lost], y[lost], s=60, marker="x", color="black", zorder=3,
                        label="the knee lost an episode")  # fmt: skip
         if warm is not None:
-            ax.axhline(warm[key], color="tab:orange", ls="--", label="warm start")
+            lost_warm = " (lost an episode)" if warm["violation"] > 0 else ""
+            ax.axhline(warm[key], color="tab:orange", ls="--", label=f"warm start{lost_warm}")
+        shown = np.append(y, [] if warm is None else [warm[key]])
+        if shown.min() > 0 and shown.max() > 20 * shown.min():  # a lost episode's padding
+            ax.set_yscale("log")
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(name, fontsize=9)

@@ -120,8 +120,9 @@ class TrainConfig:
     #: training, held-out episodes, evaluation and videos; see NetConfig.smoothing)
     plan_smoothing: float = 0.7
     #: how parents are selected (:data:`~neurotrajectory.evolve.evolution.SELECTIONS`):
-    #: "anchored" keeps the warm start in every generation and its l1 as a constraint
-    selection: str = "pareto"
+    #: "anchored" keeps the warm start in every generation and its l1 as a constraint; None:
+    #: "anchored" with a warm start, else "pareto" (stored resolved)
+    selection: str | None = None
     #: how far ahead the destination the network is given lies [s] (the scenario's
     #: ``env.goal_seconds``); None: the scenario's (by default the last set-point's time)
     goal_seconds: float | None = None
@@ -136,6 +137,9 @@ class TrainConfig:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
         if self.activation is None and self.preset in PRESETS:  # stored resolved
             object.__setattr__(self, "activation", PRESETS[self.preset].activation)
+        if self.selection is None:  # stored resolved
+            warm = bool(self.pretrain or self.pretrain_episodes)
+            object.__setattr__(self, "selection", "anchored" if warm else "pareto")
         self._check()
 
     #: The smallest value of each integer field.
