@@ -2,7 +2,8 @@
 (``docs/neurotrajectory.md``) trained with a given seed and selection, then its knee, its warm
 start and the destination curve driven on the same held-out episodes (seamless and
 inner-city: 40 episodes of 20 s; recorded groups: 20 of the run's held-out tracks, 10 s).
-Prints one JSON line per run; the runs stay in ``--out`` (``GROUP-sSEED-VARIANT/``).
+Prints one JSON line per run; the runs stay in ``--out`` (``GROUP-sSEED-VARIANT/``; with
+``--goal-seconds S``, a goal beyond the horizon: ``GROUP-sSEED-VARIANT-goalS/``).
 
     python benchmarks/evolution_gain.py --out runs/gain --groups seamless --seeds 3 4 \\
         --variants pareto anchored
@@ -65,18 +66,27 @@ def main() -> None:
     ap.add_argument("--seeds", nargs="+", type=int, default=[3])
     ap.add_argument("--variants", nargs="+", default=["pareto", "anchored"],
                     choices=list(VARIANTS))  # fmt: skip
+    ap.add_argument(
+        "--goal-seconds",
+        type=float,
+        default=None,
+        help="train for a goal this far ahead (record and train --goal-seconds)",
+    )
     args = ap.parse_args()
     root = Path(args.out)
+    goal = ["--goal-seconds", f"{args.goal_seconds:g}"] if args.goal_seconds else []
+    suffix = f"-goal{args.goal_seconds:g}" if args.goal_seconds else ""
     for group in args.groups:
         flags, record, (episodes, seconds) = GROUPS[group]
+        flags = [*flags, *goal]
         if record is not None:  # the train side of evaluate's split (its seed 0)
-            data = root / f"data-{group}"
+            data = root / f"data-{group}{suffix}"
             if not data.exists():
-                _nt("record", *record, "--out", str(data))
+                _nt("record", *record, *goal, "--out", str(data))
             flags = [*flags, "--pretrain", str(data)]
         for seed in args.seeds:
             for variant in args.variants:
-                run = root / f"{group}-s{seed}-{variant}"
+                run = root / f"{group}-s{seed}-{variant}{suffix}"
                 train_s = None
                 if not (run / "front.json").exists():
                     train_s = _nt("train", *flags, *COMMON, *VARIANTS[variant], "--seed",

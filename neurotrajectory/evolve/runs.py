@@ -170,12 +170,10 @@ class TrainConfig:
             raise RunError("give either pretrain (a dataset) or pretrain_episodes, not both")
         if self.dagger_rounds and not (self.pretrain or self.pretrain_episodes):
             raise RunError("dagger_rounds refit the warm start: give pretrain or pretrain_episodes")
+        for name in ("dagger_weight", "goal_seconds"):  # optional, > 0 where given
+            _check_positive(name, getattr(self, name))
         if self.dagger_weight is not None:
             w = self.dagger_weight
-            if isinstance(w, bool) or not isinstance(w, int | float | np.number):
-                raise RunError(f"dagger_weight must be a number, got {w!r}")
-            if not (math.isfinite(w) and w > 0):
-                raise RunError(f"dagger_weight must be a finite number > 0, got {w}")
             if not self.dagger_rounds:
                 raise RunError(f"dagger_weight {w:g} weighs the DAgger rounds' windows: give "
                                "dagger_rounds >= 1")  # fmt: skip
@@ -207,12 +205,6 @@ class TrainConfig:
                            "pretrain_episodes), or evolve 'all'")  # fmt: skip
         if self.prior is not None and self.prior not in PRIORS:
             raise RunError(f"unknown prior {self.prior!r}; choose from {list(PRIORS)}")
-        if self.goal_seconds is not None:
-            g = self.goal_seconds
-            if isinstance(g, bool) or not isinstance(g, int | float | np.number):
-                raise RunError(f"goal_seconds must be a number, got {g!r}")
-            if not (math.isfinite(g) and g > 0):
-                raise RunError(f"goal_seconds must be a finite number > 0, got {g}")
         if self.selection not in SELECTIONS:
             raise RunError(f"unknown selection {self.selection!r}; choose from "
                            f"{list(SELECTIONS)}")  # fmt: skip
@@ -776,6 +768,16 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
         raise RunError(f"--pretrain {config.pretrain} has no track of scene {scene!r}, which "
                        f"{config.scenario!r} replays: record windows of that scene")  # fmt: skip
     return replace(config, ego_tracks=tuple(ids))
+
+
+def _check_positive(name: str, value) -> None:
+    """A :class:`RunError` unless ``value`` is None or a finite number > 0."""
+    if value is None:
+        return
+    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+        raise RunError(f"{name} must be a number, got {value!r}")
+    if not (math.isfinite(value) and value > 0):
+        raise RunError(f"{name} must be a finite number > 0, got {value}")
 
 
 def _score(index: int, fitness: np.ndarray, stats: dict) -> dict:
