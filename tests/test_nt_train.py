@@ -392,7 +392,7 @@ _OTHER_VALUES = {
     "--dagger-labels": "human", "--prior": "none", "--frame": "grid", "--no-skip": None,
     "--fixed-episodes": None, "--unconstrained": None, "--validation-episodes": "3",
     "--evolve": "head", "--activation": "tanh", "--plan-smoothing": "0.5",
-    "--selection": "anchored",
+    "--selection": "anchored", "--goal-seconds": "5",
 }  # fmt: skip
 #: ``train`` flags that are about the command, not the run's configuration.
 _COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quiet"}
