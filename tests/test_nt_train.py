@@ -562,3 +562,27 @@ def test_heldout_tracks_are_the_usable_tracks_a_run_did_not_train_on():
     problem = heldout_problem(TrainConfig(scenario="us101_4_1", ego_tracks=tuple(every)))
     assert "us101_4_1: every track of the scene that can be the ego was trained on" in problem
     assert "--group NAME=FOLDER" in problem
+
+
+def test_heldout_on_a_recorded_scene_drives_each_held_out_track_once(tmp_path):
+    from gridsim.scenario.families.recorded import ego_candidates
+    from gridsim.scenario.loader import load_scenario
+    from neurotrajectory.compare.closed_loop import drive_episodes
+    from neurotrajectory.compare.front import heldout, load_front_member
+
+    usable = sorted(t.track_id for t in ego_candidates(load_scenario("us101_4_1")))
+    cfg = TrainConfig(scenario="us101_4_1", ego_tracks=tuple(usable[2:]), preset="tiny",
+                      population=2, generations=1, episodes=1, episode_seconds=2.0,
+                      validation_episodes=0)  # fmt: skip
+    Run.create(tmp_path / "run", cfg).train(progress=False)
+    report = heldout(tmp_path / "run", 20)  # more episodes asked than tracks held out
+    held = [t.track_id for t in ego_candidates(load_scenario("us101_4_1"))
+            if t.track_id not in usable[2:]]  # fmt: skip
+    assert report["ego_tracks"] == held[:20] and len(report["episodes"]) == len(held)
+    assert [e["track"] for e in report["episodes"]] == held
+    assert report["network"]["episodes"] == report["destination curve"]["episodes"] == len(held)
+    # each episode is that track driven as the ego
+    _, policy, _ = load_front_member(tmp_path / "run", "knee")
+    first = drive_episodes("us101_4_1", policy, report["seeds"][:1], 2.0,
+                           ego={"track": held[0]})  # fmt: skip
+    assert {**first[0], "track": held[0]} == report["episodes"][0]

@@ -69,8 +69,8 @@ def _progress(driven: float, human: float) -> float:
 
 def summarise(rows: list[dict]) -> dict:
     """The mean of every statistic over ``rows`` (NaN entries left out; NaN if all are),
-    and the number of episodes."""
-    keys = [k for k in rows[0] if k != "seed"]
+    and the number of episodes (labels, as the seed or the track, are left out)."""
+    keys = [k for k, v in rows[0].items() if k != "seed" and not isinstance(v, str)]
     out = {}
     for k in keys:
         values = np.array([r[k] for r in rows], dtype=np.float64)

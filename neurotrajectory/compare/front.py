@@ -105,34 +105,42 @@ def heldout(
 ) -> dict:
     """Closed-loop statistics of the picked front member on ``episodes`` episodes that no
     generation trained on (:meth:`~neurotrajectory.evolve.runs.TrainConfig.heldout_seeds`; on a
-    recorded scene trained on some ``ego_tracks``, the scene's other tracks that can be the
-    ego), each
-    ``seconds`` long (default: as long as the training episodes), beside the destination
-    curve's and, if the run has one, its warm start's (``"warm_start"``: what evolution started
-    from) on the same episodes, all plans smoothed alike: as the run's, or by ``smoothing``."""
+    recorded scene trained on some ``ego_tracks``, each of the scene's other tracks that can
+    be the ego once, at most ``episodes`` of them in id order), each ``seconds`` long
+    (default: as long as the training episodes), beside the destination curve's and, if the
+    run has one, its warm start's (``"warm_start"``: what evolution started from) on the same
+    episodes, all plans smoothed alike: as the run's, or by ``smoothing``."""
     from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
     from neurotrajectory.compare.closed_loop import drive_episodes, summarise
     from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
 
     run, policy, member = load_front_member(run_dir, pick, smoothing)
     cfg = run.config
-    seeds = list(cfg.heldout_seeds(episodes))
     seconds = cfg.episode_seconds if seconds is None else float(seconds)
-    ego = {"track": _other_tracks(cfg.scenario, cfg.ego_tracks)} if cfg.ego_tracks else None
-    goal = cfg.goal_seconds
-    rows = drive_episodes(cfg.scenario, policy, seeds, seconds, ego=ego, goal_seconds=goal)
+    tracks = _other_tracks(cfg.scenario, cfg.ego_tracks)[:episodes] if cfg.ego_tracks else None
+    seeds = list(cfg.heldout_seeds(len(tracks) if tracks else episodes))
+
+    def drive(planner) -> list[dict]:
+        if tracks is None:
+            return drive_episodes(cfg.scenario, planner, seeds, seconds,
+                                  goal_seconds=cfg.goal_seconds)  # fmt: skip
+        return [{**row, "track": track}  # each held-out track once
+                for track, seed in zip(tracks, seeds, strict=True)
+                for row in drive_episodes(cfg.scenario, planner, [seed], seconds,
+                                          ego={"track": track},
+                                          goal_seconds=cfg.goal_seconds)]  # fmt: skip
+
+    rows = drive(policy)
     env = GridSimEnv(cfg.scenario, **cfg.overrides)
     keep = policy.keep  # the curve's plans are smoothed as the member's
-    curve = TrajectoryPolicy(DestinationCurve(Setting.from_env(env)), keep)
-    baseline = drive_episodes(cfg.scenario, curve, seeds, seconds, ego=ego, goal_seconds=goal)
+    baseline = drive(TrajectoryPolicy(DestinationCurve(Setting.from_env(env)), keep))
     warm = load_warm_start(run, keep)
-    started = None if warm is None else drive_episodes(cfg.scenario, warm, seeds, seconds,
-                                                       ego=ego, goal_seconds=goal)  # fmt: skip
+    started = None if warm is None else drive(warm)
     return {
         "member": member,
         "episode_seconds": seconds,
         "plan_smoothing": keep,
-        **({"ego_tracks": ego["track"]} if ego else {}),
+        **({"ego_tracks": tracks} if tracks else {}),
         "seeds": seeds,
         "network": summarise(rows),
         **({"warm_start": summarise(started)} if started else {}),
