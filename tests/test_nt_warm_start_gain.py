@@ -3,6 +3,7 @@ the knee; the learning curve; anchored selection (the warm start in every genera
 a constraint)."""
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -224,3 +225,12 @@ def test_anchored_selection_needs_a_warm_start_and_old_runs_read_as_pareto(tmp_p
     del stored["train"]["selection"]  # a run saved before the field
     (run.out / "config.json").write_text(json.dumps(stored))
     assert Run.open(run.out).config.selection == "pareto"
+
+
+def test_a_damaged_warm_start_file_is_named(anchored_run, tmp_path):
+    import shutil
+
+    run = Path(shutil.copytree(anchored_run, tmp_path / "copy"))
+    (run / "warm_start.npz").write_bytes(b"not a zip")
+    with pytest.raises(RunError, match=r"warm_start.npz: not a readable .npz archive of a run"):
+        Run.open(run).warm_start_genome()

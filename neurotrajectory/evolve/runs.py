@@ -485,14 +485,8 @@ class Run:
 
     def _best_knee(self) -> tuple[int, np.ndarray] | None:
         """``(generation, genome)`` of :data:`BEST_KNEE_FILE`, or None."""
-        path = self.out / BEST_KNEE_FILE
-        if not path.exists():
-            return None
-        try:
-            with np.load(path) as data:
-                return int(data["generation"]), data["genome"]
-        except Exception as exc:
-            raise RunError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
+        data = _read_npz(self.out / BEST_KNEE_FILE, "generation", "genome")
+        return None if data is None else (int(data[0]), data[1])
 
     def _validate_knee(self, backend, gen, fitness, rank, source: Source) -> dict:
         """The learning curve's point of generation ``gen``: its knee (picked from its first
@@ -554,14 +548,8 @@ class Run:
     def warm_start_genome(self) -> np.ndarray | None:
         """The warm start's genome (generation 0's parent), or None for a run without one
         (or saved before warm starts were kept)."""
-        path = self.out / WARM_START_FILE
-        if not path.exists():
-            return None
-        try:
-            with np.load(path) as data:
-                return data["genome"]
-        except Exception as exc:
-            raise RunError(f"{path}: unreadable warm start ({type(exc).__name__}: {exc})") from None
+        data = _read_npz(self.out / WARM_START_FILE, "genome")
+        return None if data is None else data[0]
 
     def _pretrain_windows(self):
         """The warm start's windows, where they came from, and the episodes of the training
@@ -768,6 +756,19 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
         raise RunError(f"--pretrain {config.pretrain} has no track of scene {scene!r}, which "
                        f"{config.scenario!r} replays: record windows of that scene")  # fmt: skip
     return replace(config, ego_tracks=tuple(ids))
+
+
+def _read_npz(path: Path, *keys: str) -> tuple[np.ndarray, ...] | None:
+    """The arrays ``keys`` of the file ``path``, or None if there is no such file; a
+    :class:`RunError` naming the file if it cannot be read."""
+    if not path.exists():
+        return None
+    try:
+        with np.load(path) as data:
+            return tuple(data[k] for k in keys)
+    except Exception as exc:
+        raise RunError(f"{path}: not a readable .npz archive of a run (damaged or replaced?): "
+                       f"{type(exc).__name__}: {exc}") from None  # fmt: skip
 
 
 def _check_positive(name: str, value) -> None:
