@@ -43,6 +43,7 @@ VARIANTS = {
     "anchored": ["--selection", "anchored"],
     "anchored-4-episodes": ["--selection", "anchored", "--episodes", "4"],
     "one-generation": ["--generations", "1"],
+    "anchored-dagger": ["--selection", "anchored", "--dagger-rounds", "1"],
 }
 
 
