@@ -41,11 +41,11 @@ def _cmd_train(args: argparse.Namespace) -> int:
         # flags that would change the run's results are refused unless they match it
         run = Run.open(args.resume, **_train_flags(args))
     else:
-        defaults = TrainConfig()
+        # the fields' own defaults: None where TrainConfig resolves one from the other fields
+        # (the activation from the preset, the selection from the warm start)
+        defaults = {f.name: f.default for f in fields(TrainConfig)}
         given = _train_flags(args)
-        config = TrainConfig(
-            **{k: (v if v is not None else getattr(defaults, k)) for k, v in given.items()}
-        )
+        config = TrainConfig(**{k: (v if v is not None else defaults[k]) for k, v in given.items()})
         if args.dagger_labels is not None and not config.dagger_rounds:
             raise RunError(f"--dagger-labels {args.dagger_labels} labels the DAgger rounds' "
                            "windows: give --dagger-rounds >= 1")  # fmt: skip

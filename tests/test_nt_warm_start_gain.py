@@ -234,3 +234,31 @@ def test_a_damaged_warm_start_file_is_named(anchored_run, tmp_path):
     (run / "warm_start.npz").write_bytes(b"not a zip")
     with pytest.raises(RunError, match=r"warm_start.npz: not a readable .npz archive of a run"):
         Run.open(run).warm_start_genome()
+
+
+def test_the_command_line_anchors_a_warm_started_run_by_default(tmp_path):
+    tiny = [
+        "--preset",
+        "tiny",
+        "--population",
+        "3",
+        "--generations",
+        "1",
+        "--episodes",
+        "1",
+        "--episode-seconds",
+        "2",
+        "--validation-episodes",
+        "1",
+        "--heldout",
+        "0",
+        "--quiet",
+    ]
+    assert main(["train", *tiny, "--out", str(tmp_path / "plain")]) == 0
+    assert Run.open(tmp_path / "plain").config.selection == "pareto"
+    warm = ["--pretrain-episodes", "2", "--pretrain-epochs", "1"]
+    assert main(["train", *tiny, *warm, "--out", str(tmp_path / "warm")]) == 0
+    assert Run.open(tmp_path / "warm").config.selection == "anchored"
+    assert main(["train", *tiny, *warm, "--selection", "pareto",
+                 "--out", str(tmp_path / "asked")]) == 0  # fmt: skip
+    assert Run.open(tmp_path / "asked").config.selection == "pareto"
