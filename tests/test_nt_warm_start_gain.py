@@ -26,6 +26,11 @@ WARM = dict(preset="tiny", population=5, generations=3, episodes=1, episode_seco
             pretrain_episodes=2, pretrain_epochs=1, validation_episodes=2, batch=3)  # fmt: skip
 
 
+#: A tiny training command line (plus --heldout and --out).
+TINY_CLI = ["--preset", "tiny", "--population", "3", "--generations", "1", "--episodes", "1",
+            "--episode-seconds", "2", "--validation-episodes", "1", "--quiet"]  # fmt: skip
+
+
 def _history(out):
     return json.loads((out / "history.json").read_text())["generations"]
 
@@ -187,23 +192,7 @@ def test_heldout_drives_the_warm_start_beside_the_knee(anchored_run, tmp_path, c
 
 def test_a_run_without_a_warm_start_has_no_warm_start_entry(tmp_path):
     out = tmp_path / "run"
-    args = [
-        "--preset",
-        "tiny",
-        "--population",
-        "4",
-        "--generations",
-        "1",
-        "--episodes",
-        "1",
-        "--episode-seconds",
-        "2",
-        "--validation-episodes",
-        "1",
-        "--quiet",
-        "--heldout",
-        "1",
-    ]
+    args = [*TINY_CLI, "--heldout", "1"]
     assert main(["train", *args, "--out", str(out)]) == 0
     assert "warm_start" not in json.loads((out / "heldout.json").read_text())
     assert "warm_start" not in json.loads((out / "front.json").read_text())
@@ -237,23 +226,7 @@ def test_a_damaged_warm_start_file_is_named(anchored_run, tmp_path):
 
 
 def test_the_command_line_anchors_a_warm_started_run_by_default(tmp_path):
-    tiny = [
-        "--preset",
-        "tiny",
-        "--population",
-        "3",
-        "--generations",
-        "1",
-        "--episodes",
-        "1",
-        "--episode-seconds",
-        "2",
-        "--validation-episodes",
-        "1",
-        "--heldout",
-        "0",
-        "--quiet",
-    ]
+    tiny = [*TINY_CLI, "--heldout", "0"]
     assert main(["train", *tiny, "--out", str(tmp_path / "plain")]) == 0
     assert Run.open(tmp_path / "plain").config.selection == "pareto"
     warm = ["--pretrain-episodes", "2", "--pretrain-epochs", "1"]
