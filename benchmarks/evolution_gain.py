@@ -1,7 +1,8 @@
 """What evolution buys over its warm start: each group's documented recipe
 (``docs/neurotrajectory.md``) trained with a given seed and selection, then its knee, its warm
 start and the destination curve driven on the same held-out episodes (seamless and
-inner-city: 40 episodes of 20 s; recorded groups: 20 of the run's held-out tracks, 10 s).
+inner-city: 40 episodes of 20 s; recorded groups: each of the run's held-out tracks once,
+10 s).
 Prints one JSON line per run; the runs stay in ``--out`` (``GROUP-sSEED-VARIANT/``; with
 ``--goal-seconds S``, a goal beyond the horizon: ``GROUP-sSEED-VARIANT-goalS/``).
 

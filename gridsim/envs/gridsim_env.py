@@ -91,7 +91,7 @@ class GridSimEnv(gym.Env):
         e = cfg.env
         self._setpoint_times = e.setpoint_times
         # the reference is looked up at the set-point times, and at the goal's beyond them
-        far = e.goal_seconds is not None and e.goal_time > e.horizon_time
+        far = e.goal_time > e.horizon_time
         self._look_times = np.append(e.setpoint_times, e.goal_time) if far else e.setpoint_times
         self.metadata = {**self.metadata, "render_fps": 1.0 / e.decision_period}
         # Spaces depend only on the scenario, not on the episode.

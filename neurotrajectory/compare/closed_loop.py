@@ -15,6 +15,7 @@ import numpy as np
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.video import record_episode
+from neurotrajectory.data.windows import goal_overrides
 
 #: m: below this the human's path (a car waiting at a light) is no yardstick for progress.
 MIN_HUMAN_PATH = 1.0
@@ -36,9 +37,7 @@ def drive_episodes(
     """One row of statistics per episode of ``policy`` on ``scenario`` (episodes of
     ``seconds``, one per seed; ``ego`` overrides the scenario's ego section, ``goal_seconds``
     its ``env.goal_seconds``); with ``video``, the first episode is also exported there."""
-    more = ({"ego": ego} if ego else {}) | (
-        {"env": {"goal_seconds": goal_seconds}} if goal_seconds is not None else {}
-    )
+    more = ({"ego": ego} if ego else {}) | goal_overrides(goal_seconds)
     env = GridSimEnv(scenario, action_type=policy.action_type,
                      render_mode="rgb_array" if video else None,
                      simulation={"duration": seconds}, **more)  # fmt: skip

@@ -131,6 +131,12 @@ class PlannedEpisode:
     overrides: dict
 
 
+def goal_overrides(goal_seconds: float | None) -> dict:
+    """The scenario overrides that put the observed destination ``goal_seconds`` [s] ahead
+    (``env.goal_seconds``); none for None (the scenario's own destination)."""
+    return {} if goal_seconds is None else {"env": {"goal_seconds": float(goal_seconds)}}
+
+
 def scenario_episodes(
     scenario: str,
     episodes: int = 0,
@@ -146,7 +152,7 @@ def scenario_episodes(
     from ``seed`` (or the episode ``seeds`` given), ``duration`` [s] long if given. With
     ``goal_seconds``, every episode observes the destination that far ahead
     (``env.goal_seconds``)."""
-    goal = {"env": {"goal_seconds": float(goal_seconds)}} if goal_seconds is not None else {}
+    goal = goal_overrides(goal_seconds)
     base = load_scenario(scenario)
     if isinstance(base.config.road, RecordedRoadConfig):
         scene = scene_of(base)

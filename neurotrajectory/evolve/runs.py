@@ -33,6 +33,7 @@ from neurotrajectory.data.windows import (
     Windows,
     drive_windows,
     episodes_of,
+    goal_overrides,
     is_recorded,
     load_dataset,
     scenario_episodes,
@@ -261,8 +262,8 @@ class TrainConfig:
     @property
     def overrides(self) -> dict:
         tracks = {"ego": {"track": list(self.ego_tracks)}} if self.ego_tracks else {}
-        goal = {"env": {"goal_seconds": self.goal_seconds}} if self.goal_seconds else {}
-        return {"simulation": {"duration": self.episode_seconds}, **tracks, **goal}
+        return {"simulation": {"duration": self.episode_seconds}, **tracks,
+                **goal_overrides(self.goal_seconds)}  # fmt: skip
 
     #: Fields that may differ between a run and its resumption (they do not change results).
     RESUMABLE = ("generations", "backend", "workers", "ray_address", "batch")
