@@ -141,7 +141,10 @@ def test_lanelet_errors_name_the_file(tmp_path):
     with pytest.raises(DataError, match="not found"):
         load_lanelet_road(tmp_path / "missing.xml")
     bad = tmp_path / "bad.xml"
-    bad.write_text("<commonRoad><lanelet id='1'><leftBound></leftBound></lanelet>")
+    bad.write_text("<commonRoad><lanelet id='1'><leftBound></leftBound></lanelet><lanelet")
+    with pytest.raises(DataError, match="bad.xml: (not well-formed|lanelet 1)"):  # streamed
+        load_lanelet_road(bad)
+    bad.write_text("<commonRoad><lanelet id='1'")
     with pytest.raises(DataError, match="bad.xml: not well-formed"):
         load_lanelet_road(bad)
     bad.write_text(

@@ -9,6 +9,7 @@ predecessor (successor) start (end) at the map's border: no road edge is placed 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -44,40 +45,74 @@ def _resample(pts: np.ndarray, n: int) -> np.ndarray:
     return line.point_at(np.linspace(line.s[0], line.s[-1], n))[0]
 
 
-def parse_commonroad(path: str | Path) -> ET.Element:
-    """The root element of a CommonRoad XML file; :class:`DataError` if it is missing or
-    malformed."""
+#: The elements that sit directly under a CommonRoad file's root and hold the bulk of it.
+_TOP_LEVEL = frozenset({"lanelet", "obstacle", "dynamicObstacle", "staticObstacle",
+                        "environmentObstacle", "phantomObstacle", "trafficSign", "trafficLight",
+                        "intersection", "planningProblem"})  # fmt: skip
+
+
+def commonroad_root(path: str | Path) -> dict[str, str]:
+    """The root attributes of a CommonRoad XML file (reads only the root element);
+    :class:`DataError` if the file is missing, malformed or not a CommonRoad file."""
     path = Path(path)
     if not path.is_file():
         raise DataError(f"CommonRoad file not found: {path}")
     try:
-        root = ET.parse(path).getroot()
-    except ET.ParseError as exc:
-        raise DataError(f"{path}: not well-formed XML ({exc})") from exc
+        _, root = next(ET.iterparse(path, events=("start",)))
+    except (ET.ParseError, StopIteration) as exc:
+        raise DataError(f"{path}: not well-formed XML ({exc})") from None
     if root.tag != "commonRoad":
         raise DataError(f"{path}: not a CommonRoad file (root element <{root.tag}>)")
-    return root
+    return dict(root.attrib)
+
+
+def iter_commonroad(path: str | Path, tags: tuple[str, ...]) -> Iterator[ET.Element]:
+    """The definitions (elements with an ``id``; references such as a goal's
+    ``<lanelet ref=...>`` are skipped) of a CommonRoad XML file whose tag is in ``tags``
+    (top-level elements: lanelets, obstacles), in file order, streamed: each is emptied once
+    the caller has it, and so are the other top-level elements, so memory does not grow with
+    the file.
+    :class:`DataError` if the file is missing, malformed or not a CommonRoad file."""
+    commonroad_root(path)
+    try:
+        for _, el in ET.iterparse(path, events=("end",)):
+            if el.tag in _TOP_LEVEL:
+                if el.tag in tags and "id" in el.attrib:
+                    yield el
+                el.clear()
+    except ET.ParseError as exc:
+        raise DataError(f"{path}: not well-formed XML ({exc})") from None
+
+
+def _lanelet(ll: ET.Element, path: Path) -> dict:
+    """A ``<lanelet>``'s id, bounds ``(N, 2)`` [m] and the ids it names as predecessors and
+    successors."""
+    where = f"{path.name}: lanelet {ll.get('id')}"
+    left_el, right_el = ll.find("leftBound"), ll.find("rightBound")
+    if left_el is None or right_el is None:
+        raise DataError(f"{where}: missing <leftBound> or <rightBound>")
+    return {
+        "id": ll.get("id"),
+        "left": _points(left_el, where + " leftBound"),
+        "right": _points(right_el, where + " rightBound"),
+        "predecessors": [r.get("ref") for r in ll.findall("predecessor")],
+        "successors": [r.get("ref") for r in ll.findall("successor")],
+    }
 
 
 def load_lanelet_road(path: str | Path) -> StaticRoad:
     """Build a :class:`StaticRoad` from the lanelets of a CommonRoad XML file."""
     path = Path(path)
-    root = parse_commonroad(path)
+    lanelets = [_lanelet(el, path) for el in iter_commonroad(path, ("lanelet",))]
     lanes, polygons, markings, ends = [], [], [], []
-    has_pred = {r.get("ref") for ll in root.findall("lanelet") for r in ll.findall("successor")}
-    has_succ = {r.get("ref") for ll in root.findall("lanelet") for r in ll.findall("predecessor")}
-    for ll in root.findall("lanelet"):
-        where = f"{path.name}: lanelet {ll.get('id')}"
-        left_el, right_el = ll.find("leftBound"), ll.find("rightBound")
-        if left_el is None or right_el is None:
-            raise DataError(f"{where}: missing <leftBound> or <rightBound>")
-        left = _points(left_el, where + " leftBound")
-        right = _points(right_el, where + " rightBound")
+    has_pred = {ref for ll in lanelets for ref in ll["successors"]}
+    has_succ = {ref for ll in lanelets for ref in ll["predecessors"]}
+    for ll in lanelets:
+        left, right, lid = ll["left"], ll["right"], ll["id"]
         polygons.append(np.vstack([left, right[::-1]]))
-        lid = ll.get("id")
-        if ll.find("predecessor") is None and lid not in has_pred:
+        if not ll["predecessors"] and lid not in has_pred:
             ends.append([*left[0], *right[0]])
-        if ll.find("successor") is None and lid not in has_succ:
+        if not ll["successors"] and lid not in has_succ:
             ends.append([*left[-1], *right[-1]])
         markings += [left, right]
         n = max(len(left), len(right), int(Polyline(left).length) + 2)

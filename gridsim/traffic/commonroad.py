@@ -19,25 +19,18 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.errors import DataError
-from gridsim.road.lanelet import parse_commonroad
+from gridsim.road.lanelet import commonroad_root, iter_commonroad
 from gridsim.traffic.track import Track
 
 
-def _scene_id(root: ET.Element, path: Path) -> str:
-    return root.get("benchmarkID") or path.stem
+def _scene_id(root_attrib: dict, path: Path) -> str:
+    return root_attrib.get("benchmarkID") or path.stem
 
 
 def scene_id(path: str | Path) -> str:
     """The scene id of a CommonRoad file: its root's ``benchmarkID`` (or the file's stem).
     Reads only the root element."""
-    path = Path(path)
-    if not path.is_file():
-        raise DataError(f"CommonRoad file not found: {path}")
-    try:
-        _, root = next(ET.iterparse(path, events=("start",)))
-    except (ET.ParseError, StopIteration) as exc:
-        raise DataError(f"{path}: not well-formed XML ({exc})") from None
-    return _scene_id(root, path)
+    return _scene_id(commonroad_root(path), Path(path))
 
 
 def _value(el: ET.Element | None, where: str) -> float | None:
@@ -88,59 +81,63 @@ def _size(obstacle: ET.Element, where: str) -> tuple[float, float]:
     return length, width
 
 
-def _dynamic_obstacles(root: ET.Element) -> list[ET.Element]:
-    old = [o for o in root.findall("obstacle") if (o.findtext("role") or "").strip() == "dynamic"]
-    return old + root.findall("dynamicObstacle")
+def _is_dynamic(obstacle: ET.Element) -> bool:
+    """A 2020a ``<dynamicObstacle>`` or a 2018 ``<obstacle>`` with ``<role>dynamic</role>``."""
+    if obstacle.tag == "dynamicObstacle":
+        return True
+    return (obstacle.findtext("role") or "").strip() == "dynamic"
 
 
 def read_tracks_commonroad(path: str | Path) -> list[Track]:
     """The dynamic obstacles of a CommonRoad file as tracks (file order); raise
-    :class:`DataError` naming the file and the obstacle."""
+    :class:`DataError` naming the file and the obstacle. The file is streamed: memory grows
+    with the tracks, not with the XML."""
     path = Path(path)
-    root = parse_commonroad(path)
+    attrib = commonroad_root(path)
+    tracks, dt, sid = [], None, _scene_id(attrib, path)
+    for ob in iter_commonroad(path, ("obstacle", "dynamicObstacle")):
+        if dt is None:
+            dt = _time_step(attrib, path)
+        if _is_dynamic(ob):
+            track = _track(ob, path, sid, dt)
+            if track is not None:
+                tracks.append(track)
+    return tracks
+
+
+def _time_step(attrib: dict, path: Path) -> float:
     try:
-        dt = float(root.get("timeStepSize", ""))
+        dt = float(attrib.get("timeStepSize", ""))
     except ValueError:
         raise DataError(f"{path}: the root lacks a numeric timeStepSize") from None
     if not dt > 0:
         raise DataError(f"{path}: timeStepSize must be > 0, got {dt}")
-    sid = _scene_id(root, path)
-    tracks = []
-    for ob in _dynamic_obstacles(root):
-        where = f"{path}: obstacle {ob.get('id')}"
-        states = [ob.find("initialState"), *ob.findall("trajectory/state")]
-        states = [_state(s, where) for s in states if s is not None]
-        if len(states) < 2:
-            continue
-        a = np.array([s[:4] for s in states])
-        order = np.argsort(a[:, 0], kind="stable")
-        a = a[order]
-        if np.any(np.diff(a[:, 0]) <= 0):
-            raise DataError(f"{where}: repeated time steps")
-        if not np.all(np.isfinite(a)):
-            raise DataError(f"{where}: non-finite values")
-        t = a[:, 0] * dt
-        v = np.array([states[k][4] for k in order], dtype=object)
-        if any(s is None for s in v):  # derive from the positions
-            seg = np.hypot(np.diff(a[:, 1]), np.diff(a[:, 2])) / np.diff(t)
-            speed = np.append(seg, seg[-1])
-        else:
-            speed = v.astype(float)
-        if np.any(speed < 0):
-            raise DataError(f"{where}: negative velocity (reversing is not supported)")
-        length, width = _size(ob, where)
-        tracks.append(
-            Track(
-                sid,
-                str(ob.get("id")),
-                t,
-                a[:, 1],
-                a[:, 2],
-                np.unwrap(a[:, 3]),
-                speed,
-                length,
-                width,
-                str(path),
-            )  # fmt: skip
-        )
-    return tracks
+    return dt
+
+
+def _track(ob: ET.Element, path: Path, sid: str, dt: float) -> Track | None:
+    """One dynamic obstacle as a track (``None`` if it has a single state)."""
+    where = f"{path}: obstacle {ob.get('id')}"
+    states = [ob.find("initialState"), *ob.findall("trajectory/state")]
+    states = [_state(s, where) for s in states if s is not None]
+    if len(states) < 2:
+        return None
+    a = np.array([s[:4] for s in states])
+    order = np.argsort(a[:, 0], kind="stable")
+    a = a[order]
+    if np.any(np.diff(a[:, 0]) <= 0):
+        raise DataError(f"{where}: repeated time steps")
+    if not np.all(np.isfinite(a)):
+        raise DataError(f"{where}: non-finite values")
+    t = a[:, 0] * dt
+    v = np.array([states[k][4] for k in order], dtype=object)
+    if any(s is None for s in v):  # derive from the positions
+        seg = np.hypot(np.diff(a[:, 1]), np.diff(a[:, 2])) / np.diff(t)
+        speed = np.append(seg, seg[-1])
+    else:
+        speed = v.astype(float)
+    if np.any(speed < 0):
+        raise DataError(f"{where}: negative velocity (reversing is not supported)")
+    length, width = _size(ob, where)
+    return Track(sid, str(ob.get("id")), t, a[:, 1], a[:, 2], np.unwrap(a[:, 3]), speed,
+                 length, width, str(path))  # fmt: skip

@@ -84,6 +84,12 @@ class CollisionChecker:
         return self._space
 
     @property
+    def core(self) -> tuple[float, float]:
+        """Length and width [m] of the box tested against road edges (the footprint less
+        the edge tolerance on every side)."""
+        return self._core
+
+    @property
     def ego_box(self) -> tuple[float, float, float]:
         """The ego box's length and width [m] and its bounding circle's radius [m] (the broad
         phase's)."""

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gridsim.jit import kernel
+from gridsim.jit import jitable, kernel
 from gridsim.traffic.fleet_kernels import FleetState
 
 #: A vehicle contact is ruled out without pymunk when the boxes are apart by more than this
@@ -86,3 +86,70 @@ def may_touch(state, ego, radius, margin) -> bool:
         if not boxes_apart(ego, (f.x[i], f.y[i], f.psi[i], f.length[i], f.width[i]), margin):
             return True
     return False
+
+
+@jitable
+def _point_box_distance(ux, uy, hl, hw) -> float:
+    """Distance [m] from ``(ux, uy)`` to the box ``[-hl, hl] x [-hw, hw]`` (0 inside)."""
+    return np.hypot(max(abs(ux) - hl, 0.0), max(abs(uy) - hw, 0.0))
+
+
+@jitable
+def _point_segment_distance(px, py, x0, y0, x1, y1) -> float:
+    dx, dy = x1 - x0, y1 - y0
+    den = dx * dx + dy * dy
+    t = 0.0
+    if den > 0.0:
+        t = min(max(((px - x0) * dx + (py - y0) * dy) / den, 0.0), 1.0)
+    return np.hypot(px - x0 - t * dx, py - y0 - t * dy)
+
+
+@jitable
+def _segment_crosses_box(x0, y0, x1, y1, hl, hw) -> bool:
+    """Whether the segment meets the box ``[-hl, hl] x [-hw, hw]`` (Liang-Barsky clipping)."""
+    lo, hi = 0.0, 1.0
+    dx, dy = x1 - x0, y1 - y0
+    for p, q in ((-dx, x0 + hl), (dx, hl - x0), (-dy, y0 + hw), (dy, hw - y0)):
+        if p == 0.0:
+            if q < 0.0:
+                return False
+        else:
+            r = q / p
+            if p < 0.0:
+                lo = max(lo, r)
+            else:
+                hi = min(hi, r)
+            if lo > hi:
+                return False
+    return True
+
+
+@kernel
+def edges_near_boxes(px, py, psi, half_length, half_width, reach, segments, margin):
+    """For each box (centre ``px[i], py[i]`` [m], heading ``psi[i]`` [rad], half sizes [m]),
+    whether a segment of ``segments`` ``(M, 4)`` comes within ``margin`` [m] of it: exact
+    distances, for the segments within ``reach[i]`` [m] of the centre (:func:`near_segments`'
+    test). A whole recorded scene's samples at once; farther boxes cannot touch an edge."""
+    out = np.zeros(len(px), np.bool_)
+    for i in range(len(px)):
+        cx, cy, c, s = px[i], py[i], np.cos(psi[i]), np.sin(psi[i])
+        hl, hw = half_length[i], half_width[i]
+        for k in range(len(segments)):
+            x0, y0, x1, y1 = segments[k, 0], segments[k, 1], segments[k, 2], segments[k, 3]
+            if _point_segment_distance(cx, cy, x0, y0, x1, y1) > reach[i]:
+                continue
+            # the segment in the box's frame
+            a0 = c * (x0 - cx) + s * (y0 - cy)
+            b0 = -s * (x0 - cx) + c * (y0 - cy)
+            a1 = c * (x1 - cx) + s * (y1 - cy)
+            b1 = -s * (x1 - cx) + c * (y1 - cy)
+            if _segment_crosses_box(a0, b0, a1, b1, hl, hw):
+                out[i] = True
+                break
+            d = min(_point_box_distance(a0, b0, hl, hw), _point_box_distance(a1, b1, hl, hw))
+            for cu, cv in ((hl, hw), (-hl, hw), (-hl, -hw), (hl, -hw)):
+                d = min(d, _point_segment_distance(cu, cv, a0, b0, a1, b1))
+            if not d > margin:
+                out[i] = True
+                break
+    return out

@@ -23,9 +23,11 @@ from gridsim.scenario.parts import (
     vehicle_params,
 )
 from gridsim.traffic.commonroad import scene_id
+from gridsim.traffic.overlaps import overlapping_tracks
 from gridsim.traffic.sources import RecordedSceneTraffic, track_path
 from gridsim.traffic.track import Track
 from gridsim.vehicle.kinematics import BicycleParams, rear_axle_of
+from gridsim.world import collision_kernels
 from gridsim.world.collision import EDGE_TOLERANCE, CollisionChecker
 from gridsim.world.world import World
 
@@ -139,32 +141,36 @@ EXPERT_EDGE_MARGIN = 0.25
 @lru_cache(maxsize=16)
 def unfit_experts(scene: str, tracks: tuple[Track, ...], road: StaticRoad) -> frozenset[str]:
     """Tracks that cannot serve as the expert ego because of quirks of the recording: their
-    footprint overlaps another's, or comes within :data:`EXPERT_EDGE_MARGIN` of counting as
-    off the mapped road. The reference must be driveable without collision or leaving it."""
-    import cv2
+    footprint overlaps another's (:func:`~gridsim.traffic.overlaps.overlapping_tracks`), or
+    comes within :data:`EXPERT_EDGE_MARGIN` of counting as off the mapped road. The reference
+    must be driveable without collision or leaving it. Time and memory grow linearly with the
+    scene's samples."""
+    bad = {tracks[i].track_id for i in overlapping_tracks(tracks)}
+    return frozenset(bad | _near_edge(tracks, road))
 
+
+def _near_edge(tracks: tuple[Track, ...], road: StaticRoad) -> set[str]:
+    """Tracks whose footprint reaches over a road edge by more than the world's off-road
+    tolerance less :data:`EXPERT_EDGE_MARGIN`: the world's edge test (pymunk), on the
+    samples whose core box comes within ``collision_kernels.APART`` of an edge (all samples
+    at once: ``collision_kernels.edges_near_boxes``); the others cannot touch one."""
+    tolerance = EDGE_TOLERANCE - EXPERT_EDGE_MARGIN
+    checkers = [CollisionChecker(a.length, a.width, tolerance) for a in tracks]
+    counts = [len(a.t) for a in tracks]
+    core = np.repeat([c.core for c in checkers], counts, axis=0)
+    reach = np.repeat([c.broad_phase_data()[4] for c in checkers], counts)
+    x, y, psi = (np.concatenate([getattr(a, k) for a in tracks]) for k in ("x", "y", "heading"))
+    segments = np.ascontiguousarray(road.boundary_segments(), np.float64)
+    near = collision_kernels.edges_near_boxes(x, y, psi, 0.5 * core[:, 0], 0.5 * core[:, 1],
+                                              reach, segments, collision_kernels.APART)  # fmt: skip
+    first = np.concatenate([[0], np.cumsum(counts)])
     bad = set()
     no_traffic = (np.zeros(0),) * 5
-    for a in tracks:  # the same edge test as the world's
-        checker = CollisionChecker(a.length, a.width, EDGE_TOLERANCE - EXPERT_EDGE_MARGIN)
-        for k in range(len(a.t)):
+    for i, (a, checker) in enumerate(zip(tracks, checkers, strict=True)):
+        for k in np.flatnonzero(near[first[i] : first[i + 1]]).tolist():
             centre = np.array([a.x[k], a.y[k]])
-            checker.set_boundaries(road.boundary_segments(), road.version, centre)
+            checker.set_boundaries(segments, road.version, centre)
             if checker.check(centre, float(a.heading[k]), no_traffic, np.zeros(0, int)).boundaries:
                 bad.add(a.track_id)
                 break
-    for i, a in enumerate(tracks):
-        ta = np.round(a.t, 3)
-        for b in tracks[i + 1 :]:
-            tb = np.round(b.t, 3)
-            for t in np.intersect1d(ta, tb):
-                ka, kb = np.searchsorted(ta, t), np.searchsorted(tb, t)
-                reach = 0.5 * (np.hypot(a.length, a.width) + np.hypot(b.length, b.width))
-                if np.hypot(a.x[ka] - b.x[kb], a.y[ka] - b.y[kb]) > reach:
-                    continue
-                ra = ((a.x[ka], a.y[ka]), (a.length, a.width), np.rad2deg(a.heading[ka]))
-                rb = ((b.x[kb], b.y[kb]), (b.length, b.width), np.rad2deg(b.heading[kb]))
-                if cv2.rotatedRectangleIntersection(ra, rb)[0] != cv2.INTERSECT_NONE:
-                    bad |= {a.track_id, b.track_id}
-                    break
-    return frozenset(bad)
+    return bad
