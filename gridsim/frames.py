@@ -18,6 +18,10 @@ import numpy as np
 
 from gridsim import libm
 
+#: The largest world coordinate accepted in maps and recorded tracks [m] (UTM coordinates are
+#: below 1e7): the world frame's extent.
+MAX_COORDINATE = 1e7
+
 #: The observation's ego vector, in this order (float32; heading in the grid frame).
 EGO_FEATURES = (
     "speed",  # [m/s]

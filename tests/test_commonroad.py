@@ -113,7 +113,17 @@ def test_missing_velocity_is_derived_from_positions(tmp_path):
         (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<x>11</x>", "<x>a</x>"),
          'timeStepSize="0.1"', "obstacle 5: a state's <point> lacks a numeric <x>"),
         (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<exact>1</exact>", "<exact>0</exact>"),
-         'timeStepSize="0.1"', "obstacle 5: repeated time steps"),
+         'timeStepSize="0.1"', "obstacle 5: time step 0 appears twice"),
+        (OBSTACLE.format(shape=RECT, v="<velocity><exact>nan</exact></velocity>"),
+         'timeStepSize="0.1"', r"track 5 of scene scene: state 0 \(t = 0 s\): speed is nan"),
+        (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<x>11</x>", "<x>1e308</x>"),
+         'timeStepSize="0.1"', r"track 5 .*: state 1 \(t = 0.1 s\): x = 1e\+308 m is beyond"),
+        (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<x>11</x>", "<x>3000010</x>"),
+         'timeStepSize="0.1"', r"state 1 \(t = 0.1 s\): jumps 3e\+06 m in 0.1 s"),
+        (OBSTACLE.format(shape=RECT.replace(">4<", ">4e6<"), v=VELOCITY),
+         'timeStepSize="0.1"', r"track 5 .*: length 4000000.0 m is outside \(0, 50\]"),
+        (OBSTACLE.format(shape=RECT, v=VELOCITY) * 2,
+         'timeStepSize="0.1"', "obstacle id 5 appears twice"),
     ],
 )  # fmt: skip
 def test_bad_obstacles_name_the_file_and_the_obstacle(tmp_path, body, root, message):

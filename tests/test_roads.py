@@ -341,3 +341,21 @@ def test_compiled_point_ahead_equals_project_then_frenet_one():
         ahead, d = float(rng.uniform(0, 20)), float(rng.normal(0, 2))
         s = float(line.project(np.array([[x, y]]))[0][0])
         assert line.ahead_of(x, y, ahead, d) == line.frenet_one(s + ahead, d)
+
+
+@pytest.mark.parametrize(
+    ("left", "right", "message"),
+    [
+        ([(0, 0), (0, 0)], [(0, -3), (10, -3)], "lanelet 1 leftBound: all its points coincide"),
+        ([(0, 0), (10, 0)], [(0, 0), (10, 0)], "lanelet 1 has no area"),
+    ],
+)
+def test_degenerate_lanelets_are_refused(tmp_path, left, right, message):
+    def bound(points):
+        return "".join(f"<point><x>{x}</x><y>{y}</y></point>" for x, y in points)
+
+    bad = tmp_path / "deg.xml"
+    bad.write_text(f"<commonRoad><lanelet id='1'><leftBound>{bound(left)}</leftBound>"
+                   f"<rightBound>{bound(right)}</rightBound></lanelet></commonRoad>")  # fmt: skip
+    with pytest.raises(DataError, match=f"deg.xml: {message}"):
+        load_lanelet_road(bad)

@@ -55,11 +55,26 @@ def test_user_csv_loads(tmp_path):
         (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0,1,0,0,1,4.5,1.8"], HEADER, "repeated time stamps"),
         (["s,1,0,0,0,0,1,4.5,1.8"], HEADER, "single state"),
         ([], HEADER, "no data rows"),
+        (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,5e6,0,0,1,4.5,1.8"], HEADER,
+         r"tracks.csv: track 1 of scene s: state 1 \(t = 0.1 s\): jumps 5e\+06 m in 0.1 s"),
+        (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0,0,0,500,4.5,1.8"], HEADER,
+         r"state 1 \(t = 0.1 s\): speed 500 m/s is outside \[0, 100\]"),
+        (["s,1,0,0,0,0,1,4.5,40", "s,1,0.1,0,0,0,1,4.5,40"], HEADER,
+         r"track 1 of scene s: width 40.0 m is outside \(0, 10\]"),
     ],
-)
+)  # fmt: skip
 def test_bad_csv_names_the_problem(tmp_path, rows, header, message):
     with pytest.raises(DataError, match=message):
         read_tracks_csv(write_csv(tmp_path, rows, header))
+
+
+def test_a_track_in_two_files_is_refused(tmp_path):
+    rows = ["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0.1,0,0,1,4.5,1.8"]
+    first = write_csv(tmp_path, rows, HEADER)
+    second = first.rename(tmp_path / "first.csv")
+    again = write_csv(tmp_path, rows, HEADER)
+    with pytest.raises(DataError, match=r"tracks.csv: track 1 of scene s is also in .*first.csv"):
+        TrajectoryLibrary.from_csv(second, again)
 
 
 def test_missing_csv_file(tmp_path):

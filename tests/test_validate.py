@@ -47,9 +47,9 @@ def test_time_in_steps_instead_of_seconds_is_caught(tmp_path, capsys):
 
 
 def test_implausible_speeds_and_accelerations_are_caught():
-    x = np.cumsum(np.full(41, 10.0))  # 100 m/s, consistent with its speed column
+    x = np.cumsum(np.full(41, 9.0))  # 90 m/s, consistent with its speed column
     problems = track_problems(track("fast", x, np.zeros(41)))
-    assert len(problems) == 1 and "imply 100 m/s (95th percentile; at most 70)" in problems[0]
+    assert len(problems) == 1 and "imply 90 m/s (95th percentile; at most 70)" in problems[0]
     jerky = np.cumsum(np.tile([0.1, 0.5], 20))  # 1 <-> 5 m/s every 0.1 s: 40 m/s^2
     problems = track_problems(track("jerky", jerky, np.zeros(40)))
     assert any("accelerations of 40 m/s^2 (median; at most 15)" in p for p in problems)

@@ -15,11 +15,12 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.errors import DataError
+from gridsim.frames import MAX_COORDINATE
 from gridsim.road.base import Lane, StaticRoad
 from gridsim.road.polyline import Polyline
 
-#: The largest map coordinate accepted [m] (UTM coordinates are below 1e7).
-MAX_COORDINATE = 1e7
+#: A lanelet smaller than this [m^2] is degenerate (its bounds coincide).
+MIN_AREA = 1e-3
 
 
 def _points(bound: ET.Element, where: str) -> np.ndarray:
@@ -37,7 +38,16 @@ def _points(bound: ET.Element, where: str) -> np.ndarray:
     if np.abs(arr).max() > MAX_COORDINATE:
         raise DataError(f"{where}: coordinate {arr.flat[np.abs(arr).argmax()]:g} m is beyond "
                         f"+-{MAX_COORDINATE:g} m")  # fmt: skip
+    if not np.any(np.hypot(*np.diff(arr, axis=0).T) > 0):
+        raise DataError(f"{where}: all its points coincide (at {arr[0, 0]:g}, {arr[0, 1]:g}); "
+                        "a bound needs 2 distinct points")  # fmt: skip
     return arr
+
+
+def _area(polygon: np.ndarray) -> float:
+    """Area [m^2] of a simple polygon ``(N, 2)`` (shoelace formula, either orientation)."""
+    x, y = polygon[:, 0], polygon[:, 1]
+    return 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
 
 
 def _resample(pts: np.ndarray, n: int) -> np.ndarray:
@@ -109,7 +119,11 @@ def load_lanelet_road(path: str | Path) -> StaticRoad:
     has_succ = {ref for ll in lanelets for ref in ll["predecessors"]}
     for ll in lanelets:
         left, right, lid = ll["left"], ll["right"], ll["id"]
-        polygons.append(np.vstack([left, right[::-1]]))
+        polygon = np.vstack([left, right[::-1]])
+        if _area(polygon) < MIN_AREA:
+            raise DataError(f"{path.name}: lanelet {lid} has no area (its bounds coincide); "
+                            f"at least {MIN_AREA:g} m^2 is needed")  # fmt: skip
+        polygons.append(polygon)
         if not ll["predecessors"] and lid not in has_pred:
             ends.append([*left[0], *right[0]])
         if not ll["successors"] and lid not in has_succ:

@@ -90,14 +90,18 @@ def _is_dynamic(obstacle: ET.Element) -> bool:
 
 def read_tracks_commonroad(path: str | Path) -> list[Track]:
     """The dynamic obstacles of a CommonRoad file as tracks (file order); raise
-    :class:`DataError` naming the file and the obstacle. The file is streamed: memory grows
+    :class:`DataError` naming the file, the obstacle and the state (impossible data: see
+    :func:`~gridsim.traffic.track.track_data_problem`). The file is streamed: memory grows
     with the tracks, not with the XML."""
     path = Path(path)
     attrib = commonroad_root(path)
-    tracks, dt, sid = [], None, _scene_id(attrib, path)
+    tracks, dt, sid, seen = [], None, _scene_id(attrib, path), set()
     for ob in iter_commonroad(path, ("obstacle", "dynamicObstacle")):
         if dt is None:
             dt = _time_step(attrib, path)
+        if ob.get("id") in seen:
+            raise DataError(f"{path}: obstacle id {ob.get('id')} appears twice (must be unique)")
+        seen.add(ob.get("id"))
         if _is_dynamic(ob):
             track = _track(ob, path, sid, dt)
             if track is not None:
@@ -125,10 +129,9 @@ def _track(ob: ET.Element, path: Path, sid: str, dt: float) -> Track | None:
     a = np.array([s[:4] for s in states])
     order = np.argsort(a[:, 0], kind="stable")
     a = a[order]
-    if np.any(np.diff(a[:, 0]) <= 0):
-        raise DataError(f"{where}: repeated time steps")
-    if not np.all(np.isfinite(a)):
-        raise DataError(f"{where}: non-finite values")
+    repeated = np.flatnonzero(np.diff(a[:, 0]) == 0)
+    if len(repeated):
+        raise DataError(f"{where}: time step {a[repeated[0], 0]:g} appears twice")
     t = a[:, 0] * dt
     v = np.array([states[k][4] for k in order], dtype=object)
     if any(s is None for s in v):  # derive from the positions
@@ -136,8 +139,6 @@ def _track(ob: ET.Element, path: Path, sid: str, dt: float) -> Track | None:
         speed = np.append(seg, seg[-1])
     else:
         speed = v.astype(float)
-    if np.any(speed < 0):
-        raise DataError(f"{where}: negative velocity (reversing is not supported)")
     length, width = _size(ob, where)
     return Track(sid, str(ob.get("id")), t, a[:, 1], a[:, 2], np.unwrap(a[:, 3]), speed,
                  length, width, str(path))  # fmt: skip

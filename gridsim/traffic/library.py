@@ -41,7 +41,16 @@ class TrajectoryLibrary:
         if not tracks:
             raise DataError("the trajectory library is empty")
         self.tracks = tracks
-        self._by_key = {(t.scenario_id, t.track_id): t for t in tracks}
+        self._by_key: dict[tuple[str, str], Track] = {}
+        for t in tracks:
+            key = (t.scenario_id, t.track_id)
+            if key in self._by_key:
+                other = self._by_key[key].source or "<tracks>"
+                raise DataError(
+                    f"{t.source or '<tracks>'}: track {t.track_id} of scene {t.scenario_id} is "
+                    f"also in {other}; a scene's track ids must be unique"
+                )
+            self._by_key[key] = t
 
     def __len__(self) -> int:
         return len(self.tracks)

@@ -7,6 +7,15 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import savgol_filter
 
+from gridsim.errors import DataError
+from gridsim.frames import MAX_COORDINATE
+
+#: No road vehicle is faster [m/s] (360 km/h): a larger recorded speed, or a larger distance
+#: between consecutive positions over their time step, is a glitch of the data.
+MAX_SPEED = 100.0
+#: The largest vehicle accepted, length and width [m].
+MAX_SIZE = (50.0, 10.0)
+
 
 @dataclass(frozen=True, eq=False)
 class Track:
@@ -25,6 +34,16 @@ class Track:
     width: float
     #: Where the track was read from (a file path), for messages.
     source: str = ""
+
+    def __post_init__(self) -> None:
+        problem = track_data_problem(self)
+        if problem:
+            raise DataError(f"{self.where}: {problem}")
+
+    @property
+    def where(self) -> str:
+        """The track in messages: file, scene and id."""
+        return f"{self.source or '<tracks>'}: track {self.track_id} of scene {self.scenario_id}"
 
     @property
     def duration(self) -> float:
@@ -57,3 +76,50 @@ class Track:
         if win < 5:
             return self.speed.copy()
         return np.maximum(savgol_filter(self.speed, win, 2), 0.0)
+
+
+def track_data_problem(track: Track) -> str | None:
+    """What makes a track's data impossible, naming the first bad state (``None`` if none):
+    unequal or too few samples, non-finite values, time stamps not increasing, coordinates
+    beyond :data:`MAX_COORDINATE`, speeds below 0 or above :data:`MAX_SPEED`, a jump between
+    consecutive positions faster than :data:`MAX_SPEED`, a size outside (0, :data:`MAX_SIZE`]."""
+    arrays = {k: np.asarray(getattr(track, k)) for k in ("t", "x", "y", "heading", "speed")}
+    sizes = {k: a.shape for k, a in arrays.items()}
+    if len(set(sizes.values())) != 1 or arrays["t"].ndim != 1:
+        return f"its arrays must be 1-D of one length, got shapes {sizes}"
+    if len(arrays["t"]) < 2:
+        return f"has {len(arrays['t'])} state(s); at least 2 are needed"
+    t = arrays["t"]
+
+    def state(k: int) -> str:
+        return f"state {k} (t = {t[k]:.6g} s)" if np.isfinite(t[k]) else f"state {k}"
+
+    for name, a in arrays.items():
+        bad = np.flatnonzero(~np.isfinite(a))
+        if len(bad):
+            return f"{state(int(bad[0]))}: {name} is {a[bad[0]]}; expected a finite number"
+    for name in ("x", "y"):
+        bad = np.flatnonzero(np.abs(arrays[name]) > MAX_COORDINATE)
+        if len(bad):
+            return (f"{state(int(bad[0]))}: {name} = {arrays[name][bad[0]]:.6g} m is beyond "
+                    f"+-{MAX_COORDINATE:g} m")  # fmt: skip
+    bad = np.flatnonzero(np.diff(t) <= 0)
+    if len(bad):
+        return f"{state(int(bad[0]) + 1)}: time stamps must increase (after {t[bad[0]]:.6g} s)"
+    speed = arrays["speed"]
+    bad = np.flatnonzero((speed < 0) | (speed > MAX_SPEED))
+    if len(bad):
+        return (f"{state(int(bad[0]))}: speed {speed[bad[0]]:.6g} m/s is outside "
+                f"[0, {MAX_SPEED:g}] (reversing is not supported)")  # fmt: skip
+    step = np.hypot(np.diff(arrays["x"]), np.diff(arrays["y"]))
+    implied = step / np.diff(t)
+    bad = np.flatnonzero(implied > MAX_SPEED)
+    if len(bad):
+        k = int(bad[0])
+        return (f"{state(k + 1)}: jumps {step[k]:.6g} m in {t[k + 1] - t[k]:.6g} s "
+                f"({implied[k]:.6g} m/s; no vehicle is faster than {MAX_SPEED:g} m/s)")  # fmt: skip
+    for name, value, most in (("length", track.length, MAX_SIZE[0]),
+                              ("width", track.width, MAX_SIZE[1])):  # fmt: skip
+        if not 0 < value <= most:
+            return f"{name} {value!r} m is outside (0, {most:g}]"
+    return None
