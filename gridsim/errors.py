@@ -17,3 +17,8 @@ class ScenarioError(GridSimError, ValueError):
 
 class DataError(GridSimError, ValueError):
     """A data file (trajectory CSV, CommonRoad XML) is missing, malformed or inconsistent."""
+
+
+class DataWarning(UserWarning):
+    """Data that is used, but not all of it: a flawed track kept as traffic only, a file of
+    a collection that is skipped. The message names the file and the reason."""

@@ -10,7 +10,7 @@ import yaml
 
 from gridsim.cli import main
 from gridsim.envs import ENV_ID
-from gridsim.errors import ScenarioError
+from gridsim.errors import DataWarning, ScenarioError
 from gridsim.scenario.collection import load_collection, scenario_files
 
 DATA = Path(__file__).parent / "data" / "commonroad"
@@ -85,3 +85,55 @@ def test_record_a_folder_as_a_named_group(folder, tmp_path):
     EvalConfig(groups=("mine",), sources={"mine": str(folder)})
     with pytest.raises(DatasetError, match="unknown scenario groups"):
         EvalConfig(groups=("mine",))
+
+
+def add_unusable_files(folder: Path) -> dict[str, str]:
+    """Files a real collection holds next to good ones, and the reason each is skipped."""
+    text = (DATA / "straight_2018b.xml").read_text()
+    glitch = text.replace("<x>25.0000</x>", "<x>3000025.0</x>", 1)  # one jump of 3,000 km
+    (folder / "glitch.xml").write_text(glitch.replace("Straight-1_1", "Glitch-1_1"))
+    (folder / "truncated.xml").write_text(text[: len(text) // 2])
+    head, _, _ = text.partition("<obstacle")
+    (folder / "no_tracks.xml").write_text(head.replace("Straight-1_1", "Empty-1_1")
+                                          + "</commonRoad>\n")  # fmt: skip
+    return {"glitch.xml": "jumps 3e+06 m in 0.1 s", "truncated.xml": "not well-formed XML",
+            "no_tracks.xml": "no vehicle tracks"}  # fmt: skip
+
+
+def test_unusable_files_of_a_collection_are_skipped_and_named(folder):
+    reasons = add_unusable_files(folder)
+    with pytest.warns(DataWarning) as caught:
+        env = gym.make(ENV_ID, scenario=str(folder))
+    (message,) = [str(w.message) for w in caught if "skipped" in str(w.message)]
+    assert message.startswith(f"{folder}: skipped 3 of 5 scenario files that cannot be used:")
+    for name, reason in reasons.items():
+        line = next(s for s in message.splitlines() if f"{folder / name}: " in s)
+        assert reason in line, line
+    names = {sc.name for sc in env.unwrapped.scenarios}
+    assert names == {"straight_2018b", "straight_2020a"}
+    for seed in range(6):
+        env.reset(seed=seed)
+        assert env.unwrapped.scenario.name in names
+
+
+def test_a_collection_with_no_usable_file_names_them_all(tmp_path):
+    reasons = add_unusable_files(tmp_path)
+    with pytest.raises(ScenarioError, match="none of its 3 scenario files can be used") as err:
+        gym.make(ENV_ID, scenario=str(tmp_path))
+    for name, reason in reasons.items():
+        assert f"{tmp_path / name}: " in str(err.value) and reason in str(err.value)
+
+
+def test_record_skips_the_unusable_files_and_says_so(folder, tmp_path, capsys):
+    from neurotrajectory.cli import main as nt_main
+    from neurotrajectory.data.windows import load_dataset
+
+    add_unusable_files(folder)
+    out = tmp_path / "ds"
+    code = nt_main(["record", "--scenario", str(folder), "--group", "mine", "--out", str(out),
+                    "--stride", "5", "--quiet"])  # fmt: skip
+    assert code == 0
+    err = capsys.readouterr().err
+    assert "warning: " in err and "skipped 3 of 5 scenario files" in err
+    assert "glitch.xml" in err and "Traceback" not in err
+    assert len(set(load_dataset(out).windows.track.tolist())) == 6

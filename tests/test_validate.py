@@ -1,11 +1,13 @@
 """Plausibility checks of recorded scenes (``gridsim validate``): crafted mistakes are named
 with the file, the track and the numbers; the shipped scenes pass."""
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from scenes import track, write_scene
 
 from gridsim.cli import main
+from gridsim.errors import DataError, DataWarning
 from gridsim.scenario.checks import scenario_problems, track_problems
 from gridsim.scenario.loader import load_scenario
 
@@ -28,13 +30,36 @@ def test_a_good_crafted_scene_passes(tmp_path, capsys):
     assert code == 0 and "OK" in out
 
 
-def test_tracks_of_another_map_are_named(tmp_path, capsys):
+def test_a_track_off_the_map_is_kept_as_traffic_with_a_warning(tmp_path, capsys):
     off = track("far", X + 500.0, np.full(41, 40.0))  # 500 m beyond the map's end
-    path = write_scene(tmp_path, [track("ego", X, np.full(41, -1.75)), off])
+    path = write_scene(tmp_path, [track("ego", X, np.full(41, -1.75)), off],
+                       ego={"track": "random"})  # fmt: skip
+    code, out = validate(capsys, path)
+    assert code == 0
+    assert (f"warning: {tmp_path / 'tracks.csv'}: track far of scene crafted: 41 of its 41 "
+            "positions (100%) are off the map's drivable area (at most 20%); kept as traffic, "
+            "not offered as the ego" in out)  # fmt: skip
+    assert "track ego" not in out
+    with pytest.warns(DataWarning, match="track far of scene crafted: 41 of its 41 positions"):
+        env = gym.make("GridSim-v0", scenario=str(path))
+        for seed in range(6):  # never the ego, always in the traffic
+            env.reset(seed=seed)
+            assert env.unwrapped.world.ego_track.track_id == "ego"
+            assert [t.track_id for t in env.unwrapped.world.traffic.tracks] == ["far"]
+    with pytest.raises(DataError, match="ego.track far cannot be the ego: .* 41 of its 41"):
+        gym.make("GridSim-v0", scenario=str(path), ego={"track": "far"}).reset(seed=0)
+
+
+def test_a_scene_mostly_off_its_map_is_refused_everywhere(tmp_path, capsys):
+    tracks = [track(f"far{k}", X + 500.0, np.full(41, 40.0 + 5 * k)) for k in range(3)]
+    path = write_scene(tmp_path, [track("ego", X, np.full(41, -1.75)), *tracks])
     code, out = validate(capsys, path)
     assert code == 2
-    assert "tracks.csv: track far of scene crafted: 41 of its 41 positions (100%) are off" in out
-    assert "track ego" not in out
+    assert "3 of its 4 tracks are implausible for this map or in the wrong units" in out
+    assert "track far1 of scene crafted: 41 of its 41 positions (100%) are off" in out
+    refused = r"implausible recorded scene \(1 problem\(s\)\):\n.*3 of its 4 tracks"
+    with pytest.raises(DataError, match=refused):
+        gym.make("GridSim-v0", scenario=str(path)).reset(seed=0)
 
 
 def test_time_in_steps_instead_of_seconds_is_caught(tmp_path, capsys):

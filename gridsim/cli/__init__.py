@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
+import tempfile
+import traceback
+import warnings
+from functools import partial
 from pathlib import Path
 
-from gridsim.errors import GridSimError
+from gridsim.errors import DataWarning, GridSimError
 
 POLICY_NAMES = ("idle", "reference", "lane-follow", "random")
 
@@ -42,16 +47,20 @@ def _cmd_scenarios(args: argparse.Namespace) -> int:
     return 0
 
 
-def _problems(path: str) -> tuple[str, list[str]]:
-    """``(summary, problems)`` of one scenario file: it loads, builds, and its recorded data
-    (if any) is plausible."""
+def _report(path: str):
+    """``(summary, report)`` of one scenario file: it loads, builds, and its recorded data
+    (if any) is plausible (:class:`~gridsim.scenario.checks.SceneReport`)."""
     from gridsim.scenario.build import build_world
-    from gridsim.scenario.checks import scenario_problems
+    from gridsim.scenario.checks import scenario_report
     from gridsim.scenario.loader import load_scenario
 
     sc = load_scenario(path)
-    build_world(sc, seed=0)  # also resolves maps and libraries
-    return f"scenario {sc.name!r}, road type {sc.config.road.type}", scenario_problems(sc)
+    report = scenario_report(sc)
+    if not report.problems:
+        with warnings.catch_warnings():  # the report lists them
+            warnings.simplefilter("ignore", DataWarning)
+            build_world(sc, seed=0)  # also resolves maps and libraries
+    return f"scenario {sc.name!r}, road type {sc.config.road.type}", report
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
@@ -60,28 +69,32 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
     files = scenario_files(args.path)
     if files is None:  # one file: its problems are the error
-        summary, problems = _problems(args.path)
-        if problems:
-            lines = "\n".join(f"  - {p}" for p in problems)
-            raise DataError(
-                f"{args.path}: implausible recorded scene ({len(problems)} problem(s)):\n{lines}"
-            )
-        print(f"{args.path}: OK ({summary})")
+        summary, report = _report(args.path)
+        if report.problems:
+            lines = "\n".join(f"  - {p}" for p in report.problems)
+            raise DataError(f"{args.path}: implausible recorded scene "
+                            f"({len(report.problems)} problem(s)):\n{lines}")  # fmt: skip
+        print(f"{args.path}: OK ({summary})" + _warning_lines(report.warnings))
         return 0
     failed = 0
     for f in files:  # a collection: one line per file, its problems below it
         try:
-            summary, problems = _problems(str(f))
+            summary, report = _report(str(f))
+            problems, notes = report.problems, report.warnings
         except GridSimError as exc:
-            summary, problems = "error", str(exc).splitlines()
+            summary, problems, notes = "error", str(exc).splitlines(), ()
         if problems:
             failed += 1
             print(f"{f}: {len(problems)} problem(s)")
             print("\n".join(f"  - {p.strip().removeprefix('- ')}" for p in problems))
         else:
-            print(f"{f}: OK ({summary})")
+            print(f"{f}: OK ({summary})" + _warning_lines(notes))
     print(f"{len(files) - failed} of {len(files)} scenario files OK")
     return 2 if failed else 0
+
+
+def _warning_lines(notes: tuple[str, ...]) -> str:
+    return "".join(f"\n  warning: {n}" for n in notes)
 
 
 def _cmd_import(args: argparse.Namespace) -> int:
@@ -169,6 +182,10 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+#: Where unexpected errors are to be reported.
+REPORT_TO = "the GridSim issue tracker"
+
+
 def run_command(
     parser: argparse.ArgumentParser,
     argv: list[str] | None,
@@ -176,13 +193,48 @@ def run_command(
 ) -> int:
     """Parse ``argv`` and run the chosen sub-command's ``func``. An expected error (one of
     ``errors``: bad input, named by the message) is printed as ``PROG: error: MESSAGE`` with
-    exit status 2, as argparse prints a bad flag; anything else is a bug and raises."""
+    exit status 2, as argparse prints a bad flag; a :class:`~gridsim.errors.DataWarning` as
+    ``PROG: warning: MESSAGE``. Anything else is a bug: one line says so and where the
+    traceback was saved (exit status 3; ``GRIDSIM_DEBUG=1`` raises it instead); Ctrl-C exits
+    with status 130 and no traceback."""
     args = parser.parse_args(argv)
-    try:
-        return args.func(args)
-    except errors as exc:
-        print(f"{parser.prog}: error: {exc}", file=sys.stderr)
-        return 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("default", DataWarning)
+        warnings.showwarning = partial(_show_warning, parser.prog)
+        try:
+            return args.func(args)
+        except errors as exc:
+            print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print(f"{parser.prog}: interrupted", file=sys.stderr)
+            return 130
+        except Exception as exc:
+            if os.environ.get("GRIDSIM_DEBUG"):
+                raise
+            saved = _save_traceback(parser.prog, argv)
+            print(f"{parser.prog}: internal error: {type(exc).__name__}: {exc}\n"
+                  f"This is a bug, not a problem of your input. Please report it to {REPORT_TO} "
+                  f"with the traceback saved in {saved}", file=sys.stderr)  # fmt: skip
+            return 3
+
+
+def _show_warning(prog, message, category, filename, lineno, file=None, line=None) -> None:
+    if issubclass(category, DataWarning):
+        print(f"{prog}: warning: {message}", file=sys.stderr)
+    else:
+        print(warnings.formatwarning(message, category, filename, lineno, line), file=sys.stderr,
+              end="")  # fmt: skip
+
+
+def _save_traceback(prog: str, argv: list[str] | None) -> Path:
+    """Write the current exception's traceback and the command line to a new file in the
+    temporary folder; its path."""
+    fd, name = tempfile.mkstemp(prefix=f"{prog}-crash-", suffix=".txt")
+    with os.fdopen(fd, "w") as fh:
+        command = " ".join([prog, *(sys.argv[1:] if argv is None else argv)])
+        fh.write(f"command: {command}\npython: {sys.version}\n\n{traceback.format_exc()}")
+    return Path(name)
 
 
 def main(argv: list[str] | None = None) -> int:

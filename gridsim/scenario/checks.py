@@ -2,23 +2,33 @@
 episode meaningless: tracks that belong to another map, time stamps in the wrong unit, and
 scenes too short for the planning horizon.
 
-Each problem is one line naming the file, the track and the numbers; ``gridsim validate``
-reports them all (:func:`scenario_problems`). Thresholds are module constants.
+A track with such a flaw (:func:`track_problems`) is a **warning**: it stays in the scene as
+traffic but is not offered as the ego. When most of a scene's tracks have one
+(:data:`MAX_FLAWED_SHARE`), the file is wrong as a whole (tracks of another map, time in
+steps): that is a **problem**, and the scene is refused by ``gym.make``, ``record``, ``train``,
+``evaluate`` and ``gridsim validate`` alike. Each line names the file, the track and the
+numbers. Thresholds are module constants. (Impossible data, such as non-finite values or
+jumps no vehicle can make, is refused earlier, when the tracks are read:
+:func:`gridsim.traffic.track.track_data_problem`.)
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from functools import lru_cache
+
 import numpy as np
 
 from gridsim.road.base import StaticRoad
-from gridsim.scenario.families.recorded import recorded_scene
 from gridsim.scenario.loader import Scenario
-from gridsim.scenario.schema import RecordedRoadConfig
 from gridsim.traffic.track import Track
 
 #: A track is on another map when more than this share of its positions is off the drivable
 #: area (the shipped scenes: 0 %; maps are cropped, so a few positions may lie beyond them).
 MAX_OFF_MAP = 0.2
+#: A scene whose tracks are flawed in more than this share is refused (below it, the flawed
+#: tracks are kept as traffic and not offered as the ego).
+MAX_FLAWED_SHARE = 0.5
 #: Speeds implied by positions and time stamps must agree with the recorded speeds within this
 #: factor (median over moving samples): time in steps of 0.1 s instead of seconds gives 0.1.
 SPEED_RATIO = 2.0
@@ -32,9 +42,9 @@ MAX_ACCEL = 15.0
 
 
 def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
-    """Problems of one track: positions off ``road`` (if given) and time stamps that imply
+    """Flaws of one track: positions off ``road`` (if given) and time stamps that imply
     implausible speeds or accelerations, or speeds other than the recorded ones."""
-    where = f"{track.source or '<tracks>'}: track {track.track_id} of scene {track.scenario_id}"
+    where = track.where
     out = []
     n = len(track.t)
     if road is not None:
@@ -42,7 +52,7 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
         if off > MAX_OFF_MAP * n:
             out.append(
                 f"{where}: {off} of its {n} positions ({off / n:.0%}) are off the map's drivable "
-                f"area (at most {MAX_OFF_MAP:.0%}); does the track belong to this map?"
+                f"area (at most {MAX_OFF_MAP:.0%})"
             )
     dt = np.diff(track.t)
     implied = np.hypot(np.diff(track.x), np.diff(track.y)) / dt
@@ -73,35 +83,76 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
     return out
 
 
-def scene_problems(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> list[str]:
-    """Problems of a recorded scene: of its tracks, and a scene (or a chosen ego track)
-    shorter than the planning horizon."""
-    out = []
+@lru_cache(maxsize=16)
+def flawed_tracks(tracks: tuple[Track, ...], road: StaticRoad) -> dict[str, list[str]]:
+    """The flaws of each flawed track of a scene, by track id (cached per scene)."""
+    out = {}
     for tr in tracks:
-        out += track_problems(tr, road)
+        problems = track_problems(tr, road)
+        if problems:
+            out[tr.track_id] = problems
+    return out
+
+
+@dataclass(frozen=True)
+class SceneReport:
+    """What the checks found in a recorded scene: ``problems`` refuse it; ``warnings`` name
+    the flawed tracks kept as traffic only (``flawed``: their ids)."""
+
+    problems: tuple[str, ...]
+    warnings: tuple[str, ...]
+    flawed: frozenset[str]
+
+
+def scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> SceneReport:
+    """Checks of a recorded scene: its tracks' flaws (a problem when most tracks have one,
+    else warnings), a scene (or the one track named as ``ego.track``) shorter than the
+    planning horizon, and a named ego track that is flawed."""
+    flawed = flawed_tracks(tuple(tracks), road)
+    lines = [p for problems in flawed.values() for p in problems]
+    source = tracks[0].source or scenario.source
+    problems, warnings = [], []
+    if len(flawed) > MAX_FLAWED_SHARE * len(tracks):
+        more = [f"... and {len(lines) - 10} more"] if len(lines) > 10 else []
+        problems.append("\n    ".join([
+            f"{source}: {len(flawed)} of its {len(tracks)} tracks are implausible for this map "
+            "or in the wrong units (does the map belong to the tracks? are time stamps in "
+            "seconds and positions in metres?):", *lines[:10], *more]))  # fmt: skip
+    else:
+        warnings += [f"{line}; kept as traffic, not offered as the ego" for line in lines]
     env = scenario.config.env
     need = env.horizon_time
     longest = max(tracks, key=lambda t: t.duration)
     if longest.duration < need:
-        out.append(
+        problems.append(
             f"{longest.source or scenario.source}: scene {longest.scenario_id} lasts "
             f"{longest.duration:.3g} s (its longest track, {longest.track_id}); the horizon "
             f"needs {need:.3g} s (env.horizon x env.setpoint_period)"
         )
-    wanted = scenario.config.ego.track
-    chosen = {wanted} if isinstance(wanted, str) else set(wanted)
-    for tr in tracks:
-        if tr.track_id in chosen and tr.duration < need:
-            out.append(
-                f"{scenario.source}: ego.track {tr.track_id} lasts {tr.duration:.3g} s; "
-                f"the horizon needs {need:.3g} s (env.horizon x env.setpoint_period)"
-            )
-    return out
+    wanted = scenario.config.ego.track  # one named track must be usable (a list is filtered)
+    named = next((t for t in tracks if t.track_id == wanted), None)
+    if named is not None and named.duration < need:
+        problems.append(
+            f"{scenario.source}: ego.track {wanted} lasts {named.duration:.3g} s; "
+            f"the horizon needs {need:.3g} s (env.horizon x env.setpoint_period)"
+        )
+    elif named is not None and wanted in flawed:
+        problems.append(f"{scenario.source}: ego.track {wanted} cannot be the ego: "
+                        f"{flawed[wanted][0]}")  # fmt: skip
+    return SceneReport(tuple(problems), tuple(warnings), frozenset(flawed))
 
 
 def scenario_problems(scenario: Scenario) -> list[str]:
     """Plausibility problems of ``scenario`` (none for generated roads)."""
+    return list(scenario_report(scenario).problems)
+
+
+def scenario_report(scenario: Scenario) -> SceneReport:
+    """:func:`scene_report` of a recorded scenario (an empty report for generated roads)."""
+    from gridsim.scenario.families.recorded import recorded_scene  # it calls these checks
+    from gridsim.scenario.schema import RecordedRoadConfig
+
     if not isinstance(scenario.config.road, RecordedRoadConfig):
-        return []
-    road, tracks = recorded_scene(scenario)
-    return scene_problems(scenario, road, tracks)
+        return SceneReport((), (), frozenset())
+    road, tracks = recorded_scene(scenario, check=False)
+    return scene_report(scenario, road, tracks)

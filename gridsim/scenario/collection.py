@@ -3,17 +3,24 @@
 An environment made from a collection draws one of its scenarios per reset from the reset
 seed (:func:`pick`). Its scenarios must agree on what fixes the spaces and the time step
 (:data:`SHARED_KEYS`); they may differ in road, traffic and duration.
+
+Real collections hold files that cannot be used (a scene with no track to drive, impossible
+data): they are skipped, every one named with its reason in one
+:class:`~gridsim.errors.DataWarning` (:func:`usable_files`); a collection fails only when no
+file is usable.
 """
 
 from __future__ import annotations
 
 import glob
 import os
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from gridsim.errors import ScenarioError
+from gridsim.errors import DataWarning, GridSimError, ScenarioError
+from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import Scenario, load_scenario
 from gridsim.seeding import Salt, stream
 
@@ -54,13 +61,54 @@ def _get(doc: dict, key: str) -> Any:
     return doc
 
 
-def load_collection(ref: str | Path, overrides: Mapping[str, Any] | None = None) -> list[Scenario]:
-    """The scenarios of a folder or glob (or the one scenario ``ref`` names), ``overrides``
-    applied to each; :class:`ScenarioError` if they disagree on :data:`SHARED_KEYS`."""
+def usable_files(
+    ref: str | Path, overrides: Mapping[str, Any] | None = None
+) -> tuple[list[Scenario], list[tuple[Path, str]]]:
+    """``(scenarios, skipped)``: the files of the folder or glob ``ref`` that load and build
+    a world (with ``overrides``), and ``(file, reason)`` for every other one. A
+    :class:`~gridsim.errors.DataWarning` names the skipped files; a :class:`ScenarioError`
+    names them all if none is usable."""
     files = scenario_files(ref)
     if files is None:
+        raise ScenarioError(f"{ref}: not a folder or a glob pattern of scenario files")
+    scenarios, skipped = [], []
+    for f in files:
+        try:
+            sc = load_scenario(f, overrides)
+            build_world(sc, seed=0)  # resolves maps and libraries, checks the recorded data
+        except GridSimError as exc:
+            skipped.append((f, str(exc)))
+            continue
+        scenarios.append(sc)
+    if skipped:
+        lines = skipped_lines(skipped)
+        if not scenarios:
+            raise ScenarioError(f"{ref}: none of its {len(files)} scenario files can be used:\n"
+                                f"{lines}")  # fmt: skip
+        warnings.warn(f"{ref}: skipped {len(skipped)} of {len(files)} scenario files that cannot "
+                      f"be used:\n{lines}", DataWarning, stacklevel=2)  # fmt: skip
+    return scenarios, skipped
+
+
+def skipped_lines(skipped: list[tuple[Path, str]]) -> str:
+    """One ``  - FILE: REASON`` line per skipped file (the reason's first line, without a
+    leading copy of the file name)."""
+    out = []
+    for f, reason in skipped:
+        first = reason.splitlines()[0] if reason else "unknown"
+        first = first.removeprefix(f"{f}: ")
+        extra = len(reason.splitlines()) - 1
+        out.append(f"  - {f}: {first}" + (f" (+{extra} more lines)" if extra > 0 else ""))
+    return "\n".join(out)
+
+
+def load_collection(ref: str | Path, overrides: Mapping[str, Any] | None = None) -> list[Scenario]:
+    """The usable scenarios of a folder or glob (:func:`usable_files`; or the one scenario
+    ``ref`` names), ``overrides`` applied to each; :class:`ScenarioError` if they disagree on
+    :data:`SHARED_KEYS`."""
+    if scenario_files(ref) is None:
         return [load_scenario(ref, overrides)]
-    scenarios = [load_scenario(f, overrides) for f in files]
+    scenarios, _ = usable_files(ref, overrides)
     first = scenarios[0].config.model_dump()
     for sc in scenarios[1:]:
         doc = sc.config.model_dump()

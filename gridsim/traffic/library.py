@@ -70,6 +70,9 @@ class TrajectoryLibrary:
         tracks: list[Track] = []
         for p in paths:
             tracks += read_tracks(p)
+        if not tracks:
+            raise DataError(f"{', '.join(map(str, paths))}: no vehicle tracks (dynamic obstacles "
+                            "with at least 2 states)")  # fmt: skip
         return cls(tracks)
 
     def scene(self, scenario_id: str) -> list[Track]:

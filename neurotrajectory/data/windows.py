@@ -20,6 +20,7 @@ from __future__ import annotations
 import hashlib
 import json
 import platform
+import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -28,14 +29,14 @@ import numpy as np
 
 from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.errors import GridSimError
+from gridsim.errors import DataWarning, GridSimError
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write_json, write_npz
 from gridsim.policies import Reference
-from gridsim.scenario.collection import load_collection, scenario_files
-from gridsim.scenario.families.recorded import scene_of
+from gridsim.scenario.checks import flawed_tracks
+from gridsim.scenario.collection import load_collection, scenario_files, skipped_lines, usable_files
+from gridsim.scenario.families.recorded import recorded_scene, scene_of
 from gridsim.scenario.loader import load_scenario
-from gridsim.scenario.parts import library_for
 from gridsim.scenario.schema import RecordedRoadConfig
 from gridsim.seeding import Salt, stream
 from neurotrajectory.data.commands import implied_commands
@@ -147,18 +148,22 @@ def scenario_episodes(
     goal_seconds: float | None = None,
 ) -> tuple[list[PlannedEpisode], dict]:
     """The episodes of ``scenario`` to record and their provenance. On a recorded scene, every
-    track (or the ids in ``tracks``) is driven once as the ego for its recorded duration
-    (``episodes`` and ``seed`` do not apply); elsewhere ``episodes`` episodes with seeds drawn
-    from ``seed`` (or the episode ``seeds`` given), ``duration`` [s] long if given. With
-    ``goal_seconds``, every episode observes the destination that far ahead
-    (``env.goal_seconds``)."""
+    track (or the ids in ``tracks``) that lasts the planning horizon and is not flawed
+    (:func:`gridsim.scenario.checks.flawed_tracks`: kept as traffic only) is driven once as
+    the ego for its recorded duration (``episodes`` and ``seed`` do not apply); elsewhere
+    ``episodes`` episodes with seeds drawn from ``seed`` (or the episode ``seeds`` given),
+    ``duration`` [s] long if given. With ``goal_seconds``, every episode observes the
+    destination that far ahead (``env.goal_seconds``)."""
     goal = goal_overrides(goal_seconds)
     base = load_scenario(scenario)
     if isinstance(base.config.road, RecordedRoadConfig):
         scene = scene_of(base)
+        road, scene_tracks = recorded_scene(base)
+        flawed = flawed_tracks(tuple(scene_tracks), road)
         wanted = None if tracks is None else {str(t) for t in tracks}
-        chosen = [t for t in library_for(base).scene(scene)
-                  if wanted is None or t.track_id in wanted]  # fmt: skip
+        need = base.config.env.horizon_time
+        chosen = [t for t in scene_tracks if (wanted is None or t.track_id in wanted)
+                  and t.duration >= need and t.track_id not in flawed]  # fmt: skip
         out = [PlannedEpisode(f"{scene}/{t.track_id}", 0,
                        {"ego": {"track": t.track_id},
                         "simulation": {"duration": max(float(t.duration), 0.1)}, **goal})
@@ -339,14 +344,16 @@ def record_scenario(
 
 
 def group_scenarios(name: str, source: str | None = None) -> tuple[str, ...]:
-    """The scenarios of group ``name``: the files of ``source`` (a folder or glob) if given;
-    else a group of :data:`GROUPS`, the files of ``name`` if it is a folder or glob, or the
-    one scenario ``name`` (built-in name, YAML or CommonRoad XML path)."""
+    """The scenarios of group ``name``: the usable files of ``source`` (a folder or glob;
+    the others are named in a warning: :func:`gridsim.scenario.collection.usable_files`) if
+    given; else a group of :data:`GROUPS`, the usable files of ``name`` if it is a folder or
+    glob, or the one scenario ``name`` (built-in name, YAML or CommonRoad XML path)."""
     if source is None and name in GROUPS:
         return GROUPS[name]
     ref = name if source is None else source
-    files = scenario_files(ref)
-    return (ref,) if files is None else tuple(str(f) for f in files)
+    if scenario_files(ref) is None:
+        return (ref,)
+    return tuple(sc.source for sc in usable_files(ref)[0])
 
 
 def record_group(
@@ -360,17 +367,33 @@ def record_group(
     goal_seconds: float | None = None,
 ) -> Dataset:
     """Windows of a scenario group (see :func:`group_scenarios`: of :data:`GROUPS`, or the
-    files of the folder or glob ``source``), or of one scenario. ``stride`` defaults to every
-    decision on recorded scenes, every fifth elsewhere."""
+    usable files of the folder or glob ``source``), or of one scenario. ``stride`` defaults to
+    every decision on recorded scenes, every fifth elsewhere. Of a group of several files,
+    a file that gives no window is skipped and named in a warning (and in the manifest's
+    ``skipped``); the group fails only when none gives any."""
     scenarios = group_scenarios(name, source)
     recorded = {scenario: is_recorded(scenario) for scenario in scenarios}
-    parts, metas = [], []
+    parts, metas, skipped = [], [], []
     for scenario in scenarios:
         s = stride or (RECORDED_STRIDE if recorded[scenario] else GENERATED_STRIDE)
-        w, meta = record_scenario(scenario, episodes, seed, s, duration, progress,
-                                  goal_seconds=goal_seconds)  # fmt: skip
+        try:
+            w, meta = record_scenario(scenario, episodes, seed, s, duration, progress,
+                                      goal_seconds=goal_seconds)  # fmt: skip
+        except GridSimError as exc:
+            if len(scenarios) == 1:
+                raise
+            skipped.append((Path(scenario), str(exc)))
+            continue
         parts.append(w)
         metas.append(meta)
+    if skipped:
+        lines = skipped_lines(skipped)
+        if not parts:
+            raise DatasetError(f"group {name!r}: none of its {len(scenarios)} scenario files "
+                               f"gave a window:\n{lines}")  # fmt: skip
+        message = (f"group {name!r}: skipped {len(skipped)} of {len(scenarios)} scenario files "
+                   f"that gave no window:\n{lines}")  # fmt: skip
+        warnings.warn(message, DataWarning, stacklevel=2)
     first = metas[0]
     for m in metas[1:]:
         for key in ("horizon", "history", "setpoint_period", "sensor", "goal_seconds"):
@@ -395,6 +418,7 @@ def record_group(
         },  # fmt: skip
         **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),
         "scenarios": metas,
+        **({"skipped": [{"file": str(f), "reason": r} for f, r in skipped]} if skipped else {}),
         "versions": _versions(),
     }
     return Dataset(Windows.concat(parts), manifest)

@@ -3,15 +3,17 @@ recorded vehicles replayed, one of them the ego (its track is the human referenc
 
 from __future__ import annotations
 
+import warnings
 from functools import lru_cache, partial
 
 import numpy as np
 
 from gridsim import libm
-from gridsim.errors import DataError, ScenarioError
+from gridsim.errors import DataError, DataWarning, ScenarioError
 from gridsim.road.base import StaticRoad
 from gridsim.road.lanelet import load_lanelet_road
 from gridsim.road.polyline import Polyline
+from gridsim.scenario.checks import flawed_tracks, scene_report
 from gridsim.scenario.loader import Scenario
 from gridsim.scenario.parts import (
     MIN_TRACK_SECONDS,
@@ -42,8 +44,24 @@ def _lanelet_road(file: tuple[str, int, int]):
     return load_lanelet_road(file[0])
 
 
-def recorded_scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
-    """The map and the tracks of a recorded scenario (cached)."""
+def recorded_scene(scenario: Scenario, check: bool = True) -> tuple[StaticRoad, list[Track]]:
+    """The map and the tracks of a recorded scenario (cached). With ``check``, an implausible
+    scene is refused (:class:`DataError` listing its problems) and flawed tracks are named
+    in a :class:`~gridsim.errors.DataWarning`: see
+    :mod:`gridsim.scenario.checks`."""
+    road, tracks = _scene(scenario)
+    if check:
+        report = scene_report(scenario, road, tracks)
+        if report.problems:
+            lines = "\n".join(f"  - {p}" for p in report.problems)
+            raise DataError(f"{scenario.source}: implausible recorded scene "
+                            f"({len(report.problems)} problem(s)):\n{lines}")  # fmt: skip
+        if report.warnings:  # shown once per message and place (Python's default filter)
+            warnings.warn("\n".join(report.warnings), DataWarning, stacklevel=2)
+    return road, tracks
+
+
+def _scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
     road = _lanelet_road(stamped(map_path(scenario)))
     try:
         return road, library_for(scenario).scene(scene_of(scenario))
@@ -84,10 +102,12 @@ def ego_candidates(
     scenario: Scenario, tracks: list[Track] | None = None, road: StaticRoad | None = None
 ) -> list[Track]:
     """The tracks of a recorded scene that can be the ego: at least 2 s long, not too long a
-    vehicle, and inside the road (``tracks`` and ``road``: the scene's, if already loaded)."""
+    vehicle, not flawed (:func:`~gridsim.scenario.checks.flawed_tracks`), and inside the road
+    (``tracks`` and ``road``: the scene's, if already loaded)."""
     if tracks is None or road is None:
         road, tracks = recorded_scene(scenario)
     unfit = unfit_experts(scene_of(scenario), tuple(tracks), road)
+    unfit |= flawed_tracks(tuple(tracks), road).keys()
     longest = scenario.config.traffic.max_vehicle_length
     return [t for t in tracks if t.duration >= MIN_TRACK_SECONDS and t.length <= longest
             and t.track_id not in unfit]  # fmt: skip
