@@ -19,6 +19,11 @@ class DataError(GridSimError, ValueError):
     """A data file (trajectory CSV, CommonRoad XML) is missing, malformed or inconsistent."""
 
 
+class OutputError(GridSimError):
+    """An output file or folder cannot be written: it exists, is in use by another process,
+    or is not writable."""
+
+
 class DataWarning(UserWarning):
     """Data that is used, but not all of it: a flawed track kept as traffic only, a file of
     a collection that is skipped. The message names the file and the reason."""

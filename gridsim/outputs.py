@@ -3,16 +3,24 @@
 
 from __future__ import annotations
 
+import fcntl
 import json
 import os
 import reprlib
+import shutil
 import tempfile
+import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, TextIO
 
 import numpy as np
+
+from gridsim.errors import OutputError
+
+#: The lock file of a folder being written (:func:`folder_lock`).
+LOCK_NAME = ".lock"
 
 
 def output_problem(path: str | Path, directory: bool) -> str | None:
@@ -77,9 +85,75 @@ def new_folder_problem(path: str | Path, hint: str = "choose another --out") -> 
     """Why ``path`` cannot become a new output folder (one that can be created, or an empty
     one), or None if it can; ``hint`` ends the message about a folder that is not empty."""
     problem = output_problem(path, directory=True)
-    if problem is None and Path(path).is_dir() and any(Path(path).iterdir()):
+    if problem is None and Path(path).is_dir() and _contents(Path(path)):
         problem = f"exists and is not empty: {hint}"
     return problem
+
+
+def _contents(folder: Path) -> list[Path]:
+    """What ``folder`` holds besides its lock file."""
+    return [p for p in folder.iterdir() if p.name != LOCK_NAME]
+
+
+@contextmanager
+def folder_lock(folder: str | Path, flag: str = "--out") -> Iterator[Path]:
+    """Hold the folder ``folder`` (created if needed) for writing: one process at a time. A
+    second one gets an :class:`~gridsim.errors.OutputError` naming the holder (its pid and
+    start). The lock (``flock`` on ``folder/.lock``) ends with the block or the process,
+    also a killed one; the empty lock file stays."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / LOCK_NAME
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.pread(fd, 200, 0).decode(errors="replace").strip() or "unknown"
+            raise OutputError(f"{flag} {folder}: in use by another process ({holder}); wait "
+                              f"for it to end or choose another {flag}") from None  # fmt: skip
+        os.ftruncate(fd, 0)
+        stamp = time.strftime("%Y-%m-%d %H:%M:%S")
+        os.pwrite(fd, f"pid {os.getpid()}, since {stamp}\n".encode(), 0)
+        try:
+            yield folder
+        finally:
+            os.ftruncate(fd, 0)
+    finally:
+        os.close(fd)  # releases the lock
+
+
+@contextmanager
+def new_folder(out: str | Path, flag: str = "--out", hint: str = "choose another --out"
+               ) -> Iterator[Path]:  # fmt: skip
+    """A new output folder written as a whole or not at all: the block writes into a hidden
+    folder beside ``out`` (which it gets), renamed to ``out`` when the block ends without an
+    error and removed otherwise, so that a failed or killed command leaves ``out`` as it was.
+    One process at a time (:func:`folder_lock` on the hidden folder); ``out`` must be new or
+    empty (checked before and after taking the lock)."""
+    out = Path(out)
+    problem = new_folder_problem(out, hint)
+    if problem:
+        raise OutputError(f"{flag} {out}: {problem}")
+    partial = out.absolute().parent / f".{out.name}.partial"
+    with folder_lock(partial, flag):
+        problem = new_folder_problem(out, hint)  # another process may have finished it
+        if problem:
+            raise OutputError(f"{flag} {out}: {problem}")
+        for stale in _contents(partial):  # of a process that was killed
+            if stale.is_dir() and not stale.is_symlink():
+                shutil.rmtree(stale)
+            else:
+                stale.unlink()
+        try:
+            yield partial
+        except BaseException:
+            shutil.rmtree(partial, ignore_errors=True)
+            raise
+        (partial / LOCK_NAME).unlink()
+        if out.is_dir():
+            out.rmdir()  # empty (checked under the lock)
+        partial.rename(out)
 
 
 def _mode_for(path: Path) -> int:

@@ -7,18 +7,19 @@ import json
 import math
 import sys
 import time
+from contextlib import nullcontext
 from dataclasses import fields
 from pathlib import Path
 
 from gridsim.cli import at_least, run_command
 from gridsim.errors import GridSimError
-from gridsim.outputs import output_problem, write_json
+from gridsim.outputs import new_folder, output_problem, write_json
 from neurotrajectory.compare.front import heldout_problem
 from neurotrajectory.data.windows import DAGGER_LABELS, GROUPS
 from neurotrajectory.evolve.backends import BACKENDS, BackendError
 from neurotrajectory.evolve.evolution import SELECTIONS
 from neurotrajectory.evolve.pareto import PICKS
-from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
+from neurotrajectory.evolve.runs import Run, RunError, TrainConfig, run_folder
 from neurotrajectory.model import ACTIVATIONS, EVOLVE_SCOPES, PRESETS, PRIORS
 
 DEFAULT_OUT = "runs/default"
@@ -37,31 +38,41 @@ def _cmd_train(args: argparse.Namespace) -> int:
                        "its folder; leave out --out (or drop --resume for a new run)")  # fmt: skip
     if args.video:
         _check_video(args.video)
-    if args.resume:
-        # flags that would change the run's results are refused unless they match it
-        run = Run.open(args.resume, **_train_flags(args))
-    else:
-        # the fields' own defaults: None where TrainConfig resolves one from the other fields
-        # (the activation from the preset, the selection from the warm start)
-        defaults = {f.name: f.default for f in fields(TrainConfig)}
-        given = _train_flags(args)
-        config = TrainConfig(**{k: (v if v is not None else defaults[k]) for k, v in given.items()})
-        if args.dagger_labels is not None and not config.dagger_rounds:
-            raise RunError(f"--dagger-labels {args.dagger_labels} labels the DAgger rounds' "
-                           "windows: give --dagger-rounds >= 1")  # fmt: skip
-        run = Run.create(args.out or DEFAULT_OUT, config)
-    if args.heldout and (problem := heldout_problem(run.config)):
-        print(f"neurotrajectory: note: no held-out report: {problem}", file=sys.stderr)
-        args.heldout = 0
-    summary = run.train(progress=not args.quiet)
-    print(json.dumps({"run": str(run.out), **summary}, indent=1))
-    if args.heldout:
-        _heldout(run, args.heldout)
-    if args.video:  # an episode no generation trained on
-        _rollout(str(run.out), "knee", args.video, seed=run.config.heldout_seeds(1)[0], steps=None)
+    out = args.resume or args.out or DEFAULT_OUT
+    with run_folder(out, resume=bool(args.resume)):  # one writer; a failure early undoes
+        if args.resume:
+            # flags that would change the run's results are refused unless they match it
+            run = Run.open(out, **_train_flags(args), **_after_flags(args))
+        else:
+            # the fields' own defaults: None where TrainConfig resolves one from the other
+            # fields (the activation from the preset, the selection from the warm start)
+            defaults = {f.name: f.default for f in fields(TrainConfig)}
+            given = _train_flags(args)
+            config = TrainConfig(**{k: (v if v is not None else defaults[k])
+                                    for k, v in given.items()})  # fmt: skip
+            if args.dagger_labels is not None and not config.dagger_rounds:
+                raise RunError(f"--dagger-labels {args.dagger_labels} labels the DAgger rounds' "
+                               "windows: give --dagger-rounds >= 1")  # fmt: skip
+            run = Run.create(out, config, **_after_flags(args))
+        heldout, video = run.after["heldout"], run.after["video"]
+        if heldout and (problem := heldout_problem(run.config)):
+            print(f"neurotrajectory: note: no held-out report: {problem}", file=sys.stderr)
+            heldout = 0
+        summary = run.train(progress=not args.quiet)
+        print(json.dumps({"run": str(run.out), **summary}, indent=1))
+        if heldout:
+            _heldout(run, heldout)
+        if video:  # an episode no generation trained on
+            _rollout(str(run.out), "knee", video, seed=run.config.heldout_seeds(1)[0], steps=None)
     minutes, seconds = divmod(round(time.perf_counter() - started), 60)
     print(f"done in {minutes} min {seconds} s")
     return 0
+
+
+def _after_flags(args: argparse.Namespace) -> dict:
+    """What ``train`` does after the generations (kept in the run, restored by --resume):
+    the held-out episodes and the video (None where not given)."""
+    return {"heldout": args.heldout, "video": args.video}
 
 
 def _cmd_heldout(args: argparse.Namespace) -> int:
@@ -70,8 +81,9 @@ def _cmd_heldout(args: argparse.Namespace) -> int:
     problem = output_problem(Path(args.out), directory=False)
     if problem:
         raise RunError(f"--out {args.out}: {problem}")
-    _heldout(Run.open(args.run), args.episodes, args.seconds, args.pick, args.out,
-             args.plan_smoothing)  # fmt: skip
+    with run_folder(args.run, resume=True) if args.out is None else nullcontext():
+        _heldout(Run.open(args.run), args.episodes, args.seconds, args.pick, args.out,
+                 args.plan_smoothing)  # fmt: skip
     return 0
 
 
@@ -164,26 +176,21 @@ def _cmd_rollout(args: argparse.Namespace) -> int:
 def _cmd_record(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from neurotrajectory.data.windows import (
-        Dataset,
-        check_new_folder,
-        record_group,
-        save_dataset,
-        split_by_track,
-    )
+    from neurotrajectory.data.windows import Dataset, record_group, save_dataset, split_by_track
 
-    check_new_folder(args.out)  # before recording, not after
     name, source = (args.group, args.scenario) if args.group else (args.scenario, None)
-    with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:
-        ds = record_group(name, args.episodes, args.seed, args.stride, args.episode_seconds,
-                          progress=bar.update, source=source,
-                          goal_seconds=args.goal_seconds)  # fmt: skip
-    if args.split:  # the side evaluate --seed S --test-fraction F uses
-        sides = dict(zip(("train", "test"), split_by_track(ds.windows, args.test_fraction,
-                                                           args.seed), strict=True))  # fmt: skip
-        split = {"side": args.split, "test_fraction": args.test_fraction, "seed": args.seed}
-        ds = Dataset(sides[args.split], {**ds.manifest, "split": split})
-    path = save_dataset(ds, args.out)
+    with new_folder(args.out) as partial:  # held before recording; --out appears when done
+        with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:
+            ds = record_group(name, args.episodes, args.seed, args.stride, args.episode_seconds,
+                              progress=bar.update, source=source,
+                              goal_seconds=args.goal_seconds)  # fmt: skip
+        if args.split:  # the side evaluate --seed S --test-fraction F uses
+            halves = split_by_track(ds.windows, args.test_fraction, args.seed)
+            sides = dict(zip(("train", "test"), halves, strict=True))
+            split = {"side": args.split, "test_fraction": args.test_fraction, "seed": args.seed}
+            ds = Dataset(sides[args.split], {**ds.manifest, "split": split})
+        save_dataset(ds, partial)
+    path = Path(args.out)
     w = ds.windows
     print(
         json.dumps(
@@ -209,8 +216,14 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         group, sep, path = item.partition("=")
         if not sep or not group or not path:
             raise RunError(f"--group takes NAME=FOLDER (or a glob), got {item!r}")
+        if group in sources:
+            raise RunError(f"--group {group} is given twice ({sources[group]} and {path}); "
+                           "give each group its own name")  # fmt: skip
         sources[group] = path
     groups = args.groups if args.groups is not None else ([] if sources else list(GROUPS))
+    twice = sorted({g for g in groups if groups.count(g) > 1})
+    if twice:
+        raise RunError(f"--groups names {', '.join(twice)} more than once")
     groups = [*groups, *(g for g in sources if g not in groups)]
     cfg = EvalConfig(
         groups=tuple(groups), episodes=args.episodes, episode_seconds=args.episode_seconds,
@@ -227,6 +240,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
         group, sep, path = item.partition("=")
         if not sep or not path:
             raise RunError(f"--group-run takes GROUP=RUN_DIR, got {item!r}")
+        if group in group_runs:
+            raise RunError(f"--group-run {group} is given twice ({group_runs[group]} and {path})")
         group_runs[group] = path
     evaluate(args.run, args.out, cfg, data_dir=args.data, log=log, group_runs=group_runs,
              progress=not args.quiet)  # fmt: skip
@@ -429,10 +444,10 @@ def build_parser() -> argparse.ArgumentParser:
     t.add_argument(
         "--heldout",
         type=at_least(0),
-        default=20,
+        default=None,
         metavar="N",
         help="after training, drive the knee member on N held-out episodes "
-        "(default 20; 0: skip) and write heldout.json",
+        "(default 20, or what the resumed run was given; 0: skip) and write heldout.json",
     )
     t.add_argument("--quiet", action="store_true", help="no progress bars")
     t.set_defaults(func=_cmd_train)

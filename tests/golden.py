@@ -221,7 +221,8 @@ def run_digests(out: Path) -> dict[str, str]:
     for name in ("front.npz", "checkpoint.npz"):
         with np.load(out / name) as arrays:
             for key in sorted(arrays.files):
-                d.add(f"{name}_{key}", arrays[key])
+                if key != "run":  # the settings' digest (config.json), not a result
+                    d.add(f"{name}_{key}", arrays[key])
     if (out / "pretrain.json").exists():
         pretrain = json.loads((out / "pretrain.json").read_text())
         d.add("pretrain", json.dumps(pretrain, sort_keys=True))

@@ -172,3 +172,27 @@ def test_import_writes_yaml_and_csv_that_give_the_same_worlds(tmp_path, capsys):
             for k in ("t", "x", "y", "heading", "speed"):
                 np.testing.assert_array_equal(getattr(ta, k), getattr(tb, k))
     assert main(["validate", str(out)]) == 0
+
+
+def test_import_never_overwrites_and_checks_before_writing(tmp_path, capsys):
+    from gridsim.cli import main
+
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    (a / "scene.xml").write_bytes((DATA / "straight_2018b.xml").read_bytes())
+    (b / "scene.xml").write_bytes((DATA / "straight_2020a.xml").read_bytes())
+    out = tmp_path / "out"
+    assert main(["import", str(a / "scene.xml"), str(b / "scene.xml"), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "have the same name; their imports would overwrite each other" in err
+    assert not out.exists()  # nothing written
+    assert main(["import", str(a / "scene.xml"), "--out", str(out)]) == 0
+    before = (out / "scene.csv").read_bytes()
+    assert main(["import", str(b / "scene.xml"), "--out", str(out)]) == 2
+    assert "scene.xml exists (an import never overwrites)" in capsys.readouterr().err
+    assert (out / "scene.csv").read_bytes() == before
+    afile = tmp_path / "file.txt"
+    afile.write_text("x")
+    assert main(["import", str(a / "scene.xml"), "--out", str(afile)]) == 2
+    assert f"--out {afile}: is a file, expected a folder" in capsys.readouterr().err

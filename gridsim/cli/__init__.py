@@ -99,14 +99,14 @@ def _warning_lines(notes: tuple[str, ...]) -> str:
 
 def _cmd_import(args: argparse.Namespace) -> int:
     from gridsim.scenario.collection import scenario_files
-    from gridsim.scenario.importer import import_commonroad
+    from gridsim.scenario.importer import import_files
 
     files = []
     for src in args.sources:
         found = scenario_files(src)
         files += [Path(src)] if found is None else [f for f in found if f.suffix == ".xml"]
-    for f in files:
-        print(f"{f}: wrote {import_commonroad(f, args.out)}")
+    for path in import_files(files, args.out):
+        print(f"wrote {path}")
     return 0
 
 

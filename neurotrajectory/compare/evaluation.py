@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from gridsim.outputs import write_json
+from gridsim.outputs import new_folder, write_json
 from gridsim.policies import Reference
 from gridsim.seeding import Salt, stream
 from neurotrajectory.compare.baselines.constant_velocity import ConstantVelocity
@@ -219,7 +219,7 @@ def evaluate(
     from neurotrajectory.compare.report import write_report
 
     out = Path(out)
-    check_new_folder(out)
+    check_new_folder(out)  # before loading anything; new_folder checks again under its lock
     group_runs = dict(group_runs or {})
     unknown = sorted(set(group_runs) - set(cfg.groups))
     if unknown:
@@ -234,17 +234,17 @@ def evaluate(
                                f"destination {said}; evaluate it with the same --goal-seconds "
                                "(or train a run for this setting)")  # fmt: skip
     data_dir = Path(data_dir) if data_dir is not None else None
-    out.mkdir(parents=True, exist_ok=True)
-    write_json(out / "eval_config.json",
-               {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
-                **asdict(cfg)})  # fmt: skip
-    results = []
-    for group in cfg.groups:
-        t0 = time.perf_counter()
-        ds = _dataset(group, cfg, data_dir, out, log, progress)
-        result = _evaluate_group(group, ds, fronts[group], cfg, out, log, progress)
-        results.append(result)
-        log(f"{group}: done in {time.perf_counter() - t0:.0f} s; RMSE "
-            + ", ".join(f"{k} {v.rmse:.2f}" for k, v in result.accuracy.items()))  # fmt: skip
-    write_report(results, out, {g: f.info(cfg.pick) for g, f in fronts.items()})
+    with new_folder(out) as partial:  # out appears, whole, when everything is written
+        write_json(partial / "eval_config.json",
+                   {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
+                    **asdict(cfg)})  # fmt: skip
+        results = []
+        for group in cfg.groups:
+            t0 = time.perf_counter()
+            ds = _dataset(group, cfg, data_dir, partial, log, progress)
+            result = _evaluate_group(group, ds, fronts[group], cfg, partial, log, progress)
+            results.append(result)
+            log(f"{group}: done in {time.perf_counter() - t0:.0f} s; RMSE "
+                + ", ".join(f"{k} {v.rmse:.2f}" for k, v in result.accuracy.items()))  # fmt: skip
+        write_report(results, partial, {g: f.info(cfg.pick) for g, f in fronts.items()})
     return results

@@ -12,9 +12,13 @@ uninterrupted run with the same seed.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
+import shutil
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
@@ -23,7 +27,14 @@ from tqdm import tqdm
 
 from gridsim.envs.plan_smoothing import check_keep
 from gridsim.errors import GridSimError
-from gridsim.outputs import new_folder_problem, read_manifest, write_json, write_npz
+from gridsim.outputs import (
+    LOCK_NAME,
+    folder_lock,
+    new_folder_problem,
+    read_manifest,
+    write_json,
+    write_npz,
+)
 from gridsim.seeding import Salt, stream
 from neurotrajectory.data.windows import (
     DAGGER_LABELS,
@@ -269,36 +280,59 @@ class TrainConfig:
     RESUMABLE = ("generations", "backend", "workers", "ray_address", "batch")
 
 
+#: What ``train`` does after the generations, by default (``config.json`` ``"after"``).
+AFTER_DEFAULTS = {"heldout": 20, "video": None}
+
+
 class Run:
     """A training run in ``out``."""
 
-    def __init__(self, out: str | Path, config: TrainConfig) -> None:
+    def __init__(self, out: str | Path, config: TrainConfig, after: dict | None = None) -> None:
         self.out = Path(out)
         self.config = config
         self.net_config = config.net
+        #: What ``train`` does after the generations: held-out episodes, a video.
+        self.after = {**AFTER_DEFAULTS, **(after or {})}
         self._windows = None  # the pre-training windows, once loaded
 
     # -- run directory ------------------------------------------------------------------------
     @classmethod
-    def create(cls, out: str | Path, config: TrainConfig) -> Run:
+    def create(cls, out: str | Path, config: TrainConfig, **after) -> Run:
         """A new run in ``out``. Everything is checked (the folder, the scenario with the
         network, the pre-training data) before anything is written, so that a failure leaves
-        ``out`` as it was."""
+        ``out`` as it was. ``after``: what ``train`` does after the generations
+        (:data:`AFTER_DEFAULTS`; None: the default). A process that writes the run holds
+        its folder: :func:`run_folder`."""
         out = Path(out)
         problem = new_folder_problem(out, hint=f"use --resume {out} or another --out")
         if problem:
             raise RunError(f"--out {out}: {problem}")
         config, windows = _checked(config)
+        run = cls(out, config, {k: v for k, v in after.items() if v is not None})
         out.mkdir(parents=True, exist_ok=True)
-        run = cls(out, config)
         run._windows = windows
-        write_json(out / "config.json", {"format": FORMAT_VERSION, "train": asdict(config)})
+        run._write_config()
         return run
 
+    def _write_config(self) -> None:
+        doc = {"format": FORMAT_VERSION, "run": self.fingerprint, "train": asdict(self.config),
+               "after": self.after}  # fmt: skip
+        write_json(self.out / "config.json", doc)
+
+    @property
+    def fingerprint(self) -> str:
+        """The run's identity: a digest of every setting that shapes its results (not those a
+        resume may change, :attr:`TrainConfig.RESUMABLE`). Its checkpoint carries it."""
+        doc = {k: v for k, v in asdict(self.config).items() if k not in TrainConfig.RESUMABLE}
+        return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
+
     @classmethod
-    def open(cls, out: str | Path, **changes) -> Run:
-        """Reopen a run directory; ``changes`` may only touch :attr:`TrainConfig.RESUMABLE`."""
+    def open(cls, out: str | Path, heldout=None, video=None, **changes) -> Run:
+        """Reopen a run directory; ``changes`` may only touch :attr:`TrainConfig.RESUMABLE`;
+        ``heldout`` and ``video`` (what ``train`` does after the generations) replace the
+        run's if given."""
         out = Path(out)
+        after = {"heldout": heldout, "video": video}
         cfg_path = out / "config.json"
         doc = read_manifest(out, "config.json", "run directory", RunError, (1, FORMAT_VERSION),
                             keys=("train",))  # fmt: skip
@@ -322,14 +356,16 @@ class Run:
             raise RunError(f"{out}: cannot resume with a different configuration ({detail})")
         allowed = {k: v for k, v in changes.items() if v is not None and k in TrainConfig.RESUMABLE}
         config = TrainConfig(**{**asdict(stored), **allowed})
-        run = cls(out, config)
+        kept = doc.get("after") if isinstance(doc.get("after"), dict) else {}
+        given = {k: v for k, v in after.items() if v is not None}
+        run = cls(out, config, {k: kept[k] for k in AFTER_DEFAULTS if k in kept} | given)
         done = run.completed_generations() if "generations" in allowed else 0
         if config.generations < done:
             raise RunError(f"{out}: --generations {config.generations} is fewer than the "
                            f"{done} generations the run has done; give >= {done} (or "
                            "leave it out to finish the run as configured)")  # fmt: skip
-        if allowed:
-            write_json(cfg_path, {"format": FORMAT_VERSION, "train": asdict(config)})
+        if allowed or given:
+            run._write_config()
         return run
 
     def completed_generations(self) -> int:
@@ -345,7 +381,7 @@ class Run:
 
     def load_checkpoint(self):
         """``(generation, population, fitness, violation)`` of the last complete generation, or
-        None."""
+        None. A checkpoint of another run (another :attr:`fingerprint`) is refused."""
         path = self.out / "checkpoint.npz"
         if not path.exists():
             return None
@@ -353,8 +389,13 @@ class Run:
             with np.load(path) as data:
                 gen, pop, fit = int(data["generation"]), data["population"], data["fitness"]
                 violation = data["violation"] if "violation" in data else np.zeros(len(fit))
+                owner = str(data["run"]) if "run" in data else None
         except Exception as exc:
             raise RunError(f"{path}: corrupt checkpoint ({exc})") from None
+        if owner is not None and owner != self.fingerprint:
+            raise RunError(f"{path}: the checkpoint of another run (run {owner}; this run, by "
+                           f"its config.json, is {self.fingerprint}): restore this run's "
+                           "checkpoint, or start a new run with another --out")  # fmt: skip
         if pop.shape[0] != self.config.population or fit.shape != (self.config.population, 3):
             raise RunError(f"{path}: population {pop.shape[0]} does not match the configuration "
                            f"({self.config.population})")  # fmt: skip
@@ -374,9 +415,15 @@ class Run:
         if not path.exists():
             return []
         try:
-            return json.loads(path.read_text())["generations"]
-        except (json.JSONDecodeError, KeyError) as exc:
+            doc = json.loads(path.read_text())
+            generations = doc["generations"]
+        except (json.JSONDecodeError, KeyError, TypeError) as exc:
             raise RunError(f"{path}: corrupt history ({exc})") from None
+        if doc.get("run", self.fingerprint) != self.fingerprint:
+            raise RunError(f"{path}: the history of another run (run {doc['run']}; this run is "
+                           f"{self.fingerprint}): restore this run's history.json, or start a "
+                           "new run with another --out")  # fmt: skip
+        return generations
 
     # -- the loop ------------------------------------------------------------------------------
     def train(self, progress: bool = True, stop_after: int | None = None) -> dict:
@@ -438,8 +485,9 @@ class Run:
                 population=population.genomes,
                 fitness=fitness,
                 violation=violation,
+                run=np.array(self.fingerprint),
             )
-            write_json(self.out / "history.json", {"generations": history})
+            write_json(self.out / "history.json", {"run": self.fingerprint, "generations": history})
             bar.set_postfix(hv=f"{history[-1]['hypervolume']:.3f}", front=int(np.sum(rank == 0)))
             if gen + 1 < cfg.generations:
                 backend.advance(recipes)
@@ -655,6 +703,45 @@ class Run:
         write_json(self.out / "front.json", summary)
         plot_run(self.out, history)
         return summary
+
+
+@contextmanager
+def run_folder(out: str | Path, resume: bool) -> Iterator[Path]:
+    """Hold the run folder ``out`` while the block writes it: one process at a time
+    (:func:`~gridsim.outputs.folder_lock`; a second one is refused, naming the first). For a
+    new run (not ``resume``), ``out`` must be new or empty, and if the block fails before a
+    generation is complete, what it wrote is removed again (the folder too, if it made it),
+    so that the corrected command can run in the same ``--out``; later the run stays, to be
+    resumed."""
+    out = Path(out)
+    if resume:  # a run folder, not one the lock would make
+        read_manifest(out, "config.json", "run directory", RunError, (1, FORMAT_VERSION))
+    else:
+        problem = new_folder_problem(out, hint=f"use --resume {out} or another --out")
+        if problem:
+            raise RunError(f"--out {out}: {problem}")
+    existed = out.exists()
+    with folder_lock(out, "--resume" if resume else "--out"):
+        try:
+            yield out
+        except BaseException:
+            if not resume and not (out / "checkpoint.npz").exists():
+                _undo(out, remove_folder=not existed)
+            raise
+
+
+def _undo(out: Path, remove_folder: bool) -> None:
+    """Remove what a new run wrote into ``out`` (which was empty or did not exist)."""
+    if remove_folder:
+        shutil.rmtree(out, ignore_errors=True)
+        return
+    for p in out.iterdir():
+        if p.name == LOCK_NAME:
+            continue
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+        else:
+            p.unlink(missing_ok=True)
 
 
 def _checked(config: TrainConfig):

@@ -1,0 +1,112 @@
+"""Output folders are safe: one writer at a time, a failed command leaves ``--out`` as it
+was, a resumed run keeps every setting and refuses another run's checkpoint."""
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from gridsim.errors import OutputError
+from gridsim.outputs import folder_lock, new_folder
+from neurotrajectory.cli import main
+from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
+
+TINY = dict(preset="tiny", population=4, episodes=1, episode_seconds=2.0, seed=1)
+QUICK = ["--preset", "tiny", "--population", "4", "--generations", "1", "--episodes", "1",
+         "--episode-seconds", "2", "--quiet"]  # fmt: skip
+
+
+def test_a_folder_has_one_writer_at_a_time(tmp_path):
+    busy = r"--out .*out: in use by another process \(pid \d+"
+    with (
+        folder_lock(tmp_path / "out"),
+        pytest.raises(OutputError, match=busy),
+        folder_lock(tmp_path / "out"),
+    ):
+        pass
+    with folder_lock(tmp_path / "out"):  # free again once the holder is done
+        pass
+
+
+def test_a_new_folder_appears_whole_or_not_at_all(tmp_path):
+    out = tmp_path / "out"
+    with pytest.raises(RuntimeError), new_folder(out) as partial:
+        (partial / "half.txt").write_text("x")
+        raise RuntimeError("failed midway")
+    assert not out.exists() and not any(tmp_path.iterdir())
+    with new_folder(out) as partial:
+        (partial / "whole.txt").write_text("x")
+        assert not out.exists()
+    assert [p.name for p in out.iterdir()] == ["whole.txt"] and len(list(tmp_path.iterdir())) == 1
+    with pytest.raises(OutputError, match="exists and is not empty"), new_folder(out):
+        pass
+
+
+def test_a_second_train_in_the_same_folder_is_refused(tmp_path, capsys):
+    run = tmp_path / "run"
+    Run.create(run, TrainConfig(generations=2, **TINY))
+    with folder_lock(run):  # another process training it
+        assert main(["train", "--resume", str(run), "--quiet"]) == 2
+    assert f"--resume {run}: in use by another process (pid " in capsys.readouterr().err
+
+
+def test_a_train_that_fails_before_a_generation_leaves_out_as_it_was(tmp_path, monkeypatch,
+                                                                      capsys):  # fmt: skip
+    def broken(self, progress=True, stop_after=None):
+        raise RuntimeError("a bug in the loop")
+
+    monkeypatch.setattr(Run, "train", broken)
+    assert main(["train", *QUICK, "--out", str(tmp_path / "run")]) == 3
+    assert "internal error: RuntimeError: a bug in the loop" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
+    (tmp_path / "empty").mkdir()
+    assert main(["train", *QUICK, "--out", str(tmp_path / "empty")]) == 3
+    assert list((tmp_path / "empty").iterdir()) == [tmp_path / "empty" / ".lock"]
+    monkeypatch.undo()
+    assert main(["train", *QUICK, "--heldout", "0", "--out", str(tmp_path / "empty")]) == 0
+
+
+def test_resume_keeps_the_runs_heldout_and_video_settings(tmp_path):
+    run = tmp_path / "run"
+    Run.create(run, TrainConfig(generations=2, **TINY), heldout=3).train(progress=False,
+                                                                        stop_after=1)  # fmt: skip
+    assert json.loads((run / "config.json").read_text())["after"] == {"heldout": 3, "video": None}
+    assert main(["train", "--resume", str(run), "--quiet"]) == 0
+    report = json.loads((run / "heldout.json").read_text())
+    assert report["network"]["episodes"] == 3  # not the default 20
+
+
+def test_resume_refuses_the_checkpoint_of_another_run(tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    Run.create(a, TrainConfig(generations=2, **TINY)).train(progress=False, stop_after=1)
+    Run.create(b, TrainConfig(generations=2, **{**TINY, "seed": 2})).train(progress=False,
+                                                                          stop_after=1)  # fmt: skip
+    shutil.copy(a / "checkpoint.npz", b / "checkpoint.npz")
+    with pytest.raises(RunError, match=r"b/checkpoint.npz: the checkpoint of another run"):
+        Run.open(b).train(progress=False)
+    shutil.copy(a / "history.json", b / "history.json")
+    with pytest.raises(RunError, match=r"b/history.json: the history of another run"):
+        Run.open(b).train(progress=False)
+    with np.load(a / "checkpoint.npz") as data:
+        assert str(data["run"]) == Run.open(a).fingerprint
+
+
+def test_record_that_fails_leaves_out_as_it_was(tmp_path, monkeypatch, capsys):
+    def broken(*args, **kwargs):
+        raise RuntimeError("disk trouble")
+
+    monkeypatch.setattr("neurotrajectory.data.windows.record_group", broken)
+    out = tmp_path / "ds"
+    assert main(["record", "--scenario", "seamless", "--episodes", "1", "--out", str(out)]) == 3
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_evaluate_refuses_a_group_named_twice(tmp_path, capsys):
+    argv = ["evaluate", "--run", str(tmp_path), "--out", str(tmp_path / "ev"),
+            "--group", f"a={tmp_path}", "--group", f"a={tmp_path / 'x'}"]  # fmt: skip
+    assert main(argv) == 2
+    assert "--group a is given twice" in capsys.readouterr().err
+    assert main([*argv[:5], "--groups", "urban", "urban"]) == 2
+    assert "--groups names urban more than once" in capsys.readouterr().err
+    assert not (tmp_path / "ev").exists()
