@@ -296,3 +296,34 @@ def test_validate_suggests_the_key_meant(tmp_path, capsys):
     assert "road.lane_widht: unknown key (did you mean 'lane_width'?) (got 3.2)" in (
         capsys.readouterr().err
     )
+
+
+BOMB = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
+    f"{n}: &{n} [{', '.join([f'*{p}'] * 9)}]\n" for p, n in zip("abcdefgh", "bcdefghi", strict=True)
+)
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        (BOMB, "490,329,064 values once its aliases are expanded; at most 100,000"),
+        ("a: " + "[" * 5000 + "]" * 5000, "brackets nested 5000 levels deep; at most 50"),
+        ("a: &x [*x]\n", "a recursive alias"),
+        ("".join(f"{' ' * k}k{k}:\n" for k in range(60)) + " " * 60 + "v: 1\n",
+         "nested 62 levels deep; at most 50"),
+        ("a: " + "x" * 1_000_001, "1,000,004 characters; a scenario file has at most 1,000,000"),
+    ],
+)  # fmt: skip
+def test_hostile_yaml_is_refused_before_it_is_expanded(tmp_path, text, message):
+    import tracemalloc
+
+    p = tmp_path / "hostile.yaml"
+    p.write_text(text)
+    tracemalloc.start()
+    try:
+        with pytest.raises(ScenarioError, match=message):
+            load_scenario(p)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 50e6  # bytes: nothing was expanded

@@ -93,8 +93,9 @@ def test_drive_command_writes_outputs(tmp_path, capsys):
 
 
 def test_drive_rejects_bad_arguments(tmp_path, capsys):
-    assert main(["drive", "--seconds", "-1", "--out", str(tmp_path / "x"), "--quiet"]) == 2
-    assert "--seconds must be > 0" in capsys.readouterr().err
+    for bad in ("-1", "nan", "1e12"):
+        assert main(["drive", "--seconds", bad, "--out", str(tmp_path / "x"), "--quiet"]) == 2
+        assert "--seconds must be in (0, 3600]" in capsys.readouterr().err
     assert main(["drive", "--scenario", "nowhere", "--out", str(tmp_path / "x"), "--quiet"]) == 2
     assert "unknown scenario 'nowhere'" in capsys.readouterr().err
     (tmp_path / "afile").write_text("")

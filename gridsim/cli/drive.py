@@ -14,6 +14,7 @@ from gridsim.render.grids import colourise
 from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
+from gridsim.scenario.schema import MAX_DURATION, MAX_TICKS
 from gridsim.world.scripted_drivers import LaneFollower
 
 
@@ -21,8 +22,9 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     """Drive ``seconds`` of simulated time; write ``grids.npz`` (uint8 ``(T, H, W)`` grids and
     their times), a few colour grid PNGs, ``topdown.png`` (last frame) and ``summary.json``
     into ``out``. Returns the summary."""
-    if not seconds > 0:
-        raise GridSimError(f"--seconds must be > 0, got {seconds}")
+    if not 0 < seconds <= MAX_DURATION:
+        raise GridSimError(f"--seconds must be in (0, {MAX_DURATION:g}] (an hour of simulated "
+                           f"time at most), got {seconds}")  # fmt: skip
     problem = output_problem(out, directory=True)
     if problem:
         raise GridSimError(f"--out {out}: {problem}")
@@ -34,6 +36,9 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     speed = float(track.speed.mean()) if track is not None else 0.9 * sc.config.ego.vehicle.v_max
     driver = LaneFollower(speed=speed)
     steps = int(round(seconds / world.dt))
+    if steps > MAX_TICKS:
+        raise GridSimError(f"--seconds {seconds:g} is {steps:,} ticks of {world.dt:g} s; at most "
+                           f"{MAX_TICKS:,} (the grids are kept in memory)")  # fmt: skip
     grids = np.empty((steps, sensor.spec.rows, sensor.spec.cols), np.uint8)
     times = np.empty(steps)
     start = world.ego[:2].copy()

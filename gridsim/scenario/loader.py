@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import difflib
 import os
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import yaml
 from pydantic import ValidationError
 
@@ -44,6 +46,85 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                         key_node.start_mark,
                     )  # fmt: skip
         return super().construct_mapping(node, deep=deep)
+
+
+#: Bounds on a scenario YAML document (the built-in ones are under 4 KB, 300 nodes, depth 5),
+#: so that a hostile file (nested aliases, deep nesting) is refused at once: its size
+#: [bytes], its nodes with every alias expanded, and its nesting depth.
+MAX_YAML_BYTES, MAX_YAML_NODES, MAX_YAML_DEPTH = 1_000_000, 100_000, 50
+
+
+def _load_yaml(text: str, source: str) -> Any:
+    """The YAML document ``text`` (safe, duplicate keys refused), after checking the bounds
+    :data:`MAX_YAML_BYTES`, :data:`MAX_YAML_NODES` and :data:`MAX_YAML_DEPTH` on its node
+    graph, before anything is expanded."""
+    if len(text) > MAX_YAML_BYTES:
+        raise ScenarioError(f"{source}: {len(text):,} characters; a scenario file has at most "
+                            f"{MAX_YAML_BYTES:,}")  # fmt: skip
+    depth = _flow_depth(text)
+    if depth > MAX_YAML_DEPTH:  # YAML's scanner is slow on deep [ { nesting: refused first
+        raise ScenarioError(f"{source}: brackets nested {depth} levels deep; at most "
+                            f"{MAX_YAML_DEPTH}")  # fmt: skip
+    loader = _UniqueKeyLoader(text)
+    try:
+        try:
+            node = loader.get_single_node()
+        except RecursionError:
+            raise ScenarioError(f"{source}: nested deeper than YAML can read (at most "
+                                f"{MAX_YAML_DEPTH} levels)") from None  # fmt: skip
+        if node is None:
+            return None
+        nodes, depth = _expanded_size(node, source)
+        if depth > MAX_YAML_DEPTH:
+            raise ScenarioError(f"{source}: nested {depth} levels deep; at most {MAX_YAML_DEPTH}")
+        if nodes > MAX_YAML_NODES:
+            raise ScenarioError(f"{source}: {nodes:,} values once its aliases are expanded; at "
+                                f"most {MAX_YAML_NODES:,} (nested aliases?)")  # fmt: skip
+        return loader.construct_document(node)
+    finally:
+        loader.dispose()
+
+
+_QUOTED = re.compile(r'"(?:[^"\\]|\\.)*"|\'(?:[^\']|\'\')*\'')
+
+
+def _flow_depth(text: str) -> int:
+    """The deepest nesting of ``[`` and ``{`` outside quoted strings (an upper bound of the
+    document's flow nesting: brackets in comments count too)."""
+    bare = _QUOTED.sub("", text)
+    steps = np.frombuffer(bare.encode(), np.uint8)
+    delta = np.isin(steps, (ord("["), ord("{"))).astype(np.int64)
+    delta -= np.isin(steps, (ord("]"), ord("}")))
+    return int(np.cumsum(delta).max(initial=0))
+
+
+def _expanded_size(root: yaml.Node, source: str) -> tuple[int, int]:
+    """``(nodes, depth)`` of a YAML node graph with every alias expanded, counted without
+    expanding (each distinct node once); a :class:`ScenarioError` for a recursive alias."""
+    size: dict[int, tuple[int, int]] = {}
+    open_nodes: set[int] = set()
+    stack: list[tuple[yaml.Node, bool]] = [(root, False)]
+    while stack:
+        node, done = stack.pop()
+        key = id(node)
+        children = []
+        if isinstance(node, yaml.SequenceNode):
+            children = node.value
+        elif isinstance(node, yaml.MappingNode):
+            children = [n for pair in node.value for n in pair]
+        if done:
+            open_nodes.discard(key)
+            parts = [size[id(c)] for c in children]
+            size[key] = (1 + sum(p[0] for p in parts), 1 + max((p[1] for p in parts), default=0))
+            continue
+        if key in size:
+            continue
+        if key in open_nodes:
+            raise ScenarioError(f"{source}: a recursive alias (an anchor used inside itself)")
+        open_nodes.add(key)
+        stack.append((node, True))
+        stack += [(c, False) for c in children if id(c) not in size]
+    return size[id(root)]
 
 
 @dataclass(frozen=True)
@@ -169,7 +250,7 @@ def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None 
         return commonroad_scenario(Path(name_or_path), overrides)
     text, source, base = _read(name_or_path)
     try:
-        doc = yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a safe loader
+        doc = _load_yaml(text, source)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""

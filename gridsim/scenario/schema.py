@@ -17,6 +17,8 @@ from gridsim.road.seamless import SeamlessParams
 from gridsim.sensors.occupancy import GridSpec
 from gridsim.vehicle.kinematics import BicycleParams
 
+#: The longest episode (and drive) [s]: one hour of simulated time.
+MAX_DURATION = 3600.0
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Seed = Annotated[int, Field(ge=0, le=2**63 - 1)]
@@ -33,7 +35,9 @@ MAX_TICKS = 100_000
 
 class SimulationConfig(Strict):
     dt: Annotated[float, Field(ge=1e-3, le=1.0, description="simulation time step [s]")] = 0.1
-    duration: Annotated[float, Field(gt=0, le=3600, description="episode time limit [s]")] = 60.0
+    duration: Annotated[
+        float, Field(gt=0, le=MAX_DURATION, description="episode time limit [s]")
+    ] = 60.0
 
     @model_validator(mode="after")
     def _ticks(self) -> SimulationConfig:
