@@ -5,7 +5,9 @@
 Prints one JSON line per figure: windows recorded per second (generated and recorded
 scenes), and milliseconds per window for constant velocity, DWA (one window at a time, as
 in closed loop, and batched), End2End and NeuroTrajectory (default preset, batched and one
-at a time), with each method's ratio to DWA one at a time.
+at a time), with each method's ratio to DWA one at a time; and End2End's training time per
+window and epoch on 1 and 2 threads, with the projected minutes for 33,000 windows and the
+default epochs (target: <= 5 min on 2 cores).
 """
 
 from __future__ import annotations
@@ -40,7 +42,12 @@ def _per_window_ms(fn, batch, one_at_a_time: bool) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--windows", type=int, default=200, help="windows timed per predictor")
+    ap.add_argument("--e2e-windows", type=int, default=0, metavar="N",
+                    help="also train End2End for real on N windows (the recorded ones "
+                         "repeated; 33000: the target's size) with the default epochs")  # fmt: skip
     args = ap.parse_args()
+    with open("/proc/loadavg") as fh:
+        print(json.dumps({"loadavg": fh.read().split()[:3]}))
     torch.set_num_threads(1)
     for group, episodes in (("seamless", 2), ("urban", 1)):
         t0 = time.perf_counter()
@@ -67,6 +74,24 @@ def main() -> None:
         print(json.dumps({"bench": "predict", "method": name, "windows": len(batch),
                           "ms_per_window": round(ms, 3),
                           "ratio_to_dwa": round(ms / timings["DWA"], 3)}))  # fmt: skip
+    epochs = TrainSettings().epochs
+    for threads in (1, 2):
+        torch.set_num_threads(threads)
+        t0 = time.perf_counter()
+        End2End.train(batch, setting, TrainSettings(epochs=2))
+        ms = 1000.0 * (time.perf_counter() - t0) / (2 * len(batch))
+        print(json.dumps({"bench": "end2end_training", "threads": threads, "windows": len(batch),
+                          "ms_per_window_epoch": round(ms, 3),
+                          "projected_min_33k_windows": round(ms * 33_000 * epochs / 60e3, 2),
+                          "target_min": 5.0}))  # fmt: skip
+    if args.e2e_windows:
+        torch.set_num_threads(2)
+        big = batch.take(np.arange(args.e2e_windows) % len(batch))
+        t0 = time.perf_counter()
+        End2End.train(big, setting, TrainSettings())
+        print(json.dumps({"bench": "end2end_training_full", "threads": 2, "windows": len(big),
+                          "epochs": epochs, "minutes": round((time.perf_counter() - t0) / 60, 2),
+                          "target_min": 5.0}))  # fmt: skip
 
 
 if __name__ == "__main__":

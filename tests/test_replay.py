@@ -41,3 +41,24 @@ def test_an_ego_that_waits_then_drives_off_is_reached_only_at_the_end(tmp_path):
     env, info, _ = drive_reference(write_scene(tmp_path, [waiting(61, moving_after=30)]))
     assert not info["collision"] and not info["off_road"]
     assert env.world.time >= 6.0 - 0.5  # within the tolerance of the end, not at the start
+
+
+def test_a_track_file_edited_on_disk_is_read_again(tmp_path):
+    """Even within its time stamps' resolution and at the same size (cache keys: stamps,
+    and the content of files changed in the last seconds)."""
+    import gymnasium as gym
+
+    x = np.linspace(20.0, 60.0, 41)
+    path = write_scene(tmp_path, [track("ego", x, np.full(41, -1.75))])
+    env = gym.make("GridSim-v0", scenario=str(path))
+    env.reset(seed=0)
+    assert env.unwrapped.world.ego[1] == -1.75
+    csv = tmp_path / "tracks.csv"
+    before = csv.stat()
+    csv.write_text(csv.read_text().replace("-1.75", "-1.77"))  # the same size
+    assert csv.stat().st_size == before.st_size
+    env.reset(seed=0)  # the same env, and a new one
+    assert env.unwrapped.world.ego[1] == -1.77
+    again = gym.make("GridSim-v0", scenario=str(path))
+    again.reset(seed=0)
+    assert again.unwrapped.world.ego[1] == -1.77

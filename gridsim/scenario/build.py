@@ -15,6 +15,7 @@ import numpy as np
 from gridsim.road.base import StaticRoad
 from gridsim.scenario.families import WORLD_BUILDERS
 from gridsim.scenario.loader import Scenario
+from gridsim.scenario.parts import input_stamps
 from gridsim.sensors.occupancy import GridSpec, OccupancyGridSensor, SensorMount
 from gridsim.traffic.sources import SyntheticTraffic
 from gridsim.world.world import World
@@ -29,17 +30,19 @@ def build_sensor(scenario: Scenario) -> OccupancyGridSensor:
     return OccupancyGridSensor(spec)
 
 
-_PRISTINE: OrderedDict[tuple[str, str, int], World] = OrderedDict()
+_PRISTINE: OrderedDict[tuple, World] = OrderedDict()
 _PRISTINE_SIZE = 64
 
 
 def build_world(scenario: Scenario, seed: int = 0) -> World:
     """A fresh world for ``scenario``; the same seed always gives the same world.
 
-    The first world built for a (scenario, seed) is kept untouched and later ones are copies
-    of it (a copy costs a fraction of a build: warm resets). Objects that do not depend on
-    the seed and never change (static maps, profile tables) are shared, not copied."""
-    key = (scenario.config.model_dump_json(), str(scenario.base_dir), int(seed))
+    The first world built for a (scenario, its files as they are, seed) is kept untouched
+    and later ones are copies of it (a copy costs a fraction of a build: warm resets).
+    Objects that do not depend on the seed and never change (static maps, profile tables)
+    are shared, not copied."""
+    key = (scenario.config.model_dump_json(), str(scenario.base_dir), input_stamps(scenario),
+           int(seed))  # fmt: skip
     pristine = _PRISTINE.get(key)
     if pristine is None:
         pristine = WORLD_BUILDERS[type(scenario.config.road)](scenario, int(seed))

@@ -4,6 +4,8 @@ seed into independent streams, and the human profiles of generated traffic."""
 
 from __future__ import annotations
 
+import hashlib
+import time
 from functools import lru_cache
 from pathlib import Path
 
@@ -60,11 +62,20 @@ def resolve(scenario: Scenario, ref: str, builtin_dir: tuple[str, ...], suffix: 
     return path
 
 
-def stamped(path: Path) -> tuple[str, int, int]:
-    """A file as a cache key: its path, modification time and size, so that a file edited
-    on disk is read again."""
+#: A file changed less than this long ago [s] is keyed by its content too (:func:`stamped`):
+#: an edit within the file system's timestamp resolution keeps its time stamp.
+RECENT_SECONDS = 2.0
+
+
+def stamped(path: Path) -> tuple:
+    """A file as a cache key, so that a file edited on disk is read again: its path,
+    modification and change times, size and inode, and, if it changed in the last
+    :data:`RECENT_SECONDS` (when an edit may keep the time stamps), a digest of its content."""
     st = path.stat()
-    return str(path), st.st_mtime_ns, st.st_size
+    key = (str(path), st.st_mtime_ns, st.st_ctime_ns, st.st_size, st.st_ino)
+    if time.time_ns() - max(st.st_mtime_ns, st.st_ctime_ns) < RECENT_SECONDS * 1e9:
+        key += (hashlib.blake2b(path.read_bytes(), digest_size=16).hexdigest(),)
+    return key
 
 
 def map_path(scenario: Scenario) -> Path:
@@ -75,6 +86,11 @@ def map_path(scenario: Scenario) -> Path:
 def library_for(scenario: Scenario) -> TrajectoryLibrary:
     """The tracks of ``traffic.library``: ``builtin``, ``scene`` (the recorded map file's
     dynamic obstacles) and trajectory files (CSV or CommonRoad XML)."""
+    return _library(_library_files(scenario))
+
+
+def _library_files(scenario: Scenario) -> tuple:
+    """``traffic.library`` as ``"builtin"`` or file stamps (:func:`stamped`)."""
     files = []
     for ref in scenario.config.traffic.library:
         if ref == "builtin":
@@ -88,7 +104,16 @@ def library_for(scenario: Scenario) -> TrajectoryLibrary:
             files.append(stamped(map_path(scenario)))
         else:
             files.append(stamped(resolve(scenario, ref, ("data", "ngsim"), ".csv")))
-    return _library(tuple(files))
+    return tuple(files)
+
+
+def input_stamps(scenario: Scenario) -> tuple:
+    """Stamps (:func:`stamped`) of every file a scenario's worlds are built from (its map
+    and trajectory files): a cache of worlds keyed by them never serves an edited file's."""
+    stamps = _library_files(scenario)
+    if isinstance(scenario.config.road, RecordedRoadConfig):
+        stamps += (stamped(map_path(scenario)),)
+    return stamps
 
 
 @lru_cache(maxsize=8)

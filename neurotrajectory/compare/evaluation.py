@@ -160,17 +160,29 @@ def _evaluate_group(
     train, test = split_by_track(ds.windows, cfg.test_fraction, cfg.seed)
     setting = Setting.from_manifest(ds.manifest)
     log(f"{group}: {len(train)} train / {len(test)} test windows; training End2End")
-    e2e = End2End.train(train, setting, cfg.end2end)
+    e2e = End2End.train(train, setting, cfg.end2end, progress=progress)
     e2e.save(out / "models" / f"end2end-{group}")
     picked = front.nets[front.picked]
     nt = NetPredictor(picked)
     methods = {"constant velocity": ConstantVelocity(setting),
                "destination curve": DestinationCurve(setting), "DWA": DWA(setting),
                "End2End": e2e}  # fmt: skip
-    scores = {name: accuracy(m.predict(test), test.target, test.heading)
-              for name, m in methods.items()}  # fmt: skip
-    members = [accuracy(NetPredictor(n).predict(test), test.target, test.heading)
-               for n in front.nets]  # fmt: skip
+    log(
+        f"{group}: scoring {len(methods)} methods and {len(front.nets)} front members on "
+        f"{len(test)} test windows"
+    )
+    to_score = [*methods.items(), *((f"member {k}", NetPredictor(n))
+                                    for k, n in enumerate(front.nets))]  # fmt: skip
+    scored = tqdm(to_score, desc=f"score {group}", unit="method", leave=False,
+                  disable=not progress)  # fmt: skip
+    scores, members = {}, []
+    for name, m in scored:
+        scored.set_postfix(method=name)
+        a = accuracy(m.predict(test), test.target, test.heading)
+        if name in methods:
+            scores[name] = a
+        else:
+            members.append(a)
     best = int(np.argmin([a.rmse for a in members]))
     scores[NT_PICKED] = members[front.picked]
     scores[NT_BEST] = members[best]

@@ -40,7 +40,7 @@ def scene_of(scenario: Scenario) -> str:
 
 
 @lru_cache(maxsize=8)
-def _lanelet_road(file: tuple[str, int, int]):
+def _lanelet_road(file: tuple):
     return load_lanelet_road(file[0])
 
 

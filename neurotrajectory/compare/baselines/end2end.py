@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import torch
 from torch import nn
+from tqdm import tqdm
 
 from gridsim import libm
 from gridsim.outputs import write_json
@@ -36,7 +37,8 @@ from neurotrajectory.model import PRESETS, GridEncoder, NetConfig, window_inputs
 
 class End2EndNet(nn.Module):
     """Grids, ego, destination -> (steering logits ``(B, 21)``, longitudinal logits
-    ``(B, 3)``)."""
+    ``(B, 3)``), from the body's features of the newest grid (the only frame encoded: the
+    body treats each frame alike and apart)."""
 
     def __init__(self, cfg: NetConfig) -> None:
         super().__init__()
@@ -46,7 +48,7 @@ class End2EndNet(nn.Module):
         self.longitudinal = nn.Linear(cfg.fc2, len(LONGITUDINAL))
 
     def forward(self, grids, ego, destination):
-        feats = self.encoder(grids, ego, destination)[:, -1]
+        feats = self.encoder(grids[:, -1:], ego, destination)[:, 0]
         return self.steer(feats), self.longitudinal(feats)
 
 
@@ -82,8 +84,10 @@ class End2End:
         settings: TrainSettings = TrainSettings(),
         preset: str = "default",
         log=None,
+        progress: bool = False,
     ) -> End2End:
-        """Fit on ``windows`` (deterministic for a given ``settings.seed``)."""
+        """Fit on ``windows`` (deterministic for a given ``settings.seed``); ``progress``
+        shows a bar over the batches of all epochs."""
         if len(windows) == 0:
             raise ValueError("End2End needs at least one training window")
         torch.manual_seed(settings.seed)
@@ -98,9 +102,13 @@ class End2End:
         lon = torch.from_numpy(windows.longitudinal.astype(np.int64))
         rng = np.random.default_rng(settings.seed)
         net.train()
+        per_epoch = -(-len(windows) // settings.batch_size)
+        bar = tqdm(total=settings.epochs * per_epoch, desc="train End2End", unit="batch",
+                   leave=False, disable=not progress)  # fmt: skip
         for epoch in range(settings.epochs):
             order = rng.permutation(len(windows))
             total = 0.0
+            bar.set_postfix(epoch=f"{epoch + 1}/{settings.epochs}")
             for start in range(0, len(order), settings.batch_size):
                 idx = order[start : start + settings.batch_size]
                 s_logits, l_logits = net(*window_inputs(windows, idx))
@@ -109,8 +117,10 @@ class End2End:
                 loss.backward()
                 opt.step()
                 total += loss.item() * len(idx)
+                bar.update()
             if log is not None:
                 log(f"End2End epoch {epoch + 1}/{settings.epochs}: loss {total / len(order):.3f}")
+        bar.close()
         accel = fit_class_accel(windows.longitudinal, windows.accel.astype(float))
         return cls(net, setting, accel)
 
