@@ -135,10 +135,12 @@ def _track(ob: ET.Element, path: Path, sid: str, dt: float) -> Track | None:
     t = a[:, 0] * dt
     v = np.array([states[k][4] for k in order], dtype=object)
     if any(s is None for s in v):  # derive from the positions
-        seg = np.hypot(np.diff(a[:, 1]), np.diff(a[:, 2])) / np.diff(t)
+        with np.errstate(all="ignore"):  # non-finite positions: Track names them
+            seg = np.hypot(np.diff(a[:, 1]), np.diff(a[:, 2])) / np.diff(t)
         speed = np.append(seg, seg[-1])
     else:
         speed = v.astype(float)
     length, width = _size(ob, where)
-    return Track(sid, str(ob.get("id")), t, a[:, 1], a[:, 2], np.unwrap(a[:, 3]), speed,
+    heading = np.unwrap(a[:, 3]) if np.all(np.isfinite(a[:, 3])) else a[:, 3]  # Track names it
+    return Track(sid, str(ob.get("id")), t, a[:, 1], a[:, 2], heading, speed,
                  length, width, str(path))  # fmt: skip

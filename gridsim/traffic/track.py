@@ -13,6 +13,9 @@ from gridsim.frames import MAX_COORDINATE
 #: No road vehicle is faster [m/s] (360 km/h): a larger recorded speed, or a larger distance
 #: between consecutive positions over their time step, is a glitch of the data.
 MAX_SPEED = 100.0
+#: The largest time stamp accepted [s] (about 300 years: Unix times in seconds pass, times
+#: in milli- or microseconds do not).
+MAX_TIME = 1e10
 #: The largest vehicle accepted, length and width [m].
 MAX_SIZE = (50.0, 10.0)
 
@@ -80,7 +83,8 @@ class Track:
 
 def track_data_problem(track: Track) -> str | None:
     """What makes a track's data impossible, naming the first bad state (``None`` if none):
-    unequal or too few samples, non-finite values, time stamps not increasing, coordinates
+    unequal or too few samples, non-finite values, time stamps beyond :data:`MAX_TIME` or
+    not increasing, coordinates
     beyond :data:`MAX_COORDINATE`, speeds below 0 or above :data:`MAX_SPEED`, a jump between
     consecutive positions faster than :data:`MAX_SPEED`, a size outside (0, :data:`MAX_SIZE`]."""
     arrays = {k: np.asarray(getattr(track, k)) for k in ("t", "x", "y", "heading", "speed")}
@@ -103,6 +107,10 @@ def track_data_problem(track: Track) -> str | None:
         if len(bad):
             return (f"{state(int(bad[0]))}: {name} = {arrays[name][bad[0]]:.6g} m is beyond "
                     f"+-{MAX_COORDINATE:g} m")  # fmt: skip
+    bad = np.flatnonzero(np.abs(t) > MAX_TIME)
+    if len(bad):
+        return (f"state {int(bad[0])}: time {t[bad[0]]:.6g} s is beyond +-{MAX_TIME:g} s "
+                "(time stamps in seconds?)")  # fmt: skip
     bad = np.flatnonzero(np.diff(t) <= 0)
     if len(bad):
         return f"{state(int(bad[0]) + 1)}: time stamps must increase (after {t[bad[0]]:.6g} s)"
