@@ -586,3 +586,12 @@ def test_heldout_on_a_recorded_scene_drives_each_held_out_track_once(tmp_path):
     first = drive_episodes("us101_4_1", policy, report["seeds"][:1], 2.0,
                            ego={"track": held[0]})  # fmt: skip
     assert {**first[0], "track": held[0]} == report["episodes"][0]
+
+
+def test_a_population_too_big_for_memory_is_refused_before_allocating(tmp_path, capsys):
+    argv = ["train", "--preset", "tiny", "--population", "10000000000", "--out",
+            str(tmp_path / "run"), "--quiet"]  # fmt: skip
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "--population 10000000000 of networks of" in err and "GB for its genomes" in err
+    assert not (tmp_path / "run").exists()

@@ -15,6 +15,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
 import shutil
 import time
 from collections.abc import Iterator
@@ -765,6 +766,7 @@ def _checked(config: TrainConfig):
     except GridSimError as exc:
         raise RunError(f"--scenario {config.scenario}: {exc}") from None
     probe = TrajectoryNet(net_config_for(env.cfg, config.net))
+    _check_size(config, sum(p.numel() for p in probe.parameters()))
     windows = None
     if config.pretrain:
         windows = _pretrain_data(config.pretrain)
@@ -775,6 +777,26 @@ def _checked(config: TrainConfig):
     elif config.pretrain_episodes:
         _check_pretrain_episodes(config)
     return _with_training_tracks(config, windows), windows
+
+
+#: The share of the machine's memory a run's populations may take (parents and children).
+MEMORY_SHARE = 0.5
+
+
+def _check_size(config: TrainConfig, weights: int) -> None:
+    """A :class:`RunError`, before anything is allocated, when the populations would not fit
+    in :data:`MEMORY_SHARE` of this machine's memory, or ``processes`` asks for far more
+    workers than it has cores."""
+    need = 2 * config.population * weights * 4  # float32 genomes of parents and children
+    have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if need > MEMORY_SHARE * have:
+        raise RunError(f"--population {config.population} of networks of {weights:,} weights "
+                       f"needs {need / 1e9:.3g} GB for its genomes; this machine has "
+                       f"{have / 1e9:.3g} GB: choose a smaller population or preset")  # fmt: skip
+    cores = os.cpu_count() or 1
+    if config.backend == "processes" and config.workers > 4 * cores:
+        raise RunError(f"--workers {config.workers}: this machine has {cores} cores; give at "
+                       f"most {4 * cores} (one per core is best)")  # fmt: skip
 
 
 def _goal_mismatch(config: TrainConfig, env) -> str | None:
