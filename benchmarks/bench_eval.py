@@ -14,18 +14,21 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 
-import numpy as np
-import torch
+os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")  # as neurotrajectory sets it; before torch
 
-from neurotrajectory.compare.baselines.constant_velocity import ConstantVelocity
-from neurotrajectory.compare.baselines.dwa import DWA
-from neurotrajectory.compare.baselines.end2end import End2End, TrainSettings
-from neurotrajectory.compare.front import NetPredictor
-from neurotrajectory.compare.predictors import Setting
-from neurotrajectory.data.windows import record_group
-from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+
+from neurotrajectory.compare.baselines.constant_velocity import ConstantVelocity  # noqa: E402
+from neurotrajectory.compare.baselines.dwa import DWA  # noqa: E402
+from neurotrajectory.compare.baselines.end2end import End2End, TrainSettings  # noqa: E402
+from neurotrajectory.compare.front import NetPredictor  # noqa: E402
+from neurotrajectory.compare.predictors import Setting  # noqa: E402
+from neurotrajectory.data.windows import record_group  # noqa: E402
+from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet  # noqa: E402
 
 
 def _per_window_ms(fn, batch, one_at_a_time: bool) -> float:
