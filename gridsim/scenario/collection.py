@@ -80,14 +80,28 @@ def usable_files(
             skipped.append((f, str(exc)))
             continue
         scenarios.append(sc)
-    if skipped:
-        lines = skipped_lines(skipped)
-        if not scenarios:
-            raise ScenarioError(f"{ref}: none of its {len(files)} scenario files can be used:\n"
-                                f"{lines}")  # fmt: skip
-        warnings.warn(f"{ref}: skipped {len(skipped)} of {len(files)} scenario files that cannot "
-                      f"be used:\n{lines}", DataWarning, stacklevel=2)  # fmt: skip
+    report_skipped(str(ref), skipped, len(files), bool(scenarios))
     return scenarios, skipped
+
+
+def report_skipped(
+    where: str,
+    skipped: list[tuple[Path, str]],
+    total: int,
+    any_used: bool,
+    phrases: tuple[str, str] = ("can be used", "cannot be used"),
+    error: type[Exception] = ScenarioError,
+) -> None:
+    """Name the ``skipped`` files (``(file, reason)``) of ``total`` scenario files in one
+    :class:`~gridsim.errors.DataWarning`, or raise ``error`` naming them all when none was
+    used. ``phrases``: what the used files did and the skipped ones did not."""
+    if not skipped:
+        return
+    lines = skipped_lines(skipped)
+    if not any_used:
+        raise error(f"{where}: none of its {total} scenario files {phrases[0]}:\n{lines}")
+    warnings.warn(f"{where}: skipped {len(skipped)} of {total} scenario files that {phrases[1]}:"
+                  f"\n{lines}", DataWarning, stacklevel=3)  # fmt: skip
 
 
 def skipped_lines(skipped: list[tuple[Path, str]]) -> str:

@@ -9,14 +9,13 @@ as the map, ``maps/scene.xml``. Loading the YAML gives the same worlds as the XM
 from __future__ import annotations
 
 import shutil
-import warnings
 from pathlib import Path
 
 import yaml
 
-from gridsim.errors import DataWarning, GridSimError, OutputError, ScenarioError
+from gridsim.errors import GridSimError, OutputError, ScenarioError
 from gridsim.outputs import output_problem, write_text
-from gridsim.scenario.collection import skipped_lines
+from gridsim.scenario.collection import report_skipped
 from gridsim.scenario.loader import COMMONROAD_DEFAULTS, deep_merge
 from gridsim.traffic.commonroad import read_tracks_commonroad, scene_id
 from gridsim.traffic.library import write_tracks_csv
@@ -67,12 +66,8 @@ def import_files(files: list[str | Path], out: str | Path) -> list[Path]:
             if len(paths) == 1:
                 raise
             skipped.append((xml, str(exc)))
-    if skipped:
-        lines = skipped_lines(skipped)
-        if not read:
-            raise ScenarioError(f"none of the {len(paths)} files can be imported:\n{lines}")
-        warnings.warn(f"skipped {len(skipped)} of {len(paths)} files that cannot be imported:\n"
-                      f"{lines}", DataWarning, stacklevel=2)  # fmt: skip
+    report_skipped("import", skipped, len(paths), bool(read),
+                   ("can be imported", "cannot be imported"))  # fmt: skip
     return [_write(xml, tracks, scene, out) for xml, tracks, scene in read]
 
 

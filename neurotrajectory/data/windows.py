@@ -20,7 +20,6 @@ from __future__ import annotations
 import hashlib
 import json
 import platform
-import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -29,12 +28,17 @@ import numpy as np
 
 from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.errors import DataWarning, GridSimError
+from gridsim.errors import GridSimError
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write_json, write_npz
 from gridsim.policies import Reference
 from gridsim.scenario.checks import flawed_tracks
-from gridsim.scenario.collection import load_collection, scenario_files, skipped_lines, usable_files
+from gridsim.scenario.collection import (
+    load_collection,
+    report_skipped,
+    scenario_files,
+    usable_files,
+)
 from gridsim.scenario.families.recorded import recorded_scene, scene_of
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.schema import RecordedRoadConfig
@@ -386,14 +390,8 @@ def record_group(
             continue
         parts.append(w)
         metas.append(meta)
-    if skipped:
-        lines = skipped_lines(skipped)
-        if not parts:
-            raise DatasetError(f"group {name!r}: none of its {len(scenarios)} scenario files "
-                               f"gave a window:\n{lines}")  # fmt: skip
-        message = (f"group {name!r}: skipped {len(skipped)} of {len(scenarios)} scenario files "
-                   f"that gave no window:\n{lines}")  # fmt: skip
-        warnings.warn(message, DataWarning, stacklevel=2)
+    report_skipped(f"group {name!r}", skipped, len(scenarios), bool(parts),
+                   ("gave a window", "gave no window"), DatasetError)  # fmt: skip
     first = metas[0]
     for m in metas[1:]:
         for key in ("horizon", "history", "setpoint_period", "sensor", "goal_seconds"):
