@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.errors import DataError
-from gridsim.outputs import atomic_text
+from gridsim.outputs import atomic_text, short_repr
 from gridsim.traffic.commonroad import read_tracks_commonroad
 from gridsim.traffic.track import Track
 
@@ -144,11 +144,11 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
                     v = float(raw)
                 except (TypeError, ValueError):
                     raise DataError(
-                        f"{path}:{lineno}: column {c!r} is not a number: {raw!r}"
+                        f"{path}:{lineno}: column {c!r} is not a number: {short_repr(raw)}"
                     ) from None
                 if not np.isfinite(v):
                     raise DataError(
-                        f"{path}:{lineno}: column {c!r} is {raw!r}; expected a finite number"
+                        f"{path}:{lineno}: column {c!r} is {short_repr(raw)}; expected a finite number"
                     )
                 vals.append(v)
             speed, length, width = vals[4:7]

@@ -63,9 +63,10 @@ def recorded_scene(scenario: Scenario, check: bool = True) -> tuple[StaticRoad, 
 
 def _scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
     road = _lanelet_road(stamped(map_path(scenario)))
+    library = library_for(scenario)
     try:
-        return road, library_for(scenario).scene(scene_of(scenario))
-    except DataError as exc:
+        return road, library.scene(scene_of(scenario))
+    except DataError as exc:  # the library has no track of the map's scene
         if "scene" in scenario.config.traffic.library:
             raise
         raise DataError(
