@@ -147,9 +147,8 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
                         f"{path}:{lineno}: column {c!r} is not a number: {short_repr(raw)}"
                     ) from None
                 if not np.isfinite(v):
-                    raise DataError(
-                        f"{path}:{lineno}: column {c!r} is {short_repr(raw)}; expected a finite number"
-                    )
+                    raise DataError(f"{path}:{lineno}: column {c!r} is {short_repr(raw)}; "
+                                    "expected a finite number")  # fmt: skip
                 vals.append(v)
             speed, length, width = vals[4:7]
             if speed < 0 or length <= 0 or width <= 0:
