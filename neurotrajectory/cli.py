@@ -11,7 +11,7 @@ from contextlib import nullcontext
 from dataclasses import fields
 from pathlib import Path
 
-from gridsim.cli import at_least, run_command
+from gridsim.cli import MAX_SEED, at_least, run_command
 from gridsim.errors import GridSimError
 from gridsim.outputs import new_folder, output_problem, write_json
 from neurotrajectory.compare.front import heldout_problem
@@ -277,7 +277,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     t.add_argument("--sigma", type=float, default=None, help="mutation noise scale")
     t.add_argument(
-        "--seed", type=at_least(0), default=None, help="seed of the whole run (default 0)"
+        "--seed", type=at_least(0, MAX_SEED), default=None, help="seed of the whole run (default 0)"
     )
     t.add_argument(
         "--backend",
@@ -458,7 +458,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--video", default="rollout.mp4", help="video to write (.mp4 or .gif)")
     r.add_argument("--overlay", action="store_true",
                    help="caption the video: time, speed and what the dots are")  # fmt: skip
-    r.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
+    r.add_argument("--seed", type=at_least(0, MAX_SEED), default=0, help="episode seed")
     r.add_argument(
         "--steps",
         type=at_least(1),
@@ -510,7 +510,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="decisions between windows (default 1 on recorded scenes, else 5)",
     )
-    d.add_argument("--seed", type=at_least(0), default=0, help="seed of the episodes and split")
+    d.add_argument(
+        "--seed", type=at_least(0, MAX_SEED), default=0, help="seed of the episodes and split"
+    )
     d.add_argument(
         "--split",
         choices=["train", "test"],
@@ -605,7 +607,9 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="export each method's first closed-loop episode to <out>/videos/",
     )
-    e.add_argument("--seed", type=at_least(0), default=0, help="seed of the split and episodes")
+    e.add_argument(
+        "--seed", type=at_least(0, MAX_SEED), default=0, help="seed of the split and episodes"
+    )
     e.add_argument("--quiet", action="store_true", help="no progress messages")
     e.set_defaults(func=_cmd_evaluate)
     return p

@@ -124,6 +124,9 @@ def test_missing_velocity_is_derived_from_positions(tmp_path):
          'timeStepSize="0.1"', r"track 5 .*: length 4000000.0 m is outside \(0, 50\]"),
         (OBSTACLE.format(shape=RECT, v=VELOCITY) * 2,
          'timeStepSize="0.1"', "obstacle id 5 appears twice"),
+        (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<exact>0</exact></time>",
+                                                         "<exact>-3</exact></time>"),
+         'timeStepSize="0.1"', "obstacle 5: time step -3 is negative"),
     ],
 )  # fmt: skip
 def test_bad_obstacles_name_the_file_and_the_obstacle(tmp_path, body, root, message):

@@ -109,4 +109,20 @@ def test_evaluate_refuses_a_group_named_twice(tmp_path, capsys):
     assert "--group a is given twice" in capsys.readouterr().err
     assert main([*argv[:5], "--groups", "urban", "urban"]) == 2
     assert "--groups names urban more than once" in capsys.readouterr().err
+    assert main([*argv[:5], "--group", f"../../etc={tmp_path}"]) == 2
+    assert "group name '../../etc': use letters" in capsys.readouterr().err
     assert not (tmp_path / "ev").exists()
+
+
+def test_drive_writes_a_new_folder_whole(tmp_path, capsys):
+    from gridsim.cli import main as gridsim_main
+
+    out = tmp_path / "drive"
+    assert gridsim_main(["drive", "--seconds", "1", "--out", str(out), "--quiet"]) == 0
+    assert (out / "summary.json").is_file() and sorted(p.name for p in tmp_path.iterdir()) == [
+        "drive"
+    ]
+    assert gridsim_main(["drive", "--seconds", "1", "--out", str(out), "--quiet"]) == 2
+    assert "exists and is not empty" in capsys.readouterr().err
+    assert gridsim_main(["drive", "--seconds", "1", "--out", "", "--quiet"]) == 2
+    assert "--out is empty" in capsys.readouterr().err

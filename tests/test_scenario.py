@@ -293,9 +293,12 @@ def test_validate_suggests_the_key_meant(tmp_path, capsys):
     p = tmp_path / "typo.yaml"
     p.write_text("name: typo\nroad:\n  type: seamless\n  lane_widht: 3.2\n")
     assert main(["validate", str(p)]) == 2
-    assert "road.lane_widht: unknown key (did you mean 'lane_width'?) (got 3.2)" in (
+    assert "road.lane_widht: unknown key (did you mean 'road.lane_width'?) (got 3.2)" in (
         capsys.readouterr().err
     )
+    with pytest.raises(ScenarioError, match=r"participants: unknown key \(did you mean "
+                                            r"'traffic.participants'\?\)"):  # fmt: skip
+        load_scenario("seamless", {"participants": 5})
 
 
 BOMB = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
@@ -327,3 +330,21 @@ def test_hostile_yaml_is_refused_before_it_is_expanded(tmp_path, text, message):
     finally:
         tracemalloc.stop()
     assert peak < 50e6  # bytes: nothing was expanded
+
+
+def test_sizes_that_would_exhaust_the_machine_are_refused():
+    with pytest.raises(ScenarioError, match=r"traffic.window.0: Input should be less than or equal "
+                                            r"to 2000"):  # fmt: skip
+        load_scenario("seamless", {"traffic": {"window": [1e7, 1e7]}})
+    with pytest.raises(ScenarioError, match="traffic.participants 5000 is more than inner-city "
+                                            "traffic holds: 200"):  # fmt: skip
+        build_world(load_scenario("inner_city", {"traffic": {"participants": 5000}}))
+
+
+def test_what_is_not_a_scenario_is_named(tmp_path):
+    csv = tmp_path / "tracks.csv"
+    csv.write_text("a,b\n")
+    with pytest.raises(ScenarioError, match="a .csv file is not a scenario"):
+        load_scenario(csv)
+    with pytest.raises(ScenarioError, match="overrides must be a mapping of keys .*got list"):
+        load_scenario("seamless", [1, 2])

@@ -491,3 +491,16 @@ def test_compiled_profile_continuation_equals_continue_from():
         for name in ("profile", "tau", "k", "d_bias"):
             assert getattr(f, name).tobytes() == getattr(expected, name).tobytes()
         assert traffic.rng.bit_generator.state == stream.bit_generator.state
+
+
+def test_a_csv_saved_by_excel_or_with_semicolons(tmp_path):
+    rows = ["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0.1,0,0,1,4.5,1.8"]
+    p = write_csv(tmp_path, rows)
+    p.write_bytes(b"\xef\xbb\xbf" + p.read_bytes())  # a UTF-8 byte order mark
+    assert [t.track_id for t in read_tracks_csv(p)] == ["1"]
+    p.write_text(HEADER.replace(",", ";") + "\n" + "\n".join(r.replace(",", ";") for r in rows))
+    with pytest.raises(DataError, match="separated by semicolons; separate columns with commas"):
+        read_tracks_csv(p)
+    rows = ["s,1,0,0,0,0,1,4.5,1.8", "s,1,100,0.1,0,0,1,4.5,1.8"]  # 100 s apart: a gap
+    with pytest.raises(DataError, match=r"state 1 \(t = 100 s\): 100 s after the previous"):
+        read_tracks_csv(write_csv(tmp_path, rows))

@@ -17,9 +17,17 @@ from gridsim.errors import DataWarning, GridSimError
 POLICY_NAMES = ("idle", "reference", "lane-follow", "random")
 
 
-def at_least(minimum: int):
-    """An argparse type: an integer >= ``minimum``. argparse names the option in its error
-    (``argument --seed: expected an integer >= 0, got -3``) and exits with status 2."""
+#: The largest count a flag takes (episodes, generations, steps, members): more would run
+#: for days or fill the memory with per-episode results before anything is written.
+MAX_COUNT = 100_000
+#: The largest seed a flag takes.
+MAX_SEED = 2**32 - 1
+
+
+def at_least(minimum: int, maximum: int = MAX_COUNT):
+    """An argparse type: an integer in [``minimum``, ``maximum``]. argparse names the option
+    in its error (``argument --seed: expected an integer >= 0, got -3``) and exits with
+    status 2."""
 
     def parse(text: str) -> int:
         try:
@@ -28,9 +36,11 @@ def at_least(minimum: int):
             value = None
         if value is None or value < minimum:
             raise argparse.ArgumentTypeError(f"expected an integer >= {minimum}, got {text!r}")
+        if value > maximum:
+            raise argparse.ArgumentTypeError(f"expected an integer <= {maximum:,}, got {text}")
         return value
 
-    parse.__name__ = f"integer >= {minimum}"
+    parse.__name__ = f"integer in [{minimum}, {maximum}]"
     return parse
 
 
@@ -162,7 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
         choices=POLICY_NAMES,
         help="the driver: the human reference, lane following, random or idle",
     )
-    s.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
+    s.add_argument("--seed", type=at_least(0, MAX_SEED), default=0, help="episode seed")
     s.add_argument("--video", default=None, help="write a video (.mp4, or .gif)")
     s.add_argument("--overlay", action="store_true",
                    help="caption the video: time, speed and what the dots are")  # fmt: skip
@@ -175,7 +185,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--scenario", default="seamless", help="built-in name, YAML/XML path, folder or glob"
     )
     s.add_argument("--seconds", type=float, default=20.0, help="simulated time [s]")
-    s.add_argument("--seed", type=at_least(0), default=0, help="episode seed")
+    s.add_argument("--seed", type=at_least(0, MAX_SEED), default=0, help="episode seed")
     s.add_argument("--out", default="out/drive", help="output folder")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=_cmd_drive)
@@ -198,6 +208,10 @@ def run_command(
     traceback was saved (exit status 3; ``GRIDSIM_DEBUG=1`` raises it instead); Ctrl-C exits
     with status 130 and no traceback."""
     args = parser.parse_args(argv)
+    for flag in ("out", "run", "resume", "scenario"):
+        if getattr(args, flag, None) == "":
+            print(f"{parser.prog}: error: --{flag} is empty; give a path", file=sys.stderr)
+            return 2
     with warnings.catch_warnings():
         warnings.simplefilter("default", DataWarning)
         warnings.showwarning = partial(_show_warning, parser.prog)

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import cv2
 import numpy as np
 from tqdm import tqdm
 
-from gridsim.errors import GridSimError
-from gridsim.outputs import output_problem, write_json, write_npz
+from gridsim.errors import GridSimError, OutputError
+from gridsim.outputs import new_folder, new_folder_problem, write_json, write_npz
 from gridsim.render.grids import colourise
 from gridsim.render.topdown import TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
@@ -25,9 +26,9 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     if not 0 < seconds <= MAX_DURATION:
         raise GridSimError(f"--seconds must be in (0, {MAX_DURATION:g}] (an hour of simulated "
                            f"time at most), got {seconds}")  # fmt: skip
-    problem = output_problem(out, directory=True)
+    problem = new_folder_problem(out)
     if problem:
-        raise GridSimError(f"--out {out}: {problem}")
+        raise OutputError(f"--out {out}: {problem}")
     sc = pick(load_collection(scenario), seed)  # of a folder or glob: drawn from the seed
     world = build_world(sc, seed)
     sensor = build_sensor(sc)
@@ -51,7 +52,13 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         off_road += result.off_road
         grids[k] = sensor.observe(world)
         times[k] = world.time
-    out.mkdir(parents=True, exist_ok=True)
+    with new_folder(out) as partial:  # out appears whole
+        _write(partial, sc, seed, world, grids, times, steps, start, distance, collisions,
+               off_road)  # fmt: skip
+    return json.loads((out / "summary.json").read_text())
+
+
+def _write(out, sc, seed, world, grids, times, steps, start, distance, collisions, off_road):
     write_npz(out / "grids.npz", compressed=True, grids=grids, times=times)
     for k in np.linspace(0, steps - 1, min(steps, 5)).astype(int):
         cv2.imwrite(str(out / f"grid_{k:05d}.png"), colourise(grids[k])[:, :, ::-1])
@@ -67,7 +74,6 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         "ticks_in_collision": int(collisions),
         "ticks_off_road": int(off_road),
         "traffic_active": int(world.traffic.fleet.active.sum()),
-        "outputs": sorted(p.name for p in out.iterdir()),
+        "outputs": sorted(p.name for p in out.iterdir() if not p.name.startswith(".")),
     }
     write_json(out / "summary.json", summary, indent=2)
-    return summary

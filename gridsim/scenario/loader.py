@@ -6,6 +6,7 @@ from __future__ import annotations
 import difflib
 import os
 import re
+import typing
 from collections.abc import Mapping
 from dataclasses import dataclass
 from importlib import resources
@@ -151,18 +152,41 @@ def builtin_scenarios() -> dict[str, str]:
     return {k: (v[0] if v else "") for k, v in out.items()}
 
 
-def _known_keys() -> list[str]:
-    """Every key the schema knows, at any level."""
-    models, keys = [Strict], set()
-    while models:
-        model = models.pop()
-        models += model.__subclasses__()
-        keys |= set(getattr(model, "model_fields", {}))
-    return sorted(keys)
+def _known_paths() -> list[str]:
+    """Every key path the schema knows (``traffic.participants``, ``road.lanes``, ...)."""
+    out: set[str] = set()
+
+    def models(tp) -> list[type]:
+        if isinstance(tp, type) and issubclass(tp, Strict):
+            return [tp]
+        return [m for arg in typing.get_args(tp) for m in models(arg)]
+
+    def walk(model: type, prefix: str) -> None:
+        for name, f in model.model_fields.items():
+            out.add(prefix + name)
+            for sub in models(f.annotation):
+                walk(sub, f"{prefix}{name}.")
+
+    walk(ScenarioConfig, "")
+    return sorted(out)
 
 
-def _did_you_mean(key: object) -> str:
-    close = difflib.get_close_matches(str(key), _known_keys(), n=1, cutoff=0.7)
+def _did_you_mean(parts: list) -> str:
+    """A hint for the unknown key at ``parts``: the closest spelling among its siblings, else
+    the full path of a key of that name elsewhere (a key at the wrong level), else the
+    closest spelling anywhere."""
+    if not parts:
+        return ""
+    key, given = str(parts[-1]), ".".join(map(str, parts))
+    parent = given.rpartition(".")[0]
+    paths = _known_paths()
+    siblings = [p for p in paths if p.rpartition(".")[0] == parent]
+    close = difflib.get_close_matches(given, siblings, n=1, cutoff=0.8)
+    if not close:
+        close = [p for p in paths if p.rsplit(".", 1)[-1] == key and p != given][:1]
+    if not close:
+        names = {p.rsplit(".", 1)[-1]: p for p in paths}
+        close = [names[n] for n in difflib.get_close_matches(key, list(names), n=1, cutoff=0.7)]
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
@@ -175,7 +199,7 @@ def _format_validation(source: str, err: ValidationError) -> str:
         loc = ".".join(str(p) for p in parts) or "(top level)"
         msg = e["msg"]
         if e["type"] == "extra_forbidden":
-            msg = "unknown key" + _did_you_mean(parts[-1] if parts else "")
+            msg = "unknown key" + _did_you_mean(parts)
         got = e.get("input")
         shown = repr(got) if not isinstance(got, Mapping) else "{...}"
         if len(shown) > 60:
@@ -208,6 +232,9 @@ def parse_scenario(
         )
     if any(not isinstance(k, str) for k in doc):
         raise ScenarioError(f"{source}: all top-level keys must be strings")
+    if overrides is not None and not isinstance(overrides, Mapping):
+        raise ScenarioError(f"{source}: overrides must be a mapping of keys (like the YAML), "
+                            f"got {type(overrides).__name__}")  # fmt: skip
     if overrides:
         doc = deep_merge(doc, overrides)
     try:
@@ -271,9 +298,15 @@ def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
             f"{p} is a folder: a scenario collection, not one scenario file (gym.make and the "
             "commands that accept collections take it; see gridsim.scenario.collection)"
         )
+    if p.suffix.lower() in (".csv", ".npz", ".json", ".mp4", ".png"):
+        raise ScenarioError(f"{p}: a {p.suffix} file is not a scenario (give a .yaml, "
+                            ".yml or CommonRoad .xml file; trajectory CSVs go in "
+                            "traffic.library)")  # fmt: skip
     if looks_like_path:
-        if not p.is_file():
+        if not p.exists():
             raise ScenarioError(f"scenario file not found: {p}")
+        if not p.is_file():
+            raise ScenarioError(f"{p}: not a regular file (a scenario is a .yaml or .xml file)")
         try:
             return p.read_text(encoding="utf-8"), str(p), p.resolve().parent
         except (OSError, UnicodeDecodeError) as exc:

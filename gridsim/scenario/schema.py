@@ -17,6 +17,8 @@ from gridsim.road.seamless import SeamlessParams
 from gridsim.sensors.occupancy import GridSpec
 from gridsim.vehicle.kinematics import BicycleParams
 
+#: The most road [m] kept populated behind and ahead of the ego (``traffic.window``).
+MAX_WINDOW = 2000.0
 #: The longest episode (and drive) [s]: one hour of simulated time.
 MAX_DURATION = 3600.0
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
@@ -111,8 +113,14 @@ class TrafficConfig(Strict):
         ),
     ] = ["builtin"]
     window: Annotated[
-        tuple[PositiveFloat, PositiveFloat],
-        Field(description="[behind, ahead] metres of road around the ego kept populated"),
+        tuple[
+            Annotated[float, Field(ge=50, le=MAX_WINDOW, allow_inf_nan=False)],
+            Annotated[float, Field(ge=50, le=MAX_WINDOW, allow_inf_nan=False)],
+        ],
+        Field(
+            description="[behind, ahead] metres of road around the ego kept populated, "
+            f"each in [50, {MAX_WINDOW:g}]"
+        ),
     ] = (80.0, 160.0)
 
     @model_validator(mode="after")

@@ -129,6 +129,9 @@ def _track(ob: ET.Element, path: Path, sid: str, dt: float) -> Track | None:
     a = np.array([s[:4] for s in states])
     order = np.argsort(a[:, 0], kind="stable")
     a = a[order]
+    if np.nanmin(a[:, 0]) < 0:
+        raise DataError(f"{where}: time step {np.nanmin(a[:, 0]):g} is negative (steps count "
+                        "from 0)")  # fmt: skip
     repeated = np.flatnonzero(np.diff(a[:, 0]) == 0)
     if len(repeated):
         raise DataError(f"{where}: time step {a[repeated[0], 0]:g} appears twice")

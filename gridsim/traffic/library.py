@@ -127,14 +127,13 @@ def read_tracks_csv(path: str | Path) -> list[Track]:
 
 
 def _parse_tracks_csv(path: Path) -> list[Track]:
-    with path.open(newline="", encoding="utf-8") as fh:
+    with path.open(newline="", encoding="utf-8-sig") as fh:  # a BOM (Excel) is skipped
         reader = csv.DictReader(fh)
         header = reader.fieldnames or []
         missing = [c for c in REQUIRED_COLUMNS if c not in header]
         if missing:
-            raise DataError(
-                f"{path}: missing column(s) {missing}; required: {list(REQUIRED_COLUMNS)}"
-            )
+            raise DataError(f"{path}: missing column(s) {missing}; required: "
+                            f"{list(REQUIRED_COLUMNS)}{_header_hint(header)}")  # fmt: skip
         groups: dict[tuple[str, str], list[list[float]]] = {}
         for lineno, row in enumerate(reader, start=2):
             vals = []
@@ -183,6 +182,17 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             )
         )
     return tracks
+
+
+def _header_hint(header: list[str]) -> str:
+    """Why a header may lack the columns: another separator, or other letter case."""
+    line = ",".join(header)
+    for sep, name in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
+        if sep in line:
+            return f" (the header is separated by {name}; separate columns with commas)"
+    if {h.strip().lower() for h in header} >= set(REQUIRED_COLUMNS):
+        return " (column names are lower case, without spaces)"
+    return ""
 
 
 def write_tracks_csv(tracks: list[Track], path: str | Path) -> Path:

@@ -166,6 +166,11 @@ class SyntheticTraffic(TrafficSource):
         :data:`_SPAWN_CLEARANCE` metres ahead and behind from everyone in its lane."""
         return not self.fleet.occupied(x, y, heading, length, width, ego, _SPAWN_CLEARANCE, 0.5)
 
+    @property
+    def spacing(self) -> float:
+        """Length of lane [m] each participant is given (at reset, and in :attr:`capacity`)."""
+        return float(self._sizes[:, 0].max()) + _SPAWN_CLEARANCE + 2.0
+
     def _draw(self) -> tuple[int, float, float]:
         """A fresh profile, its speed scale and a start time in its first half."""
         prof, k = self.profiles.draw(self.rng)
@@ -242,11 +247,6 @@ class SeamlessTraffic(SyntheticTraffic):
             for slot, ln in zip(self._lane_slots, self.road.lanes, strict=True):
                 self.fleet.paths.set(slot, ln.centre.s, ln.centre.points)
             self._version = self.road.version
-
-    @property
-    def spacing(self) -> float:
-        """Length of lane [m] each participant is given at reset."""
-        return float(self._sizes[:, 0].max()) + _SPAWN_CLEARANCE + 2.0
 
     @property
     def capacity(self) -> int:
@@ -331,6 +331,18 @@ class CityTraffic(SyntheticTraffic):
         self.radius = radius
         self._route_len = 4 * radius
         self._slots = [-1] * max(1, count)
+
+    @property
+    def capacity(self) -> int:
+        """About the most participants the streets within ``radius`` of the ego hold, one per
+        :attr:`spacing` of lane: the map's lane length times the share of its area inside
+        that circle (at most all of it)."""
+        p = self.road.params
+        a, b = self.road.nodes[self.road.edges[:, 0]], self.road.nodes[self.road.edges[:, 1]]
+        lane_length = float(np.hypot(*(b - a).T).sum()) * 2 * p.lanes_per_direction
+        span = self.road.nodes.max(axis=0) - self.road.nodes.min(axis=0) + p.block_size
+        share = min(1.0, math.pi * self.radius**2 / float(np.prod(span)))
+        return int(lane_length * share // self.spacing)
 
     def _spawn_near(self, i: int, ego: EgoPose) -> None:
         d = np.hypot(*(self.road.nodes - np.array([ego.x, ego.y])).T)

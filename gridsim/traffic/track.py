@@ -16,6 +16,9 @@ MAX_SPEED = 100.0
 #: The largest time stamp accepted [s] (about 300 years: Unix times in seconds pass, times
 #: in milli- or microseconds do not).
 MAX_TIME = 1e10
+#: The longest gap between two samples of a track [s] (recordings lose a vehicle for a few
+#: seconds; a longer gap is another vehicle, or a unit error).
+MAX_GAP = 60.0
 #: The largest vehicle accepted, length and width [m].
 MAX_SIZE = (50.0, 10.0)
 
@@ -83,8 +86,8 @@ class Track:
 
 def track_data_problem(track: Track) -> str | None:
     """What makes a track's data impossible, naming the first bad state (``None`` if none):
-    unequal or too few samples, non-finite values, time stamps beyond :data:`MAX_TIME` or
-    not increasing, coordinates
+    unequal or too few samples, non-finite values, time stamps beyond :data:`MAX_TIME`, not
+    increasing or :data:`MAX_GAP` apart, coordinates
     beyond :data:`MAX_COORDINATE`, speeds below 0 or above :data:`MAX_SPEED`, a jump between
     consecutive positions faster than :data:`MAX_SPEED`, a size outside (0, :data:`MAX_SIZE`]."""
     arrays = {k: np.asarray(getattr(track, k)) for k in ("t", "x", "y", "heading", "speed")}
@@ -114,6 +117,10 @@ def track_data_problem(track: Track) -> str | None:
     bad = np.flatnonzero(np.diff(t) <= 0)
     if len(bad):
         return f"{state(int(bad[0]) + 1)}: time stamps must increase (after {t[bad[0]]:.6g} s)"
+    bad = np.flatnonzero(np.diff(t) > MAX_GAP)
+    if len(bad):
+        return (f"{state(int(bad[0]) + 1)}: {t[bad[0] + 1] - t[bad[0]]:.6g} s after the "
+                f"previous sample; at most {MAX_GAP:g} s (time stamps in seconds?)")  # fmt: skip
     speed = arrays["speed"]
     bad = np.flatnonzero((speed < 0) | (speed > MAX_SPEED))
     if len(bad):

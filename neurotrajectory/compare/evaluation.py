@@ -20,6 +20,8 @@ speed, mean steering rate and the episode fitness vector ``[l1, l2, l3]``.
 
 from __future__ import annotations
 
+import math
+import re
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -29,6 +31,7 @@ from tqdm import tqdm
 
 from gridsim.outputs import new_folder, write_json
 from gridsim.policies import Reference
+from gridsim.scenario.schema import MAX_DURATION
 from gridsim.seeding import Salt, stream
 from neurotrajectory.compare.baselines.constant_velocity import ConstantVelocity
 from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
@@ -53,6 +56,10 @@ from neurotrajectory.evolve.pareto import pick_member
 
 NT_PICKED = "NeuroTrajectory"
 NT_BEST = "NeuroTrajectory (best member on test)"
+
+
+#: A group's name: it names folders of the output (``data/NAME``, ``models/end2end-NAME``).
+GROUP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 
 
 @dataclass(frozen=True)
@@ -81,10 +88,16 @@ class EvalConfig:
             raise DatasetError(
                 f"unknown scenario groups {unknown}; choose from {list(GROUPS)} or give NAME=FOLDER"
             )
+        bad = [g for g in self.groups if not GROUP_NAME.fullmatch(g)]
+        if bad:
+            raise DatasetError(f"group name {bad[0]!r}: use letters, digits, '_', '-', '.', "
+                               "starting with a letter or digit (it names folders)")  # fmt: skip
         if self.episodes < 1 or self.closed_loop_episodes < 0:
             raise DatasetError("need episodes >= 1 and closed_loop_episodes >= 0")
-        if not self.episode_seconds > 0 or not self.closed_loop_seconds > 0:
-            raise DatasetError("episode_seconds and closed_loop_seconds must be > 0")
+        for name in ("episode_seconds", "closed_loop_seconds"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and 0 < value <= MAX_DURATION):
+                raise DatasetError(f"{name} must be in (0, {MAX_DURATION:g}] s, got {value}")
 
 
 @dataclass

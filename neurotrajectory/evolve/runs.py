@@ -173,8 +173,9 @@ class TrainConfig:
                 raise RunError(f"{name} must be a number, got {value!r}")
             if not math.isfinite(value):
                 raise RunError(f"{name} must be a finite number, got {value}")
-        if not self.sigma > 0:
-            raise RunError(f"sigma must be > 0, got {self.sigma}")
+        if not 0 < self.sigma <= MAX_SIGMA:
+            raise RunError(f"sigma must be in (0, {MAX_SIGMA:g}] (the mutation's standard "
+                           f"deviation per weight), got {self.sigma}")  # fmt: skip
         if not 0 < self.elite_fraction < 1:
             raise RunError(f"elite_fraction must be in (0, 1), got {self.elite_fraction}")
         if self.backend not in BACKENDS:
@@ -280,6 +281,10 @@ class TrainConfig:
     #: Fields that may differ between a run and its resumption (they do not change results).
     RESUMABLE = ("generations", "backend", "workers", "ray_address", "batch")
 
+
+#: The largest mutation step accepted (``sigma``): larger ones overflow the network's
+#: weights (the recipes use 0.02 to 0.1).
+MAX_SIGMA = 10.0
 
 #: What ``train`` does after the generations, by default (``config.json`` ``"after"``).
 AFTER_DEFAULTS = {"heldout": 20, "video": None}

@@ -8,6 +8,7 @@ from functools import lru_cache, partial
 
 import numpy as np
 
+from gridsim.errors import ScenarioError
 from gridsim.road.city import CityParams, CityRoad
 from gridsim.scenario.loader import Scenario
 from gridsim.scenario.parts import (
@@ -31,6 +32,11 @@ def _city_road(params: CityParams, seed: int) -> CityRoad:
     return CityRoad(params, seed)
 
 
+#: The most participants of inner-city traffic: each has its own route, and a reset builds
+#: them one by one (200: a reset in about 5 s).
+MAX_PARTICIPANTS = 200
+
+
 def build(scenario: Scenario, seed: int) -> World:
     cfg = scenario.config
     rc: CityRoadConfig = cfg.road
@@ -45,6 +51,15 @@ def build(scenario: Scenario, seed: int) -> World:
     tracks = synthetic_tracks(scenario)
     radius = max(cfg.traffic.window)
     traffic = CityTraffic(road, tracks, cfg.traffic.participants, speed_bounds(scenario), radius)
+    most = min(traffic.capacity, MAX_PARTICIPANTS)
+    if cfg.traffic.participants > most:
+        raise ScenarioError(
+            f"{scenario.source}: traffic.participants {cfg.traffic.participants} is more than "
+            f"inner-city traffic holds: {most} (the streets within {radius:g} m of the ego "
+            f"hold about {traffic.capacity}, one per {traffic.spacing:.1f} m of lane; each "
+            f"participant drives its own route, and above {MAX_PARTICIPANTS} resets take "
+            "seconds)"
+        )
     return World(
         road, traffic, ego, state, cfg.simulation.dt, partial(fixed_route, route), traffic_rng
     )
