@@ -86,3 +86,10 @@ def test_a_scene_too_short_for_the_horizon_is_caught(tmp_path, capsys):
     assert code == 2
     assert "scene crafted lasts 2 s (its longest track, ego); the horizon needs 2.5 s" in out
     assert "ego.track ego lasts 2 s" in out
+
+
+def test_a_heading_against_the_motion_is_a_flaw():
+    backwards = track("back", X, np.full(41, -1.75), heading=np.pi)  # drives +x, heading -x
+    (problem,) = track_problems(backwards)
+    assert "it drives 180 degrees off its recorded heading (median; at most 45)" in problem
+    assert track_problems(track("fine", X, np.full(41, -1.75))) == []

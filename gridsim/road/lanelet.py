@@ -114,6 +114,10 @@ def load_lanelet_road(path: str | Path) -> StaticRoad:
     """Build a :class:`StaticRoad` from the lanelets of a CommonRoad XML file."""
     path = Path(path)
     lanelets = [_lanelet(el, path) for el in iter_commonroad(path, ("lanelet",))]
+    ids = [ll["id"] for ll in lanelets]
+    twice = sorted({i for i in ids if ids.count(i) > 1}) if len(set(ids)) < len(ids) else []
+    if twice:
+        raise DataError(f"{path.name}: lanelet id {twice[0]} appears twice (ids must be unique)")
     lanes, polygons, markings, ends = [], [], [], []
     has_pred = {ref for ll in lanelets for ref in ll["successors"]}
     has_succ = {ref for ll in lanelets for ref in ll["predecessors"]}

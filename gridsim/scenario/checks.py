@@ -34,6 +34,9 @@ MAX_FLAWED_SHARE = 0.5
 SPEED_RATIO = 2.0
 #: Samples counted by the speed comparison: recorded speed above this [m/s].
 MOVING = 1.0
+#: The direction of travel must agree with the recorded heading within this angle [deg]
+#: (median over moving samples): headings in degrees, or another convention, do not.
+MAX_HEADING_ERROR = 45.0
 #: Implied speeds above this [m/s] (95th percentile) are implausible for road vehicles.
 MAX_SPEED = 70.0
 #: Implied accelerations above this [m/s^2] (median; the shipped tracks' is at most 4.5,
@@ -65,6 +68,16 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
                 f"{where}: positions and time stamps imply {np.median(implied[moving]):.3g} m/s "
                 f"where speed_mps says {np.median(recorded[moving]):.3g} m/s (median, ratio "
                 f"{ratio:.3g}); time stamps must be in seconds (time step {np.median(dt):.3g})"
+            )
+    if np.count_nonzero(moving) >= 2:
+        travel = np.arctan2(np.diff(track.y), np.diff(track.x))[moving]
+        heading = 0.5 * (track.heading[1:] + track.heading[:-1])[moving]
+        error = float(np.degrees(np.median(np.abs(np.angle(np.exp(1j * (travel - heading)))))))
+        if error > MAX_HEADING_ERROR:
+            out.append(
+                f"{where}: it drives {error:.0f} degrees off its recorded heading (median; at "
+                f"most {MAX_HEADING_ERROR:g}); headings must be in radians, counter-clockwise "
+                "from +x"
             )
     fast = float(np.percentile(implied, 95))
     if fast > MAX_SPEED:

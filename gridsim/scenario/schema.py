@@ -6,10 +6,10 @@ given to users (``fov``, ``yaw``, ``max_steer``...), radians nowhere in YAML.
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from gridsim.frames import setpoint_times
 from gridsim.road.city import CityParams
@@ -208,6 +208,17 @@ class EgoConfig(Strict):
         ),
     ] = "random"
     vehicle: VehicleConfig = VehicleConfig()
+
+    @field_validator("track", mode="before")
+    @classmethod
+    def _ids_as_text(cls, value: Any) -> Any:
+        """Track ids are text; an integer id (``track: 42``, as a user types it) is one."""
+        if isinstance(value, int) and not isinstance(value, bool):
+            return str(value)
+        if isinstance(value, list):
+            return [str(v) if isinstance(v, int) and not isinstance(v, bool) else v
+                    for v in value]  # fmt: skip
+        return value
 
 
 class EnvConfig(Strict):

@@ -139,8 +139,27 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
     fit = [t for t in ego_candidates(scenario, tracks, road) if t.track_id in listed]
     if not fit:
         which = "the listed tracks" if isinstance(wanted, list) else f"scene {scene!r}"
-        raise ScenarioError(f"{scenario.source}: {which} have no track >= 2 s to use as ego")
+        verb = "have" if isinstance(wanted, list) else "has"
+        raise ScenarioError(f"{scenario.source}: {which} {verb} no track to use as the ego "
+                            f"({_why_unfit(scenario, tracks, road, listed)})")  # fmt: skip
     return fit[int(rng.integers(len(fit)))]
+
+
+def _why_unfit(scenario: Scenario, tracks, road: StaticRoad, listed: set[str]) -> str:
+    """Why each of the ``listed`` tracks cannot be the ego, counted by reason."""
+    mine = [t for t in tracks if t.track_id in listed]
+    if not mine:
+        return "none listed"
+    flawed = flawed_tracks(tuple(tracks), road).keys()
+    quirks = unfit_experts(scene_of(scenario), tuple(tracks), road)
+    longest = scenario.config.traffic.max_vehicle_length
+    reasons = {
+        f"shorter than {MIN_TRACK_SECONDS:g} s": sum(t.duration < MIN_TRACK_SECONDS for t in mine),
+        f"longer vehicles than {longest:g} m": sum(t.length > longest for t in mine),
+        "implausible (see the warning)": sum(t.track_id in flawed for t in mine),
+        "overlapping another or grazing a road edge": sum(t.track_id in quirks for t in mine),
+    }
+    return f"of {len(mine)}: " + ", ".join(f"{n} {why}" for why, n in reasons.items() if n)
 
 
 def initial_steering(track: Track, params: BicycleParams) -> float:
