@@ -24,7 +24,12 @@ NAMES = (
 )
 
 
-def plot_run(out: str | Path, history: list[dict]) -> list[Path]:
+def plot_run(
+    out: str | Path, history: list[dict], final: tuple | None = None, chosen_on: str = ""
+) -> list[Path]:
+    """The run's plots. ``final``: ``(fitness, rank, violation)`` of the members the final
+    front was chosen from (on ``chosen_on``, as ``front.json`` gives them); the front plot
+    shows those, else the last generation's training scores."""
     folder = Path(out) / "plots"
     folder.mkdir(parents=True, exist_ok=True)
     gens = np.array([h["generation"] for h in history])
@@ -37,6 +42,7 @@ def plot_run(out: str | Path, history: list[dict]) -> list[Path]:
             ax.scatter(np.full(len(f), g), f[:, k], s=8, alpha=0.4, color="tab:blue")
         ax.plot(gens, [f[:, k].mean() for f in fit], color="tab:red", label="mean")
         ax.set_xlabel("generation")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(NAMES[k], fontsize=9)
         if k == 0:
             ax.set_yscale("symlog")
@@ -44,10 +50,16 @@ def plot_run(out: str | Path, history: list[dict]) -> list[Path]:
     fig.tight_layout()
     paths.append(_save(fig, folder / "objectives.png"))
 
-    last, rank = fit[-1], np.array(history[-1]["rank"])
-    lost = np.array(history[-1].get("violation", np.zeros(len(last)))) > 0
+    if final is None:
+        last, rank = fit[-1], np.array(history[-1]["rank"])
+        lost = np.array(history[-1].get("violation", np.zeros(len(last)))) > 0
+        title = f"generation {gens[-1]}, on its training episodes"
+    else:
+        last, rank, lost = np.asarray(final[0]), np.asarray(final[1]), np.asarray(final[2]) > 0
+        title = f"the final front, chosen on {chosen_on} (front.json)"
     front = np.flatnonzero(rank == 0)
     knee = front[pick_member(last[front], "knee")]
+    k1, k2, k3 = last[knee]
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for ax, (i, j) in zip(axes, [(0, 1), (0, 2), (1, 2)], strict=True):
         ax.scatter(last[rank > 0, i], last[rank > 0, j], s=10, color="0.6", label="dominated")
@@ -58,17 +70,19 @@ def plot_run(out: str | Path, history: list[dict]) -> list[Path]:
             ax.scatter(last[lost, i], last[lost, j], s=40, marker="x", color="black",
                        label="an episode ended in a collision or off-road")  # fmt: skip
         ax.scatter(last[knee, i], last[knee, j], s=120, facecolors="none", edgecolors="tab:green",
-                   linewidths=2, label="knee")  # fmt: skip
+                   linewidths=2, label=f"knee (member {knee}): l1 {k1:.4g}, l2 {k2:.3g}, "
+                                       f"l3 {k3:.4g}")  # fmt: skip
         ax.set_xlabel(NAMES[i], fontsize=8)
         ax.set_ylabel(NAMES[j], fontsize=8)
     axes[0].legend(fontsize=8)
-    fig.suptitle(f"generation {gens[-1]}", fontsize=10)
+    fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     paths.append(_save(fig, folder / "front.png"))
 
     fig, ax = plt.subplots(figsize=(5, 3.5))
     ax.plot(gens, [h["hypervolume"] for h in history], marker="o")
     ax.set_xlabel("generation")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylabel("hypervolume (normalised to generation 0)")
     fig.tight_layout()
     paths.append(_save(fig, folder / "hypervolume.png"))

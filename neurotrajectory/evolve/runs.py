@@ -707,7 +707,7 @@ class Run:
         if best is not None:  # the last candidate: the best validated knee of any generation
             summary["best_knee"] = {"generation": best[0], "index": len(population) - 1}
         write_json(self.out / "front.json", summary)
-        plot_run(self.out, history)
+        plot_run(self.out, history, (fitness, rank, violation), summary["chosen_on"])
         return summary
 
 
