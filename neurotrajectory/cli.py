@@ -161,9 +161,16 @@ def _rollout(
     driven, path = record_episode(env, policy, video, min(steps or episode, episode), seed=seed,
                                   overlay=overlay)  # fmt: skip
     s = driven.summary()
-    result = {"video": str(path), "member": member,
-              **{k: s[k] for k in ("steps", "collision", "off_road")}}  # fmt: skip
-    print(json.dumps(result, indent=1))
+    result = {"video": str(path), "member": member, **s}
+    f = s["fitness_sums"]
+    ended = ("a collision" if s["collision"] else "leaving the road" if s["off_road"]
+             else "reaching the destination" if s["destination_reached"]
+             else "the time or --steps limit")  # fmt: skip
+    print(f"{pick} member {member['index']}, seed {seed}: {s['steps']} decisions, "
+          f"{s['simulated_s']:.1f} s, {s['distance_m']:.0f} m at {s['mean_speed']:.1f} m/s, "
+          f"ended by {ended}\n"
+          f"  fitness sums: l1 {f['l1']:.4g} m^2, l2 {f['l2']:.3g} rad/s, l3 {f['l3']:.4g} m/s\n"
+          f"  video: {path}")  # fmt: skip
     return result
 
 

@@ -174,7 +174,9 @@ def test_train_and_rollout_commands(tmp_path, capsys):
             == 0
         )
         assert (tmp_path / f"{pick}.gif").exists()
-    capsys.readouterr()
+        printed = capsys.readouterr().out
+        assert f"{pick} member " in printed and ", seed 0: 5 decisions, " in printed
+        assert "  fitness sums: l1 " in printed and f"  video: {video}" in printed
 
 
 def test_episodes_are_drawn_anew_and_heldout_seeds_are_never_trained_on():

@@ -5,6 +5,7 @@ import cv2
 import numpy as np
 import pymunk
 import pytest
+from scenes import MAP
 
 from gridsim.scenario import load_scenario
 from gridsim.scenario.families.recorded import (
@@ -17,7 +18,6 @@ from gridsim.traffic.overlaps import overlapping_tracks
 from gridsim.traffic.track import Track
 from gridsim.world import collision_kernels
 from gridsim.world.collision import EDGE_TOLERANCE, CollisionChecker
-from tests.scenes import MAP
 
 
 def pairwise_overlaps(tracks) -> set[int]:
