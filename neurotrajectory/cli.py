@@ -53,7 +53,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
             if args.dagger_labels is not None and not config.dagger_rounds:
                 raise RunError(f"--dagger-labels {args.dagger_labels} labels the DAgger rounds' "
                                "windows: give --dagger-rounds >= 1")  # fmt: skip
-            run = Run.create(out, config, **_after_flags(args))
+            run = Run.create(out, config, command=args.command, **_after_flags(args))
         heldout, video = run.after["heldout"], run.after["video"]
         if heldout and (problem := heldout_problem(run.config)):
             print(f"neurotrajectory: note: no held-out report: {problem}", file=sys.stderr)

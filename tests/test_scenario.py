@@ -334,7 +334,7 @@ def test_hostile_yaml_is_refused_before_it_is_expanded(tmp_path, text, message):
 
 def test_sizes_that_would_exhaust_the_machine_are_refused():
     with pytest.raises(ScenarioError, match=r"traffic.window.0: Input should be less than or equal "
-                                            r"to 2000"):  # fmt: skip
+                                            r"to 10000"):  # fmt: skip
         load_scenario("seamless", {"traffic": {"window": [1e7, 1e7]}})
     with pytest.raises(ScenarioError, match="traffic.participants 5000 is more than inner-city "
                                             "traffic holds: 200"):  # fmt: skip

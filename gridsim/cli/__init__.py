@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shlex
 import sys
 import tempfile
 import traceback
@@ -208,6 +209,9 @@ def run_command(
     traceback was saved (exit status 3; ``GRIDSIM_DEBUG=1`` raises it instead); Ctrl-C exits
     with status 130 and no traceback."""
     args = parser.parse_args(argv)
+    #: the command line, as the user gave it (for files that record what made them)
+    args.command = " ".join([parser.prog, *map(shlex.quote, sys.argv[1:] if argv is None
+                                               else argv)])  # fmt: skip
     for flag in ("out", "run", "resume", "scenario"):
         if getattr(args, flag, None) == "":
             print(f"{parser.prog}: error: --{flag} is empty; give a path", file=sys.stderr)

@@ -18,7 +18,7 @@ from gridsim.sensors.occupancy import GridSpec
 from gridsim.vehicle.kinematics import BicycleParams
 
 #: The most road [m] kept populated behind and ahead of the ego (``traffic.window``).
-MAX_WINDOW = 2000.0
+MAX_WINDOW = 10_000.0
 #: The longest episode (and drive) [s]: one hour of simulated time.
 MAX_DURATION = 3600.0
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]

@@ -35,6 +35,7 @@ from gridsim.outputs import (
     read_manifest,
     write_json,
     write_npz,
+    write_text,
 )
 from gridsim.seeding import Salt, stream
 from neurotrajectory.data.windows import (
@@ -286,6 +287,29 @@ class TrainConfig:
 #: weights (the recipes use 0.02 to 0.1).
 MAX_SIGMA = 10.0
 
+#: A run folder's README.md: what its files are and what to do with them.
+RUN_README = """# A NeuroTrajectory training run
+
+Made by `{command}` on {date}.
+
+- `config.json`: every setting of the run (`"train"`), what train does after the
+  generations (`"after"`) and the settings' digest (`"run"`)
+- `checkpoint.npz`: the last complete generation, its genomes and fitness
+- `history.json`: every generation's fitness, Pareto ranks, hypervolume, timing, and the
+  knee's validation score (the learning curve)
+- `warm_start.npz`: the warm start's genome (runs with a warm start)
+- `best_knee.npz`: the best validated knee of any generation (anchored runs)
+- `front.npz`, `front.json`: the final Pareto front, weights and scores on the episodes it
+  was chosen on
+- `heldout.json`: the knee (its warm start, the destination curve) on held-out episodes
+- `plots/`: objectives, front, hypervolume and learning curve
+- `.lock`: held while a process writes the run
+
+Continue (or extend) it: `neurotrajectory train --resume {out}`.
+Drive its knee into a video: `neurotrajectory rollout --run {out} --video knee.mp4`.
+Compare it: `neurotrajectory evaluate --run {out} --out eval/NAME`.
+"""
+
 #: What ``train`` does after the generations, by default (``config.json`` ``"after"``).
 AFTER_DEFAULTS = {"heldout": 20, "video": None}
 
@@ -303,12 +327,14 @@ class Run:
 
     # -- run directory ------------------------------------------------------------------------
     @classmethod
-    def create(cls, out: str | Path, config: TrainConfig, **after) -> Run:
+    def create(cls, out: str | Path, config: TrainConfig, command: str | None = None,
+               **after) -> Run:  # fmt: skip
         """A new run in ``out``. Everything is checked (the folder, the scenario with the
         network, the pre-training data) before anything is written, so that a failure leaves
         ``out`` as it was. ``after``: what ``train`` does after the generations
-        (:data:`AFTER_DEFAULTS`; None: the default). A process that writes the run holds
-        its folder: :func:`run_folder`."""
+        (:data:`AFTER_DEFAULTS`; None: the default); ``command``: the command line that
+        made it, for the folder's ``README.md``. A process that writes the run holds its
+        folder: :func:`run_folder`."""
         out = Path(out)
         problem = new_folder_problem(out, hint=f"use --resume {out} or another --out")
         if problem:
@@ -318,6 +344,9 @@ class Run:
         out.mkdir(parents=True, exist_ok=True)
         run._windows = windows
         run._write_config()
+        write_text(out / "README.md", RUN_README.format(
+            command=command or "the Python API (neurotrajectory.evolve.runs.Run)",
+            date=time.strftime("%Y-%m-%d %H:%M"), out=out))  # fmt: skip
         return run
 
     def _write_config(self) -> None:
