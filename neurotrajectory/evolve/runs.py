@@ -1,6 +1,7 @@
 """Training runs: the generation loop, the run directory, checkpoints and resuming.
 
-A run directory holds ``config.json`` (the resolved configuration), ``checkpoint.npz``
+A run directory holds ``README.md`` (its files and the command that made it),
+``config.json`` (the resolved configuration), ``checkpoint.npz``
 (the last complete generation: its population and fitness, written atomically),
 ``history.json`` (every generation's fitness vectors, Pareto ranks, hypervolume, timing and,
 with validation episodes, its knee's validation score: the learning curve),
