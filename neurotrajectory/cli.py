@@ -185,6 +185,10 @@ def _cmd_record(args: argparse.Namespace) -> int:
 
     from neurotrajectory.data.windows import Dataset, record_group, save_dataset, split_by_track
 
+    if args.test_fraction is not None and not args.split:
+        raise RunError(f"--test-fraction {args.test_fraction:g} sets the test side of --split: "
+                       "give --split train or --split test (or leave it out)")  # fmt: skip
+    args.test_fraction = 0.3 if args.test_fraction is None else args.test_fraction
     name, source = (args.group, args.scenario) if args.group else (args.scenario, None)
     with new_folder(args.out) as partial:  # held before recording; --out appears when done
         with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:
@@ -531,8 +535,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--test-fraction",
         dest="test_fraction",
         type=float,
-        default=0.3,
-        help="share of the tracks on the test side of --split",
+        default=None,
+        help="share of the tracks on the test side of --split (default 0.3)",
     )
     _goal_flag(d, "the windows see the destination")
     d.add_argument("--out", required=True, help="dataset folder (created)")

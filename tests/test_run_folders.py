@@ -126,3 +126,11 @@ def test_drive_writes_a_new_folder_whole(tmp_path, capsys):
     assert "exists and is not empty" in capsys.readouterr().err
     assert gridsim_main(["drive", "--seconds", "1", "--out", "", "--quiet"]) == 2
     assert "--out is empty" in capsys.readouterr().err
+
+
+def test_record_refuses_a_test_fraction_without_a_split(tmp_path, capsys):
+    argv = ["record", "--scenario", "seamless", "--test-fraction", "0.2", "--out",
+            str(tmp_path / "ds")]  # fmt: skip
+    assert main(argv) == 2
+    assert "--test-fraction 0.2 sets the test side of --split" in capsys.readouterr().err
+    assert not (tmp_path / "ds").exists()
