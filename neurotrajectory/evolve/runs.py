@@ -382,6 +382,8 @@ class Run:
             )
         except (KeyError, TypeError) as exc:
             raise RunError(f"{cfg_path}: unreadable run configuration ({exc})") from None
+        except RunError as exc:
+            raise RunError(f"{cfg_path}: {exc}") from None
         clash = {
             k: (getattr(stored, k), v)
             for k, v in changes.items()
