@@ -110,6 +110,8 @@ class GroupResult:
     accuracy: dict[str, Accuracy]
     closed_loop: dict[str, dict]
     best_member: int
+    #: the set-points' times after the decision [s]
+    setpoint_times: tuple[float, ...] = ()
 
 
 def _dataset(
@@ -226,7 +228,8 @@ def _evaluate_group(
                                          for sc, p in zip(scenarios, per, strict=True)
                                          for row in p["per_episode"]]  # fmt: skip
     return GroupResult(group, ds.manifest["source"], len(train), len(test),
-                       len(np.unique(test.track)), scores, loop, best)  # fmt: skip
+                       len(np.unique(test.track)), scores, loop, best,
+                       tuple(float(t) for t in setting.times))  # fmt: skip
 
 
 def evaluate(

@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gridsim.outputs import atomic_text, write_json, write_text  # noqa: E402
+from neurotrajectory.compare.evaluation import NT_PICKED  # noqa: E402
 from neurotrajectory.compare.metrics import SUMMARY_KEYS  # noqa: E402
 
 GROUP_TITLES = {
@@ -142,21 +143,35 @@ def _write_json(results, out: Path, run_info: dict) -> Path:
     return write_json(out / "results.json", doc)
 
 
+#: Fig. 8's line per method: marker and line style, so that lines that coincide (the picked
+#: member and the best on test often do) stay told apart.
+_STYLES = (("o", "-"), ("s", "--"), ("^", "-."), ("v", ":"), ("D", "-"), ("x", "--"))
+
+
 def _fig8(results, methods, out: Path) -> Path:
-    fig, axes = plt.subplots(1, len(results), figsize=(4.2 * len(results), 3.6), squeeze=False)
+    """RMSE per set-point against its time after the decision [s], one panel per group; the
+    band is one standard deviation over the windows (for NeuroTrajectory only: the bands of
+    every method hide each other)."""
+    fig, axes = plt.subplots(1, len(results), figsize=(4.2 * len(results), 3.8), squeeze=False)
     for ax, r in zip(axes[0], results, strict=True):
-        for m in methods:
+        for m, (marker, line) in zip(methods, _STYLES * 2, strict=False):
             if m not in r.accuracy:
                 continue
             a = r.accuracy[m]
-            k = np.arange(1, len(a.rmse_per_setpoint) + 1)
             mean, std = np.array(a.rmse_per_setpoint), np.array(a.std_per_setpoint)
-            ax.plot(k, mean, marker="o", label=m)
-            ax.fill_between(k, np.maximum(mean - std, 0), mean + std, alpha=0.15)
+            t = np.array(r.setpoint_times) if r.setpoint_times else np.arange(1, len(mean) + 1)
+            hollow = "best member" in m
+            (drawn,) = ax.plot(t, mean, marker=marker, ls=line, label=m, ms=7 if hollow else 5,
+                               mfc="none" if hollow else None,
+                               zorder=3 if m == NT_PICKED else 2)  # fmt: skip
+            if m == NT_PICKED:
+                ax.fill_between(t, np.maximum(mean - std, 0), mean + std, alpha=0.15,
+                                color=drawn.get_color())  # fmt: skip
         ax.set_title(GROUP_TITLES.get(r.group, r.group), fontsize=9)
-        ax.set_xlabel("set-point")
-        ax.set_xticks(k)
-    axes[0, 0].set_ylabel("RMSE [m]")
+        ax.set_xlabel("time after the decision [s]" if r.setpoint_times else "set-point")
+        ax.set_xticks(t)
+        ax.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("RMSE [m] (band: NeuroTrajectory +- 1 std)")
     axes[0, -1].legend(fontsize=7)
     fig.tight_layout()
     path = out / "fig8_rmse_per_setpoint.png"
