@@ -537,3 +537,9 @@ def test_compiled_setpoint_path_equals_numpy():
             want, path = Polyline(path_pts[keep]), Polyline.from_segments(arrays)
             for name in Polyline.__slots__:
                 assert np.array_equal(getattr(path, name), getattr(want, name)), name
+
+
+def test_a_vector_option_given_as_an_env_keyword_says_where_it_goes():
+    with pytest.raises(ScenarioError, match=r"context: an option of gymnasium's vector env, not "
+                                            r"a scenario key: .*vector_kwargs"):  # fmt: skip
+        gym.make_vec(ENV_ID, num_envs=2, context="spawn")

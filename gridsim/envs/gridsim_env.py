@@ -44,6 +44,12 @@ REFERENCE_COLOUR = (255, 255, 255)  # the human reference set-points
 PLAN_COLOUR = (255, 220, 0)  # the last commanded set-points
 
 
+#: Options of gymnasium's vector envs that ``gym.make_vec`` passes on to each env when they
+#: are given beside the env's own keywords instead of in ``vector_kwargs``.
+VECTOR_OPTIONS = frozenset({"context", "shared_memory", "copy", "daemon", "autoreset_mode",
+                            "observation_mode"})  # fmt: skip
+
+
 class GridSimEnv(gym.Env):
     """Drive the ego of a GridSim scenario from occupancy grids.
 
@@ -64,6 +70,11 @@ class GridSimEnv(gym.Env):
         action_type: str = "trajectory",
         **overrides: Any,
     ) -> None:
+        vector = sorted(set(overrides) & VECTOR_OPTIONS)
+        if vector:
+            raise ScenarioError(f"{', '.join(vector)}: an option of gymnasium's vector env, not "
+                                "a scenario key: give it as gym.make_vec(..., vector_kwargs="
+                                f"{{{vector[0]!r}: ...}})")  # fmt: skip
         if isinstance(scenario, Scenario):
             if overrides:
                 raise ScenarioError("overrides need a scenario name or path, not a Scenario object")
