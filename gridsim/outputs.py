@@ -95,6 +95,16 @@ def _contents(folder: Path) -> list[Path]:
     return [p for p in folder.iterdir() if p.name != LOCK_NAME]
 
 
+def empty_folder(folder: str | Path) -> None:
+    """Remove everything ``folder`` holds but its lock file (folders and their contents;
+    links, not what they point to)."""
+    for p in _contents(Path(folder)):
+        if p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p)
+        else:
+            p.unlink()
+
+
 @contextmanager
 def folder_lock(folder: str | Path, flag: str = "--out") -> Iterator[Path]:
     """Hold the folder ``folder`` (created if needed) for writing: one process at a time. A
@@ -140,11 +150,7 @@ def new_folder(out: str | Path, flag: str = "--out", hint: str = "choose another
         problem = new_folder_problem(out, hint)  # another process may have finished it
         if problem:
             raise OutputError(f"{flag} {out}: {problem}")
-        for stale in _contents(partial):  # of a process that was killed
-            if stale.is_dir() and not stale.is_symlink():
-                shutil.rmtree(stale)
-            else:
-                stale.unlink()
+        empty_folder(partial)  # what a killed process left
         try:
             yield partial
         except BaseException:

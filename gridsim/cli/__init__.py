@@ -230,7 +230,7 @@ def run_command(
         except Exception as exc:
             if os.environ.get("GRIDSIM_DEBUG"):
                 raise
-            saved = _save_traceback(parser.prog, argv)
+            saved = _save_traceback(parser.prog, args.command)
             print(f"{parser.prog}: internal error: {type(exc).__name__}: {exc}\n"
                   f"This is a bug, not a problem of your input. Please report it to {REPORT_TO} "
                   f"with the traceback saved in {saved}", file=sys.stderr)  # fmt: skip
@@ -245,12 +245,11 @@ def _show_warning(prog, message, category, filename, lineno, file=None, line=Non
               end="")  # fmt: skip
 
 
-def _save_traceback(prog: str, argv: list[str] | None) -> Path:
-    """Write the current exception's traceback and the command line to a new file in the
+def _save_traceback(prog: str, command: str) -> Path:
+    """Write the current exception's traceback and the ``command`` line to a new file in the
     temporary folder; its path."""
     fd, name = tempfile.mkstemp(prefix=f"{prog}-crash-", suffix=".txt")
     with os.fdopen(fd, "w") as fh:
-        command = " ".join([prog, *(sys.argv[1:] if argv is None else argv)])
         fh.write(f"command: {command}\npython: {sys.version}\n\n{traceback.format_exc()}")
     return Path(name)
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import cv2
@@ -53,12 +52,13 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         grids[k] = sensor.observe(world)
         times[k] = world.time
     with new_folder(out) as partial:  # out appears whole
-        _write(partial, sc, seed, world, grids, times, steps, start, distance, collisions,
-               off_road)  # fmt: skip
-    return json.loads((out / "summary.json").read_text())
+        return _write(partial, sc, seed, world, grids, times, steps, start, distance,
+                      collisions, off_road)  # fmt: skip
 
 
-def _write(out, sc, seed, world, grids, times, steps, start, distance, collisions, off_road):
+def _write(out, sc, seed, world, grids, times, steps, start, distance, collisions,
+           off_road) -> dict:  # fmt: skip
+    """Write the drive's files into ``out``; the summary."""
     write_npz(out / "grids.npz", compressed=True, grids=grids, times=times)
     for k in np.linspace(0, steps - 1, min(steps, 5)).astype(int):
         cv2.imwrite(str(out / f"grid_{k:05d}.png"), colourise(grids[k])[:, :, ::-1])
@@ -77,3 +77,4 @@ def _write(out, sc, seed, world, grids, times, steps, start, distance, collision
         "outputs": sorted(p.name for p in out.iterdir() if not p.name.startswith(".")),
     }
     write_json(out / "summary.json", summary, indent=2)
+    return summary

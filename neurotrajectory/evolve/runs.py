@@ -30,7 +30,7 @@ from tqdm import tqdm
 from gridsim.envs.plan_smoothing import check_keep
 from gridsim.errors import GridSimError
 from gridsim.outputs import (
-    LOCK_NAME,
+    empty_folder,
     folder_lock,
     new_folder_problem,
     read_manifest,
@@ -772,14 +772,8 @@ def _undo(out: Path, remove_folder: bool) -> None:
     """Remove what a new run wrote into ``out`` (which was empty or did not exist)."""
     if remove_folder:
         shutil.rmtree(out, ignore_errors=True)
-        return
-    for p in out.iterdir():
-        if p.name == LOCK_NAME:
-            continue
-        if p.is_dir() and not p.is_symlink():
-            shutil.rmtree(p, ignore_errors=True)
-        else:
-            p.unlink(missing_ok=True)
+    else:
+        empty_folder(out)
 
 
 def _checked(config: TrainConfig):
