@@ -14,10 +14,10 @@ from gridsim.scenario.families.recorded import (
     scene_of,
     unfit_experts,
 )
-from gridsim.traffic.overlaps import overlapping_tracks
 from gridsim.traffic.track import Track
 from gridsim.world import collision_kernels
 from gridsim.world.collision import EDGE_TOLERANCE, CollisionChecker
+from gridsim.world.overlaps import overlapping_tracks
 
 
 def pairwise_overlaps(tracks) -> set[int]:

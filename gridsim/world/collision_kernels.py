@@ -16,6 +16,43 @@ from gridsim.traffic.fleet_kernels import FleetState
 APART = 1e-3
 
 
+@jitable
+def _point_box_distance(ux, uy, hl, hw) -> float:
+    """Distance [m] from ``(ux, uy)`` to the box ``[-hl, hl] x [-hw, hw]`` (0 inside)."""
+    return np.hypot(max(abs(ux) - hl, 0.0), max(abs(uy) - hw, 0.0))
+
+
+@jitable
+def _point_segment_distance(px, py, x0, y0, x1, y1) -> float:
+    """Distance [m] from ``(px, py)`` to the segment from ``(x0, y0)`` to ``(x1, y1)``."""
+    dx, dy = x1 - x0, y1 - y0
+    den = dx * dx + dy * dy
+    t = 0.0
+    if den > 0.0:
+        t = min(max(((px - x0) * dx + (py - y0) * dy) / den, 0.0), 1.0)
+    return np.hypot(px - x0 - t * dx, py - y0 - t * dy)
+
+
+@jitable
+def _segment_crosses_box(x0, y0, x1, y1, hl, hw) -> bool:
+    """Whether the segment meets the box ``[-hl, hl] x [-hw, hw]`` (Liang-Barsky clipping)."""
+    lo, hi = 0.0, 1.0
+    dx, dy = x1 - x0, y1 - y0
+    for p, q in ((-dx, x0 + hl), (dx, hl - x0), (-dy, y0 + hw), (dy, hw - y0)):
+        if p == 0.0:
+            if q < 0.0:
+                return False
+        else:
+            r = q / p
+            if p < 0.0:
+                lo = max(lo, r)
+            else:
+                hi = min(hi, r)
+            if lo > hi:
+                return False
+    return True
+
+
 @kernel
 def within_reach(active, x, y, length, width, cx, cy, radius):
     """Indices of the active boxes (centres ``x, y``, sizes ``length x width`` [m]) whose
@@ -39,12 +76,7 @@ def near_segments(segments, cx, cy, reach):
     n = 0
     for k in range(len(segments)):
         x0, y0, x1, y1 = segments[k, 0], segments[k, 1], segments[k, 2], segments[k, 3]
-        dx, dy = x1 - x0, y1 - y0
-        den = dx * dx + dy * dy
-        t = 0.0
-        if den > 0.0:
-            t = min(max(((cx - x0) * dx + (cy - y0) * dy) / den, 0.0), 1.0)
-        if not np.hypot(cx - x0 - t * dx, cy - y0 - t * dy) > reach:
+        if not _point_segment_distance(cx, cy, x0, y0, x1, y1) > reach:
             out[n] = k
             n += 1
     return out[:n]
@@ -88,42 +120,6 @@ def may_touch(state, ego, radius, margin) -> bool:
     return False
 
 
-@jitable
-def _point_box_distance(ux, uy, hl, hw) -> float:
-    """Distance [m] from ``(ux, uy)`` to the box ``[-hl, hl] x [-hw, hw]`` (0 inside)."""
-    return np.hypot(max(abs(ux) - hl, 0.0), max(abs(uy) - hw, 0.0))
-
-
-@jitable
-def _point_segment_distance(px, py, x0, y0, x1, y1) -> float:
-    dx, dy = x1 - x0, y1 - y0
-    den = dx * dx + dy * dy
-    t = 0.0
-    if den > 0.0:
-        t = min(max(((px - x0) * dx + (py - y0) * dy) / den, 0.0), 1.0)
-    return np.hypot(px - x0 - t * dx, py - y0 - t * dy)
-
-
-@jitable
-def _segment_crosses_box(x0, y0, x1, y1, hl, hw) -> bool:
-    """Whether the segment meets the box ``[-hl, hl] x [-hw, hw]`` (Liang-Barsky clipping)."""
-    lo, hi = 0.0, 1.0
-    dx, dy = x1 - x0, y1 - y0
-    for p, q in ((-dx, x0 + hl), (dx, hl - x0), (-dy, y0 + hw), (dy, hw - y0)):
-        if p == 0.0:
-            if q < 0.0:
-                return False
-        else:
-            r = q / p
-            if p < 0.0:
-                lo = max(lo, r)
-            else:
-                hi = min(hi, r)
-            if lo > hi:
-                return False
-    return True
-
-
 @kernel
 def edges_near_boxes(px, py, psi, half_length, half_width, reach, segments, margin):
     """For each box (centre ``px[i], py[i]`` [m], heading ``psi[i]`` [rad], half sizes [m]),
@@ -152,4 +148,16 @@ def edges_near_boxes(px, py, psi, half_length, half_width, reach, segments, marg
             if not d > margin:
                 out[i] = True
                 break
+    return out
+
+
+@kernel
+def pairs_apart(x, y, psi, length, width, i, j, margin):
+    """For each pair ``(i[k], j[k])`` of boxes ``(x, y, psi, length, width)`` (centres [m],
+    headings [rad], sizes [m]), :func:`boxes_apart` by ``margin`` [m]."""
+    out = np.zeros(len(i), np.bool_)
+    for k in range(len(i)):
+        a, b = i[k], j[k]
+        out[k] = boxes_apart((x[a], y[a], psi[a], length[a], width[a]),
+                             (x[b], y[b], psi[b], length[b], width[b]), margin)  # fmt: skip
     return out

@@ -25,12 +25,12 @@ from gridsim.scenario.parts import (
     vehicle_params,
 )
 from gridsim.traffic.commonroad import scene_id
-from gridsim.traffic.overlaps import overlapping_tracks
 from gridsim.traffic.sources import RecordedSceneTraffic, track_path
 from gridsim.traffic.track import Track
 from gridsim.vehicle.kinematics import BicycleParams, rear_axle_of
 from gridsim.world import collision_kernels
 from gridsim.world.collision import EDGE_TOLERANCE, CollisionChecker
+from gridsim.world.overlaps import overlapping_tracks
 from gridsim.world.world import World
 
 
@@ -181,7 +181,7 @@ EXPERT_EDGE_MARGIN = 0.25
 @lru_cache(maxsize=16)
 def unfit_experts(scene: str, tracks: tuple[Track, ...], road: StaticRoad) -> frozenset[str]:
     """Tracks that cannot serve as the expert ego because of quirks of the recording: their
-    footprint overlaps another's (:func:`~gridsim.traffic.overlaps.overlapping_tracks`), or
+    footprint overlaps another's (:func:`~gridsim.world.overlaps.overlapping_tracks`), or
     comes within :data:`EXPERT_EDGE_MARGIN` of counting as off the mapped road. The reference
     must be driveable without collision or leaving it. Time and memory grow linearly with the
     scene's samples."""

@@ -14,12 +14,10 @@ from collections.abc import Sequence
 import numpy as np
 
 from gridsim.traffic.track import Track
+from gridsim.world import collision_kernels
 
 #: Time stamps are matched to the millisecond [s].
 TIME_QUANTUM = 1e-3
-#: Boxes apart by more than this [m] along a separating axis do not overlap; closer ones are
-#: left to OpenCV's exact intersection (whose own tolerance is far smaller).
-APART = 1e-3
 
 
 def _samples(tracks: Sequence[Track]) -> tuple[np.ndarray, ...]:
@@ -37,21 +35,6 @@ def _samples(tracks: Sequence[Track]) -> tuple[np.ndarray, ...]:
     cat = [np.concatenate(a) for a in (keys, xs, ys, hs, idx)]
     order = np.lexsort((cat[1], cat[0]))
     return tuple(a[order] for a in cat)
-
-
-def _apart(a: tuple[np.ndarray, ...], b: tuple[np.ndarray, ...]) -> np.ndarray:
-    """Per pair, whether boxes ``a`` and ``b`` = ``(x, y, psi, length, width)`` are apart
-    along one of their four edge normals by more than :data:`APART`."""
-    ax, ay, apsi, alen, awid = a
-    bx, by, bpsi, blen, bwid = b
-    ac, as_, bc, bs = np.cos(apsi), np.sin(apsi), np.cos(bpsi), np.sin(bpsi)
-    dx, dy = bx - ax, by - ay
-    apart = np.zeros(len(ax), bool)
-    for ux, uy in ((ac, as_), (-as_, ac), (bc, bs), (-bs, bc)):
-        reach_a = 0.5 * (alen * np.abs(ac * ux + as_ * uy) + awid * np.abs(-as_ * ux + ac * uy))
-        reach_b = 0.5 * (blen * np.abs(bc * ux + bs * uy) + bwid * np.abs(-bs * ux + bc * uy))
-        apart |= np.abs(dx * ux + dy * uy) - reach_a - reach_b > APART
-    return apart
 
 
 def overlapping_tracks(tracks: Sequence[Track]) -> set[int]:
@@ -79,8 +62,10 @@ def overlapping_tracks(tracks: Sequence[Track]) -> set[int]:
         pairs_j.append(j[near])
     none = [np.zeros(0, np.int64)]
     i, j = np.concatenate(pairs_i or none), np.concatenate(pairs_j or none)
-    box = (x, y, psi, length, width)
-    undecided = ~_apart(tuple(a[i] for a in box), tuple(a[j] for a in box))
+    # boxes apart by more than APART along a separating axis do not overlap; the others are
+    # left to OpenCV's exact intersection (whose own tolerance is far smaller)
+    undecided = ~collision_kernels.pairs_apart(x, y, psi, length, width, i, j,
+                                               collision_kernels.APART)  # fmt: skip
     bad: set[int] = set()
     for a, b in zip(i[undecided].tolist(), j[undecided].tolist(), strict=True):
         if owner[a] in bad and owner[b] in bad:
