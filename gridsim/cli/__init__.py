@@ -82,9 +82,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     if files is None:  # one file: its problems are the error
         summary, report = _report(args.path)
         if report.problems:
-            lines = "\n".join(f"  - {p}" for p in report.problems)
-            raise DataError(f"{args.path}: implausible recorded scene "
-                            f"({len(report.problems)} problem(s)):\n{lines}")  # fmt: skip
+            raise DataError(report.refusal(args.path))
         print(f"{args.path}: OK ({summary})" + _warning_lines(report.warnings))
         return 0
     failed = 0

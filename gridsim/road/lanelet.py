@@ -9,6 +9,7 @@ predecessor (successor) start (end) at the map's border: no road edge is placed 
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
+from collections import Counter
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -114,8 +115,7 @@ def load_lanelet_road(path: str | Path) -> StaticRoad:
     """Build a :class:`StaticRoad` from the lanelets of a CommonRoad XML file."""
     path = Path(path)
     lanelets = [_lanelet(el, path) for el in iter_commonroad(path, ("lanelet",))]
-    ids = [ll["id"] for ll in lanelets]
-    twice = sorted({i for i in ids if ids.count(i) > 1}) if len(set(ids)) < len(ids) else []
+    twice = sorted(i for i, n in Counter(ll["id"] for ll in lanelets).items() if n > 1)
     if twice:
         raise DataError(f"{path.name}: lanelet id {twice[0]} appears twice (ids must be unique)")
     lanes, polygons, markings, ends = [], [], [], []

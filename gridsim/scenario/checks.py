@@ -116,6 +116,11 @@ class SceneReport:
     warnings: tuple[str, ...]
     flawed: frozenset[str]
 
+    def refusal(self, source: str) -> str:
+        """The error message refusing the scene of ``source`` for its :attr:`problems`."""
+        lines = "\n".join(f"  - {p}" for p in self.problems)
+        return f"{source}: implausible recorded scene ({len(self.problems)} problem(s)):\n{lines}"
+
 
 def scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> SceneReport:
     """Checks of a recorded scene: its tracks' flaws (a problem when most tracks have one,

@@ -22,6 +22,8 @@ MAX_WINDOW = 10_000.0
 #: The longest episode (and drive) [s]: one hour of simulated time.
 MAX_DURATION = 3600.0
 PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
+#: One side of ``traffic.window`` [m]: at least 50 m of road kept populated.
+WindowSide = Annotated[float, Field(ge=50, le=MAX_WINDOW, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Seed = Annotated[int, Field(ge=0, le=2**63 - 1)]
 
@@ -113,10 +115,7 @@ class TrafficConfig(Strict):
         ),
     ] = ["builtin"]
     window: Annotated[
-        tuple[
-            Annotated[float, Field(ge=50, le=MAX_WINDOW, allow_inf_nan=False)],
-            Annotated[float, Field(ge=50, le=MAX_WINDOW, allow_inf_nan=False)],
-        ],
+        tuple[WindowSide, WindowSide],
         Field(
             description="[behind, ahead] metres of road around the ego kept populated, "
             f"each in [50, {MAX_WINDOW:g}]"
@@ -127,8 +126,6 @@ class TrafficConfig(Strict):
     def _order(self) -> TrafficConfig:
         if self.v_max < self.v_min:
             raise ValueError(f"v_max ({self.v_max}) must be >= v_min ({self.v_min})")
-        if min(self.window) < 50:
-            raise ValueError(f"window {list(self.window)} must keep >= 50 m on each side")
         return self
 
 

@@ -53,9 +53,7 @@ def recorded_scene(scenario: Scenario, check: bool = True) -> tuple[StaticRoad, 
     if check:
         report = scene_report(scenario, road, tracks)
         if report.problems:
-            lines = "\n".join(f"  - {p}" for p in report.problems)
-            raise DataError(f"{scenario.source}: implausible recorded scene "
-                            f"({len(report.problems)} problem(s)):\n{lines}")  # fmt: skip
+            raise DataError(report.refusal(scenario.source))
         if report.warnings:  # shown once per message and place (Python's default filter)
             warnings.warn("\n".join(report.warnings), DataWarning, stacklevel=2)
     return road, tracks
@@ -107,11 +105,21 @@ def ego_candidates(
     (``tracks`` and ``road``: the scene's, if already loaded)."""
     if tracks is None or road is None:
         road, tracks = recorded_scene(scenario)
-    unfit = unfit_experts(scene_of(scenario), tuple(tracks), road)
-    unfit |= flawed_tracks(tuple(tracks), road).keys()
+    unfit = _unfit_tests(scenario, tracks, road)
+    return [t for t in tracks if not any(test(t) for test in unfit.values())]
+
+
+def _unfit_tests(scenario: Scenario, tracks, road: StaticRoad) -> dict:
+    """Why a track of the scene cannot be the ego: a test per reason, by its wording."""
+    flawed = flawed_tracks(tuple(tracks), road).keys()
+    quirks = unfit_experts(scene_of(scenario), tuple(tracks), road)
     longest = scenario.config.traffic.max_vehicle_length
-    return [t for t in tracks if t.duration >= MIN_TRACK_SECONDS and t.length <= longest
-            and t.track_id not in unfit]  # fmt: skip
+    return {
+        f"shorter than {MIN_TRACK_SECONDS:g} s": lambda t: t.duration < MIN_TRACK_SECONDS,
+        f"longer vehicles than {longest:g} m": lambda t: t.length > longest,
+        "implausible (see the warning)": lambda t: t.track_id in flawed,
+        "overlapping another or grazing a road edge": lambda t: t.track_id in quirks,
+    }
 
 
 def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
@@ -150,16 +158,10 @@ def _why_unfit(scenario: Scenario, tracks, road: StaticRoad, listed: set[str]) -
     mine = [t for t in tracks if t.track_id in listed]
     if not mine:
         return "none listed"
-    flawed = flawed_tracks(tuple(tracks), road).keys()
-    quirks = unfit_experts(scene_of(scenario), tuple(tracks), road)
-    longest = scenario.config.traffic.max_vehicle_length
-    reasons = {
-        f"shorter than {MIN_TRACK_SECONDS:g} s": sum(t.duration < MIN_TRACK_SECONDS for t in mine),
-        f"longer vehicles than {longest:g} m": sum(t.length > longest for t in mine),
-        "implausible (see the warning)": sum(t.track_id in flawed for t in mine),
-        "overlapping another or grazing a road edge": sum(t.track_id in quirks for t in mine),
+    counts = {
+        why: sum(map(test, mine)) for why, test in _unfit_tests(scenario, tracks, road).items()
     }
-    return f"of {len(mine)}: " + ", ".join(f"{n} {why}" for why, n in reasons.items() if n)
+    return f"of {len(mine)}: " + ", ".join(f"{n} {why}" for why, n in counts.items() if n)
 
 
 def initial_steering(track: Track, params: BicycleParams) -> float:
