@@ -38,13 +38,17 @@ GROUPS = {
               ["--scenario", "urban", "--split", "train"], (20, 10.0)),
 }  # fmt: skip
 
-#: Flags added to the recipe.
+#: A recorded group's scenes as one collection (the recipe evolves on the first alone).
+SCENES = {"highway": "us101_4_1,us101_3_3", "urban": "lankershim_1_1,peachtree_4_8"}
+
+#: Flags added to the recipe (``{scenes}``: the group's :data:`SCENES`).
 VARIANTS = {
     "pareto": ["--selection", "pareto"],
     "anchored": ["--selection", "anchored"],
     "anchored-4-episodes": ["--selection", "anchored", "--episodes", "4"],
     "one-generation": ["--generations", "1"],
     "anchored-dagger": ["--selection", "anchored", "--dagger-rounds", "1"],
+    "anchored-both-scenes": ["--selection", "anchored", "--scenario", "{scenes}"],
 }
 
 
@@ -90,8 +94,9 @@ def main() -> None:
             for variant in args.variants:
                 run = root / f"{group}-s{seed}-{variant}{suffix}"
                 train_s = None
+                extra = [f.format(scenes=SCENES.get(group, "")) for f in VARIANTS[variant]]
                 if not (run / "front.json").exists():
-                    train_s = _nt("train", *flags, *COMMON, *VARIANTS[variant], "--seed",
+                    train_s = _nt("train", *flags, *COMMON, *extra, "--seed",
                                   str(seed), "--out", str(run))  # fmt: skip
                 report = run / f"heldout-{episodes}x{seconds:g}s.json"
                 drive_s = None

@@ -134,7 +134,9 @@ def _heldout(
     path = Path(out) if out else run.out / "heldout.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     write_json(path, report)
-    print(f"{pick} member on {episodes} held-out episodes of {report['episode_seconds']:g} s:")
+    count = len(report["episodes"])
+    which = "held-out tracks" if "ego_tracks" in report else "held-out episodes"
+    print(f"{pick} member on {count} {which} ({report['episode_seconds']:g} s each):")
     rows = [(f"{pick} member", report["network"]), ("its warm start", report.get("warm_start")),
             ("destination curve", report["destination curve"])]  # fmt: skip
     for name, r in rows:

@@ -33,6 +33,46 @@ def test_folder_and_glob_list_their_scenario_files(folder):
         scenario_files(folder / "nothing-*.yaml")
 
 
+def test_a_comma_separated_list_is_a_collection_in_its_order(folder):
+    """Built-in names, files and globs mix in a list; an empty or repeated item is refused."""
+    xml = folder / "straight_2020a.xml"
+    files = scenario_files(f"us101_4_1, {xml},us101_3_3")
+    assert files == [Path("us101_4_1"), xml, Path("us101_3_3")]
+    assert scenario_files(f"{folder / '*2018b.xml'},seamless") == [
+        folder / "straight_2018b.xml", Path("seamless")]  # fmt: skip
+    with pytest.raises(ScenarioError, match="an empty item"):
+        scenario_files("us101_4_1,")
+    with pytest.raises(ScenarioError, match="us101_4_1 listed more than once"):
+        scenario_files("us101_4_1,us101_4_1")
+    env = gym.make(ENV_ID, scenario="us101_4_1,us101_3_3")
+    drawn = set()
+    for seed in range(12):
+        env.reset(seed=seed)
+        drawn.add(env.unwrapped.scenario.name)
+    assert drawn == {"us101_4_1", "us101_3_3"}
+
+
+def test_ego_track_names_tracks_of_a_collections_scenes_by_scene(folder):
+    """``SCENE/ID`` names in ego.track: each scene of a collection drives only its own; a
+    scene that the list names no track of is skipped, saying so."""
+    from gridsim.scenario.families.recorded import scene_of
+
+    a, b = (scene_of(load_collection(name)[0]) for name in ("us101_4_1", "us101_3_3"))
+    listed = [f"{a}/394", f"{a}/468", f"{b}/400"]
+    env = gym.make(ENV_ID, scenario="us101_4_1,us101_3_3", ego={"track": listed})
+    driven = set()
+    for seed in range(16):
+        env.reset(seed=seed)
+        driven.add(f"{scene_of(env.unwrapped.scenario)}/{env.unwrapped.world.ego_track.track_id}")
+    assert driven == set(listed)
+    with pytest.warns(DataWarning, match=f"names no track of scene '{b}', only of other scenes"):
+        only_a = load_collection("us101_4_1,us101_3_3", {"ego": {"track": listed[:2]}})
+    assert [sc.name for sc in only_a] == ["us101_4_1"]
+    one = gym.make(ENV_ID, scenario="us101_3_3", ego={"track": [f"{b}/9999", f"{b}/400"]})
+    with pytest.raises(ScenarioError, match="ego.track lists 1 track.* not in scene .*: 9999"):
+        one.reset(seed=0)
+
+
 def test_an_environment_draws_a_scene_per_reset_from_the_seed(folder):
     env = gym.make(ENV_ID, scenario=str(folder))
     drawn = []

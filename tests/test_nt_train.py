@@ -161,7 +161,7 @@ def test_train_and_rollout_commands(tmp_path, capsys):
     assert main(["train", *args, "--out", str(out), "--video", video, "--heldout", "2"]) == 0
     assert (out / "knee.mp4").stat().st_size > 1000
     printed = capsys.readouterr().out
-    assert "knee member on 2 held-out episodes of 3 s:" in printed
+    assert "knee member on 2 held-out episodes (3 s each):" in printed
     assert "  knee member        completed" in printed and "destination curve  completed" in printed
     report = json.loads((out / "heldout.json").read_text())
     assert report["seeds"] == list(Run.open(out).config.heldout_seeds(2))
@@ -568,7 +568,7 @@ def test_heldout_tracks_are_the_usable_tracks_a_run_did_not_train_on():
     usable = [t.track_id for t in ego_candidates(base)]
     every = [t.track_id for t in library_for(base).scene(scene_of(base))]
     assert 0 < len(usable) < len(every)  # the scene has tracks too short to be the ego
-    assert _other_tracks("us101_4_1", tuple(usable[1:])) == usable[:1]
+    assert _other_tracks("us101_4_1", tuple(usable[1:])) == [("us101_4_1", usable[0])]
     assert heldout_problem(TrainConfig(scenario="us101_4_1", ego_tracks=tuple(usable[1:]))) is None
     problem = heldout_problem(TrainConfig(scenario="us101_4_1", ego_tracks=tuple(every)))
     assert "us101_4_1: every track of the scene that can be the ego was trained on" in problem
@@ -597,6 +597,41 @@ def test_heldout_on_a_recorded_scene_drives_each_held_out_track_once(tmp_path):
     first = drive_episodes("us101_4_1", policy, report["seeds"][:1], 2.0,
                            ego={"track": held[0]})  # fmt: skip
     assert {**first[0], "track": held[0]} == report["episodes"][0]
+
+
+def test_a_run_on_a_collection_of_recorded_scenes_holds_out_the_tracks_of_every_scene(tmp_path):
+    """Pre-training data of two scenes gives a collection run their tracks as SCENE/ID names;
+    generations drive only those, and the held-out report every other usable track of both
+    scenes, each once on its own scene."""
+    from types import SimpleNamespace
+
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.scenario.families.recorded import ego_candidates, scene_of
+    from gridsim.scenario.loader import load_scenario
+    from neurotrajectory.compare.front import heldout
+    from neurotrajectory.evolve.runs import _with_training_tracks
+
+    names = ("us101_4_1", "us101_3_3")
+    scenes = [scene_of(load_scenario(n)) for n in names]
+    usable = {n: sorted(t.track_id for t in ego_candidates(load_scenario(n))) for n in names}
+    trained = [f"{scenes[0]}/{t}" for t in usable[names[0]][1:]] + [
+        f"{scenes[1]}/{t}" for t in usable[names[1]][2:]]  # fmt: skip
+    windows = SimpleNamespace(track=np.array(trained + ["seamless/seed7"]))
+    base = TrainConfig(scenario=",".join(names), preset="tiny", population=2, generations=1,
+                       episodes=1, episode_seconds=2.0, validation_episodes=0)  # fmt: skip
+    cfg = _with_training_tracks(base, windows)
+    assert cfg.ego_tracks == tuple(trained)  # scene by scene, in the collection's order
+    with pytest.raises(RunError, match=f"has no track of scene '{scenes[1]}'"):
+        _with_training_tracks(base, SimpleNamespace(track=np.array(trained[:1])))
+    env = GridSimEnv(cfg.scenario, **cfg.overrides)
+    for seed in cfg.episode_seeds(0) + cfg.episode_seeds(1):
+        env.reset(seed=seed)
+        assert f"{scene_of(env.scenario)}/{env.world.ego_track.track_id}" in trained
+    Run.create(tmp_path / "run", cfg).train(progress=False)
+    report = heldout(tmp_path / "run", 20)
+    held = [f"{names[0]}/{usable[names[0]][0]}"] + [f"{names[1]}/{t}" for t in usable[names[1]][:2]]
+    assert sorted(report["ego_tracks"]) == sorted(held)
+    assert [e["track"] for e in report["episodes"]] == report["ego_tracks"]
 
 
 def test_a_population_too_big_for_memory_is_refused_before_allocating(tmp_path, capsys):

@@ -224,7 +224,7 @@ def test_a_recorded_scene_run_drives_only_the_tracks_of_its_training_data(tmp_pa
     from neurotrajectory.compare.front import _other_tracks
 
     report = json.loads((out / "heldout.json").read_text())
-    held = _other_tracks("us101_3_3", trained)  # never trained on, each driven once
+    held = [t for _, t in _other_tracks("us101_3_3", trained)]  # never trained on, driven once
     assert report["ego_tracks"] == held[:2] and not set(held) & set(trained)
     assert {f"USA_US101-3_3_T-1/{t}" for t in held} >= set(test.track)
     # evaluation refuses a dataset that holds one side of a split
@@ -424,6 +424,6 @@ def test_heldout_drives_a_finished_run_on_longer_unseen_episodes(windows_dir, tm
     assert doc["episode_seconds"] == 3.0 and doc["seeds"] == seeds
     assert [e["seed"] for e in doc["episodes"]] == seeds
     assert all(e["seconds"] <= 3.0 + 1e-9 for e in doc["episodes"])
-    assert "knee member on 2 held-out episodes of 3 s" in capsys.readouterr().out
+    assert "knee member on 2 held-out episodes (3 s each)" in capsys.readouterr().out
     assert main(["heldout", "--run", str(out), "--seconds", "nan", "--out", str(report)]) == 2
     assert "--seconds must be a finite number > 0, got nan" in capsys.readouterr().err

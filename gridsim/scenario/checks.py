@@ -21,7 +21,7 @@ import numpy as np
 
 from gridsim.road.base import StaticRoad
 from gridsim.scenario.loader import Scenario
-from gridsim.traffic.track import Track
+from gridsim.traffic.track import Track, ids_in_scene
 
 #: A track is on another map when more than this share of its positions is off the drivable
 #: area (the shipped scenes: 0 %; maps are cropped, so a few positions may lie beyond them).
@@ -148,6 +148,8 @@ def scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> S
             f"needs {need:.3g} s (env.horizon x env.setpoint_period)"
         )
     wanted = scenario.config.ego.track  # one named track must be usable (a list is filtered)
+    if isinstance(wanted, str):  # its id in this scene (SCENE/ID names another's: no check)
+        wanted = next(iter(ids_in_scene([wanted], longest.scenario_id)[0]), None)
     named = next((t for t in tracks if t.track_id == wanted), None)
     if named is not None and named.duration < need:
         problems.append(

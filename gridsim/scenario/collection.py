@@ -1,4 +1,6 @@
-"""Scenario collections: a folder or a glob pattern of scenario files (YAML or CommonRoad XML).
+"""Scenario collections: a folder or a glob pattern of scenario files (YAML or CommonRoad XML),
+or a comma-separated list of scenarios (``"us101_3_3,us101_4_1"``: built-in names, files,
+folders or globs).
 
 An environment made from a collection draws one of its scenarios per reset from the reset
 seed (:func:`pick`). Its scenarios must agree on what fixes the spaces and the time step
@@ -30,8 +32,9 @@ SHARED_KEYS = ("sensor", "env", "ego.vehicle", "simulation.dt")
 
 
 def scenario_files(ref: str | Path) -> list[Path] | None:
-    """The scenario files of a folder (sorted by name) or of a glob pattern (sorted);
-    ``None`` if ``ref`` is neither (a built-in name or a single file, or not a name or
+    """The scenario files of a folder (sorted by name), of a glob pattern (sorted) or of a
+    comma-separated list (in its order; a built-in name is given as ``Path(name)``);
+    ``None`` if ``ref`` is none of these (a built-in name or a single file, or not a name or
     path at all: :func:`load_scenario` then says so)."""
     if not isinstance(ref, str | os.PathLike):
         return None
@@ -39,6 +42,8 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     path = Path(text)
     if path.is_dir():
         files = [f for f in path.iterdir() if f.is_file() and f.suffix.lower() in SUFFIXES]
+    elif "," in text and not path.exists():
+        return _listed_files(text)
     elif any(c in text for c in "*?["):
         files = [Path(f) for f in glob.glob(text, recursive=True)]
         files = [f for f in files if f.is_file() and f.suffix.lower() in SUFFIXES]
@@ -49,10 +54,28 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     return sorted(files)
 
 
+def _listed_files(text: str) -> list[Path]:
+    """The scenarios of a comma-separated list, each item's files in turn (a built-in name
+    or a file as itself); a :class:`ScenarioError` for an empty or repeated item."""
+    items = [item.strip() for item in text.split(",")]
+    if not all(items):
+        raise ScenarioError(f"{text!r}: an empty item in a comma-separated list of scenarios")
+    files: list[Path] = []
+    for item in items:
+        found = scenario_files(item)
+        files += [Path(item)] if found is None else found
+    repeated = sorted({str(f) for f in files if files.count(f) > 1})
+    if repeated:
+        raise ScenarioError(f"{text!r}: {', '.join(repeated)} listed more than once")
+    return files
+
+
 def is_collection(ref: str | Path) -> bool:
-    """Whether ``ref`` names a folder or a glob pattern (not a check that it has files)."""
+    """Whether ``ref`` names a folder, a glob pattern or a comma-separated list (not a check
+    that it has files)."""
     text = str(ref)
-    return Path(text).is_dir() or any(c in text for c in "*?[")
+    path = Path(text)
+    return path.is_dir() or any(c in text for c in "*?[") or ("," in text and not path.exists())
 
 
 def _get(doc: dict, key: str) -> Any:

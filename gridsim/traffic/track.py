@@ -138,3 +138,24 @@ def track_data_problem(track: Track) -> str | None:
         if not 0 < value <= most:
             return f"{name} {value!r} m is outside (0, {most:g}]"
     return None
+
+
+def track_name(scene: str, track_id: str) -> str:
+    """A track's name across scenes, ``SCENE/ID`` (as datasets label their windows and as
+    ``ego.track`` may name a track of a collection's scene)."""
+    return f"{scene}/{track_id}"
+
+
+def ids_in_scene(names: list[str], scene: str) -> tuple[list[str], list[str]]:
+    """``(own, foreign)``: the track ids of ``scene`` among ``names`` (plain ids as they are,
+    ``SCENE/ID`` names of ``scene`` stripped), and the names of tracks of other scenes."""
+    prefix = track_name(scene, "")
+    own, foreign = [], []
+    for name in names:
+        if name.startswith(prefix):
+            own.append(name[len(prefix) :])
+        elif "/" in name:
+            foreign.append(name)
+        else:
+            own.append(name)
+    return own, foreign

@@ -118,16 +118,17 @@ def heldout(
     cfg = run.config
     seconds = cfg.episode_seconds if seconds is None else float(seconds)
     tracks = _other_tracks(cfg.scenario, cfg.ego_tracks)[:episodes] if cfg.ego_tracks else None
+    several = tracks is not None and len({ref for ref, _ in tracks}) > 1
+    names = [f"{ref}/{track}" if several else track for ref, track in tracks or ()]
     seeds = list(cfg.heldout_seeds(len(tracks) if tracks else episodes))
 
     def drive(planner) -> list[dict]:
         if tracks is None:
             return drive_episodes(cfg.scenario, planner, seeds, seconds,
                                   goal_seconds=cfg.goal_seconds)  # fmt: skip
-        return [{**row, "track": track}  # each held-out track once
-                for track, seed in zip(tracks, seeds, strict=True)
-                for row in drive_episodes(cfg.scenario, planner, [seed], seconds,
-                                          ego={"track": track},
+        return [{**row, "track": name}  # each held-out track once, on its own scene
+                for (ref, track), name, seed in zip(tracks, names, seeds, strict=True)
+                for row in drive_episodes(ref, planner, [seed], seconds, ego={"track": track},
                                           goal_seconds=cfg.goal_seconds)]  # fmt: skip
 
     rows = drive(policy)
@@ -140,7 +141,7 @@ def heldout(
         "member": member,
         "episode_seconds": seconds,
         "plan_smoothing": keep,
-        **({"ego_tracks": tracks} if tracks else {}),
+        **({"ego_tracks": names} if tracks else {}),
         "seeds": seeds,
         "network": summarise(rows),
         **({"warm_start": summarise(started)} if started else {}),
@@ -162,13 +163,21 @@ def heldout_problem(config) -> str | None:
     return None
 
 
-def _other_tracks(scenario: str, trained: tuple[str, ...]) -> list[str]:
-    """The ids of ``scenario``'s tracks that can be the ego and are not in ``trained``."""
-    from gridsim.scenario.families.recorded import ego_candidates
+def _other_tracks(scenario: str, trained: tuple[str, ...]) -> list[tuple[str, str]]:
+    """``(scenario file, track id)`` of every track of ``scenario``'s scenes (one, or each of
+    a collection's) that can be the ego and is not in ``trained`` (ids, or ``SCENE/ID``
+    names)."""
+    from gridsim.scenario.collection import scenario_files
+    from gridsim.scenario.families.recorded import ego_candidates, scene_of
     from gridsim.scenario.loader import load_scenario
+    from gridsim.traffic.track import ids_in_scene
 
-    others = [t.track_id for t in ego_candidates(load_scenario(scenario))
-              if t.track_id not in set(trained)]  # fmt: skip
+    files = scenario_files(scenario)
+    others = []
+    for ref in [scenario] if files is None else [str(f) for f in files]:
+        sc = load_scenario(ref)
+        seen = set(ids_in_scene(list(trained), scene_of(sc))[0])
+        others += [(ref, t.track_id) for t in ego_candidates(sc) if t.track_id not in seen]
     if not others:
         raise RunError(f"{scenario}: every track of the scene that can be the ego was trained "
                        "on, none is held out; evaluate the run on another scene with "

@@ -43,6 +43,7 @@ from gridsim.scenario.families.recorded import recorded_scene, scene_of
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.schema import RecordedRoadConfig
 from gridsim.seeding import Salt, stream
+from gridsim.traffic.track import ids_in_scene, track_name
 from neurotrajectory.data.commands import implied_commands
 
 FORMAT_VERSION = 1
@@ -168,7 +169,7 @@ def scenario_episodes(
         need = base.config.env.horizon_time
         chosen = [t for t in scene_tracks if (wanted is None or t.track_id in wanted)
                   and t.duration >= need and t.track_id not in flawed]  # fmt: skip
-        out = [PlannedEpisode(f"{scene}/{t.track_id}", 0,
+        out = [PlannedEpisode(track_name(scene, t.track_id), 0,
                        {"ego": {"track": t.track_id},
                         "simulation": {"duration": max(float(t.duration), 0.1)}, **goal})
                for t in chosen]  # fmt: skip
@@ -196,8 +197,7 @@ def episodes_of(
     base = load_scenario(scenario)
     labels = list(dict.fromkeys(windows.track.tolist()))  # in the order they were recorded
     if isinstance(base.config.road, RecordedRoadConfig):
-        prefix = scene_of(base) + "/"
-        ids = [t[len(prefix) :] for t in labels if t.startswith(prefix)]
+        ids = ids_in_scene([t for t in labels if "/" in t], scene_of(base))[0]
         return scenario_episodes(scenario, tracks=ids, goal_seconds=goal_seconds)[0] if ids else []
     prefix = f"{scenario}/seed"
     seeds = [int(t[len(prefix) :]) for t in labels if t.startswith(prefix)]

@@ -780,10 +780,10 @@ def _checked(config: TrainConfig):
     """``(config, windows)``: the configuration checked against its scenario, network and
     pre-training data (the data's windows, or None), with :func:`_with_training_tracks`."""
     from gridsim.envs.gridsim_env import GridSimEnv
-    from gridsim.scenario.loader import load_scenario
+    from gridsim.scenario.collection import load_collection
 
     try:
-        load_scenario(config.scenario)
+        load_collection(config.scenario)
     except GridSimError as exc:
         raise RunError(f"--scenario {config.scenario}: {exc}") from None
     try:
@@ -859,7 +859,13 @@ def _pretrain_data(folder: str):
 def _dagger_episodes(config: TrainConfig, windows) -> list:
     """The episodes of the training scenario the pre-training ``windows`` were recorded on
     (to drive again); a :class:`RunError` if DAgger rounds need them and there are none."""
+    from gridsim.scenario.collection import is_collection
 
+    if is_collection(config.scenario):
+        if config.dagger_rounds:
+            raise RunError(f"--dagger-rounds: not on a collection of scenarios "
+                           f"({config.scenario!r}); train on one scenario")  # fmt: skip
+        return []
     episodes = episodes_of(windows, config.scenario, PRETRAIN_EPISODE_SECONDS, config.goal_seconds)
     if config.dagger_rounds and not episodes:
         raise RunError(f"--dagger-rounds: --pretrain {config.pretrain} holds no episode of the "
@@ -876,27 +882,33 @@ def _check_pretrain_episodes(config: TrainConfig) -> None:
 
 
 def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
-    """On a recorded scene with pre-training data (``windows``) and no ``ego_tracks``: the
-    data's tracks of that scene, so that the tracks held out of the data are never driven in
-    training."""
+    """On a recorded scene (or a collection of them) with pre-training data (``windows``) and
+    no ``ego_tracks``: the data's tracks of that scene (of a collection: of each of its
+    scenes, as ``SCENE/ID`` names), so that the tracks held out of the data are never driven
+    in training."""
 
     if config.ego_tracks or windows is None or not is_recorded(config.scenario):
         return config
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.scenario.collection import is_collection
     from gridsim.scenario.families.recorded import scene_of
+    from gridsim.traffic.track import ids_in_scene, track_name
 
-    if is_collection(config.scenario):
-        raise RunError(f"--pretrain on the recorded collection {config.scenario!r}: the tracks "
-                       "held out of the data cannot be excluded per scene; train on one scene "
-                       "file")  # fmt: skip
-    scene = scene_of(GridSimEnv(config.scenario).scenario)
-    tracks = windows.track
-    ids = sorted({t.split("/", 1)[1] for t in np.unique(tracks) if t.startswith(scene + "/")})
-    if not ids:
-        raise RunError(f"--pretrain {config.pretrain} has no track of scene {scene!r}, which "
-                       f"{config.scenario!r} replays: record windows of that scene")  # fmt: skip
-    return replace(config, ego_tracks=tuple(ids))
+    names = sorted(np.unique(windows.track).tolist())
+    scenes = [scene_of(sc) for sc in GridSimEnv(config.scenario).scenarios]
+    per_scene = {scene: ids_in_scene([n for n in names if "/" in n], scene)[0]
+                 for scene in scenes}  # fmt: skip
+    missing = [scene for scene, ids in per_scene.items() if not ids]
+    if missing:
+        raise RunError(f"--pretrain {config.pretrain} has no track of scene "
+                       f"{', '.join(map(repr, missing))}, which {config.scenario!r} replays: "
+                       "record windows of that scene")  # fmt: skip
+    if not is_collection(config.scenario):
+        return replace(config, ego_tracks=tuple(per_scene[scenes[0]]))
+    return replace(
+        config,
+        ego_tracks=tuple(track_name(scene, i) for scene, ids in per_scene.items() for i in ids),
+    )
 
 
 def _read_npz(path: Path, *keys: str) -> tuple[np.ndarray, ...] | None:

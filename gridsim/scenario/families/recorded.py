@@ -26,7 +26,7 @@ from gridsim.scenario.parts import (
 )
 from gridsim.traffic.commonroad import scene_id
 from gridsim.traffic.sources import RecordedSceneTraffic, track_path
-from gridsim.traffic.track import Track
+from gridsim.traffic.track import Track, ids_in_scene
 from gridsim.vehicle.kinematics import BicycleParams, rear_axle_of
 from gridsim.world import collision_kernels
 from gridsim.world.collision import EDGE_TOLERANCE, CollisionChecker
@@ -126,8 +126,8 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
     """The ego's track: ``ego.track`` by id, or drawn from the seed among the fit tracks (at
     least 2 s long, not too long a vehicle, inside the road) of the scene (``"random"``) or of
     a list of ids."""
-    cfg, scene = scenario.config, scene_of(scenario)
-    wanted = cfg.ego.track
+    scene = scene_of(scenario)
+    wanted = ego_track_ids(scenario, scene)
     if isinstance(wanted, str) and wanted != "random":
         match = [t for t in tracks if t.track_id == wanted]
         if not match:
@@ -151,6 +151,23 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
         raise ScenarioError(f"{scenario.source}: {which} {verb} no track to use as the ego "
                             f"({_why_unfit(scenario, tracks, road, listed)})")  # fmt: skip
     return fit[int(rng.integers(len(fit)))]
+
+
+def ego_track_ids(scenario: Scenario, scene: str | None = None) -> str | list[str]:
+    """``ego.track`` as ids of the scenario's own scene (``scene``, if already known):
+    ``"random"``, one id or a list of ids, the ``SCENE/ID`` names of other scenes left out
+    (a collection's scenes share one list); a :class:`ScenarioError` if it names no track of
+    this scene but tracks of others."""
+    wanted = scenario.config.ego.track
+    if wanted == "random":
+        return wanted
+    scene = scene_of(scenario) if scene is None else scene
+    own, foreign = ids_in_scene([wanted] if isinstance(wanted, str) else wanted, scene)
+    if foreign and not own:
+        raise ScenarioError(f"{scenario.source}: ego.track names no track of scene {scene!r}, "
+                            f"only of other scenes: {', '.join(foreign[:5])}"
+                            + (" ..." if len(foreign) > 5 else ""))  # fmt: skip
+    return own[0] if isinstance(wanted, str) else own
 
 
 def _why_unfit(scenario: Scenario, tracks, road: StaticRoad, listed: set[str]) -> str:
