@@ -575,6 +575,20 @@ def test_heldout_tracks_are_the_usable_tracks_a_run_did_not_train_on():
     assert "--group NAME=FOLDER" in problem
 
 
+def test_heldout_tracks_last_the_planning_horizon():
+    """A track fit to be the ego (2 s) but shorter than the horizon (2.5 s) gives no window
+    and is refused as a named ego: it is not held out."""
+    from gridsim.scenario.families.recorded import ego_candidates
+    from gridsim.scenario.loader import load_scenario
+    from neurotrajectory.compare.front import _other_tracks
+
+    short = {t.track_id for t in ego_candidates(load_scenario("peachtree_4_8")) if t.duration < 2.5}
+    assert "601" in short
+    held = _other_tracks("lankershim_1_1,peachtree_4_8", ())
+    assert {ref for ref, _ in held} == {"lankershim_1_1", "peachtree_4_8"}
+    assert not {t for ref, t in held if ref == "peachtree_4_8"} & short
+
+
 def test_heldout_on_a_recorded_scene_drives_each_held_out_track_once(tmp_path):
     from gridsim.scenario.families.recorded import ego_candidates
     from gridsim.scenario.loader import load_scenario

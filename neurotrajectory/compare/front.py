@@ -177,7 +177,9 @@ def _other_tracks(scenario: str, trained: tuple[str, ...]) -> list[tuple[str, st
     for ref in [scenario] if files is None else [str(f) for f in files]:
         sc = load_scenario(ref)
         seen = set(ids_in_scene(list(trained), scene_of(sc))[0])
-        others += [(ref, t.track_id) for t in ego_candidates(sc) if t.track_id not in seen]
+        need = sc.config.env.horizon_time
+        others += [(ref, t.track_id) for t in ego_candidates(sc)
+                   if t.track_id not in seen and t.duration >= need]  # fmt: skip
     if not others:
         raise RunError(f"{scenario}: every track of the scene that can be the ego was trained "
                        "on, none is held out; evaluate the run on another scene with "
