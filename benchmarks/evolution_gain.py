@@ -49,6 +49,10 @@ VARIANTS = {
     "one-generation": ["--generations", "1"],
     "anchored-dagger": ["--selection", "anchored", "--dagger-rounds", "1"],
     "anchored-both-scenes": ["--selection", "anchored", "--scenario", "{scenes}"],
+    "es": ["--selection", "es"],
+    "es-step-3": ["--selection", "es", "--es-step", "3"],
+    "es-both-scenes": ["--selection", "es", "--scenario", "{scenes}"],
+    "es-both-scenes-step-3": ["--selection", "es", "--es-step", "3", "--scenario", "{scenes}"],
 }
 
 

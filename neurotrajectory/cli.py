@@ -378,8 +378,17 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="how parents are selected: 'anchored' (the default with a warm start): the warm "
         "start stays in every generation and a member whose l1 is worse than its is ranked "
-        "as a constraint violation; 'pareto' (the default without): constrained NSGA-II on "
-        "the three objectives",
+        "as a constraint violation; 'es': evolution strategies, a centre (first the warm "
+        "start) and antithetic pairs around it, the centre moved by their rank-weighted noise "
+        "(--es-step); 'pareto' (the default without): constrained NSGA-II on the three "
+        "objectives",
+    )
+    t.add_argument(
+        "--es-step",
+        type=float,
+        default=None,
+        help="--selection es: how far the centre moves per generation, in mean noise steps "
+        "of its pairs (default 1)",
     )
     t.add_argument(
         "--evolve",

@@ -22,6 +22,14 @@ above any that lost time), and the elites are the first front's members nearest 
 warm start and searches for members closer still, trading l2 and l3 only among those. The
 run keeps the best validated knee of any generation as a candidate for the final front
 (:meth:`~neurotrajectory.evolve.runs.Run.finish`).
+
+**Evolution strategies** (``SELECTIONS["es"]``, with a warm start; after Salimans et al. 2017):
+a generation is a *centre* (individual 0, the warm start in generation 0) and antithetic
+pairs around it, ``centre + sigma * e`` and ``centre - sigma * e`` (one noise slice per pair,
+:func:`es_recipes`), all driven on the same episodes. The next centre moves along the pairs'
+differences weighted by their rank-shaped utilities (:func:`es_centre`): every member
+contributes, instead of a few lucky ones being copied. The centre's l1 is the anchor's
+constraint, as in anchored selection, and its validated score is the learning curve.
 """
 
 from __future__ import annotations
@@ -37,7 +45,8 @@ from neurotrajectory.evolve.pareto import knee_distance, minimised, rank_and_cro
 #: How a generation's parents are selected: ``pareto``, constrained NSGA-II on the three
 #: objectives; ``anchored``, the same with the warm start kept as individual 0 and its l1 as
 #: a constraint (see the module docstring).
-SELECTIONS = ("pareto", "anchored")
+#: ``es``, evolution strategies around a centre (see the module docstring).
+SELECTIONS = ("pareto", "anchored", "es")
 
 #: The anchor's index in every generation of an anchored run.
 ANCHOR = 0
@@ -149,3 +158,46 @@ def next_generation(
             )
         )
     return recipes, rank
+
+
+def es_recipes(config: GAConfig, rng: np.random.Generator, genome_size: int, table_size: int
+               ) -> list[Recipe]:  # fmt: skip
+    """A generation of evolution strategies around parent 0 (the centre): the centre itself,
+    then antithetic pairs ``+sigma`` and ``-sigma`` times one noise slice each (offsets from
+    ``rng``); an odd member left over is one more ``+sigma`` mutation."""
+    k = config.population - 1
+    offsets = rng.integers(0, table_size - genome_size + 1, size=k - k // 2)
+    recipes = [Recipe(parent=0)]
+    for o in offsets[: k // 2]:
+        recipes += [Recipe(parent=0, noise_offset=int(o), sigma=config.sigma),
+                    Recipe(parent=0, noise_offset=int(o), sigma=-config.sigma)]  # fmt: skip
+    if k % 2:
+        recipes.append(Recipe(parent=0, noise_offset=int(offsets[-1]), sigma=config.sigma))
+    return recipes
+
+
+def es_utilities(fitness: np.ndarray, lost: np.ndarray) -> np.ndarray:
+    """Rank-shaped utilities of members ``1..K-1`` (not the centre) in [-0.5, 0.5], the best
+    highest: ranked by the episode time they lost, then by l1 (ties in order)."""
+    f, lost = np.asarray(fitness, np.float64)[1:], np.asarray(lost, np.float64)[1:]
+    order = np.lexsort((f[:, 0], lost))  # best first
+    ranks = np.empty(len(f))
+    ranks[order] = np.arange(len(f))
+    return 0.5 - ranks / max(len(f) - 1, 1)
+
+
+def es_centre(genomes: np.ndarray, fitness: np.ndarray, lost: np.ndarray, step: float
+              ) -> np.ndarray:  # fmt: skip
+    """The next centre of a generation made by :func:`es_recipes` (``genomes`` ``(K, n)``,
+    their ``fitness`` and lost shares): ``centre + step * mean_j w_j (g+_j - g-_j) / 2``, the
+    weight ``w_j`` of pair ``j`` the difference of its members' utilities
+    (:func:`es_utilities`), ``(g+ - g-) / 2`` its noise step ``sigma * e``. Accumulated in
+    float64 one pair at a time, in order (the same bits on any machine)."""
+    u = es_utilities(fitness, lost)
+    pairs = (len(genomes) - 1) // 2
+    acc = np.zeros(genomes.shape[1], np.float64)
+    for j in range(pairs):
+        plus, minus = genomes[1 + 2 * j].astype(np.float64), genomes[2 + 2 * j]
+        acc += (u[2 * j] - u[2 * j + 1]) * ((plus - minus) / 2.0)
+    centre = genomes[0].astype(np.float64) + step * acc / max(pairs, 1)
+    return centre.astype(np.float32)

@@ -58,12 +58,15 @@ from neurotrajectory.evolve.evolution import (
     SELECTIONS,
     GAConfig,
     anchored_violation,
+    es_centre,
+    es_recipes,
+    generation_rng,
     initial_recipes,
     next_generation,
     warm_start_recipes,
 )
 from neurotrajectory.evolve.fitness import net_config_for, scenario_net_config
-from neurotrajectory.evolve.genome import genome_mismatch, initial_genome, set_genome
+from neurotrajectory.evolve.genome import genome_mismatch, initial_genome, set_genome, table_size
 from neurotrajectory.evolve.pareto import hypervolume, minimised, non_dominated_sort, pick_member
 from neurotrajectory.evolve.population import Population, Source, Start
 from neurotrajectory.model import (
@@ -138,6 +141,9 @@ class TrainConfig:
     #: "anchored" keeps the warm start in every generation and its l1 as a constraint; None:
     #: "anchored" with a warm start, else "pareto" (stored resolved)
     selection: str | None = None
+    #: selection "es": how far the centre moves each generation, in units of the mean of its
+    #: pairs' utility-weighted noise steps (see :func:`~neurotrajectory.evolve.evolution.es_centre`)
+    es_step: float = 1.0
     #: how far ahead the destination the network is given lies [s] (the scenario's
     #: ``env.goal_seconds``); None: the scenario's (by default the last set-point's time)
     goal_seconds: float | None = None
@@ -146,7 +152,8 @@ class TrainConfig:
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human",
               "plan_smoothing": 0.0, "selection": "pareto"}  # fmt: skip
     #: Fields added within format 2, and what a format-2 configuration without them meant.
-    LATER = {"dagger_labels": "human", "plan_smoothing": 0.0, "selection": "pareto"}
+    LATER = {"dagger_labels": "human", "plan_smoothing": 0.0, "selection": "pareto",
+             "es_step": 1.0}  # fmt: skip
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
@@ -225,13 +232,22 @@ class TrainConfig:
             raise RunError(f"unknown selection {self.selection!r}; choose from "
                            f"{list(SELECTIONS)}")  # fmt: skip
         if self.anchored and not (self.pretrain or self.pretrain_episodes):
-            raise RunError("selection 'anchored' keeps the warm start as the anchor: give "
-                           "--pretrain or --pretrain-episodes, or selection 'pareto'")  # fmt: skip
+            raise RunError(f"selection {self.selection!r} starts from the warm start and keeps "
+                           "a member no worse than it: give --pretrain or --pretrain-episodes, "
+                           "or selection 'pareto'")  # fmt: skip
+        if not (math.isfinite(self.es_step) and 0 < self.es_step <= MAX_ES_STEP):
+            raise RunError(f"es_step must be in (0, {MAX_ES_STEP:g}], got {self.es_step}")
 
     @property
     def anchored(self) -> bool:
-        """The warm start is kept in every generation and its l1 is a constraint."""
-        return self.selection == "anchored"
+        """Individual 0 is kept in every generation (the warm start; with evolution
+        strategies, the centre) and its l1 is a constraint."""
+        return self.selection in ("anchored", "es")
+
+    @property
+    def es(self) -> bool:
+        """Evolution strategies: a centre and antithetic pairs around it."""
+        return self.selection == "es"
 
     @property
     def ga(self) -> GAConfig:
@@ -287,6 +303,9 @@ class TrainConfig:
 #: The largest mutation step accepted (``sigma``): larger ones overflow the network's
 #: weights (the recipes use 0.02 to 0.1).
 MAX_SIGMA = 10.0
+
+#: The largest ``es_step`` accepted (the centre would leap past its pairs' noise).
+MAX_ES_STEP = 100.0
 
 #: A run folder's README.md: what its files are and what to do with them.
 RUN_README = """# A NeuroTrajectory training run
@@ -510,7 +529,8 @@ class Run:
             t0 = time.perf_counter()
             fitness, stats = backend.evaluate(cfg.population, cfg.episode_seeds(gen))
             violation = np.array([s.get("lost", 0.0) for s in stats])
-            recipes, rank = self._next_generation(population, gen, fitness, violation)
+            recipes, rank, parents = self._next_generation(population.genomes, gen, fitness,
+                                                           violation)  # fmt: skip
             record = self._record(gen, fitness, violation, rank, stats,
                                   time.perf_counter() - t0, history)  # fmt: skip
             record |= self._validate_knee(backend, gen, fitness, rank, source)
@@ -528,6 +548,8 @@ class Run:
             write_json(self.out / "history.json", {"run": self.fingerprint, "generations": history})
             bar.set_postfix(hv=f"{history[-1]['hypervolume']:.3f}", front=int(np.sum(rank == 0)))
             if gen + 1 < cfg.generations:
+                if parents is not None:
+                    backend.load(parents)
                 backend.advance(recipes)
             if stop_after is not None and done >= stop_after:
                 return {"stopped_at": gen}
@@ -541,20 +563,34 @@ class Run:
         cfg = self.config
         if source is Source.CHECKPOINT:
             gen, genomes, fitness, violation = ckpt
-            return Start(gen + 1, self._next_generation(population, gen, fitness, violation)[0],
-                         genomes)  # fmt: skip
+            recipes, _, parents = self._next_generation(genomes, gen, fitness, violation)
+            return Start(gen + 1, recipes, genomes if parents is None else parents)
         if source is Source.WARM_START:
             base = self._warm_start(probe)
-            recipes = warm_start_recipes(cfg.ga, cfg.seed, len(base), len(population.table))
+            if cfg.es:
+                rng = stream(cfg.seed, Salt.WARM_START_MUTATIONS)
+                recipes = es_recipes(cfg.ga, rng, len(base), table_size(len(base)))
+            else:
+                recipes = warm_start_recipes(cfg.ga, cfg.seed, len(base), len(population.table))
             return Start(0, recipes, base[None])
         return Start(0, initial_recipes(cfg.ga, cfg.seed))
 
-    def _next_generation(self, population: Population, gen, fitness, violation):
-        """The recipes of the generation after ``gen`` and its (constrained) Pareto ranks."""
+    def _next_generation(self, genomes: np.ndarray, gen, fitness, violation):
+        """``(recipes, rank, parents)``: the recipes of the generation after ``gen`` (of
+        ``genomes``), its (constrained) Pareto ranks, and the parents the recipes apply to
+        (None: ``genomes`` themselves; evolution strategies: the next centre)."""
         cfg = self.config
-        return next_generation(fitness, cfg.ga, cfg.seed, gen, population.genome_size,
-                               len(population.table), self._violation(violation, fitness),
-                               anchored=cfg.anchored)  # fmt: skip
+        size = genomes.shape[1]
+        table = table_size(size)
+        if cfg.es:
+            rank = non_dominated_sort(minimised(fitness), self._violation(violation, fitness))
+            centre = es_centre(genomes, fitness, violation, cfg.es_step)
+            recipes = es_recipes(cfg.ga, generation_rng(cfg.seed, gen), size, table)
+            return recipes, rank, centre[None]
+        recipes, rank = next_generation(fitness, cfg.ga, cfg.seed, gen, size, table,
+                                        self._violation(violation, fitness),
+                                        anchored=cfg.anchored)  # fmt: skip
+        return recipes, rank, None
 
     def _keep_best_knee(self, population: Population, gen: int, score: dict, history) -> None:
         """Keep generation ``gen``'s knee (``score``: on the validation episodes) in
@@ -584,7 +620,7 @@ class Run:
         if not seeds:
             return {}
         front = np.flatnonzero(rank == 0)
-        knee = int(front[pick_member(fitness[front], "knee")])
+        knee = ANCHOR if self.config.es else int(front[pick_member(fitness[front], "knee")])
         warm = gen == 0 and source is Source.WARM_START
         members = [knee] + ([ANCHOR] if warm and knee != ANCHOR else [])
         fit, stats = backend.evaluate_members(members, seeds)
