@@ -11,6 +11,8 @@ from contextlib import nullcontext
 from dataclasses import fields
 from pathlib import Path
 
+import numpy as np
+
 from gridsim.cli import MAX_SEED, at_least, run_command
 from gridsim.errors import GridSimError
 from gridsim.outputs import new_folder, output_problem, write_json
@@ -59,7 +61,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
             print(f"neurotrajectory: note: no held-out report: {problem}", file=sys.stderr)
             heldout = 0
         summary = run.train(progress=not args.quiet)
-        print(json.dumps({"run": str(run.out), **summary}, indent=1))
+        print(front_table(run.out, summary))
         if heldout:
             _heldout(run, heldout)
         if video:  # an episode no generation trained on
@@ -116,6 +118,36 @@ def _check_video(path: str) -> None:
     problem = video_problem(path)
     if problem:
         raise RunError(f"--video {path}: {problem}")
+
+
+def front_table(out: Path, summary: dict) -> str:
+    """What ``train`` prints when the generations are done: where the run is, and its final
+    front's members (the knee marked, the best validated knee of any generation named), the
+    warm start and, if any, the best knee beside them, scored on the episodes the front was
+    chosen on (``summary``: ``front.json``'s)."""
+    from neurotrajectory.evolve.pareto import pick_member
+
+    front = summary["front"]
+    fitness = np.array([[m["l1"], m["l2"], m["l3"]] for m in front])
+    knee = pick_member(fitness, "knee")
+    best = summary.get("best_knee", {}).get("index")
+    rows = []
+    for k, m in enumerate(front):
+        name = f"member {m['index']}" + (" (best knee of generation "
+                                         f"{summary['best_knee']['generation']})"
+                                         if m["index"] == best else "")  # fmt: skip
+        rows.append((("* " if k == knee else "  ") + name, m))
+    if "warm_start" in summary:
+        rows.append(("  warm start", summary["warm_start"]))
+    head = (f"{out}: {summary['generation'] + 1} generations; the front of {len(front)} "
+            f"chosen on {summary['chosen_on']} (* the knee):")  # fmt: skip
+    width = max(len(name) for name, _ in rows)
+    lines = [head, f"  {'':<{width}}  {'l1':>10}  {'l2':>8}  {'l3':>9}  {'time lost':>9}"]
+    lines += [f"  {name:<{width}}  {m['l1']:10.1f}  {m['l2']:8.3f}  {m['l3']:9.1f}  "
+              f"{m['violation']:9.1%}" for name, m in rows]  # fmt: skip
+    lines.append("  (mean episode sums of the fitness vector: l1 and l2 lower, l3 higher is "
+                 "better; front.json holds them)")  # fmt: skip
+    return "\n".join(lines)
 
 
 def _heldout(

@@ -22,6 +22,7 @@ from neurotrajectory.cli import main
 from neurotrajectory.evolve.backends import BackendError, WorkerSpec, make_backend
 from neurotrajectory.evolve.fitness import Evaluator
 from neurotrajectory.evolve.genome import Recipe
+from neurotrajectory.evolve.pareto import pick_member
 from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
 from neurotrajectory.model import PRESETS
 
@@ -162,6 +163,12 @@ def test_train_and_rollout_commands(tmp_path, capsys):
     assert (out / "knee.mp4").stat().st_size > 1000
     printed = capsys.readouterr().out
     assert "knee member on 2 held-out episodes (3 s each):" in printed
+    summary = json.loads((out / "front.json").read_text())
+    assert f"{out}: 2 generations; the front of {len(summary['front'])} chosen on 8 " in printed
+    knee = pick_member(np.array([[m[k] for k in ("l1", "l2", "l3")] for m in summary["front"]]),
+                       "knee")  # fmt: skip
+    member = summary["front"][knee]
+    assert f"  * member {member['index']}  " in printed and f"{member['l1']:10.1f}" in printed
     assert "  knee member        completed" in printed and "destination curve  completed" in printed
     report = json.loads((out / "heldout.json").read_text())
     assert report["seeds"] == list(Run.open(out).config.heldout_seeds(2))
