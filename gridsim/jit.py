@@ -12,25 +12,65 @@ numba checks a cached kernel against its own source file only: after editing a k
 kernels in other modules call (e.g. ``polyline_kernels.project``, called by
 ``scripted_driver_kernels.route_leader``), delete the ``__pycache__/*.nbi`` and ``*.nbc``
 files of the package (a fresh checkout has none), or the callers keep the old code.
+
+Compiling all kernels takes about 30 s; ``pip install .`` does it while it builds the package
+(``gridsim compile``), so that a user's first environment starts at once. When a kernel is
+compiled at run time all the same (an editable install, another CPU, another numba), one
+line on stderr says so, once per process (:data:`NOTICE`).
 """
 
 from __future__ import annotations
 
 import os
+import sys
 from collections.abc import Callable
 
 os.environ.setdefault("NUMBA_DISABLE_INTEL_SVML", "1")  # read when numba is first imported
 
 import numba  # noqa: E402
+from numba.core import event  # noqa: E402
 from numba.extending import register_jitable  # noqa: E402
+
+#: What a process prints (stderr) when it first compiles one of GridSim's kernels.
+NOTICE = ("gridsim: compiling the simulator's kernels for this machine, once (about 30 s; "
+          "later runs load them from the cache; `gridsim compile` does it ahead)")  # fmt: skip
+
+_KERNELS: list = []  # every kernel defined so far
+_COMPILED = [0]  # kernels compiled (not loaded from the cache) in this process
+
+
+class _CompileNotice(event.Listener):
+    """Counts the compilations of GridSim's kernels; prints :data:`NOTICE` at the first."""
+
+    def on_start(self, e) -> None:
+        fn = getattr(e.data.get("dispatcher"), "py_func", None)
+        if fn is None or not fn.__module__.startswith("gridsim."):
+            return
+        if not _COMPILED[0]:
+            print(NOTICE, file=sys.stderr, flush=True)
+        _COMPILED[0] += 1
+
+    def on_end(self, e) -> None:
+        pass
+
+
+event.register("numba:compile", _CompileNotice())
+
+
+def compiled_kernels() -> dict:
+    """``{"kernels": defined so far, "compiled": compilations in this process}`` (cache
+    loads are not compilations)."""
+    return {"kernels": len(_KERNELS), "compiled": _COMPILED[0]}
 
 
 def kernel(fn: Callable) -> Callable:
     """``fn`` as a lazily compiled, disk-cached numba function (``nopython``, no fastmath)."""
     try:
-        return numba.njit(cache=True, nogil=True)(fn)
+        compiled = numba.njit(cache=True, nogil=True)(fn)
     except RuntimeError:  # no writable cache location
-        return numba.njit(nogil=True)(fn)
+        compiled = numba.njit(nogil=True)(fn)
+    _KERNELS.append(compiled)
+    return compiled
 
 
 def jitable(fn: Callable) -> Callable:

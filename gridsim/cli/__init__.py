@@ -127,6 +127,16 @@ def _cmd_drive(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_compile(args: argparse.Namespace) -> int:
+    from gridsim.cli.compile import compile_kernels
+
+    print("compiling or loading the kernels of every built-in scenario:")
+    done = compile_kernels()
+    print(f"{done['kernels']} kernels ready ({done['compiled']} compilations) in "
+          f"{done['seconds']:g} s")  # fmt: skip
+    return 0
+
+
 def _cmd_run(args: argparse.Namespace) -> int:
     from gridsim.cli.run import run_policy
 
@@ -188,6 +198,12 @@ def build_parser() -> argparse.ArgumentParser:
     s.add_argument("--out", default="out/drive", help="output folder")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=_cmd_drive)
+    s = sub.add_parser(
+        "compile",
+        help="compile the simulator's kernels for this machine and cache them (pip install . "
+        "does it; run it after an editable install, or to fill a read-only install's cache)",
+    )
+    s.set_defaults(func=_cmd_compile)
     return p
 
 

@@ -1,0 +1,53 @@
+"""``gridsim compile``: compile the simulator's kernels for this machine and cache them, so that
+the first environment a user makes runs at once (``pip install .`` does it while it builds).
+
+The kernels are numba functions compiled on first call for the argument types they get
+(:mod:`gridsim.jit`); driving every built-in scenario briefly with every action type makes
+each kernel meet the types it meets in use. What is compiled is cached next to the source
+(``__pycache__``), keyed by the source's content, the CPU and numba's version.
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from collections.abc import Callable
+
+from gridsim.errors import DataWarning
+
+#: Decisions driven per scenario and action type: enough to start the traffic, the sensor,
+#: the shadow world and the controllers.
+STEPS = 12
+
+
+def compile_kernels(report: Callable[[str], None] = print) -> dict:
+    """Drive every built-in scenario with every action type for :data:`STEPS` decisions (the
+    reference set-points, then seeded random actions), which compiles every kernel they use
+    or loads it from the cache; ``{"scenarios", "kernels", "compiled", "seconds"}``."""
+    from gridsim.envs.gridsim_env import ACTION_TYPES, GridSimEnv
+    from gridsim.jit import compiled_kernels
+    from gridsim.scenario.loader import builtin_scenarios
+
+    t0 = time.perf_counter()
+    before = compiled_kernels()
+    names = list(builtin_scenarios())
+    for name in names:
+        report(f"  {name}")
+        for action_type in ACTION_TYPES:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", DataWarning)
+                env = GridSimEnv(name, action_type=action_type)
+                env.action_space.seed(0)
+                _, info = env.reset(seed=0)
+            for _ in range(STEPS):
+                if action_type == "trajectory":
+                    action = info["reference_setpoints"]
+                else:
+                    action = env.action_space.sample()
+                _, _, terminated, truncated, info = env.step(action)
+                if terminated or truncated:
+                    _, info = env.reset(seed=1)
+    after = compiled_kernels()
+    return {"scenarios": len(names), "kernels": after["kernels"],
+            "compiled": after["compiled"] - before["compiled"],
+            "seconds": round(time.perf_counter() - t0, 1)}  # fmt: skip
