@@ -30,3 +30,29 @@ def test_sb3_ppo_runs_a_few_hundred_steps(tmp_path):
     obs, _ = env.reset(seed=0)
     action, _ = model.predict(obs, deterministic=True)
     assert env.action_space.contains(np.asarray(action, np.float32))
+
+
+def test_sb3_make_vec_env_trains_on_the_registered_scalar_variant(tmp_path):
+    """make_vec_env wraps its Monitor around the env before any wrapper_class: the scalar
+    variant gives it a scalar reward, the weights as a keyword; the vector stays in info."""
+    import torch
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.logger import configure
+
+    from gridsim.envs import SCALAR_ENV_ID
+
+    torch.set_num_threads(1)
+    weights = (-0.02, -1.0, 0.2)
+    kwargs = {"weights": weights, "action_type": "control", "simulation": {"duration": 3.0},
+              "sensor": {"rows": 64, "cols": 64}}  # fmt: skip
+    venv = make_vec_env(SCALAR_ENV_ID, n_envs=2, seed=0, env_kwargs=kwargs)
+    venv.reset()
+    _, rewards, _, infos = venv.step(np.zeros((2, 2), np.float32))
+    assert rewards.shape == (2,)
+    np.testing.assert_allclose(rewards, [np.dot(weights, i["fitness"]) for i in infos], rtol=1e-5)
+    model = sb3.PPO("MultiInputPolicy", venv, n_steps=32, batch_size=32, n_epochs=1, seed=0,
+                    device="cpu", verbose=0)  # fmt: skip
+    model.set_logger(configure(str(tmp_path), []))
+    model.learn(total_timesteps=64)
+    with pytest.raises(ValueError, match="weights must be 3 finite numbers"):
+        gym.make(SCALAR_ENV_ID, weights=(1.0, 2.0))

@@ -1,14 +1,19 @@
-"""Gymnasium environments: ``GridSim-v0``."""
+"""Gymnasium environments: ``GridSim-v0`` (reward: the fitness vector ``[l1, l2, l3]``) and
+``GridSimScalar-v0`` (the same, its reward scalarised by
+:class:`~gridsim.envs.wrappers.LinearScalarization` with the keyword ``weights``: for
+single-objective libraries such as Stable-Baselines3)."""
 
 from __future__ import annotations
 
 import gymnasium
 
 ENV_ID = "GridSim-v0"
+#: The scalar-reward variant (keyword ``weights``, default ``wrappers.DEFAULT_WEIGHTS``).
+SCALAR_ENV_ID = "GridSimScalar-v0"
 
 
 def register_envs() -> None:
-    """Register ``GridSim-v0`` with gymnasium (idempotent)."""
+    """Register ``GridSim-v0`` and ``GridSimScalar-v0`` with gymnasium (idempotent)."""
     if ENV_ID not in gymnasium.registry:
         gymnasium.register(
             id=ENV_ID,
@@ -26,4 +31,11 @@ def register_envs() -> None:
             # The reward is a vector (MO-Gymnasium style); gymnasium's passive checker would
             # warn on every step. check_env is run in the test suite instead.
             disable_env_checker=True,
+        )
+    if SCALAR_ENV_ID not in gymnasium.registry:
+        gymnasium.register(
+            id=SCALAR_ENV_ID,
+            entry_point="gridsim.envs.wrappers:make_scalar_env",
+            order_enforce=False,  # as GridSim-v0
+            disable_env_checker=True,  # checked in the test suite
         )

@@ -37,6 +37,17 @@ class LinearScalarization(gym.RewardWrapper):
         return float(np.dot(self.weights, reward))
 
 
+def make_scalar_env(weights: Sequence[float] = DEFAULT_WEIGHTS, **kwargs) -> LinearScalarization:
+    """``GridSimScalar-v0``: GridSim-v0 made with ``kwargs``, its reward ``weights . [l1, l2,
+    l3]``. Registered, so that libraries that wrap the env they make before any wrapper of
+    yours (Stable-Baselines3's ``make_vec_env`` puts its ``Monitor`` first, which needs a
+    scalar reward) get the scalar: ``make_vec_env("GridSimScalar-v0", env_kwargs={"weights":
+    (-0.01, -0.5, 0.1), "action_type": "control"})``."""
+    from gridsim.envs.gridsim_env import make_env
+
+    return LinearScalarization(make_env(**kwargs), weights)
+
+
 class PlanSmoothing(gym.ActionWrapper):
     """Steps GridSim-v0 (trajectory action) with each action blended with the plan before it:
     ``keep`` is the share of the previous plan kept (see :mod:`gridsim.envs.plan_smoothing`).
