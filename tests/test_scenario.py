@@ -204,7 +204,7 @@ def test_random_documents_only_raise_scenario_errors(doc):
 def mutate(doc, path, value):
     node = doc
     for k in path[:-1]:
-        node = node[k]
+        node = node.setdefault(k, {})  # a section the file leaves to the defaults
     node[path[-1]] = value
     return doc
 
@@ -348,3 +348,69 @@ def test_what_is_not_a_scenario_is_named(tmp_path):
         load_scenario(csv)
     with pytest.raises(ScenarioError, match="overrides must be a mapping of keys .*got list"):
         load_scenario("seamless", [1, 2])
+
+
+def test_a_file_written_from_scratch_gets_its_familys_defaults():
+    """An inner-city file that says nothing of traffic drives at city speeds, a recorded one
+    at the recorded traffic's; what a file states wins."""
+    city = parse_scenario({"name": "mine", "road": {"type": "inner_city"}}).config
+    builtin = load_scenario("inner_city").config
+    assert (city.traffic.v_min, city.traffic.v_max, city.traffic.participants) == (2.77, 8.33, 20)
+    assert city.ego.vehicle.v_max == builtin.ego.vehicle.v_max == 8.33
+    assert city.ego.speed == builtin.ego.speed == 5.0
+    faster = parse_scenario({"name": "m", "road": {"type": "inner_city"},
+                             "traffic": {"v_max": 10.0}}).config  # fmt: skip
+    assert faster.traffic.v_max == 10.0 and faster.traffic.v_min == 2.77
+    seamless = parse_scenario({"name": "s", "road": {"type": "seamless"}}).config
+    assert seamless.traffic.v_max == 13.88 and seamless.traffic.participants == 10
+    recorded = load_scenario("us101_4_1").config
+    assert recorded.ego.vehicle.v_max == 25.0 and recorded.env.speed_range == (0.0, 30.0)
+
+
+def test_a_scenario_extends_a_built_in_or_another_file(tmp_path):
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "sub" / "busy.yaml").write_text(
+        "extends: inner_city\nname: busy\ntraffic:\n  participants: 40\n"
+        "  library: [tracks.csv]\n")  # fmt: skip
+    (tmp_path / "busier.yaml").write_text(
+        "extends: sub/busy.yaml\nname: busier\nsimulation:\n  duration: 20\n")
+    busy = load_scenario(tmp_path / "sub" / "busy.yaml").config
+    base = load_scenario("inner_city").config
+    assert busy.traffic.participants == 40 and busy.road == base.road
+    assert busy.model_dump(exclude={"name", "traffic"}) == base.model_dump(exclude={"name",
+                                                                                      "traffic"})
+    busier = load_scenario(tmp_path / "busier.yaml").config
+    assert busier.name == "busier" and busier.simulation.duration == 20
+    assert busier.traffic.participants == 40  # through two files
+    # a relative path of the extended file names the same file from the extending one
+    assert busier.traffic.library == [str(tmp_path / "sub" / "tracks.csv")]
+
+
+@pytest.mark.parametrize(
+    ("files", "message"),
+    [
+        ({"a.yaml": "extends: b.yaml\nname: a\n", "b.yaml": "extends: a.yaml\nname: b\n"},
+         "extends goes round in a circle: .*a.yaml -> .*b.yaml -> .*a.yaml"),
+        ({"a.yaml": "extends: nowhere.yaml\nname: a\n"},
+         "a.yaml: extends 'nowhere.yaml': scenario file not found"),
+        ({"a.yaml": "extends: [seamless]\nname: a\n"}, "extends must be a built-in scenario name"),
+        ({"a.yaml": "extends: scene.xml\nname: a\n"}, "a CommonRoad file cannot be extended"),
+        ({"a.yaml": "extends: b.yaml\nname: a\n", "b.yaml": "- not a mapping\n"},
+         "b.yaml: a scenario must be a mapping of keys"),
+        ({"a.yaml": "extends: seamless\nname: a\nroad:\n  lanes: 0\n"}, "road.lanes"),
+    ],
+)
+def test_bad_extends_are_named(tmp_path, files, message):
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    with pytest.raises(ScenarioError, match=message):
+        load_scenario(tmp_path / "a.yaml")
+
+
+def test_an_extends_chain_is_bounded(tmp_path):
+    for k in range(12):
+        (tmp_path / f"s{k}.yaml").write_text(f"extends: s{k + 1}.yaml\nname: s{k}\n")
+    (tmp_path / "s12.yaml").write_text("extends: seamless\nname: s12\n")
+    with pytest.raises(ScenarioError, match="extends goes through more than 8 files"):
+        load_scenario(tmp_path / "s0.yaml")
+    assert load_scenario(tmp_path / "s6.yaml").config.name == "s6"

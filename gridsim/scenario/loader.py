@@ -219,24 +219,45 @@ def deep_merge(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[st
     return out
 
 
+#: What a scenario of each road family gets where its file is silent (before the schema's
+#: own defaults, which are the seamless road's): city speeds and more participants on the
+#: inner-city network, the recorded traffic's speeds on recorded scenes.
+FAMILY_DEFAULTS: dict[str, dict[str, Any]] = {
+    "seamless": {},
+    "inner_city": {
+        "traffic": {"participants": 20, "v_min": 2.77, "v_max": 8.33},
+        "ego": {"speed": 5.0, "vehicle": {"v_max": 8.33}},
+    },
+    "recorded": {
+        "ego": {"vehicle": {"v_max": 25.0, "a_max": 3.0}},
+        "env": {"speed_range": [0.0, 30.0]},
+    },
+}
+
+#: How many files an ``extends:`` chain may pass through.
+MAX_EXTENDS = 8
+
+
 def parse_scenario(
     doc: Any,
     source: str = "<scenario>",
     base_dir: Path | None = None,
     overrides: Mapping[str, Any] | None = None,
 ) -> Scenario:
-    """Validate a parsed YAML document (plus ``overrides``) into a :class:`Scenario`."""
-    if not isinstance(doc, Mapping):
-        raise ScenarioError(
-            f"{source}: a scenario must be a mapping of keys, got {type(doc).__name__}"
-        )
-    if any(not isinstance(k, str) for k in doc):
-        raise ScenarioError(f"{source}: all top-level keys must be strings")
+    """Validate a parsed YAML document (plus ``overrides``) into a :class:`Scenario`: the
+    scenario it ``extends:`` first, if any (:func:`_extended`), then its road family's
+    :data:`FAMILY_DEFAULTS`, then the document, then ``overrides``."""
+    _check_mapping(doc, source)
     if overrides is not None and not isinstance(overrides, Mapping):
         raise ScenarioError(f"{source}: overrides must be a mapping of keys (like the YAML), "
                             f"got {type(overrides).__name__}")  # fmt: skip
+    doc = _extended(doc, source, base_dir)
     if overrides:
         doc = deep_merge(doc, overrides)
+    road = doc.get("road")
+    family = road.get("type") if isinstance(road, Mapping) else None
+    if isinstance(family, str) and family in FAMILY_DEFAULTS:
+        doc = deep_merge(FAMILY_DEFAULTS[family], doc)
     try:
         cfg = ScenarioConfig.model_validate(doc)
     except ValidationError as exc:
@@ -244,14 +265,80 @@ def parse_scenario(
     return Scenario(cfg, source, base_dir)
 
 
+def _check_mapping(doc: Any, source: str) -> None:
+    """A :class:`ScenarioError` unless ``doc`` is a mapping with text keys."""
+    if not isinstance(doc, Mapping):
+        raise ScenarioError(
+            f"{source}: a scenario must be a mapping of keys, got {type(doc).__name__}"
+        )
+    if any(not isinstance(k, str) for k in doc):
+        raise ScenarioError(f"{source}: all top-level keys must be strings")
+
+
+def _extended(doc: Mapping[str, Any], source: str, base_dir: Path | None,
+              chain: tuple[str, ...] = ()) -> dict[str, Any]:  # fmt: skip
+    """``doc`` merged over the scenario its ``extends:`` names (a built-in name, or a YAML
+    path relative to ``base_dir``; that one's own ``extends:`` first), whose relative file
+    paths are made absolute; ``doc`` itself if it extends nothing. A :class:`ScenarioError`
+    for a reference that is not a scenario, a cycle or a chain longer than
+    :data:`MAX_EXTENDS`."""
+    if "extends" not in doc:
+        return dict(doc)
+    ref = doc["extends"]
+    if not isinstance(ref, str) or not ref.strip():
+        raise ScenarioError(f"{source}: extends must be a built-in scenario name or a path to a "
+                            f"YAML scenario file, got {ref!r}")  # fmt: skip
+    if Path(ref).suffix.lower() == ".xml":
+        raise ScenarioError(f"{source}: extends {ref!r}: a CommonRoad file cannot be extended; "
+                            "write its YAML with `gridsim import`, then extend that")  # fmt: skip
+    target = ref
+    if base_dir is not None and (Path(ref).suffix in (".yaml", ".yml") or "/" in ref):
+        target = str(base_dir / ref)
+    if len(chain) >= MAX_EXTENDS:
+        raise ScenarioError(f"{source}: extends goes through more than {MAX_EXTENDS} files: "
+                            f"{' -> '.join(chain)}")  # fmt: skip
+    try:
+        text, parent_source, parent_dir = _read(target)
+    except ScenarioError as exc:
+        raise ScenarioError(f"{source}: extends {ref!r}: {exc}") from None
+    if parent_source in (*chain, source):
+        raise ScenarioError(f"{source}: extends goes round in a circle: "
+                            f"{' -> '.join((*chain, source, parent_source))}")  # fmt: skip
+    parent = _parse_yaml(text, parent_source)
+    _check_mapping(parent, parent_source)
+    parent = _extended(parent, parent_source, parent_dir, (*chain, source))
+    own = {k: v for k, v in doc.items() if k != "extends"}
+    return deep_merge(_absolute_paths(parent, parent_dir), own)
+
+
+def _absolute_paths(doc: dict[str, Any], base_dir: Path | None) -> dict[str, Any]:
+    """``doc`` with its relative file paths (``road.map``, ``traffic.library`` files) made
+    absolute against ``base_dir``, so that they name the same files from another folder."""
+    if base_dir is None:
+        return doc
+
+    def absolute(ref: Any) -> Any:
+        if not isinstance(ref, str) or ref in ("builtin", "scene") or ref.startswith("builtin:"):
+            return ref
+        return ref if Path(ref).is_absolute() else str(base_dir / ref)
+
+    out = dict(doc)
+    if isinstance(out.get("road"), Mapping) and "map" in out["road"]:
+        out["road"] = {**out["road"], "map": absolute(out["road"]["map"])}
+    if isinstance(out.get("traffic"), Mapping) and isinstance(out["traffic"].get("library"), list):
+        out["traffic"] = {**out["traffic"],
+                          "library": [absolute(r) for r in out["traffic"]["library"]]}  # fmt: skip
+    return out
+
+
 #: The scenario of a CommonRoad file given as is (see :func:`commonroad_scenario`): like the
-#: built-in recorded scenes, with the scene's own tracks and an episode as long as the ego's.
-COMMONROAD_DEFAULTS: dict[str, Any] = {
+#: built-in recorded scenes (and :data:`FAMILY_DEFAULTS`' recorded family), with the scene's
+#: own tracks and an episode as long as the ego's.
+COMMONROAD_DEFAULTS: dict[str, Any] = deep_merge(FAMILY_DEFAULTS["recorded"], {
     "simulation": {"dt": 0.1, "duration": 3600.0},
     "traffic": {"library": ["scene"]},
-    "ego": {"track": "random", "vehicle": {"v_max": 25.0, "a_max": 3.0}},
-    "env": {"speed_range": [0.0, 30.0]},
-}
+    "ego": {"track": "random"},
+})  # fmt: skip
 
 
 def commonroad_scenario(path: Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
@@ -276,14 +363,19 @@ def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None 
     if isinstance(name_or_path, str | os.PathLike) and Path(name_or_path).suffix.lower() == ".xml":
         return commonroad_scenario(Path(name_or_path), overrides)
     text, source, base = _read(name_or_path)
+    return parse_scenario(_parse_yaml(text, source), source, base, overrides)
+
+
+def _parse_yaml(text: str, source: str) -> Any:
+    """The YAML document ``text`` of ``source``; a :class:`ScenarioError` saying where it is
+    malformed."""
     try:
-        doc = _load_yaml(text, source)
+        return _load_yaml(text, source)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
         problem = getattr(exc, "problem", None) or str(exc)
         raise ScenarioError(f"{source}: malformed YAML{where}: {problem}") from None
-    return parse_scenario(doc, source, base, overrides)
 
 
 def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
