@@ -98,7 +98,7 @@ def test_malformed_yaml_names_file_and_line(tmp_path):
         ({"sensor": {"cell_size": 0}}, r"sensor\.cell_size: Input should be greater than 0"),
         (
             {"traffic": {"v_min": 20, "v_max": 10}},
-            r"traffic: Value error, v_max \(10\.0\) must be >= v_min",
+            r"traffic: v_max \(10\.0\) must be >= v_min",
         ),
         ({"simulation": {"dt": float("nan")}}, r"simulation\.dt"),
         ({"ego": {"lane": 5}}, r"ego\.lane \(5\) must be < road\.lanes \(3\)"),
@@ -414,3 +414,23 @@ def test_an_extends_chain_is_bounded(tmp_path):
     with pytest.raises(ScenarioError, match="extends goes through more than 8 files"):
         load_scenario(tmp_path / "s0.yaml")
     assert load_scenario(tmp_path / "s6.yaml").config.name == "s6"
+
+
+def test_validate_reports_every_problem_of_a_file_at_once(tmp_path, capsys):
+    """A key's own problem and the checks across keys, which run only on valid keys, come in
+    one report; a check about a key that failed on its own is not guessed at."""
+    path = tmp_path / "bad.yaml"
+    path.write_text("name: x\nroad:\n  type: seamless\nego:\n  speed: 30\n  lane: 5\ntraffic:\n"
+                    "  v_min: 9\n  v_max: 3\nenv:\n  decision_period: 0.15\n")  # fmt: skip
+    assert main(["validate", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "invalid scenario (4 problem(s)):" in err
+    for line in ("  - traffic: v_max (3.0) must be >= v_min (9.0)\n",
+                 "  - ego.speed (30.0) must be <= ego.vehicle.v_max (20.0)\n",
+                 "  - ego.lane (5) must be < road.lanes (3)\n",
+                 "  - env.decision_period (0.15) must be a whole multiple of simulation.dt"):
+        assert line in err  # fmt: skip
+    path.write_text("name: x\nroad:\n  type: seamless\nego:\n  speed: 30\n  vehicle:\n"
+                    "    v_max: fast\n")  # fmt: skip
+    with pytest.raises(ScenarioError, match=r"\(1 problem\(s\)\):\n  - ego.vehicle.v_max: "):
+        load_scenario(path)

@@ -190,8 +190,15 @@ def _did_you_mean(parts: list) -> str:
     return f" (did you mean {close[0]!r}?)" if close else ""
 
 
-def _format_validation(source: str, err: ValidationError) -> str:
-    lines = [f"{source}: invalid scenario ({err.error_count()} problem(s)):"]
+def _format_validation(source: str, problems: list[str]) -> str:
+    return "\n".join([f"{source}: invalid scenario ({len(problems)} problem(s)):",
+                      *(f"  - {p}" for p in problems)])  # fmt: skip
+
+
+def _problems(err: ValidationError) -> list[tuple[tuple, str]]:
+    """``(key path, line)`` per problem of ``err``; a check across keys (a ``ValueError`` of
+    a model validator, several lines for several problems) in its own words."""
+    out = []
     for e in err.errors():
         parts = list(e["loc"])
         if len(parts) > 1 and parts[0] == "road" and parts[1] in _ROAD_TAGS:
@@ -201,11 +208,54 @@ def _format_validation(source: str, err: ValidationError) -> str:
         if e["type"] == "extra_forbidden":
             msg = "unknown key" + _did_you_mean(parts)
         got = e.get("input")
+        if e["type"] == "value_error" and isinstance(got, Mapping):  # across keys: no input
+            for line in msg.removeprefix("Value error, ").splitlines():
+                out.append((tuple(parts), f"{loc}: {line}" if parts else line))
+            continue
         shown = repr(got) if not isinstance(got, Mapping) else "{...}"
         if len(shown) > 60:
             shown = shown[:57] + "..."
-        lines.append(f"  - {loc}: {msg} (got {shown})")
-    return "\n".join(lines)
+        out.append((tuple(parts), f"{loc}: {msg} (got {shown})"))
+    return out
+
+
+def _validate(doc: dict[str, Any], source: str) -> ScenarioConfig:
+    """``doc`` validated; else a :class:`ScenarioError` listing every problem at once. The
+    checks across keys run only on keys that are valid each on its own, so a failed document
+    is checked again with its failing keys left to their defaults (up to 3 times), and the
+    problems that this finds about keys that did not fail are added."""
+    problems: list[str] = []
+    removed: list[str] = []
+    for _ in range(3):
+        try:
+            cfg = ScenarioConfig.model_validate(doc)
+        except ValidationError as exc:
+            found = _problems(exc)
+        else:
+            if not problems:
+                return cfg
+            break
+        new = [line for _, line in found if line not in problems
+               and not any(path in line for path in removed)]  # fmt: skip
+        problems += new
+        paths = [parts for parts, _ in found if parts]
+        if not new or not paths:
+            break
+        for parts in paths:
+            doc = _without(doc, parts)
+            removed.append(".".join(map(str, parts)))
+    raise ScenarioError(_format_validation(source, problems))
+
+
+def _without(doc: Mapping[str, Any], parts: tuple) -> dict[str, Any]:
+    """``doc`` without the key at ``parts`` (a list item: the list's key)."""
+    out = dict(doc)
+    key = parts[0]
+    if len(parts) > 1 and isinstance(out.get(key), Mapping) and not isinstance(parts[1], int):
+        out[key] = _without(out[key], parts[1:])
+    else:
+        out.pop(key, None)
+    return out
 
 
 def deep_merge(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
@@ -258,11 +308,7 @@ def parse_scenario(
     family = road.get("type") if isinstance(road, Mapping) else None
     if isinstance(family, str) and family in FAMILY_DEFAULTS:
         doc = deep_merge(FAMILY_DEFAULTS[family], doc)
-    try:
-        cfg = ScenarioConfig.model_validate(doc)
-    except ValidationError as exc:
-        raise ScenarioError(_format_validation(source, exc)) from None
-    return Scenario(cfg, source, base_dir)
+    return Scenario(_validate(doc, source), source, base_dir)
 
 
 def _check_mapping(doc: Any, source: str) -> None:

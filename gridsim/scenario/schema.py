@@ -270,26 +270,28 @@ class ScenarioConfig(Strict):
 
     @model_validator(mode="after")
     def _consistency(self) -> ScenarioConfig:
+        """Checks across sections, every failing one reported (one line each)."""
+        problems = []
         if self.ego.speed > self.ego.vehicle.v_max:
-            raise ValueError(f"ego.speed ({self.ego.speed}) must be <= ego.vehicle.v_max "
-                             f"({self.ego.vehicle.v_max})")  # fmt: skip
+            problems.append(f"ego.speed ({self.ego.speed}) must be <= ego.vehicle.v_max "
+                            f"({self.ego.vehicle.v_max})")  # fmt: skip
         lanes = getattr(self.road, "lanes", None)
         if lanes is not None and self.ego.lane >= lanes:
-            raise ValueError(f"ego.lane ({self.ego.lane}) must be < road.lanes ({lanes})")
+            problems.append(f"ego.lane ({self.ego.lane}) must be < road.lanes ({lanes})")
         dt = self.simulation.dt
         ticks = self.env.decision_period / dt
         if abs(ticks - round(ticks)) > 1e-6 or round(ticks) < 1:
-            raise ValueError(
-                f"env.decision_period ({self.env.decision_period}) must be a whole multiple of "
-                f"simulation.dt ({dt})"
-            )
+            problems.append(f"env.decision_period ({self.env.decision_period}) must be a whole "
+                            f"multiple of simulation.dt ({dt})")  # fmt: skip
         goal = self.env.goal_seconds
         if goal is not None and goal < self.env.horizon_time - 1e-9:
-            raise ValueError(f"env.goal_seconds ({goal:g}) must be >= the horizon's "
-                             f"{self.env.horizon_time:g} s (env.horizon x env.setpoint_period): "
-                             "the destination lies at or beyond the last set-point")  # fmt: skip
+            problems.append(f"env.goal_seconds ({goal:g}) must be >= the horizon's "
+                            f"{self.env.horizon_time:g} s (env.horizon x env.setpoint_period): "
+                            "the destination lies at or beyond the last set-point")  # fmt: skip
         if self.env.speed_range is not None and self.env.speed_range[0] > self.env.speed_range[1]:
-            raise ValueError(f"env.speed_range {list(self.env.speed_range)} must be [min, max]")
+            problems.append(f"env.speed_range {list(self.env.speed_range)} must be [min, max]")
+        if problems:
+            raise ValueError("\n".join(problems))
         return self
 
     @property
