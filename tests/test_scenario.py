@@ -373,12 +373,14 @@ def test_a_scenario_extends_a_built_in_or_another_file(tmp_path):
         "extends: inner_city\nname: busy\ntraffic:\n  participants: 40\n"
         "  library: [tracks.csv]\n")  # fmt: skip
     (tmp_path / "busier.yaml").write_text(
-        "extends: sub/busy.yaml\nname: busier\nsimulation:\n  duration: 20\n")
+        "extends: sub/busy.yaml\nname: busier\nsimulation:\n  duration: 20\n"
+    )
     busy = load_scenario(tmp_path / "sub" / "busy.yaml").config
     base = load_scenario("inner_city").config
     assert busy.traffic.participants == 40 and busy.road == base.road
-    assert busy.model_dump(exclude={"name", "traffic"}) == base.model_dump(exclude={"name",
-                                                                                      "traffic"})
+    assert busy.model_dump(exclude={"name", "traffic"}) == base.model_dump(
+        exclude={"name", "traffic"}
+    )
     busier = load_scenario(tmp_path / "busier.yaml").config
     assert busier.name == "busier" and busier.simulation.duration == 20
     assert busier.traffic.participants == 40  # through two files
@@ -389,14 +391,20 @@ def test_a_scenario_extends_a_built_in_or_another_file(tmp_path):
 @pytest.mark.parametrize(
     ("files", "message"),
     [
-        ({"a.yaml": "extends: b.yaml\nname: a\n", "b.yaml": "extends: a.yaml\nname: b\n"},
-         "extends goes round in a circle: .*a.yaml -> .*b.yaml -> .*a.yaml"),
-        ({"a.yaml": "extends: nowhere.yaml\nname: a\n"},
-         "a.yaml: extends 'nowhere.yaml': scenario file not found"),
+        (
+            {"a.yaml": "extends: b.yaml\nname: a\n", "b.yaml": "extends: a.yaml\nname: b\n"},
+            "extends goes round in a circle: .*a.yaml -> .*b.yaml -> .*a.yaml",
+        ),
+        (
+            {"a.yaml": "extends: nowhere.yaml\nname: a\n"},
+            "a.yaml: extends 'nowhere.yaml': scenario file not found",
+        ),
         ({"a.yaml": "extends: [seamless]\nname: a\n"}, "extends must be a built-in scenario name"),
         ({"a.yaml": "extends: scene.xml\nname: a\n"}, "a CommonRoad file cannot be extended"),
-        ({"a.yaml": "extends: b.yaml\nname: a\n", "b.yaml": "- not a mapping\n"},
-         "b.yaml: a scenario must be a mapping of keys"),
+        (
+            {"a.yaml": "extends: b.yaml\nname: a\n", "b.yaml": "- not a mapping\n"},
+            "b.yaml: a scenario must be a mapping of keys",
+        ),
         ({"a.yaml": "extends: seamless\nname: a\nroad:\n  lanes: 0\n"}, "road.lanes"),
     ],
 )
@@ -425,10 +433,12 @@ def test_validate_reports_every_problem_of_a_file_at_once(tmp_path, capsys):
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
     assert "invalid scenario (4 problem(s)):" in err
-    for line in ("  - traffic: v_max (3.0) must be >= v_min (9.0)\n",
-                 "  - ego.speed (30.0) must be <= ego.vehicle.v_max (20.0)\n",
-                 "  - ego.lane (5) must be < road.lanes (3)\n",
-                 "  - env.decision_period (0.15) must be a whole multiple of simulation.dt"):
+    for line in (
+        "  - traffic: v_max (3.0) must be >= v_min (9.0)\n",
+        "  - ego.speed (30.0) must be <= ego.vehicle.v_max (20.0)\n",
+        "  - ego.lane (5) must be < road.lanes (3)\n",
+        "  - env.decision_period (0.15) must be a whole multiple of simulation.dt",
+    ):
         assert line in err  # fmt: skip
     path.write_text("name: x\nroad:\n  type: seamless\nego:\n  speed: 30\n  vehicle:\n"
                     "    v_max: fast\n")  # fmt: skip
