@@ -19,7 +19,10 @@ class BuildPyAndCompile(build_py):
         super().run()
         if self.editable_mode or os.environ.get("GRIDSIM_SKIP_COMPILE"):
             return
-        env = {**os.environ, "PYTHONPATH": os.path.abspath(self.build_lib)}
+        # the built package first, then what this build sees (pip's isolated build
+        # environment, which holds the dependencies, is on sys.path, not in site-packages)
+        path = [os.path.abspath(self.build_lib), *(p for p in sys.path if p)]
+        env = {**os.environ, "PYTHONPATH": os.pathsep.join(path)}
         try:
             subprocess.run([sys.executable, "-m", "gridsim", "compile"], env=env, check=True,
                            cwd=self.build_lib, timeout=900)  # fmt: skip
