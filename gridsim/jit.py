@@ -36,7 +36,9 @@ NOTICE = ("gridsim: compiling the simulator's kernels for this machine, once (ab
           "later runs load them from the cache; `gridsim compile` does it ahead)")  # fmt: skip
 
 _KERNELS: list = []  # every kernel defined so far
-_COMPILED = [0]  # kernels compiled (not loaded from the cache) in this process
+#: Kernels compiled (not loaded from the cache) in this process, and whether the notice
+#: was printed (a test session sets it, so that no test's stderr depends on the order).
+_COMPILED = {"count": 0, "noticed": False}
 
 
 class _CompileNotice(event.Listener):
@@ -46,9 +48,10 @@ class _CompileNotice(event.Listener):
         fn = getattr(e.data.get("dispatcher"), "py_func", None)
         if fn is None or not fn.__module__.startswith("gridsim."):
             return
-        if not _COMPILED[0]:
+        if not _COMPILED["noticed"]:
             print(NOTICE, file=sys.stderr, flush=True)
-        _COMPILED[0] += 1
+            _COMPILED["noticed"] = True
+        _COMPILED["count"] += 1
 
     def on_end(self, e) -> None:
         pass
@@ -60,7 +63,7 @@ event.register("numba:compile", _CompileNotice())
 def compiled_kernels() -> dict:
     """``{"kernels": defined so far, "compiled": compilations in this process}`` (cache
     loads are not compilations)."""
-    return {"kernels": len(_KERNELS), "compiled": _COMPILED[0]}
+    return {"kernels": len(_KERNELS), "compiled": _COMPILED["count"]}
 
 
 def kernel(fn: Callable) -> Callable:

@@ -46,7 +46,7 @@ def test_the_first_compile_of_a_gridsim_kernel_prints_one_notice(monkeypatch, ca
 
     from gridsim import jit
 
-    monkeypatch.setattr(jit, "_COMPILED", [0])
+    monkeypatch.setattr(jit, "_COMPILED", {"count": 0, "noticed": False})
     listener = jit._CompileNotice()
 
     def event(module: str):

@@ -407,7 +407,7 @@ _OTHER_VALUES = {
     "--dagger-labels": "human", "--prior": "none", "--frame": "grid", "--no-skip": None,
     "--fixed-episodes": None, "--unconstrained": None, "--validation-episodes": "3",
     "--evolve": "head", "--activation": "tanh", "--plan-smoothing": "0.5",
-    "--selection": "anchored", "--goal-seconds": "5",
+    "--selection": "anchored", "--goal-seconds": "5", "--es-step": "2",
 }  # fmt: skip
 #: ``train`` flags that are about the command, not the run's configuration.
 _COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quiet"}
@@ -482,6 +482,14 @@ OPTION_VALUES = {
 }
 
 
+#: What a stubbed training returns (front.json's fields that train prints).
+STUB_SUMMARY = {
+    "generation": 0,
+    "chosen_on": "the last generation",
+    "front": [{"index": 0, "l1": 1.0, "l2": 0.1, "l3": 10.0, "violation": 0.0}],
+}
+
+
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(st.dictionaries(st.sampled_from(sorted(OPTION_VALUES)), st.integers(0, 7), max_size=6))
 def test_fuzzed_train_arguments_fail_cleanly_and_leave_no_run_folder(choice):
@@ -499,7 +507,7 @@ def test_fuzzed_train_arguments_fail_cleanly_and_leave_no_run_folder(choice):
         Path("busy", "notes.txt").write_text("keep")
         err = io.StringIO()
         with (
-            mock.patch.object(Run, "train", lambda self, progress=True: {}),
+            mock.patch.object(Run, "train", lambda self, progress=True: STUB_SUMMARY),
             mock.patch("neurotrajectory.cli._rollout"),
             contextlib.redirect_stderr(err),
             contextlib.redirect_stdout(io.StringIO()),
