@@ -24,3 +24,7 @@ import os
 # threads sleep instead: the same results, at most a little latency. Read when torch is
 # first imported (setdefault: a user's own setting wins).
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+from gridsim import __version__  # noqa: E402  (one distribution, one version)
+
+__all__ = ["__version__"]

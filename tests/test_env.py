@@ -543,3 +543,17 @@ def test_a_vector_option_given_as_an_env_keyword_says_where_it_goes():
     with pytest.raises(ScenarioError, match=r"context: an option of gymnasium's vector env, not "
                                             r"a scenario key: .*vector_kwargs"):  # fmt: skip
         gym.make_vec(ENV_ID, num_envs=2, context="spawn")
+
+
+def test_the_distribution_has_one_version_and_ships_its_type_marks():
+    import importlib.metadata
+    from pathlib import Path
+
+    import gridsim
+    import neurotrajectory
+
+    assert neurotrajectory.__version__ == gridsim.__version__
+    assert f"## {gridsim.__version__} (" in (Path(__file__).parents[1] / "CHANGELOG.md").read_text()
+    assert importlib.metadata.version("gridsim") == gridsim.__version__  # pyproject reads it
+    for package in (gridsim, neurotrajectory):
+        assert (Path(package.__file__).parent / "py.typed").is_file()
