@@ -85,16 +85,19 @@ def record_episode(
     steps: int | None = None,
     seed: int | None = None,
     on_step: Callable[[object, dict], None] | None = None,
-    overlay: bool = False,
+    overlay: bool = True,
+    label: str | None = None,
 ) -> tuple[Episode, Path | None]:
     """:func:`~gridsim.envs.episode.run_episode`, filmed: with a ``path``, the env must be
     made with ``render_mode="rgb_array"``; one frame per step (plus the first) is written at
-    the environment's real rate, captioned (time, speed, what the dots are) with ``overlay``;
-    ``on_step(env, info)`` after every step. Returns the episode and the video's path
-    (``None`` without one)."""
+    the environment's real rate, with ``overlay`` (the default) annotated
+    (:mod:`gridsim.render.annotations`: ``label`` for the driver, time, speed, the fitness so
+    far, a colour legend, a scale bar); ``on_step(env, info)`` after every step. Returns the
+    episode and the video's path (``None`` without one)."""
     check_steps(steps)
     if path is not None and getattr(env, "render_mode", None) != "rgb_array":
         raise GridSimError("a video needs an environment made with render_mode='rgb_array'")
+    fitness = np.zeros(3)
     with contextlib.ExitStack() as stack:
         video = None
         if path is not None:
@@ -102,14 +105,19 @@ def record_episode(
 
         def film(env, info: dict) -> None:
             if video is not None:
-                video.write(_frame(env, info, overlay))
+                video.write(_frame(env, info, overlay, label, fitness.copy()))
+
+        def start(env, info: dict) -> None:
+            fitness[:] = 0.0
+            film(env, info)
 
         def observe(env, info: dict) -> None:
+            fitness[:] += (info["l1"], info["l2"], info["l3"])
             film(env, info)
             if on_step is not None:
                 on_step(env, info)
 
-        episode = run_episode(env, policy, steps, seed, on_step=observe, on_reset=film)
+        episode = run_episode(env, policy, steps, seed, on_step=observe, on_reset=start)
     return episode, (video.path if video is not None else None)
 
 
@@ -120,27 +128,21 @@ def record_rollout(
     steps: int | None,
     seed: int | None = None,
     on_step: Callable[[dict], None] | None = None,
-    overlay: bool = False,
+    overlay: bool = True,
+    label: str | None = None,
 ) -> tuple[Path | None, list[dict]]:
     """Run ``policy(env, obs, info) -> action`` for up to ``steps`` steps of one episode
     (None: until it ends), filmed as :func:`record_episode` films it; ``on_step(info)`` after
     every step. Returns the video path (``None`` without one) and the infos of all steps,
     each with its ``"reward"``."""
     observe = None if on_step is None else (lambda env, info: on_step(info))
-    episode, video = record_episode(env, policy, path, steps, seed, observe, overlay)
+    episode, video = record_episode(env, policy, path, steps, seed, observe, overlay, label)
     return video, episode.infos
 
 
-def _frame(env, info: dict, overlay: bool) -> np.ndarray:
-    """``env.render()``, with a caption (time, speed, legend) if ``overlay``."""
-    from gridsim.envs.gridsim_env import PLAN_COLOUR, REFERENCE_COLOUR
-    from gridsim.render.topdown import caption
+def _frame(env, info: dict, overlay: bool, label: str | None, fitness: np.ndarray) -> np.ndarray:
+    """``env.render()``, annotated if ``overlay`` (see :func:`record_episode`)."""
+    from gridsim.render.annotations import annotate_env_frame
 
     frame = env.render()
-    if not overlay:
-        return frame
-    return caption(frame, [
-        (f"t {info['time']:.1f} s   speed {info['pose'][3]:.1f} m/s", None),
-        ("human reference set-points", REFERENCE_COLOUR),
-        ("commanded set-points", PLAN_COLOUR),
-    ])  # fmt: skip
+    return annotate_env_frame(env, frame, info, label, fitness) if overlay else frame

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gridsim.cli import MAX_SEED, at_least, run_command
+from gridsim.cli import MAX_SEED, at_least, overlay_flag, run_command
 from gridsim.errors import GridSimError
 from gridsim.outputs import new_folder, output_problem, write_json
 from neurotrajectory.compare.front import heldout_problem
@@ -179,7 +179,7 @@ def _heldout(
 
 
 def _rollout(
-    run_dir: str, pick: str, video: str, seed: int, steps: int | None, overlay: bool = False
+    run_dir: str, pick: str, video: str, seed: int, steps: int | None, overlay: bool = True
 ) -> dict:
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.video import record_episode
@@ -192,8 +192,9 @@ def _rollout(
         print(f"neurotrajectory: note: --steps {steps} is more than the run's episodes of "
               f"{episode} decisions ({env.cfg.simulation.duration:g} s): the episode ends at "
               f"{episode}", file=sys.stderr)  # fmt: skip
+    label = f"NeuroTrajectory, {pick} member {member['index']} of {Path(run_dir).name}"
     driven, path = record_episode(env, policy, video, min(steps or episode, episode), seed=seed,
-                                  overlay=overlay)  # fmt: skip
+                                  overlay=overlay, label=label)  # fmt: skip
     s = driven.summary()
     result = {"video": str(path), "member": member, **s}
     f = s["fitness_sums"]
@@ -510,8 +511,7 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--pick", default="knee", choices=PICKS,
                    help="the front member: the knee or the best on one objective")  # fmt: skip
     r.add_argument("--video", default="rollout.mp4", help="video to write (.mp4 or .gif)")
-    r.add_argument("--overlay", action="store_true",
-                   help="caption the video: time, speed and what the dots are")  # fmt: skip
+    overlay_flag(r)
     r.add_argument("--seed", type=at_least(0, MAX_SEED), default=0, help="episode seed")
     r.add_argument(
         "--steps",

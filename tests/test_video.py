@@ -107,17 +107,51 @@ def test_run_command(tmp_path, capsys):
     assert "argument --seed: expected an integer >= 0, got '-3'" in capsys.readouterr().err
 
 
-def test_optional_overlay_captions_the_frames(tmp_path):
+def test_videos_are_annotated_unless_asked_not_to(tmp_path):
+    """Exported frames say who drives, the time, speed and fitness so far (top left), what the
+    colours are (bottom left, and the grid's under its inset), and carry a scale bar (bottom
+    right); nothing else of the picture changes. --no-overlay leaves them plain."""
+    from gridsim.envs.wrappers import CaptionedRender
+    from gridsim.render.annotations import Caption
     from gridsim.video import _frame
 
     env = gym.make(ENV_ID, render_mode="rgb_array", simulation={"duration": 2.0})
     obs, info = env.reset(seed=0)
-    plain, captioned = _frame(env, info, False), _frame(env, info, True)
-    differs = np.any(plain != captioned, axis=2)
-    assert differs[:60, :260].mean() > 0.05  # the caption at the top left
-    assert not differs[70:, :].any() and not differs[:, 300:].any()  # nothing else
-    path, infos = record_rollout(env, Reference(), tmp_path / "o.gif", 3, seed=0, overlay=True)
-    assert len(iio.imread(path, index=None)) == 4
+    plain = _frame(env, info, False, None, np.zeros(3))
+    annotated = _frame(env, info, True, "my planner", np.array([1.5, 0.25, 80.0]))
+    differs = np.any(plain != annotated, axis=2)
+    h, w = differs.shape
+    regions = np.zeros_like(differs)
+    regions[:70, :330] = True  # caption
+    regions[h - 100 :, :200] = True  # colour legend
+    regions[160:260, w - 110 :] = True  # the grid's legend, under the inset
+    regions[h - 45 :, w - 130 :] = True  # scale bar
+    assert differs[:60, :250].mean() > 0.05 and differs[h - 90 :, :150].mean() > 0.05
+    assert differs[h - 30 :, w - 100 :].any()
+    assert not differs[~regions].any()  # the picture itself is untouched
+    lines = Caption.from_info(info, "my planner", np.array([1.5, 0.25, 80.0])).lines()
+    assert lines == ["my planner", "t   0.0 s    speed  8.0 m/s",
+                     "so far: l1 1.5 m^2  l2 0.25 rad/s  l3 80 m/s"]  # fmt: skip
+    path, infos = record_rollout(env, Reference(), tmp_path / "o.gif", 3, seed=0)
+    frames = iio.imread(path, index=None)
+    bare, _ = record_rollout(env, Reference(), tmp_path / "p.gif", 3, seed=0, overlay=False)
+    plain_frames = iio.imread(bare, index=None)
+    assert len(frames) == len(plain_frames) == 4
+    for a, b in zip(frames, plain_frames, strict=True):  # annotated by default: the caption
+        assert a[:60, :250].mean() < 0.85 * b[:60, :250].mean()  # band darkens the top left
+    # render() frames on request: the same annotation through a wrapper
+    wrapped = CaptionedRender(gym.make(ENV_ID, render_mode="rgb_array"), label="my planner")
+    _, info = wrapped.reset(seed=0)
+    np.testing.assert_array_equal(
+        wrapped.render(), _frame(wrapped.env, info, True, "my planner", np.zeros(3))
+    )
+    _, _, _, _, step_info = wrapped.step(info["reference_setpoints"])
+    fitness = np.array([step_info["l1"], step_info["l2"], step_info["l3"]])
+    np.testing.assert_array_equal(
+        wrapped.render(), _frame(wrapped.env, step_info, True, "my planner", fitness)
+    )
+    with pytest.raises(ValueError, match="render_mode='rgb_array'"):
+        CaptionedRender(gym.make(ENV_ID))
 
 
 RUN_VALUES = {

@@ -183,8 +183,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     s.add_argument("--seed", type=at_least(0, MAX_SEED), default=0, help="episode seed")
     s.add_argument("--video", default=None, help="write a video (.mp4, or .gif)")
-    s.add_argument("--overlay", action="store_true",
-                   help="caption the video: time, speed and what the dots are")  # fmt: skip
+    overlay_flag(s)
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=_cmd_run)
     s = sub.add_parser(
@@ -205,6 +204,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     s.set_defaults(func=_cmd_compile)
     return p
+
+
+def overlay_flag(parser: argparse.ArgumentParser) -> None:
+    """``--overlay`` / ``--no-overlay`` (default on): annotate the video (driver, time,
+    speed, fitness so far, colour legend, scale bar)."""
+    parser.add_argument("--overlay", action=argparse.BooleanOptionalAction, default=True,
+                        help="annotate the video: who drives, time, speed, the fitness so far, "
+                        "what the colours are and a scale bar (default on)")  # fmt: skip
 
 
 #: Where unexpected errors are to be reported.

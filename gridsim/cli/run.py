@@ -17,7 +17,7 @@ def run_policy(
     seed: int = 0,
     video: str | None = None,
     progress: bool = True,
-    overlay: bool = False,
+    overlay: bool = True,
 ) -> dict:
     """Run ``policy`` for up to ``steps`` decisions; optionally write a video. Returns a
     summary: distance driven, collisions, off-road, fitness sums and the episode outcome."""
@@ -34,7 +34,8 @@ def run_policy(
         total=steps, desc=f"{policy} on {env.scenario.name}", unit="step", disable=not progress
     )
     episode, path = record_episode(env, pol, video, steps, seed,
-                                   on_step=lambda *_: bar.update(), overlay=overlay)  # fmt: skip
+                                   on_step=lambda *_: bar.update(), overlay=overlay,
+                                   label=f"{policy} policy, {env.scenario.name}")  # fmt: skip
     bar.close()
     s = episode.summary()
     summary = {"scenario": env.scenario.name, "policy": policy, "seed": seed, **s,

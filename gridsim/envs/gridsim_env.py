@@ -33,16 +33,12 @@ from gridsim.envs.human_reference import ReferenceTrajectory, human_reference, r
 from gridsim.envs.vector_guard import refuse_scalar_reward_vectorization
 from gridsim.errors import ScenarioError
 from gridsim.frames import EGO_FEATURES, grid_rotation, grid_to_world, world_to_grid
-from gridsim.render.topdown import TopDownRenderer
+from gridsim.render.topdown import PLAN_COLOUR, REFERENCE_COLOUR, TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
 from gridsim.scenario.loader import Scenario
 from gridsim.scenario.parts import vehicle_params
 from gridsim.vehicle.kinematics import DELTA, PSI, V
-
-REFERENCE_COLOUR = (255, 255, 255)  # the human reference set-points
-PLAN_COLOUR = (255, 220, 0)  # the last commanded set-points
-
 
 #: Options of gymnasium's vector envs that ``gym.make_vec`` passes on to each env when they
 #: are given beside the env's own keywords instead of in ``vector_kwargs``.

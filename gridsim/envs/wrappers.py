@@ -62,3 +62,37 @@ class PlanSmoothing(gym.ActionWrapper):
 
     def action(self, action):
         return self.smoother(self.env, action)
+
+
+class CaptionedRender(gym.Wrapper):
+    """``render()`` frames annotated as the exported videos are (:mod:`gridsim.render.annotations`:
+    ``label`` for the driver, time, speed, the fitness summed since the reset, a colour legend,
+    a scale bar). The env must be made with ``render_mode="rgb_array"``."""
+
+    def __init__(self, env: gym.Env, label: str | None = None) -> None:
+        super().__init__(env)
+        if env.render_mode != "rgb_array":
+            raise ValueError("CaptionedRender annotates rgb_array frames: make the environment "
+                             "with render_mode='rgb_array'")  # fmt: skip
+        self.label = label
+        self._info: dict | None = None
+        self._fitness = np.zeros(3)
+
+    def reset(self, **kwargs):
+        obs, info = self.env.reset(**kwargs)
+        self._info, self._fitness = info, np.zeros(3)
+        return obs, info
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        self._info = info
+        self._fitness = self._fitness + (info["l1"], info["l2"], info["l3"])
+        return obs, reward, terminated, truncated, info
+
+    def render(self):
+        from gridsim.render.annotations import annotate_env_frame
+
+        frame = self.env.render()
+        if frame is None or self._info is None:
+            return frame
+        return annotate_env_frame(self.env, frame, self._info, self.label, self._fitness.copy())

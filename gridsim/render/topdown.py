@@ -17,16 +17,23 @@ from gridsim.vehicle.kinematics import box_corners
 _BG = (34, 120, 34)  # grass
 _ROAD = (90, 90, 90)
 _MARK = (235, 235, 235)
-_TRAFFIC = (40, 90, 220)
-_IDM = (250, 160, 40)
-_EGO = (230, 30, 30)
+#: Vehicles: the ego, replayed traffic, traffic driven by IDM (handed over from replay).
+EGO_COLOUR = (230, 30, 30)
+TRAFFIC_COLOUR = (40, 90, 220)
+IDM_COLOUR = (250, 160, 40)
+#: Set-points: the human reference's next ones, the last commanded (planned) ones.
+REFERENCE_COLOUR = (255, 255, 255)
+PLAN_COLOUR = (255, 220, 0)
 
 
 @dataclass(frozen=True)
 class ViewSpec:
+    """The frame [pixels] and its scale: 8 pixels per metre show 80 m x 60 m around the ego,
+    the road's lanes wide enough to see and a plan of 2.5 s at highway speed inside."""
+
     width: int = 640
     height: int = 480
-    pixels_per_metre: float = 5.0
+    pixels_per_metre: float = 8.0
     inset_size: int = 160
 
 
@@ -54,7 +61,8 @@ class TopDownRenderer:
         rays: np.ndarray | None = None,
     ) -> np.ndarray:
         """One frame. ``grid`` adds an occupancy-grid inset (top right); ``overlay`` is a list
-        of ``(points (K, 2) [m, world], RGB colour)`` drawn as dots (e.g. set-points);
+        of ``(points (K, 2) [m, world], RGB colour)`` drawn as dots joined by a line (e.g.
+        set-points);
         ``rays`` ``(R, 2)`` world end points are drawn as lines from the ego."""
         v = self.view
         ego_xy = world.ego[:2]
@@ -70,7 +78,7 @@ class TopDownRenderer:
         act = np.flatnonzero(f.active)
         boxes = box_corners(f.x[act], f.y[act], f.psi[act], f.length[act], f.width[act])
         for j, quad in zip(act, boxes, strict=True):
-            colour = _IDM if f.mode[j] else _TRAFFIC
+            colour = IDM_COLOUR if f.mode[j] else TRAFFIC_COLOUR
             cv2.fillConvexPoly(img, self._px(a, quad), colour, cv2.LINE_AA, shift=4)
         if rays is not None:
             origin = self._px(a, ego_xy[None])[0]
@@ -79,9 +87,11 @@ class TopDownRenderer:
         c = world.ego_center()
         p = world.ego_params
         ego_box = box_corners(c[0], c[1], world.ego[2], p.length, p.width)
-        cv2.fillConvexPoly(img, self._px(a, ego_box), _EGO, cv2.LINE_AA, shift=4)
-        for points, colour in overlay or []:
-            for q in self._px(a, np.asarray(points, float).reshape(-1, 2)):
+        cv2.fillConvexPoly(img, self._px(a, ego_box), EGO_COLOUR, cv2.LINE_AA, shift=4)
+        for points, colour in overlay or []:  # each a path: a line through its dots
+            px = self._px(a, np.asarray(points, float).reshape(-1, 2))
+            cv2.polylines(img, [px], False, colour, 1, cv2.LINE_AA, shift=4)
+            for q in px:
                 cv2.circle(img, tuple(q), 3 * 16, colour, -1, cv2.LINE_AA, shift=4)
         if grid is not None:
             self._inset(img, grid)
@@ -100,18 +110,3 @@ class TopDownRenderer:
         x0 = img.shape[1] - tw - 8
         img[8 : 8 + th, x0 : x0 + tw] = tile
         cv2.rectangle(img, (x0 - 1, 7), (x0 + tw, 8 + th), (255, 255, 255), 1)
-
-
-def caption(img: np.ndarray, lines: list[tuple[str, tuple[int, int, int] | None]]) -> np.ndarray:
-    """Write ``lines`` of text at the top left of ``img`` (in place, on a dark band); a line
-    with a colour gets a dot of that colour before it (a legend entry). Returns ``img``."""
-    font, scale, step = cv2.FONT_HERSHEY_SIMPLEX, 0.45, 18
-    width = max(cv2.getTextSize(t, font, scale, 1)[0][0] for t, _ in lines) + 30
-    band = img[: step * len(lines) + 8, :width]
-    band[:] = (band * 0.4).astype(np.uint8)
-    for k, (text, colour) in enumerate(lines):
-        y = 18 + step * k
-        if colour is not None:
-            cv2.circle(img, (12, y - 4), 4, colour, -1, cv2.LINE_AA)
-        cv2.putText(img, text, (24, y), font, scale, (255, 255, 255), 1, cv2.LINE_AA)
-    return img

@@ -33,10 +33,12 @@ def drive_episodes(
     video: Path | None = None,
     ego: dict | None = None,
     goal_seconds: float | None = None,
+    label: str | None = None,
 ) -> list[dict]:
     """One row of statistics per episode of ``policy`` on ``scenario`` (episodes of
     ``seconds``, one per seed; ``ego`` overrides the scenario's ego section, ``goal_seconds``
-    its ``env.goal_seconds``); with ``video``, the first episode is also exported there."""
+    its ``env.goal_seconds``); with ``video``, the first episode is also exported there,
+    annotated with ``label`` as the driver's name."""
     more = ({"ego": ego} if ego else {}) | goal_overrides(goal_seconds)
     env = GridSimEnv(scenario, action_type=policy.action_type,
                      render_mode="rgb_array" if video else None,
@@ -44,7 +46,8 @@ def drive_episodes(
     ticks, dt = env.cfg.ticks_per_decision, env.cfg.simulation.dt
     rows = []
     for k, seed in enumerate(seeds):
-        episode, _ = record_episode(env, policy, video if k == 0 else None, seed=seed)
+        episode, _ = record_episode(env, policy, video if k == 0 else None, seed=seed,
+                                    label=label)  # fmt: skip
         s, fitness = episode.summary(), episode.fitness
         ref = env.reference
         driven = np.vstack([ref.xy[:1], episode.poses()[1:, :2]])
@@ -85,8 +88,11 @@ def closed_loop(
     seconds: float,
     video: Path | None = None,
     goal_seconds: float | None = None,
+    label: str | None = None,
 ) -> dict:
     """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``, with the rows
-    of its episodes (:func:`drive_episodes`) under ``"per_episode"``."""
-    rows = drive_episodes(scenario, policy, seeds, seconds, video, goal_seconds=goal_seconds)
+    of its episodes (:func:`drive_episodes`) under ``"per_episode"``; ``label``: the driver's
+    name in the video."""
+    rows = drive_episodes(scenario, policy, seeds, seconds, video, goal_seconds=goal_seconds,
+                          label=label)  # fmt: skip
     return summarise(rows) | {"per_episode": rows}

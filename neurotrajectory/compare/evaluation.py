@@ -218,7 +218,8 @@ def _evaluate_group(
             slug = name.lower().replace(" ", "-")
             per = [closed_loop(sc, policy, seeds, cfg.closed_loop_seconds,
                                 out / "videos" / f"{group}-{Path(sc).stem}-{slug}.mp4"
-                                if cfg.videos else None, cfg.goal_seconds)
+                                if cfg.videos else None, cfg.goal_seconds,
+                                label=f"{name}, {group}")
                    for sc in scenarios]  # fmt: skip
             loop[name] = {k: float(np.mean([p[k] for p in per]))
                           for k in per[0] if k != "per_episode"}  # fmt: skip

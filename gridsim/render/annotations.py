@@ -1,0 +1,130 @@
+"""What a video frame says besides the picture, so that a person understands it without the
+code: who drives, the time, the speed, the fitness so far (top left); what each colour is
+(bottom left, and the grid inset's under it, top right); a scale bar (bottom right).
+
+Frames come from :class:`~gridsim.render.topdown.TopDownRenderer`; :func:`annotate` writes on
+them in place. Used by every video export (:func:`gridsim.video.record_episode`) and by
+:class:`~gridsim.envs.wrappers.CaptionedRender` for ``render()`` frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from gridsim.render.grids import colourise
+from gridsim.render.topdown import (
+    EGO_COLOUR,
+    IDM_COLOUR,
+    PLAN_COLOUR,
+    REFERENCE_COLOUR,
+    TRAFFIC_COLOUR,
+)
+from gridsim.sensors.occupancy import FREE, OCCUPIED, UNKNOWN
+
+_FONT, _SCALE, _STEP = cv2.FONT_HERSHEY_SIMPLEX, 0.42, 17
+_WHITE = (255, 255, 255)
+
+#: The picture's colours: name, RGB, drawn as a box (vehicles) or a dot (set-points).
+LEGEND: tuple[tuple[str, tuple[int, int, int], str], ...] = (
+    ("ego", EGO_COLOUR, "box"),
+    ("replayed traffic", TRAFFIC_COLOUR, "box"),
+    ("traffic driven by IDM", IDM_COLOUR, "box"),
+    ("human's next set-points", REFERENCE_COLOUR, "dot"),
+    ("planned set-points", PLAN_COLOUR, "dot"),
+)
+#: The grid inset's colours.
+GRID_LEGEND = (
+    ("free", tuple(int(c) for c in colourise(np.uint8(FREE)))),
+    ("occupied", tuple(int(c) for c in colourise(np.uint8(OCCUPIED)))),
+    ("unknown", tuple(int(c) for c in colourise(np.uint8(UNKNOWN)))),
+)
+
+
+@dataclass(frozen=True)
+class Caption:
+    """What the top-left band says: ``label`` (the driver: a method or a front member), the
+    simulated time [s], the ego's speed [m/s] and the fitness summed so far ``[l1, l2, l3]``
+    (m^2, rad/s, m/s), or None before the first step."""
+
+    label: str | None
+    time: float
+    speed: float
+    fitness: np.ndarray | None = None
+
+    @classmethod
+    def from_info(cls, info: dict, label: str | None, fitness: np.ndarray | None) -> Caption:
+        """The caption of a GridSim-v0 step's ``info`` (its time and pose)."""
+        return cls(label, float(info["time"]), float(info["pose"][3]), fitness)
+
+    def lines(self) -> list[str]:
+        out = [self.label] if self.label else []
+        out.append(f"t {self.time:5.1f} s    speed {self.speed:4.1f} m/s")
+        if self.fitness is not None:
+            l1, l2, l3 = (float(v) for v in self.fitness)
+            out.append(f"so far: l1 {l1:.1f} m^2  l2 {l2:.2f} rad/s  l3 {l3:.0f} m/s")
+        return out
+
+
+def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
+             inset_size: int | None = None) -> np.ndarray:  # fmt: skip
+    """Write ``caption``, the colour legend, the grid inset's legend (under an inset of
+    ``inset_size`` pixels at the top right, if any) and a scale bar on ``img`` (in place);
+    returns ``img``."""
+    _band(img, 0, 0, [(t, None, "") for t in caption.lines()])
+    legend = [(name, colour, shape) for name, colour, shape in LEGEND]
+    _band(img, 0, img.shape[0] - _STEP * len(legend) - 8, legend)
+    if inset_size:
+        grid = [("sensor grid:", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
+        width = _width(grid)
+        _band(img, img.shape[1] - width - 8, inset_size + 12, grid, width)
+    _scale_bar(img, pixels_per_metre)
+    return img
+
+
+def _width(lines) -> int:
+    return max(cv2.getTextSize(t, _FONT, _SCALE, 1)[0][0] for t, _, _ in lines) + 30
+
+
+def _band(img: np.ndarray, x: int, y: int, lines, width: int | None = None) -> None:
+    """``lines`` of ``(text, colour or None, "box" | "dot" | "")`` on a darkened band whose
+    top left is ``(x, y)``; a colour is drawn before its text."""
+    width = width or _width(lines)
+    band = img[y : y + _STEP * len(lines) + 8, x : x + width]
+    band[:] = (band * 0.35).astype(np.uint8)
+    for k, (text, colour, shape) in enumerate(lines):
+        base = y + 17 + _STEP * k
+        if shape == "box":
+            cv2.rectangle(img, (x + 6, base - 9), (x + 17, base - 1), colour, -1)
+        elif shape == "dot":
+            cv2.circle(img, (x + 12, base - 5), 4, colour, -1, cv2.LINE_AA)
+        cv2.putText(img, text, (x + 24 if shape else x + 8, base), _FONT, _SCALE, _WHITE, 1,
+                    cv2.LINE_AA)  # fmt: skip
+
+
+def _scale_bar(img: np.ndarray, pixels_per_metre: float) -> None:
+    """A bar of a round length (5, 10, 20 or 50 m: about a sixth of the frame) at the bottom
+    right, labelled."""
+    h, w = img.shape[:2]
+    metres = next((m for m in (5, 10, 20, 50, 100) if m * pixels_per_metre >= w / 8), 100)
+    length = int(round(metres * pixels_per_metre))
+    x1, y = w - 12, h - 14
+    x0 = x1 - length
+    img[y - 22 : h - 4, x0 - 8 : x1 + 8] = (img[y - 22 : h - 4, x0 - 8 : x1 + 8] * 0.35).astype(
+        np.uint8
+    )
+    cv2.line(img, (x0, y), (x1, y), _WHITE, 2)
+    for xe in (x0, x1):
+        cv2.line(img, (xe, y - 5), (xe, y + 4), _WHITE, 2)
+    cv2.putText(img, f"{metres} m", (x0, y - 8), _FONT, _SCALE, _WHITE, 1, cv2.LINE_AA)
+
+
+def annotate_env_frame(env, frame: np.ndarray, info: dict, label: str | None,
+                       fitness: np.ndarray) -> np.ndarray:  # fmt: skip
+    """:func:`annotate` a GridSim-v0 ``frame`` (of ``env``, wrapped or not) with the caption of
+    its step's ``info`` and the ``fitness`` summed so far, at the env renderer's scale."""
+    view = env.unwrapped.renderer.view
+    caption = Caption.from_info(info, label, fitness)
+    return annotate(frame, caption, view.pixels_per_metre, view.inset_size)
