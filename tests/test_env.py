@@ -45,13 +45,15 @@ def test_registration_is_idempotent_and_quiet(capsys):
     assert capsys.readouterr() == ("", "")
 
 
-def test_make_by_module_path_in_a_fresh_interpreter():
+def test_make_by_module_path_in_a_fresh_interpreter(tmp_path):
+    """As a user's script: from a folder of its own (not the checkout, whose gridsim/ would be
+    imported instead of the installed one), nothing printed but the result."""
     code = (
         "import gymnasium as gym; e = gym.make('gridsim:GridSim-v0');"
         "print(e.reset(seed=1)[0]['grids'].shape)"
     )
     out = subprocess.run(
-        [sys.executable, "-W", "error", "-c", code], capture_output=True, text=True
+        [sys.executable, "-W", "error", "-c", code], capture_output=True, text=True, cwd=tmp_path
     )
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "(5, 128, 128)" and out.stderr == ""

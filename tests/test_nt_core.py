@@ -21,6 +21,7 @@ from neurotrajectory.evolve.genome import (
 from neurotrajectory.evolve.pareto import (
     crowding_distance,
     hypervolume,
+    hypervolume_ratio,
     minimised,
     non_dominated_sort,
 )
@@ -138,6 +139,19 @@ def test_crowding_hand_computed():
 def test_hypervolume_known_value():
     assert hypervolume(np.array([[0.5, 0.5]]), np.array([1.0, 1.0])) == pytest.approx(0.25)
     assert hypervolume(np.array([[2.0, 2.0]]), np.array([1.0, 1.0])) == 0.0
+
+
+def test_hypervolume_ratio_is_measured_against_the_reference_alone():
+    """1 when no member goes beyond the reference; a member 10 % better in all three (l3 is
+    maximised) doubles the box's side: 8x; members that lost time or stood still do not count."""
+    ref = np.array([100.0, 2.0, 500.0])
+    assert hypervolume_ratio(ref[None], ref) == pytest.approx(1.0)
+    better = np.array([[90.0, 1.8, 500.0 / 0.9]])
+    assert hypervolume_ratio(np.vstack([ref, better]), ref) == pytest.approx(8.0)
+    worse = np.array([[200.0, 4.0, 100.0], [0.0, 0.0, 0.0]])  # the second never moved
+    assert hypervolume_ratio(np.vstack([ref, worse]), ref) == pytest.approx(1.0)
+    lost = np.array([0.0, 0.3])
+    assert hypervolume_ratio(np.vstack([ref, better]), ref, lost) == pytest.approx(1.0)
 
 
 def test_selection_keeps_the_front_and_is_reproducible():

@@ -91,6 +91,31 @@ def hypervolume(f: np.ndarray, ref: np.ndarray) -> float:
     return float(moocore.hypervolume(f[keep], ref=np.asarray(ref, dtype=np.float64)))
 
 
+#: How far past the reference the box of :func:`hypervolume_ratio` reaches, as a ratio of
+#: each objective: the reference alone dominates ``(HV_MARGIN - 1) ** 3`` of it.
+HV_MARGIN = 1.1
+
+
+def hypervolume_ratio(fitness: np.ndarray, reference: np.ndarray,
+                      lost: np.ndarray | None = None) -> float:  # fmt: skip
+    """How much more of the objective space the members ``fitness`` ``(K, 3)`` dominate than
+    ``reference`` ``[l1, l2, l3]`` alone: each member as ratios to the reference (``l1 / l1_ref``,
+    ``l2 / l2_ref``, ``l3_ref / l3``, all minimised, the reference at 1), the hypervolume up
+    to :data:`HV_MARGIN` in each, divided by the reference's own ``(HV_MARGIN - 1) ** 3``.
+    1: no member beyond the reference; 2: twice its volume. Members that ``lost`` episode
+    time (> 0) do not count."""
+    f = np.asarray(fitness, dtype=np.float64)
+    ref = np.maximum(np.abs(np.asarray(reference, dtype=np.float64)), 1e-12)
+    with np.errstate(divide="ignore"):
+        ratios = np.column_stack([f[:, 0] / ref[0], f[:, 1] / ref[1],
+                                  ref[2] / np.maximum(f[:, 2], 0.0)])  # fmt: skip
+    if lost is not None:
+        ratios = ratios[np.asarray(lost) <= 0]
+    box = np.full(3, HV_MARGIN)
+    own = (HV_MARGIN - 1.0) ** 3
+    return max(hypervolume(np.vstack([ratios, np.ones((1, 3))]), box), own) / own
+
+
 def minimised(fitness: np.ndarray) -> np.ndarray:
     """Fitness ``[l1, l2, l3]`` as objectives to minimise: ``[l1, l2, -l3]``."""
     f = np.asarray(fitness, dtype=np.float64)

@@ -13,7 +13,11 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
 
-from neurotrajectory.evolve.pareto import pick_member  # noqa: E402
+from neurotrajectory.evolve.pareto import (  # noqa: E402
+    HV_MARGIN,
+    hypervolume_ratio,
+    pick_member,
+)
 
 #: The objectives as plotted: a member's fitness is the mean over its episodes of each
 #: episode's sum of the per-step terms (l2 and l3 add one value per simulation tick).
@@ -25,11 +29,16 @@ NAMES = (
 
 
 def plot_run(
-    out: str | Path, history: list[dict], final: tuple | None = None, chosen_on: str = ""
+    out: str | Path,
+    history: list[dict],
+    final: tuple | None = None,
+    chosen_on: str = "",
+    anchored: bool = False,
 ) -> list[Path]:
     """The run's plots. ``final``: ``(fitness, rank, violation)`` of the members the final
     front was chosen from (on ``chosen_on``, as ``front.json`` gives them); the front plot
-    shows those, else the last generation's training scores."""
+    shows those, else the last generation's training scores. ``anchored``: individual 0 of
+    every generation is the warm start (or the evolution-strategies centre)."""
     folder = Path(out) / "plots"
     folder.mkdir(parents=True, exist_ok=True)
     gens = np.array([h["generation"] for h in history])
@@ -79,15 +88,36 @@ def plot_run(
     fig.tight_layout()
     paths.append(_save(fig, folder / "front.png"))
 
-    fig, ax = plt.subplots(figsize=(5, 3.5))
-    ax.plot(gens, [h["hypervolume"] for h in history], marker="o")
-    ax.set_xlabel("generation")
-    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-    ax.set_ylabel("hypervolume (normalised to generation 0)")
-    fig.tight_layout()
-    paths.append(_save(fig, folder / "hypervolume.png"))
+    paths.append(_hypervolume(folder / "hypervolume.png", history, anchored))
     curve = learning_curve(folder / "learning_curve.png", history)
     return paths + ([curve] if curve else [])
+
+
+def _hypervolume(path: Path, history: list[dict], anchored: bool) -> Path:
+    """Each generation's hypervolume against a reference on the same episodes
+    (:func:`~neurotrajectory.evolve.pareto.hypervolume_ratio`): individual 0 (the warm start or
+    the centre) of an anchored run, else the median member of generation 0."""
+    first = np.array(history[0]["fitness"])
+    values = []
+    for h in history:
+        f = np.array(h["fitness"])
+        ref = f[0] if anchored else np.median(first, axis=0)
+        values.append(hypervolume_ratio(f, ref, np.array(h.get("violation", np.zeros(len(f))))))
+    who = ("individual 0 (the warm start or the centre)" if anchored
+           else "generation 0's median member")  # fmt: skip
+    fig, ax = plt.subplots(figsize=(6.5, 4))
+    ax.plot([h["generation"] for h in history], values, marker="o")
+    ax.axhline(1.0, color="tab:orange", linestyle="--", label=f"{who} alone")
+    ax.set_xlabel("generation")
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    ax.set_ylim(bottom=0)
+    ax.set_ylabel("hypervolume / the reference's")
+    ax.set_title(f"what a generation's members dominate beyond {who},\non its own episodes; "
+                 f"objectives as ratios to it, box to {HV_MARGIN:g}x (1: nothing beyond it)",
+                 fontsize=8)  # fmt: skip
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return _save(fig, path)
 
 
 def learning_curve(path: Path, history: list[dict]) -> Path | None:

@@ -775,7 +775,8 @@ class Run:
         if best is not None:  # the last candidate: the best validated knee of any generation
             summary["best_knee"] = {"generation": best[0], "index": len(population) - 1}
         write_json(self.out / "front.json", summary)
-        plot_run(self.out, history, (fitness, rank, violation), summary["chosen_on"])
+        plot_run(self.out, history, (fitness, rank, violation), summary["chosen_on"],
+                 anchored=self.config.anchored)  # fmt: skip
         return summary
 
 
