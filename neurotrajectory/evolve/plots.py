@@ -122,10 +122,10 @@ def _hypervolume(path: Path, history: list[dict], anchored: bool) -> Path:
 
 def learning_curve(path: Path, history: list[dict]) -> Path | None:
     """Each generation's knee on the validation episodes (``knee_validation``), one panel per
-    objective, with the warm start on the same episodes as a line; generations whose knee
-    lost episode time (a collision or leaving the road) are crossed, and a panel whose values
-    span more than 20x (lost time is counted at the worst values) has a log axis. None
-    without validation scores."""
+    objective, with the warm start on the same episodes as a line. The axes span the knees
+    that completed every episode (and the warm start); a knee that lost episode time (a
+    collision or leaving the road, its remaining steps counted at the worst values) is a
+    cross at the top edge, its value off the chart. None without validation scores."""
     points = [(h["generation"], h["knee_validation"]) for h in history if "knee_validation" in h]
     if not points:
         return None
@@ -134,17 +134,23 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
     lost = np.array([v["violation"] > 0 for _, v in points])
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for ax, key, name in zip(axes, ("l1", "l2", "l3"), NAMES, strict=True):
-        y = np.array([v[key] for _, v in points])
-        ax.plot(gens, y, marker="o", ms=4, color="tab:blue", label="knee of the generation")
-        if lost.any():
-            ax.scatter(gens[lost], y[lost], s=60, marker="x", color="black", zorder=3,
-                       label="the knee lost an episode")  # fmt: skip
+        y = np.array([v[key] for _, v in points], dtype=float)
+        kept = np.where(lost, np.nan, y)
+        ax.plot(gens, kept, marker="o", ms=4, color="tab:blue",
+                label="knee of the generation")  # fmt: skip
         if warm is not None:
             lost_warm = " (lost an episode)" if warm["violation"] > 0 else ""
             ax.axhline(warm[key], color="tab:orange", ls="--", label=f"warm start{lost_warm}")
-        shown = np.append(y, [] if warm is None else [warm[key]])
-        if shown.min() > 0 and shown.max() > 20 * shown.min():  # a lost episode's padding
-            ax.set_yscale("log")
+        shown = np.append(kept[~lost], [] if warm is None else [warm[key]])
+        if len(shown):
+            lo, hi = float(shown.min()), float(shown.max())
+            pad = 0.08 * (hi - lo) or 0.05 * max(abs(hi), 1e-9)
+            ax.set_ylim(lo - pad, hi + 2 * pad)
+        if lost.any():
+            top = ax.get_ylim()[1]
+            ax.scatter(gens[lost], np.full(lost.sum(), top), s=60, marker="x", color="black",
+                       zorder=3, clip_on=False,
+                       label="the knee lost an episode (not drawn to scale)")  # fmt: skip
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(name, fontsize=9)
