@@ -45,17 +45,23 @@ def plot_run(
     fit = [np.array(h["fitness"]) for h in history]
     paths = []
 
+    lost = [np.array(h.get("violation", np.zeros(len(h["fitness"])))) > 0 for h in history]
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for k, ax in enumerate(axes):
-        for g, f in zip(gens, fit, strict=True):
-            ax.scatter(np.full(len(f), g), f[:, k], s=8, alpha=0.4, color="tab:blue")
-        ax.plot(gens, [f[:, k].mean() for f in fit], color="tab:red", label="mean")
+        for g, f, out in zip(gens, fit, lost, strict=True):
+            ax.scatter(np.full((~out).sum(), g), f[~out, k], s=8, alpha=0.4, color="tab:blue",
+                       label="a member" if g == gens[0] else None)  # fmt: skip
+            ax.scatter(np.full(out.sum(), g), f[out, k], s=14, marker="x", color="black",
+                       label="a member that lost an episode" if g == gens[0] else None)  # fmt: skip
+        ax.plot(gens, [np.median(f[:, k]) for f in fit], color="tab:red", label="median")
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(NAMES[k], fontsize=9)
         if k == 0:
             ax.set_yscale("symlog")
-    axes[0].legend()
+    axes[0].legend(fontsize=8)
+    fig.suptitle("every member of every generation, on that generation's training episodes "
+                 "(drawn anew each generation)", fontsize=10)  # fmt: skip
     fig.tight_layout()
     paths.append(_save(fig, folder / "objectives.png"))
 
