@@ -70,3 +70,11 @@ def test_every_command_in_the_docs_exists_with_its_flags():
             if flag.startswith("--") and flag not in commands[words[0]]:
                 problems.append(f"{doc}: {program} {words[0]} {flag}: no such flag")
     assert problems == []
+
+
+def test_every_python_block_in_the_docs_is_valid_python():
+    blocks = [(doc.name, b) for doc in DOCS
+              for b in re.findall(r"```python\n(.*?)```", doc.read_text(), re.S)]  # fmt: skip
+    assert len(blocks) > 5
+    for name, block in blocks:
+        compile(block, name, "exec")  # a SyntaxError names the file
