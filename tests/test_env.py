@@ -542,9 +542,24 @@ def test_compiled_setpoint_path_equals_numpy():
 
 
 def test_a_vector_option_given_as_an_env_keyword_says_where_it_goes():
-    with pytest.raises(ScenarioError, match=r"context: an option of gymnasium's vector env, not "
-                                            r"a scenario key: .*vector_kwargs"):  # fmt: skip
-        gym.make_vec(ENV_ID, num_envs=2, context="spawn")
+    message = r"shared_memory: an option of gymnasium's vector env, not a scenario key: "
+    with pytest.raises(ScenarioError, match=message + r".*vector_kwargs"):
+        gym.make_vec(ENV_ID, num_envs=2, shared_memory=False)
+
+
+def test_the_start_method_of_asynchronous_vector_envs_is_chosen_with_context():
+    venv = gym.make_vec(ENV_ID, num_envs=1, asynchronous=True, context="spawn",
+                        action_type="control", simulation={"duration": 1.0})  # fmt: skip
+    try:
+        venv.reset(seed=0)
+        _, rewards, *_ = venv.step(venv.action_space.sample())
+        assert rewards.shape == (1, 3)
+    finally:
+        venv.close()
+    with pytest.raises(ValueError, match="start method of the subprocesses of asynchronous=True"):
+        gym.make_vec(ENV_ID, num_envs=1, context="spawn")
+    with pytest.raises(ValueError, match="context must be one of"):
+        gym.make_vec(ENV_ID, num_envs=1, asynchronous=True, context="teleport")
 
 
 def test_the_distribution_has_one_version_and_ships_its_type_marks():

@@ -98,6 +98,7 @@ def make_vector_env(
     *,
     asynchronous: bool = False,
     autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+    context: str | None = None,
     **kwargs: Any,
 ) -> MOSyncVectorEnv | MOAsyncVectorEnv:
     """The vector entry point of GridSim-v0 (``gym.make_vec``'s default mode).
@@ -107,6 +108,8 @@ def make_vector_env(
         asynchronous: one subprocess per environment (:class:`MOAsyncVectorEnv`) instead of
             stepping them in turn (:class:`MOSyncVectorEnv`).
         autoreset_mode: gymnasium's ``AutoresetMode`` (or its value, e.g. ``"SameStep"``).
+        context: with ``asynchronous``, the subprocesses' start method (``"spawn"``,
+            ``"forkserver"`` or ``"fork"``; default: multiprocessing's).
         **kwargs: the arguments of ``GridSimEnv``.
     """
     if isinstance(num_envs, bool) or not isinstance(num_envs, int) or num_envs < 1:
@@ -118,7 +121,17 @@ def make_vector_env(
     except ValueError:
         valid = ", ".join(f"AutoresetMode.{m.name} ({m.value!r})" for m in AutoresetMode)
         raise ValueError(f"autoreset_mode must be one of {valid}, got {autoreset_mode!r}") from None
+    if context is not None:
+        import multiprocessing
+
+        if not asynchronous:
+            raise ValueError(f"context={context!r} is the start method of the subprocesses of "
+                             "asynchronous=True; the synchronous vector env has none")  # fmt: skip
+        if context not in multiprocessing.get_all_start_methods():
+            raise ValueError(f"context must be one of {multiprocessing.get_all_start_methods()}, "
+                             f"got {context!r}")  # fmt: skip
     kwargs.pop("max_episode_steps", None)  # the scenario's duration ends episodes
-    vector_env = MOAsyncVectorEnv if asynchronous else MOSyncVectorEnv
     env_fns = [lambda: GridSimEnv(**kwargs) for _ in range(num_envs)]
-    return vector_env(env_fns, autoreset_mode=autoreset_mode)
+    if asynchronous:
+        return MOAsyncVectorEnv(env_fns, autoreset_mode=autoreset_mode, context=context)
+    return MOSyncVectorEnv(env_fns, autoreset_mode=autoreset_mode)
