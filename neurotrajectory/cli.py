@@ -132,10 +132,10 @@ def front_table(out: Path, summary: dict) -> str:
     knee = pick_member(fitness, "knee")
     best = summary.get("best_knee", {}).get("index")
     rows = []
-    for k, m in enumerate(front):
-        name = f"member {m['index']}" + (" (best knee of generation "
-                                         f"{summary['best_knee']['generation']})"
-                                         if m["index"] == best else "")  # fmt: skip
+    for k, m in enumerate(front):  # numbered as rollout --pick and front.npz number them
+        name = f"member {k}" + (f" (the best validated, of generation "
+                                f"{summary['best_knee']['generation']})"
+                                if m["index"] == best else "")  # fmt: skip
         rows.append((("* " if k == knee else "  ") + name, m))
     if "warm_start" in summary:
         rows.append(("  warm start", summary["warm_start"]))
@@ -421,7 +421,7 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=None,
         help="--selection es: how far the centre moves per generation, in mean noise steps "
-        "of its pairs (default 1)",
+        "of its pairs (default 3)",
     )
     t.add_argument(
         "--evolve",

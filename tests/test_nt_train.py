@@ -168,7 +168,7 @@ def test_train_and_rollout_commands(tmp_path, capsys):
     knee = pick_member(np.array([[m[k] for k in ("l1", "l2", "l3")] for m in summary["front"]]),
                        "knee")  # fmt: skip
     member = summary["front"][knee]
-    assert f"  * member {member['index']}  " in printed and f"{member['l1']:10.1f}" in printed
+    assert f"  * member {knee}  " in printed and f"{member['l1']:10.1f}" in printed
     assert "  knee member        completed" in printed and "destination curve  completed" in printed
     report = json.loads((out / "heldout.json").read_text())
     assert report["seeds"] == list(Run.open(out).config.heldout_seeds(2))
