@@ -28,7 +28,7 @@ COMMON = ["--population", "24", "--generations", "25", "--episodes", "2", "--bac
 #: None), and the held-out drive (episodes, seconds).
 GROUPS = {
     "seamless": (["--scenario", "seamless", "--pretrain-episodes", "12",
-                  "--episode-seconds", "15"], None, (40, 20.0)),
+                  "--episode-seconds", "15", "--selection", "es"], None, (40, 20.0)),
     "inner_city": (["--scenario", "inner_city", "--pretrain-episodes", "96", "--activation",
                     "tanh", "--episode-seconds", "15", "--validation-episodes", "32"], None,
                    (40, 20.0)),
@@ -41,8 +41,10 @@ GROUPS = {
 #: A recorded group's scenes as one collection (the recipe evolves on the first alone).
 SCENES = {"highway": "us101_4_1,us101_3_3", "urban": "lankershim_1_1,peachtree_4_8"}
 
-#: Flags added to the recipe (``{scenes}``: the group's :data:`SCENES`).
+#: Flags added to the recipe (``{scenes}``: the group's :data:`SCENES`; a variant's
+#: ``--selection`` replaces the recipe's).
 VARIANTS = {
+    "recipe": [],
     "pareto": ["--selection", "pareto"],
     "anchored": ["--selection", "anchored"],
     "anchored-4-episodes": ["--selection", "anchored", "--episodes", "4"],
@@ -74,7 +76,7 @@ def main() -> None:
     ap.add_argument("--out", required=True, help="a folder for the runs and datasets")
     ap.add_argument("--groups", nargs="+", default=list(GROUPS), choices=list(GROUPS))
     ap.add_argument("--seeds", nargs="+", type=int, default=[3])
-    ap.add_argument("--variants", nargs="+", default=["pareto", "anchored"],
+    ap.add_argument("--variants", nargs="+", default=["recipe"],
                     choices=list(VARIANTS))  # fmt: skip
     ap.add_argument(
         "--goal-seconds",
