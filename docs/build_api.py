@@ -14,9 +14,15 @@ import pkgutil
 import warnings
 from pathlib import Path
 
-#: pdoc's complaints that are not about the docs: a package's submodules named again, and
-#: NamedTuple fields annotated with a module alias (``np.ndarray``) pdoc cannot resolve.
-HARMLESS = ("has already been added", "Error parsing type annotation ForwardRef('np.")
+#: pdoc's complaints that are not about the docs: a package's submodules named again,
+#: NamedTuple fields annotated with a module alias (``np.ndarray``) pdoc cannot resolve, and,
+#: run from the checkout with the package installed, the two copies it could mean (it
+#: documents the installed one).
+HARMLESS = (
+    "has already been added",
+    "Error parsing type annotation ForwardRef('np.",
+    "may refer to either the installed Python module or the local file/directory",
+)
 
 
 def modules() -> list[str]:
