@@ -45,6 +45,7 @@ def test_registration_is_idempotent_and_quiet(capsys):
     assert capsys.readouterr() == ("", "")
 
 
+@pytest.mark.slow
 def test_make_by_module_path_in_a_fresh_interpreter(tmp_path):
     """As a user's script: from a folder of its own (not the checkout, whose gridsim/ would be
     imported instead of the installed one), nothing printed but the result."""
@@ -140,6 +141,7 @@ def _digest_in_child(queue):
     queue.put(rollout_digest("seamless", 11, 30))
 
 
+@pytest.mark.slow
 def test_same_seed_same_episode_in_a_spawned_process():
     ctx = mp.get_context("spawn")
     q = ctx.Queue()
@@ -268,6 +270,7 @@ sys.meta_path.insert(0, NotInstalled())
 """
 
 
+@pytest.mark.slow
 def test_the_simulator_works_without_the_trainers_extra(tmp_path):
     code = _WITHOUT_TRAIN_EXTRA + (
         "import gymnasium as gym, gridsim\n"
@@ -294,6 +297,7 @@ def test_the_simulator_works_without_the_trainers_extra(tmp_path):
         "torch", "matplotlib", "moocore"}  # fmt: skip
 
 
+@pytest.mark.slow
 def test_gridsim_never_imports_torch():
     code = (
         "import sys, gymnasium as gym, gridsim; e = gym.make('GridSim-v0'); e.reset(seed=0);"
@@ -547,6 +551,7 @@ def test_a_vector_option_given_as_an_env_keyword_says_where_it_goes():
         gym.make_vec(ENV_ID, num_envs=2, shared_memory=False)
 
 
+@pytest.mark.slow
 def test_the_start_method_of_asynchronous_vector_envs_is_chosen_with_context():
     venv = gym.make_vec(ENV_ID, num_envs=1, asynchronous=True, context="spawn",
                         action_type="control", simulation={"duration": 1.0})  # fmt: skip

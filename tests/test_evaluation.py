@@ -18,6 +18,9 @@ from neurotrajectory.data.windows import (
 )
 from neurotrajectory.evolve.runs import Run, TrainConfig
 
+#: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):

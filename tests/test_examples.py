@@ -7,6 +7,9 @@ from pathlib import Path
 
 import pytest
 
+#: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
+pytestmark = pytest.mark.slow
+
 EXAMPLES = sorted((Path(__file__).parents[1] / "examples").glob("*.py"))
 
 #: What each example prints when it worked.

@@ -21,6 +21,9 @@ from golden import (
     world_digests,
 )
 
+#: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
+pytestmark = pytest.mark.slow
+
 GOLDEN = json.loads(GOLDEN_PATH.read_text())
 
 

@@ -13,6 +13,9 @@ from neurotrajectory.evolve.genome import Recipe, initial_genome, set_genome
 from neurotrajectory.evolve.runs import Run, TrainConfig
 from neurotrajectory.model import PRESETS, NetConfig, PopulationNet, TrajectoryNet
 
+#: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
+pytestmark = pytest.mark.slow
+
 SHORT = {"simulation": {"duration": 3.0}}
 #: The batched forward pass versus TrajectoryNet: float rounding only (observed <= 2.4e-7 m).
 FORWARD_TOLERANCE = 1e-5

@@ -16,6 +16,9 @@ from neurotrajectory.evolve.evolution import (
 from neurotrajectory.evolve.genome import apply_recipe, noise_table
 from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
 
+#: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
+pytestmark = pytest.mark.slow
+
 ES = dict(preset="tiny", population=6, generations=3, episodes=1, episode_seconds=3.0, seed=2,
           pretrain_episodes=2, pretrain_epochs=1, validation_episodes=2, batch=3,
           selection="es", es_step=2.0)  # fmt: skip

@@ -26,6 +26,9 @@ from neurotrajectory.evolve.pareto import pick_member
 from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
 from neurotrajectory.model import PRESETS
 
+#: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
+pytestmark = pytest.mark.slow
+
 TINY = dict(preset="tiny", population=6, episodes=1, episode_seconds=4.0, seed=1)
 
 

@@ -22,6 +22,9 @@ from neurotrajectory.evolve.genome import Recipe
 from neurotrajectory.evolve.pareto import knee_distance, minimised
 from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
 
+#: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
+pytestmark = pytest.mark.slow
+
 WARM = dict(preset="tiny", population=5, generations=3, episodes=1, episode_seconds=3.0, seed=2,
             pretrain_episodes=2, pretrain_epochs=1, validation_episodes=2, batch=3)  # fmt: skip
 

@@ -31,6 +31,9 @@ from neurotrajectory.evolve.warm_start import (
 )
 from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet
 
+#: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def windows_dir(tmp_path_factory):

@@ -47,6 +47,7 @@ def test_different_seeds_give_different_worlds():
     assert not np.array_equal(a[1], b[1])
 
 
+@pytest.mark.slow
 def test_same_seed_same_result_in_a_fresh_process():
     code = (
         "import numpy as np, sys; sys.path.insert(0, 'tests');"
