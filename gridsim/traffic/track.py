@@ -146,6 +146,12 @@ def track_name(scene: str, track_id: str) -> str:
     return f"{scene}/{track_id}"
 
 
+def scene_ids(names: list[str], scene: str) -> list[str]:
+    """The track ids of the ``SCENE/ID`` names of ``scene`` among ``names``, in their order."""
+    prefix = track_name(scene, "")
+    return [name[len(prefix) :] for name in names if name.startswith(prefix)]
+
+
 def ids_in_scene(names: list[str], scene: str) -> tuple[list[str], list[str]]:
     """``(own, foreign)``: the track ids of ``scene`` among ``names`` (plain ids as they are,
     ``SCENE/ID`` names of ``scene`` stripped), and the names of tracks of other scenes."""

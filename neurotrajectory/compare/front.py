@@ -10,6 +10,7 @@ import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.traffic.track import track_name
 from neurotrajectory.evolve.fitness import scenario_net_config
 from neurotrajectory.evolve.genome import genome_mismatch, set_genome
 from neurotrajectory.evolve.pareto import pick_member
@@ -119,7 +120,7 @@ def heldout(
     seconds = cfg.episode_seconds if seconds is None else float(seconds)
     tracks = _other_tracks(cfg.scenario, cfg.ego_tracks)[:episodes] if cfg.ego_tracks else None
     several = tracks is not None and len({ref for ref, _ in tracks}) > 1
-    names = [f"{ref}/{track}" if several else track for ref, track in tracks or ()]
+    names = [track_name(ref, track) if several else track for ref, track in tracks or ()]
     seeds = list(cfg.heldout_seeds(len(tracks) if tracks else episodes))
 
     def drive(planner) -> list[dict]:

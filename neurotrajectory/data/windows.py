@@ -43,7 +43,7 @@ from gridsim.scenario.families.recorded import recorded_scene, scene_of
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.schema import RecordedRoadConfig
 from gridsim.seeding import Salt, stream
-from gridsim.traffic.track import ids_in_scene, track_name
+from gridsim.traffic.track import scene_ids, track_name
 from neurotrajectory.data.commands import implied_commands
 
 FORMAT_VERSION = 1
@@ -197,7 +197,7 @@ def episodes_of(
     base = load_scenario(scenario)
     labels = list(dict.fromkeys(windows.track.tolist()))  # in the order they were recorded
     if isinstance(base.config.road, RecordedRoadConfig):
-        ids = ids_in_scene([t for t in labels if "/" in t], scene_of(base))[0]
+        ids = scene_ids(labels, scene_of(base))
         return scenario_episodes(scenario, tracks=ids, goal_seconds=goal_seconds)[0] if ids else []
     prefix = f"{scenario}/seed"
     seeds = [int(t[len(prefix) :]) for t in labels if t.startswith(prefix)]

@@ -930,12 +930,11 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.scenario.collection import is_collection
     from gridsim.scenario.families.recorded import scene_of
-    from gridsim.traffic.track import ids_in_scene, track_name
+    from gridsim.traffic.track import scene_ids, track_name
 
     names = sorted(np.unique(windows.track).tolist())
     scenes = [scene_of(sc) for sc in GridSimEnv(config.scenario).scenarios]
-    per_scene = {scene: ids_in_scene([n for n in names if "/" in n], scene)[0]
-                 for scene in scenes}  # fmt: skip
+    per_scene = {scene: scene_ids(names, scene) for scene in scenes}
     missing = [scene for scene, ids in per_scene.items() if not ids]
     if missing:
         raise RunError(f"--pretrain {config.pretrain} has no track of scene "
