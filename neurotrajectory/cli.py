@@ -121,10 +121,10 @@ def _check_video(path: str) -> None:
 
 
 def front_table(out: Path, summary: dict) -> str:
-    """What ``train`` prints when the generations are done: where the run is, and its final
-    front's members (the knee marked, the best validated knee of any generation named), the
-    warm start and, if any, the best knee beside them, scored on the episodes the front was
-    chosen on (``summary``: ``front.json``'s)."""
+    """What ``train`` prints when the generations are done: where the run is, its final
+    front's members (the knee marked, the best validated one of any generation named) and the
+    warm start, if any, beside them, scored on the episodes the front was chosen on
+    (``summary``: ``front.json``'s)."""
     from neurotrajectory.evolve.pareto import pick_member
 
     front = summary["front"]

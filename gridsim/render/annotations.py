@@ -74,8 +74,7 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
     ``inset_size`` pixels at the top right, if any) and a scale bar on ``img`` (in place);
     returns ``img``."""
     _band(img, 0, 0, [(t, None, "") for t in caption.lines()])
-    legend = [(name, colour, shape) for name, colour, shape in LEGEND]
-    _band(img, 0, img.shape[0] - _STEP * len(legend) - 8, legend)
+    _band(img, 0, img.shape[0] - _STEP * len(LEGEND) - 8, LEGEND)
     if inset_size:
         grid = [("sensor grid:", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
         width = _width(grid)
@@ -92,8 +91,7 @@ def _band(img: np.ndarray, x: int, y: int, lines, width: int | None = None) -> N
     """``lines`` of ``(text, colour or None, "box" | "dot" | "")`` on a darkened band whose
     top left is ``(x, y)``; a colour is drawn before its text."""
     width = width or _width(lines)
-    band = img[y : y + _STEP * len(lines) + 8, x : x + width]
-    band[:] = (band * 0.35).astype(np.uint8)
+    _darken(img[y : y + _STEP * len(lines) + 8, x : x + width])
     for k, (text, colour, shape) in enumerate(lines):
         base = y + 17 + _STEP * k
         if shape == "box":
@@ -104,17 +102,20 @@ def _band(img: np.ndarray, x: int, y: int, lines, width: int | None = None) -> N
                     cv2.LINE_AA)  # fmt: skip
 
 
+def _darken(region: np.ndarray) -> None:
+    """Darken ``region`` of a frame in place (the ground the text is written on)."""
+    region[:] = (region * 0.35).astype(np.uint8)
+
+
 def _scale_bar(img: np.ndarray, pixels_per_metre: float) -> None:
-    """A bar of a round length (5, 10, 20 or 50 m: about a sixth of the frame) at the bottom
-    right, labelled."""
+    """A bar of a round length (5, 10, 20, 50 or 100 m: at least an eighth of the frame's
+    width) at the bottom right, labelled."""
     h, w = img.shape[:2]
     metres = next((m for m in (5, 10, 20, 50, 100) if m * pixels_per_metre >= w / 8), 100)
     length = int(round(metres * pixels_per_metre))
     x1, y = w - 12, h - 14
     x0 = x1 - length
-    img[y - 22 : h - 4, x0 - 8 : x1 + 8] = (img[y - 22 : h - 4, x0 - 8 : x1 + 8] * 0.35).astype(
-        np.uint8
-    )
+    _darken(img[y - 22 : h - 4, x0 - 8 : x1 + 8])
     cv2.line(img, (x0, y), (x1, y), _WHITE, 2)
     for xe in (x0, x1):
         cv2.line(img, (xe, y - 5), (xe, y + 4), _WHITE, 2)

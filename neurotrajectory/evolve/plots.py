@@ -48,10 +48,10 @@ def plot_run(
     lost = [np.array(h.get("violation", np.zeros(len(h["fitness"])))) > 0 for h in history]
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for k, ax in enumerate(axes):
-        for g, f, out in zip(gens, fit, lost, strict=True):
-            ax.scatter(np.full((~out).sum(), g), f[~out, k], s=8, alpha=0.4, color="tab:blue",
+        for g, f, gone in zip(gens, fit, lost, strict=True):
+            ax.scatter(np.full((~gone).sum(), g), f[~gone, k], s=8, alpha=0.4, color="tab:blue",
                        label="a member" if g == gens[0] else None)  # fmt: skip
-            ax.scatter(np.full(out.sum(), g), f[out, k], s=14, marker="x", color="black",
+            ax.scatter(np.full(gone.sum(), g), f[gone, k], s=14, marker="x", color="black",
                        label="a member that lost an episode" if g == gens[0] else None)  # fmt: skip
         ax.plot(gens, [np.median(f[:, k]) for f in fit], color="tab:red", label="median")
         ax.set_xlabel("generation")
@@ -131,7 +131,7 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
     objective, with the warm start on the same episodes as a line. The axes span the knees
     that completed every episode (and the warm start); a knee that lost episode time (a
     collision or leaving the road, its remaining steps counted at the worst values) is a
-    cross at the top edge, its value off the chart. None without validation scores."""
+    cross at the top edge, not drawn to scale. None without validation scores."""
     points = [(h["generation"], h["knee_validation"]) for h in history if "knee_validation" in h]
     if not points:
         return None

@@ -568,11 +568,12 @@ class Run:
             return Start(gen + 1, recipes, genomes if parents is None else parents)
         if source is Source.WARM_START:
             base = self._warm_start(probe)
+            table = len(population.table)
             if cfg.es:
                 rng = stream(cfg.seed, Salt.WARM_START_MUTATIONS)
-                recipes = es_recipes(cfg.ga, rng, len(base), table_size(len(base)))
+                recipes = es_recipes(cfg.ga, rng, len(base), table)
             else:
-                recipes = warm_start_recipes(cfg.ga, cfg.seed, len(base), len(population.table))
+                recipes = warm_start_recipes(cfg.ga, cfg.seed, len(base), table)
             return Start(0, recipes, base[None])
         return Start(0, initial_recipes(cfg.ga, cfg.seed))
 
