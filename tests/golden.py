@@ -210,11 +210,22 @@ def training_path_digests(out: Path, name: str) -> dict[str, str]:
     return run_digests(out)
 
 
+def run_history(out: Path) -> list[dict]:
+    """The generations of the run in ``out`` (its ``history.json``)."""
+    return json.loads((Path(out) / "history.json").read_text())["generations"]
+
+
+def untimed_history(out: Path) -> list[dict]:
+    """:func:`run_history` without the fields that measure time (:data:`TIMING_FIELDS`): what
+    two runs of the same settings share."""
+    return [{k: v for k, v in h.items() if k not in TIMING_FIELDS} for h in run_history(out)]
+
+
 def run_digests(out: Path) -> dict[str, str]:
     """Digests of a finished run in ``out``: its history without timings, front and
     checkpoint, and ``pretrain.json`` if it has one."""
     d = _Digests()
-    for gen in json.loads((out / "history.json").read_text())["generations"]:
+    for gen in run_history(out):
         for key, value in sorted(gen.items()):
             if key not in TIMING_FIELDS + LATER_FIELDS:
                 d.add(f"history_{key}", value)

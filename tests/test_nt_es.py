@@ -1,10 +1,9 @@
 """Evolution strategies (``--selection es``): a centre and antithetic pairs around it, the
 centre moved by the pairs' rank-weighted noise; reproducible, resumable, process-identical."""
 
-import json
-
 import numpy as np
 import pytest
+from golden import run_history, untimed_history
 
 from neurotrajectory.evolve.evolution import (
     ANCHOR,
@@ -22,10 +21,6 @@ pytestmark = pytest.mark.slow
 ES = dict(preset="tiny", population=6, generations=3, episodes=1, episode_seconds=3.0, seed=2,
           pretrain_episodes=2, pretrain_epochs=1, validation_episodes=2, batch=3,
           selection="es", es_step=2.0)  # fmt: skip
-
-
-def _history(out):
-    return json.loads((out / "history.json").read_text())["generations"]
 
 
 @pytest.fixture(scope="module")
@@ -75,7 +70,7 @@ def test_the_centre_moves_toward_the_better_member_of_each_pair():
 
 def test_an_es_run_keeps_its_centre_first_and_validates_it(es_run):
     run = Run.open(es_run)
-    hist = _history(es_run)
+    hist = run_history(es_run)
     warm = run.warm_start_genome()
     assert all(h["knee_validation"]["index"] == ANCHOR for h in hist)
     assert hist[0]["warm_start_validation"] == hist[0]["knee_validation"]  # the first centre
@@ -93,12 +88,8 @@ def test_an_es_run_resumes_and_runs_on_processes_to_the_same_bits(es_run, tmp_pa
     other = tmp_path / "processes"
     Run.create(other, TrainConfig(**ES, backend="processes", workers=2)).train(progress=False)
 
-    def untimed(folder):
-        timing = ("seconds", "individual_steps_per_s")
-        return [{k: v for k, v in h.items() if k not in timing} for h in _history(folder)]
-
     for folder in (out, other):
-        assert untimed(folder) == untimed(es_run)
+        assert untimed_history(folder) == untimed_history(es_run)
         with np.load(es_run / "checkpoint.npz") as a, np.load(folder / "checkpoint.npz") as b:
             assert np.array_equal(a["population"], b["population"])
 

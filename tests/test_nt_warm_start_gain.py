@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from golden import run_history, untimed_history
 
 from neurotrajectory.cli import main
 from neurotrajectory.evolve.backends import WorkerSpec, make_backend
@@ -34,10 +35,6 @@ TINY_CLI = ["--preset", "tiny", "--population", "3", "--generations", "1", "--ep
             "--episode-seconds", "2", "--validation-episodes", "1", "--quiet"]  # fmt: skip
 
 
-def _history(out):
-    return json.loads((out / "history.json").read_text())["generations"]
-
-
 @pytest.fixture(scope="module")
 def anchored_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("anchored") / "run"
@@ -57,7 +54,7 @@ def test_the_anchor_is_the_warm_start_in_every_generation(anchored_run):
     assert gen == 2 and np.array_equal(population[ANCHOR], warm)
     # its fitness in each generation is the warm start's on that generation's episodes
     ev = _evaluator(run)
-    for h in _history(anchored_run):
+    for h in run_history(anchored_run):
         f, _ = ev.evaluate(warm, run.config.episode_seeds(h["generation"]))
         assert h["fitness"][ANCHOR] == f.tolist()
 
@@ -66,7 +63,7 @@ def test_the_learning_curve_is_the_knee_and_the_warm_start_on_the_validation_epi
     anchored_run,
 ):
     run = Run.open(anchored_run)
-    hist = _history(anchored_run)
+    hist = run_history(anchored_run)
     assert all("knee_validation" in h for h in hist)
     assert "warm_start_validation" in hist[0] and "warm_start_validation" not in hist[1]
     ev = _evaluator(run)
@@ -98,7 +95,7 @@ def test_the_anchored_front_is_no_worse_than_the_warm_start_on_validation_l1(anc
 
 def test_the_best_validated_knee_is_kept_as_a_final_candidate(anchored_run):
     run = Run.open(anchored_run)
-    scores = [h["knee_validation"] for h in _history(anchored_run)]
+    scores = [h["knee_validation"] for h in run_history(anchored_run)]
     best_gen = min(range(len(scores)), key=lambda g: (scores[g]["violation"], scores[g]["l1"]))
     with np.load(anchored_run / "best_knee.npz") as best:
         assert int(best["generation"]) == best_gen
@@ -122,11 +119,7 @@ def test_an_anchored_run_resumes_to_the_same_result(anchored_run, tmp_path):
     Run.create(out, TrainConfig(selection="anchored", **WARM)).train(progress=False, stop_after=1)
     Run.open(out).train(progress=False)
 
-    def untimed(folder):
-        timing = ("seconds", "individual_steps_per_s")
-        return [{k: v for k, v in h.items() if k not in timing} for h in _history(folder)]
-
-    assert untimed(out) == untimed(anchored_run)
+    assert untimed_history(out) == untimed_history(anchored_run)
     with np.load(anchored_run / "front.npz") as a, np.load(out / "front.npz") as b:
         assert np.array_equal(a["genomes"], b["genomes"])
 
@@ -199,8 +192,8 @@ def test_a_run_without_a_warm_start_has_no_warm_start_entry(tmp_path):
     assert main(["train", *args, "--out", str(out)]) == 0
     assert "warm_start" not in json.loads((out / "heldout.json").read_text())
     assert "warm_start" not in json.loads((out / "front.json").read_text())
-    assert "warm_start_validation" not in _history(out)[0]
-    assert "knee_validation" in _history(out)[0]
+    assert "warm_start_validation" not in run_history(out)[0]
+    assert "knee_validation" in run_history(out)[0]
     assert not (out / "warm_start.npz").exists()
 
 
