@@ -25,7 +25,7 @@ from neurotrajectory.evolve.pareto import (
     minimised,
     non_dominated_sort,
 )
-from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet, count_parameters
+from neurotrajectory.model import PRESETS, NetConfig, TrajectoryNet, block_means, count_parameters
 
 
 def test_presets_sizes_and_output_shape():
@@ -198,3 +198,18 @@ def test_selection_never_keeps_a_failing_member_over_a_completing_one():
     recipes, rank = next_generation(fitness, cfg, 0, 0, 10, 100, violation)
     assert rank[0] > 0 and rank.min() == 0
     assert all(r.parent != 0 for r in recipes if r.is_elite)
+
+
+@pytest.mark.parametrize("p", [1, 2, 3, 4, 8])
+def test_block_means_are_avg_pool_bit_for_bit(p):
+    """The integer block sums the rollouts pool with give exactly what ``avg_pool2d`` gives
+    on the float values (the training digests depend on it), at the extremes too."""
+    rng = np.random.default_rng(p)
+    frames = rng.integers(0, 256, size=(3, 8 * p, 16 * p), dtype=np.uint8)
+    frames[0] = 255  # the largest sums
+    want = torch.from_numpy(frames).float()[:, None]
+    if p > 1:
+        want = torch.nn.functional.avg_pool2d(want, p)
+    got = block_means(frames, p)
+    assert got.dtype == torch.float32 and got.shape == want.shape
+    assert torch.equal(got, want)

@@ -344,3 +344,17 @@ def test_fused_grid_kernels_equal_the_separate_calls():
             got, got_hits = np.empty_like(obstacles), np.empty_like(hits)
             grid_states(obstacles, *tables[1], depth, *tables[4], _STATE_LUT, got_hits, got)
             assert np.array_equal(got_hits, hits) and np.array_equal(got, want)
+
+
+def test_sensors_of_one_grid_share_read_only_ray_tables():
+    """Many environments in one process read one copy of the ray tables (it stays in cache);
+    a sensor of another grid has its own, and nobody can write to them."""
+    a, b = OccupancyGridSensor(GridSpec()), OccupancyGridSensor(GridSpec())
+    other = OccupancyGridSensor(GridSpec(rows=64, cols=64))
+    assert a._tables_for(0, 0) is b._tables_for(0, 0)
+    assert other._tables_for(0, 0) is not a._tables_for(0, 0)
+    samples, runs, ray, rad, by_ray = a._tables_for(0, 0)
+    for table in (samples, *runs, ray, rad, *by_ray):
+        assert not table.flags.writeable
+    with pytest.raises(ValueError, match="read-only"):
+        rad[0, 0] = 0.0

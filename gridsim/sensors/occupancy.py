@@ -23,6 +23,7 @@ depend on the number of vehicles. Mount positions are snapped to whole cells.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import cv2
 import numpy as np
@@ -56,6 +57,43 @@ _NO_QUADS = np.zeros((0, 4, 2), np.int32)
 def _is_diagonal(a: np.ndarray) -> bool:
     """Whether the affine map ``a`` ``(2, 3)`` only scales and shifts (a north-up grid's)."""
     return a[0, 1] == 0.0 and a[1, 0] == 0.0
+
+
+@lru_cache(maxsize=256)
+def ray_tables(rows: int, cols: int, cell_size: float, max_range: float, rays: int,
+               ray_step: float, ou: int, ov: int) -> tuple:  # fmt: skip
+    """Ray samples ``(rays, samples, 2)`` (whole cells, column and row), their walk tables
+    (:func:`~gridsim.sensors.rays.ray_runs`), per-cell (ray, radius) tables and the cells of
+    each ray (:func:`~gridsim.sensors.rays.ray_cells`) of a ``rows x cols`` grid of
+    ``cell_size`` [m] seen by ``rays`` rays sampled every ``ray_step`` cells out to
+    ``max_range`` [m] from a mount ``(ou, ov)`` cells off the grid centre.
+
+    Cached and shared by every sensor of the same grid (mounts snap to whole cells): many
+    environments in one process read one copy, which stays in cache. The arrays are
+    read-only."""
+    # Rays need not reach past the farthest cell of the grid.
+    reach = min(max_range / cell_size, 0.5 * np.hypot(rows, cols) + 1.0)
+    n_r = int(np.ceil(reach / ray_step)) + 2
+    theta = np.arange(rays) * (2 * np.pi / rays)
+    r = np.arange(n_r) * ray_step
+    # Sample offsets in pixels (u right, v down) along rays at angle theta from "right",
+    # counter-clockwise towards "up".
+    du_ray = (np.cos(theta)[:, None] * r[None]).astype(np.float32)
+    dv_ray = (-np.sin(theta)[:, None] * r[None]).astype(np.float32)
+    u0, v0 = cols / 2 - 0.5 + ou, rows / 2 - 0.5 + ov
+    samples, _ = cv2.convertMaps(
+        du_ray + np.float32(u0), dv_ray + np.float32(v0), cv2.CV_16SC2, nninterpolation=True
+    )
+    v, u = np.mgrid[0:rows, 0:cols].astype(np.float64)
+    du, dv = u - u0, v - v0
+    ang = np.mod(libm.arctan2(-dv, du), 2 * np.pi)
+    ray = (np.rint(ang / (2 * np.pi) * rays).astype(np.intp) % rays).astype(index_dtype(rays))
+    rad = (np.hypot(du, dv) / ray_step).astype(np.float32)
+    rad[rad > max_range / cell_size / ray_step] = np.inf  # out of range: never visible
+    tables = (samples, ray_runs(samples, rows, cols), ray, rad, ray_cells(ray, rad, rays))
+    for a in (samples, ray, rad, *tables[1], *tables[4]):
+        a.setflags(write=False)
+    return tables
 
 
 @dataclass(frozen=True)
@@ -104,19 +142,8 @@ class OccupancyGridSensor:
     def __init__(self, spec: GridSpec | None = None) -> None:
         self.spec = spec = spec or GridSpec()
         rows, cols = spec.rows, spec.cols
-        # Rays need not reach past the farthest cell of the grid.
-        reach = min(spec.max_range / spec.cell_size, 0.5 * np.hypot(rows, cols) + 1.0)
-        self._dr = spec.ray_step
-        self._n_r = int(np.ceil(reach / self._dr)) + 2
         self._theta = np.arange(spec.rays) * (2 * np.pi / spec.rays)
-        r = np.arange(self._n_r) * self._dr
-        # Sample offsets in pixels (u right, v down) along rays at angle theta from "right",
-        # counter-clockwise towards "up".
-        self._du = (np.cos(self._theta)[:, None] * r[None]).astype(np.float32)
-        self._dv = (-np.sin(self._theta)[:, None] * r[None]).astype(np.float32)
-        self._depth = spec.hit_depth / spec.cell_size / self._dr
-        self._range = spec.max_range / spec.cell_size / self._dr
-        self._tables: dict[tuple[int, int], tuple] = {}
+        self._depth = spec.hit_depth / spec.cell_size / spec.ray_step
         #: Half the grid's diagonal [m]: what lies farther from the ego is not in the grid.
         self.radius = 0.5 * np.hypot(rows, cols) * spec.cell_size
         self._obstacles = np.empty((rows, cols), np.uint8)
@@ -125,31 +152,10 @@ class OccupancyGridSensor:
         self._last_polygons: tuple[list[np.ndarray], np.ndarray | None] = ([], None)
 
     def _tables_for(self, ou: int, ov: int):
-        """Ray samples ``(rays, samples, 2)`` (whole cells, column and row), their walk tables
-        (:func:`~gridsim.sensors.rays.ray_runs`), per-cell (ray, radius) tables and the cells
-        of each ray (:func:`~gridsim.sensors.rays.ray_cells`) for a mount ``(ou, ov)`` cells
-        off the grid centre; cached, as mounts snap to whole cells."""
-        key = (ou, ov)
-        hit = self._tables.get(key)
-        if hit is not None:
-            return hit
+        """The ray tables (:func:`ray_tables`) of this sensor's grid for a mount ``(ou, ov)``
+        cells off the grid centre."""
         s = self.spec
-        u0, v0 = s.cols / 2 - 0.5 + ou, s.rows / 2 - 0.5 + ov
-        samples, _ = cv2.convertMaps(
-            self._du + np.float32(u0), self._dv + np.float32(v0), cv2.CV_16SC2, nninterpolation=True
-        )
-        v, u = np.mgrid[0 : s.rows, 0 : s.cols].astype(np.float64)
-        du, dv = u - u0, v - v0
-        ang = np.mod(libm.arctan2(-dv, du), 2 * np.pi)
-        ray = np.rint(ang / (2 * np.pi) * s.rays).astype(np.intp) % s.rays
-        ray = ray.astype(index_dtype(s.rays))
-        rad = (np.hypot(du, dv) / self._dr).astype(np.float32)
-        rad[rad > self._range] = np.inf  # out of range: never visible
-        if len(self._tables) > 256:
-            self._tables.clear()
-        runs = ray_runs(samples, s.rows, s.cols)
-        self._tables[key] = hit = (samples, runs, ray, rad, ray_cells(ray, rad, s.rays))
-        return hit
+        return ray_tables(s.rows, s.cols, s.cell_size, s.max_range, s.rays, s.ray_step, ou, ov)
 
     # -- geometry ----------------------------------------------------------------------------
     def world_to_pixel(self, ego_xy: np.ndarray, ego_psi: float) -> np.ndarray:
