@@ -53,8 +53,8 @@ class DWAConfig:
     """Sampling, safety and cost weights (dimensionless weights on normalised terms).
 
     The margin, horizons, weights and fallback tolerance were chosen on 2026-11-23 by
-    ``benchmarks/tune_dwa.py`` on the train splits of the four evaluation groups only
-    (``python benchmarks/tune_dwa.py --data /tmp/dwa-data --samples 300 --passes 6
+    ``experiments/tune_dwa.py`` on the train splits of the four evaluation groups only
+    (``python experiments/tune_dwa.py --data /tmp/dwa-data --samples 300 --passes 6
     --seed 0``; see docs/evaluation.md, "DWA tuning"). The safety settings are bounded in
     the search (margin >= 0, both horizons >= 0.3 s); the old values are
     ``BEFORE_ISSUE_10`` there."""

@@ -6,7 +6,7 @@ inner-city: 40 episodes of 20 s; recorded groups: each of the run's held-out tra
 Prints one JSON line per run; the runs stay in ``--out`` (``GROUP-sSEED-VARIANT/``; with
 ``--goal-seconds S``, a goal beyond the horizon: ``GROUP-sSEED-VARIANT-goalS/``).
 
-    python benchmarks/evolution_gain.py --out runs/gain --groups seamless --seeds 3 4 \\
+    python experiments/evolution_gain.py --out runs/gain --groups seamless --seeds 3 4 \\
         --variants pareto anchored
 
 Choose settings on development seeds (3, 4, ...); report on 0, 1, 2.

@@ -1,7 +1,7 @@
 """How many tracks of recorded scenes give full-length episodes when the ego follows its own
 recorded future (the reference), as ``neurotrajectory record`` drives them.
 
-    python benchmarks/replay_full_length.py [SCENARIO ...]
+    python experiments/replay_full_length.py [SCENARIO ...]
 
 Every track of each scene is the ego once, for its recorded duration. An episode is
 full-length if it lasts the track's duration (to within :data:`NEAR_END`), ending by the

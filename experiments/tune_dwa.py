@@ -1,7 +1,7 @@
 """Tune DWA's cost weights and safety settings on the train splits of all evaluation groups.
 
-    python benchmarks/tune_dwa.py --data /tmp/dwa-data                 # the search
-    python benchmarks/tune_dwa.py --data /tmp/dwa-data --once-on-test  # afterwards, once
+    python experiments/tune_dwa.py --data /tmp/dwa-data                 # the search
+    python experiments/tune_dwa.py --data /tmp/dwa-data --once-on-test  # afterwards, once
 
 The windows are those ``neurotrajectory evaluate`` uses by default (``EvalConfig``: 8 episodes
 of 30 s per generated scenario, seed 0; every track of the recorded scenes), read from

@@ -6,7 +6,7 @@ and warm start before the ego-frame residual, skip read-out and validated epoch)
 its knee member on the same 20 held-out seamless episodes (``heldout.json``). Prints one JSON
 line per variant.
 
-    python benchmarks/ablate_trainer.py --out runs/ablation [--variants recipe no-constraint]
+    python experiments/ablate_trainer.py --out runs/ablation [--variants recipe no-constraint]
 
 Variants (flags added to the main job's command):
 """
