@@ -77,7 +77,7 @@ def measure(phase: str, path: str) -> dict:
 
     import gridsim  # noqa: F401  (registers GridSim-v0)
     from gridsim.scenario import load_scenario
-    from gridsim.scenario.checks import scenario_problems
+    from gridsim.scenario.families import scenario_problems
     from gridsim.traffic.commonroad import read_tracks_commonroad
 
     base = _peak_mb()

@@ -7,8 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from gridsim.world.scripted_drivers import LaneFollower
-
 
 class Idle:
     """Hands off: no acceleration, no steering (keeps its speed and its wheel angle)."""
@@ -34,6 +32,8 @@ class LaneFollow:
     action_type = "control"
 
     def __call__(self, env, obs, info):
+        from gridsim.world.scripted_drivers import LaneFollower  # compiled: loaded on first use
+
         world = env.unwrapped.world
         follower = LaneFollower(speed=0.9 * world.ego_params.v_max)
         return np.array(follower(world), np.float32)
@@ -48,4 +48,5 @@ class Random:
         return env.action_space.sample()
 
 
+#: The policies by name (``gridsim run --policy NAME``); importing this module is cheap.
 POLICIES = {"idle": Idle, "reference": Reference, "lane-follow": LaneFollow, "random": Random}

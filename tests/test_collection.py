@@ -116,7 +116,7 @@ def test_record_a_folder_as_a_named_group(folder, tmp_path):
     assert group_scenarios("urban") == ("lankershim_1_1", "peachtree_4_8")
     assert len(group_scenarios("mine", str(folder))) == 2
     out = tmp_path / "ds"
-    code = nt_main(["record", "--scenario", str(folder), "--group", "mine", "--out", str(out),
+    code = nt_main(["record", "--scenario", str(folder), "--name", "mine", "--out", str(out),
                     "--stride", "5", "--quiet"])  # fmt: skip
     assert code == 0
     ds = load_dataset(out)
@@ -170,7 +170,7 @@ def test_record_skips_the_unusable_files_and_says_so(folder, tmp_path, capsys):
 
     add_unusable_files(folder)
     out = tmp_path / "ds"
-    code = nt_main(["record", "--scenario", str(folder), "--group", "mine", "--out", str(out),
+    code = nt_main(["record", "--scenario", str(folder), "--name", "mine", "--out", str(out),
                     "--stride", "5", "--quiet"])  # fmt: skip
     assert code == 0
     err = capsys.readouterr().err

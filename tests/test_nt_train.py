@@ -511,7 +511,7 @@ def test_fuzzed_train_arguments_fail_cleanly_and_leave_no_run_folder(choice):
         err = io.StringIO()
         with (
             mock.patch.object(Run, "train", lambda self, progress=True: STUB_SUMMARY),
-            mock.patch("neurotrajectory.cli._rollout"),
+            mock.patch("neurotrajectory.cli.train.rollout"),
             contextlib.redirect_stderr(err),
             contextlib.redirect_stdout(io.StringIO()),
         ):

@@ -8,7 +8,8 @@ from scenes import track, write_scene
 
 from gridsim.cli import main
 from gridsim.errors import DataError, DataWarning
-from gridsim.scenario.checks import scenario_problems, track_problems
+from gridsim.scenario.checks import track_problems
+from gridsim.scenario.families import scenario_problems
 from gridsim.scenario.loader import load_scenario
 
 X = np.linspace(20.0, 60.0, 41)  # 10 m/s along the right lane for 4 s

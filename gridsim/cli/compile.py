@@ -9,11 +9,30 @@ each kernel meet the types it meets in use. What is compiled is cached next to t
 
 from __future__ import annotations
 
+import argparse
 import time
 import warnings
 from collections.abc import Callable
 
 from gridsim.errors import DataWarning
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "compile",
+        help="compile the simulator's kernels for this machine and cache them (pip install . "
+        "does it; run it after an editable install, or to fill a read-only install's cache)",
+    )
+    p.set_defaults(func=execute)
+
+
+def execute(args: argparse.Namespace) -> int:
+    print("compiling or loading the kernels of every built-in scenario:")
+    done = compile_kernels()
+    print(f"{done['kernels']} kernels ready ({done['compiled']} compilations) in "
+          f"{done['seconds']:g} s")  # fmt: skip
+    return 0
+
 
 #: Decisions driven per scenario and action type: enough to start the traffic, the sensor,
 #: the shadow world and the controllers.

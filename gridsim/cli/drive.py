@@ -2,26 +2,46 @@
 
 from __future__ import annotations
 
+import argparse
+import json
 from pathlib import Path
 
-import cv2
 import numpy as np
-from tqdm import tqdm
 
+from gridsim.cli.flags import quiet_flag, scenario_flag, seed_flag
 from gridsim.errors import GridSimError, OutputError
 from gridsim.outputs import new_folder, new_folder_problem, write_json, write_npz
-from gridsim.render.grids import colourise
-from gridsim.render.topdown import TopDownRenderer
-from gridsim.scenario.build import build_sensor, build_world
-from gridsim.scenario.collection import load_collection, pick
-from gridsim.scenario.schema import MAX_DURATION, MAX_TICKS
-from gridsim.world.scripted_drivers import LaneFollower
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "drive", help="drive the lane-following ego; write grids and a top-down frame"
+    )
+    scenario_flag(p, default="seamless")
+    p.add_argument("--seconds", type=float, default=20.0, help="simulated time [s]")
+    seed_flag(p)
+    p.add_argument("--out", default="out/drive", help="output folder")
+    quiet_flag(p)
+    p.set_defaults(func=execute)
+
+
+def execute(args: argparse.Namespace) -> int:
+    summary = drive(args.scenario, args.seconds, args.seed, Path(args.out), progress=not args.quiet)
+    print(json.dumps(summary, indent=2))
+    return 0
 
 
 def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = True) -> dict:
     """Drive ``seconds`` of simulated time; write ``grids.npz`` (uint8 ``(T, H, W)`` grids and
     their times), a few colour grid PNGs, ``topdown.png`` (last frame) and ``summary.json``
     into ``out``. Returns the summary."""
+    from tqdm import tqdm
+
+    from gridsim.scenario.build import build_sensor, build_world
+    from gridsim.scenario.collection import load_collection, pick
+    from gridsim.scenario.schema import MAX_DURATION, MAX_TICKS
+    from gridsim.world.scripted_drivers import LaneFollower
+
     if not 0 < seconds <= MAX_DURATION:
         raise GridSimError(f"--seconds must be in (0, {MAX_DURATION:g}] (an hour of simulated "
                            f"time at most), got {seconds}")  # fmt: skip
@@ -59,6 +79,11 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
 def _write(out, sc, seed, world, grids, times, steps, start, distance, collisions,
            off_road) -> dict:  # fmt: skip
     """Write the drive's files into ``out``; the summary."""
+    import cv2
+
+    from gridsim.render.grids import colourise
+    from gridsim.render.topdown import TopDownRenderer
+
     write_npz(out / "grids.npz", compressed=True, grids=grids, times=times)
     for k in np.linspace(0, steps - 1, min(steps, 5)).astype(int):
         cv2.imwrite(str(out / f"grid_{k:05d}.png"), colourise(grids[k])[:, :, ::-1])

@@ -2,12 +2,38 @@
 
 from __future__ import annotations
 
-from tqdm import tqdm
+import argparse
+import json
 
-from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.cli.flags import at_least, overlay_flag, quiet_flag, scenario_flag, seed_flag
 from gridsim.errors import GridSimError
 from gridsim.policies import POLICIES
-from gridsim.video import record_episode
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("run", help="drive a policy in GridSim-v0, print a summary, export a video")
+    scenario_flag(p, default="seamless")
+    p.add_argument("--steps", type=at_least(1), default=300, help="decisions to run at most")
+    p.add_argument(
+        "--policy",
+        default="reference",
+        choices=list(POLICIES),
+        help="the driver: the human reference, lane following, random or idle",
+    )
+    seed_flag(p)
+    p.add_argument("--video", default=None, help="write a video (.mp4, or .gif)")
+    overlay_flag(p)
+    quiet_flag(p)
+    p.set_defaults(func=execute)
+
+
+def execute(args: argparse.Namespace) -> int:
+    summary = run_policy(
+        args.scenario, args.policy, args.steps, args.seed, video=args.video,
+        progress=not args.quiet, overlay=args.overlay,
+    )  # fmt: skip
+    print(json.dumps(summary, indent=2))
+    return 0
 
 
 def run_policy(
@@ -21,6 +47,11 @@ def run_policy(
 ) -> dict:
     """Run ``policy`` for up to ``steps`` decisions; optionally write a video. Returns a
     summary: distance driven, collisions, off-road, fitness sums and the episode outcome."""
+    from tqdm import tqdm
+
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.video import record_episode
+
     if policy not in POLICIES:
         raise GridSimError(f"unknown policy {policy!r}; choose from {sorted(POLICIES)}")
     if steps < 1:

@@ -160,19 +160,3 @@ def scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> S
         problems.append(f"{scenario.source}: ego.track {wanted} cannot be the ego: "
                         f"{flawed[wanted][0]}")  # fmt: skip
     return SceneReport(tuple(problems), tuple(warnings), frozenset(flawed))
-
-
-def scenario_problems(scenario: Scenario) -> list[str]:
-    """Plausibility problems of ``scenario`` (none for generated roads)."""
-    return list(scenario_report(scenario).problems)
-
-
-def scenario_report(scenario: Scenario) -> SceneReport:
-    """:func:`scene_report` of a recorded scenario (an empty report for generated roads)."""
-    from gridsim.scenario.families.recorded import recorded_scene  # it calls these checks
-    from gridsim.scenario.schema import RecordedRoadConfig
-
-    if not isinstance(scenario.config.road, RecordedRoadConfig):
-        return SceneReport((), (), frozenset())
-    road, tracks = recorded_scene(scenario, check=False)
-    return scene_report(scenario, road, tracks)

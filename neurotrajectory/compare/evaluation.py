@@ -33,12 +33,10 @@ from gridsim.outputs import new_folder, write_json
 from gridsim.policies import Reference
 from gridsim.scenario.schema import MAX_DURATION
 from gridsim.seeding import Salt, stream
-from neurotrajectory.compare.baselines.constant_velocity import ConstantVelocity
-from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
-from neurotrajectory.compare.baselines.dwa import DWA
 from neurotrajectory.compare.baselines.end2end import CommandPolicy, End2End, TrainSettings
 from neurotrajectory.compare.closed_loop import closed_loop
 from neurotrajectory.compare.front import NetPredictor, load_front
+from neurotrajectory.compare.methods import NT_BEST, NT_PICKED, PLANNERS
 from neurotrajectory.compare.metrics import Accuracy, accuracy
 from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
 from neurotrajectory.data.windows import (
@@ -53,10 +51,6 @@ from neurotrajectory.data.windows import (
     split_by_track,
 )
 from neurotrajectory.evolve.pareto import pick_member
-
-NT_PICKED = "NeuroTrajectory"
-NT_BEST = "NeuroTrajectory (best member on test)"
-
 
 #: A group's name: it names folders of the output (``data/NAME``, ``models/end2end-NAME``).
 GROUP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
@@ -179,9 +173,8 @@ def _evaluate_group(
     e2e.save(out / "models" / f"end2end-{group}")
     picked = front.nets[front.picked]
     nt = NetPredictor(picked)
-    methods = {"constant velocity": ConstantVelocity(setting),
-               "destination curve": DestinationCurve(setting), "DWA": DWA(setting),
-               "End2End": e2e}  # fmt: skip
+    planners = {cls.name: cls(setting) for cls in PLANNERS}
+    methods = {**planners, End2End.name: e2e}
     log(
         f"{group}: scoring {len(methods)} methods and {len(front.nets)} front members on "
         f"{len(test)} test windows"
@@ -206,9 +199,8 @@ def _evaluate_group(
         policies = {"human reference": Reference()}
         # every trajectory planner's plans are followed alike: smoothed as the network's
         keep = picked.cfg.smoothing
-        policies |= {n: TrajectoryPolicy(methods[n], keep)
-                     for n in ("constant velocity", "destination curve", "DWA")}  # fmt: skip
-        policies |= {"End2End": CommandPolicy(e2e), NT_PICKED: TrajectoryPolicy(nt, keep)}
+        policies |= {n: TrajectoryPolicy(p, keep) for n, p in planners.items()}
+        policies |= {End2End.name: CommandPolicy(e2e), NT_PICKED: TrajectoryPolicy(nt, keep)}
         rng = stream(cfg.seed, Salt.CLOSED_LOOP_EPISODES)
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
         bar = tqdm(policies.items(), desc=f"closed loop {group} ({len(seeds)} episodes each)",

@@ -146,7 +146,7 @@ def heldout(
         "seeds": seeds,
         "network": summarise(rows),
         **({"warm_start": summarise(started)} if started else {}),
-        "destination curve": summarise(baseline),
+        DestinationCurve.name: summarise(baseline),
         "episodes": rows,
         **({"warm_start_episodes": started} if started else {}),
     }

@@ -22,7 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from gridsim.outputs import atomic_text, write_json, write_text  # noqa: E402
-from neurotrajectory.compare.evaluation import NT_PICKED  # noqa: E402
+from neurotrajectory.compare.methods import NT_PICKED  # noqa: E402
 from neurotrajectory.compare.metrics import SUMMARY_KEYS  # noqa: E402
 
 GROUP_TITLES = {

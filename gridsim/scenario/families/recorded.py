@@ -59,6 +59,13 @@ def recorded_scene(scenario: Scenario, check: bool = True) -> tuple[StaticRoad, 
     return road, tracks
 
 
+def data_report(scenario: Scenario):
+    """The plausibility report of the scene's map and tracks
+    (:func:`~gridsim.scenario.checks.scene_report`), without refusing anything."""
+    road, tracks = recorded_scene(scenario, check=False)
+    return scene_report(scenario, road, tracks)
+
+
 def _scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
     road = _lanelet_road(stamped(map_path(scenario)))
     library = library_for(scenario)

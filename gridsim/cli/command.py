@@ -1,0 +1,76 @@
+"""Running a subcommand of ``gridsim`` or ``neurotrajectory``: parse, run, and turn its
+errors into one line each (bad input: status 2; a bug: status 3, the traceback saved)."""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import sys
+import tempfile
+import traceback
+import warnings
+from functools import partial
+from pathlib import Path
+
+from gridsim.errors import DataWarning, GridSimError
+
+#: Where unexpected errors are to be reported.
+REPORT_TO = "the GridSim issue tracker"
+
+
+def run_command(
+    parser: argparse.ArgumentParser,
+    argv: list[str] | None,
+    errors: tuple[type[Exception], ...] = (GridSimError,),
+) -> int:
+    """Parse ``argv`` and run the chosen sub-command's ``func``. An expected error (one of
+    ``errors``: bad input, named by the message) is printed as ``PROG: error: MESSAGE`` with
+    exit status 2, as argparse prints a bad flag; a :class:`~gridsim.errors.DataWarning` as
+    ``PROG: warning: MESSAGE``. Anything else is a bug: one line says so and where the
+    traceback was saved (exit status 3; ``GRIDSIM_DEBUG=1`` raises it instead); Ctrl-C exits
+    with status 130 and no traceback."""
+    args = parser.parse_args(argv)
+    #: the command line, as the user gave it (for files that record what made them)
+    args.command = " ".join([parser.prog, *map(shlex.quote, sys.argv[1:] if argv is None
+                                               else argv)])  # fmt: skip
+    for flag in ("out", "run", "resume", "scenario"):
+        if getattr(args, flag, None) == "":
+            print(f"{parser.prog}: error: --{flag} is empty; give a path", file=sys.stderr)
+            return 2
+    with warnings.catch_warnings():
+        warnings.simplefilter("default", DataWarning)
+        warnings.showwarning = partial(_show_warning, parser.prog)
+        try:
+            return args.func(args)
+        except errors as exc:
+            print(f"{parser.prog}: error: {exc}", file=sys.stderr)
+            return 2
+        except KeyboardInterrupt:
+            print(f"{parser.prog}: interrupted", file=sys.stderr)
+            return 130
+        except Exception as exc:
+            if os.environ.get("GRIDSIM_DEBUG"):
+                raise
+            saved = _save_traceback(parser.prog, args.command)
+            print(f"{parser.prog}: internal error: {type(exc).__name__}: {exc}\n"
+                  f"This is a bug, not a problem of your input. Please report it to {REPORT_TO} "
+                  f"with the traceback saved in {saved}", file=sys.stderr)  # fmt: skip
+            return 3
+
+
+def _show_warning(prog, message, category, filename, lineno, file=None, line=None) -> None:
+    if issubclass(category, DataWarning):
+        print(f"{prog}: warning: {message}", file=sys.stderr)
+    else:
+        print(warnings.formatwarning(message, category, filename, lineno, line), file=sys.stderr,
+              end="")  # fmt: skip
+
+
+def _save_traceback(prog: str, command: str) -> Path:
+    """Write the current exception's traceback and the ``command`` line to a new file in the
+    temporary folder; its path."""
+    fd, name = tempfile.mkstemp(prefix=f"{prog}-crash-", suffix=".txt")
+    with os.fdopen(fd, "w") as fh:
+        fh.write(f"command: {command}\npython: {sys.version}\n\n{traceback.format_exc()}")
+    return Path(name)

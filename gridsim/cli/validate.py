@@ -1,0 +1,67 @@
+"""``gridsim validate``: check a scenario file (and a recorded scene's data), or each file of
+a folder or glob, and print every problem in plain words."""
+
+from __future__ import annotations
+
+import argparse
+import warnings
+
+from gridsim.errors import DataWarning, GridSimError
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "validate",
+        help="check a scenario file (YAML or CommonRoad XML; and a recorded scene's data), or "
+        "each file of a folder or glob, and print precise errors",
+    )
+    p.add_argument("path", help="a scenario file, a folder or a glob of them")
+    p.set_defaults(func=execute)
+
+
+def _report(path: str):
+    """``(summary, report)`` of one scenario file: it loads, builds, and its recorded data
+    (if any) is plausible (:class:`~gridsim.scenario.checks.SceneReport`)."""
+    from gridsim.scenario.build import build_world
+    from gridsim.scenario.families import scenario_report
+    from gridsim.scenario.loader import load_scenario
+
+    sc = load_scenario(path)
+    report = scenario_report(sc)
+    if not report.problems:
+        with warnings.catch_warnings():  # the report lists them
+            warnings.simplefilter("ignore", DataWarning)
+            build_world(sc, seed=0)  # also resolves maps and libraries
+    return f"scenario {sc.name!r}, road type {sc.config.road.type}", report
+
+
+def execute(args: argparse.Namespace) -> int:
+    from gridsim.errors import DataError
+    from gridsim.scenario.collection import scenario_files
+
+    files = scenario_files(args.path)
+    if files is None:  # one file: its problems are the error
+        summary, report = _report(args.path)
+        if report.problems:
+            raise DataError(report.refusal(args.path))
+        print(f"{args.path}: OK ({summary})" + _warning_lines(report.warnings))
+        return 0
+    failed = 0
+    for f in files:  # a collection: one line per file, its problems below it
+        try:
+            summary, report = _report(str(f))
+            problems, notes = report.problems, report.warnings
+        except GridSimError as exc:
+            summary, problems, notes = "error", str(exc).splitlines(), ()
+        if problems:
+            failed += 1
+            print(f"{f}: {len(problems)} problem(s)")
+            print("\n".join(f"  - {p.strip().removeprefix('- ')}" for p in problems))
+        else:
+            print(f"{f}: OK ({summary})" + _warning_lines(notes))
+    print(f"{len(files) - failed} of {len(files)} scenario files OK")
+    return 2 if failed else 0
+
+
+def _warning_lines(notes: tuple[str, ...]) -> str:
+    return "".join(f"\n  warning: {n}" for n in notes)

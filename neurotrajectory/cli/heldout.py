@@ -1,0 +1,72 @@
+"""``neurotrajectory heldout``: drive a member of a run's front on episodes no generation
+saw."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from contextlib import nullcontext
+from pathlib import Path
+
+from gridsim.cli.flags import at_least
+from gridsim.outputs import output_problem, write_json
+from neurotrajectory.cli.flags import pick_flag, plan_smoothing_flag, run_flag
+from neurotrajectory.evolve.runs import Run, RunError, run_folder
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("heldout", help="drive a front member on episodes no generation saw")
+    run_flag(p)
+    pick_flag(p)
+    p.add_argument("--episodes", type=at_least(1), default=20, help="held-out episodes")
+    p.add_argument(
+        "--seconds",
+        type=float,
+        default=None,
+        help="length of each episode [s] (default: the run's episode length)",
+    )
+    plan_smoothing_flag(
+        p, "drive with this plan smoothing instead of the run's (see train --plan-smoothing)"
+    )
+    p.add_argument("--out", required=True, help="JSON report to write")
+    p.set_defaults(func=execute)
+
+
+def execute(args: argparse.Namespace) -> int:
+    if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
+        raise RunError(f"--seconds must be a finite number > 0, got {args.seconds}")
+    problem = output_problem(Path(args.out), directory=False)
+    if problem:
+        raise RunError(f"--out {args.out}: {problem}")
+    with run_folder(args.run, resume=True) if args.out is None else nullcontext():
+        report_heldout(Run.open(args.run), args.episodes, args.seconds, args.pick, args.out,
+                 args.plan_smoothing)  # fmt: skip
+    return 0
+
+
+def report_heldout(
+    run: Run,
+    episodes: int,
+    seconds: float | None = None,
+    pick: str = "knee",
+    out=None,
+    smoothing: float | None = None,
+) -> None:
+    """Drive a front member on held-out episodes (``smoothing``: instead of the run's plan
+    smoothing); write ``out`` (default the run's ``heldout.json``), print a summary."""
+    from neurotrajectory.compare.front import heldout
+
+    report = heldout(run.out, episodes, pick, seconds, smoothing)
+    path = Path(out) if out else run.out / "heldout.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_json(path, report)
+    count = len(report["episodes"])
+    which = "held-out tracks" if "ego_tracks" in report else "held-out episodes"
+    print(f"{pick} member on {count} {which} ({report['episode_seconds']:g} s each):")
+    rows = [(f"{pick} member", report["network"]), ("its warm start", report.get("warm_start")),
+            ("destination curve", report["destination curve"])]  # fmt: skip
+    for name, r in rows:
+        if r is not None:
+            print(f"  {name:<18} completed {r['completed']:4.0%}  progress {r['progress']:4.0%} "
+                  f"of the human's  mean l1 {r['l1']:8.0f} m^2  steering "
+                  f"{r['mean_steer_rate']:.2f} rad/s")  # fmt: skip

@@ -1,0 +1,93 @@
+"""``neurotrajectory record``: record labelled windows of human driving (a dataset)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+from gridsim.cli.flags import at_least, quiet_flag, seed_flag
+from gridsim.outputs import new_folder
+from neurotrajectory.cli.flags import episode_seconds_flag, goal_flag, test_fraction_flag
+from neurotrajectory.compare.evaluation import EvalConfig
+from neurotrajectory.data.windows import GROUPS
+from neurotrajectory.evolve.runs import RunError
+
+#: The evaluation's defaults: a split recorded here is the one ``evaluate`` makes.
+EVAL = EvalConfig()
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("record", help="record labelled windows of human driving")
+    p.add_argument("--scenario", required=True,
+                   help=f"a scenario group ({', '.join(GROUPS)}), a built-in scenario, a YAML "
+                        "or CommonRoad XML path, or a folder or glob of them; recorded scenes "
+                        "drive every track once")  # fmt: skip
+    p.add_argument("--name", default=None, metavar="NAME",
+                   help="the group name the dataset records (default: --scenario)")  # fmt: skip
+    p.add_argument("--group", default=None, help=argparse.SUPPRESS)  # the old --name: refused
+    p.add_argument("--episodes", type=at_least(1), default=EVAL.episodes,
+                   help=f"episodes per generated scenario (default {EVAL.episodes})")  # fmt: skip
+    episode_seconds_flag(p, "length of each episode [s] (default: the scenario's)")
+    p.add_argument(
+        "--stride",
+        type=at_least(1),
+        default=None,
+        help="decisions between windows (default 1 on recorded scenes, else 5)",
+    )
+    seed_flag(p, "seed of the episodes and split")
+    p.add_argument(
+        "--split",
+        choices=["train", "test"],
+        default=None,
+        help="keep only this side of the split by track that `evaluate` with the same --seed "
+        "and --test-fraction makes (e.g. train data for a group's run)",
+    )
+    test_fraction_flag(p, f"share of the tracks on the test side of --split (default "
+                          f"{EVAL.test_fraction})")  # fmt: skip
+    goal_flag(p, "the windows see the destination")
+    p.add_argument("--out", required=True, help="dataset folder (created)")
+    quiet_flag(p)
+    p.set_defaults(func=execute)
+
+
+def execute(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from neurotrajectory.data.windows import Dataset, record_group, save_dataset, split_by_track
+
+    if args.group is not None:
+        raise RunError(f"record --group {args.group}: the dataset's group name is --name now "
+                       f"(--name {args.group}); --group NAME=FOLDER is evaluate's")  # fmt: skip
+    if args.test_fraction is not None and not args.split:
+        raise RunError(f"--test-fraction {args.test_fraction:g} sets the test side of --split: "
+                       "give --split train or --split test (or leave it out)")  # fmt: skip
+    if args.test_fraction is None:
+        args.test_fraction = EVAL.test_fraction
+    name, source = (args.name, args.scenario) if args.name else (args.scenario, None)
+    with new_folder(args.out) as partial:  # held before recording; --out appears when done
+        with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:
+            ds = record_group(name, args.episodes, args.seed, args.stride, args.episode_seconds,
+                              progress=bar.update, source=source,
+                              goal_seconds=args.goal_seconds)  # fmt: skip
+        if args.split:  # the side evaluate --seed S --test-fraction F uses
+            halves = split_by_track(ds.windows, args.test_fraction, args.seed)
+            sides = dict(zip(("train", "test"), halves, strict=True))
+            split = {"side": args.split, "test_fraction": args.test_fraction, "seed": args.seed}
+            ds = Dataset(sides[args.split], {**ds.manifest, "split": split})
+        save_dataset(ds, partial)
+    path = Path(args.out)
+    w = ds.windows
+    print(
+        json.dumps(
+            {
+                "out": str(path),
+                "windows": len(w),
+                "tracks": len(set(w.track.tolist())),
+                "group": ds.manifest["group"],
+                "source": ds.manifest["source"],
+            },
+            indent=1,
+        )
+    )
+    return 0

@@ -1,0 +1,66 @@
+"""``neurotrajectory rollout``: drive a member of a run's front and export a video."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from gridsim.cli.flags import at_least, overlay_flag, seed_flag
+from neurotrajectory.cli.flags import check_video, pick_flag, run_flag
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("rollout", help="drive a Pareto-front member and export a video")
+    run_flag(p)
+    pick_flag(p)
+    p.add_argument("--video", default="rollout.mp4", help="video to write (.mp4 or .gif)")
+    overlay_flag(p)
+    seed_flag(p)
+    p.add_argument(
+        "--steps",
+        type=at_least(1),
+        default=None,
+        help="decisions to drive at most (default: the run's episode length)",
+    )
+    p.set_defaults(func=execute)
+
+
+def execute(args: argparse.Namespace) -> int:
+    check_video(args.video)
+    rollout(args.run, args.pick, args.video, args.seed, args.steps, args.overlay)
+    return 0
+
+
+def rollout(
+    run_dir: str, pick: str, video: str, seed: int, steps: int | None, overlay: bool = True
+) -> dict:
+    """Drive the front member ``pick`` of the run ``run_dir`` for at most ``steps`` decisions
+    (default: the run's episode) on the episode ``seed`` into ``video``; print and return a
+    summary."""
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.video import record_episode
+    from neurotrajectory.compare.front import load_front_member
+
+    run, policy, member = load_front_member(run_dir, pick)
+    env = GridSimEnv(run.config.scenario, render_mode="rgb_array", **run.config.overrides)
+    episode = env.cfg.episode_decisions
+    if steps and steps > episode:
+        print(f"neurotrajectory: note: --steps {steps} is more than the run's episodes of "
+              f"{episode} decisions ({env.cfg.simulation.duration:g} s): the episode ends at "
+              f"{episode}", file=sys.stderr)  # fmt: skip
+    label = f"NeuroTrajectory, {pick} member {member['index']} of {Path(run_dir).name}"
+    driven, path = record_episode(env, policy, video, min(steps or episode, episode), seed=seed,
+                                  overlay=overlay, label=label)  # fmt: skip
+    s = driven.summary()
+    result = {"video": str(path), "member": member, **s}
+    f = s["fitness_sums"]
+    ended = ("a collision" if s["collision"] else "leaving the road" if s["off_road"]
+             else "reaching the destination" if s["destination_reached"]
+             else "the time or --steps limit")  # fmt: skip
+    print(f"{pick} member {member['index']}, seed {seed}: {s['steps']} decisions, "
+          f"{s['simulated_s']:.1f} s, {s['distance_m']:.0f} m at {s['mean_speed']:.1f} m/s, "
+          f"ended by {ended}\n"
+          f"  fitness sums: l1 {f['l1']:.4g} m^2, l2 {f['l2']:.3g} rad/s, l3 {f['l3']:.4g} m/s\n"
+          f"  video: {path}")  # fmt: skip
+    return result
