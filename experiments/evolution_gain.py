@@ -55,6 +55,24 @@ VARIANTS = {
     "es-step-3": ["--selection", "es", "--es-step", "3"],
     "es-both-scenes": ["--selection", "es", "--scenario", "{scenes}"],
     "es-both-scenes-step-3": ["--selection", "es", "--es-step", "3", "--scenario", "{scenes}"],
+    "anchored-both-scenes-validation-24": [
+        "--selection",
+        "anchored",
+        "--scenario",
+        "{scenes}",
+        "--validation-episodes",
+        "24",
+    ],
+    "es-both-scenes-4-episodes-validation-24": [
+        "--selection",
+        "es",
+        "--scenario",
+        "{scenes}",
+        "--episodes",
+        "4",
+        "--validation-episodes",
+        "24",
+    ],
 }
 
 

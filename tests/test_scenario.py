@@ -10,8 +10,9 @@ from hypothesis import strategies as st
 from gridsim.cli import main
 from gridsim.errors import ScenarioError
 from gridsim.scenario.build import build_world
+from gridsim.scenario.families.inner_city import CityRoadConfig
+from gridsim.scenario.families.seamless import SeamlessRoadConfig
 from gridsim.scenario.loader import builtin_scenarios, load_scenario, parse_scenario
-from gridsim.scenario.schema import CityRoadConfig, SeamlessRoadConfig
 
 
 def test_builtins_are_listed_with_descriptions():
@@ -92,7 +93,7 @@ def test_malformed_yaml_names_file_and_line(tmp_path):
         ),
         (
             {"road": {"type": "motorway"}},
-            r"road: Input tag 'motorway' found using 'type' does not match",
+            r"road.type 'motorway' is no scenario family; the families: inner_city, ",
         ),
         ({"sensor": {"rows": -128}}, r"sensor\.rows: Input should be greater than or equal to 8"),
         ({"sensor": {"cell_size": 0}}, r"sensor\.cell_size: Input should be greater than 0"),

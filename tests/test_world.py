@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 from gridsim.cli import main
-from gridsim.scenario.build import WORLD_BUILDERS, build_sensor, build_world
+from gridsim.scenario.build import build_sensor, build_world
+from gridsim.scenario.family import family_of
 from gridsim.scenario.loader import builtin_scenarios, load_scenario
 from gridsim.sensors import FREE, OCCUPIED, UNKNOWN
 from gridsim.world.scripted_drivers import LaneFollower
@@ -109,7 +110,7 @@ def test_worlds_copied_from_the_pristine_one_tick_like_a_fresh_build(scenario):
     """build_world hands out copies of a world kept per (scenario, seed): they must behave
     exactly like a world built from scratch, however often one is handed out."""
     sc = load_scenario(scenario)
-    fresh = WORLD_BUILDERS[type(sc.config.road)](sc, 11)
+    fresh = family_of(sc).build(sc, 11)
     copies = [build_world(sc, 11), build_world(sc, 11)]
     drivers = [LaneFollower(speed=9.0) for _ in range(3)]
     for _ in range(150):

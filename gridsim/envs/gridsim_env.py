@@ -36,8 +36,8 @@ from gridsim.frames import EGO_FEATURES, grid_rotation, grid_to_world, world_to_
 from gridsim.render.topdown import PLAN_COLOUR, REFERENCE_COLOUR, TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
-from gridsim.scenario.loader import Scenario
 from gridsim.scenario.parts import vehicle_params
+from gridsim.scenario.schema import Scenario
 from gridsim.vehicle.kinematics import DELTA, PSI, V
 
 #: Options of gymnasium's vector envs that ``gym.make_vec`` passes on to each env when they

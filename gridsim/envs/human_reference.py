@@ -23,8 +23,8 @@ import numpy as np
 from gridsim.envs import human_reference_kernels as kernels
 from gridsim.envs.shadow_world import ShadowWorld
 from gridsim.scenario.build import build_world
-from gridsim.scenario.loader import Scenario
 from gridsim.scenario.parts import road_lane_width, synthetic_tracks
+from gridsim.scenario.schema import Scenario
 from gridsim.seeding import Salt, stream
 from gridsim.traffic.profiles import ProfileChain, SpeedBounds, human_profiles
 from gridsim.traffic.track import Track

@@ -1,7 +1,7 @@
 """Turn a validated :class:`Scenario` into a :class:`World` and an occupancy-grid sensor.
 
 Dispatch is by the road config's type to its family's builder
-(:data:`~gridsim.scenario.families.WORLD_BUILDERS`); static maps and libraries are cached so
+(:attr:`~gridsim.scenario.family.Family.build`); static maps and libraries are cached so
 that resets are cheap, and the first world of a (scenario, seed) is kept and copied.
 """
 
@@ -13,9 +13,9 @@ from collections import OrderedDict
 import numpy as np
 
 from gridsim.road.base import StaticRoad
-from gridsim.scenario.families import WORLD_BUILDERS
-from gridsim.scenario.loader import Scenario
+from gridsim.scenario.family import family_of
 from gridsim.scenario.parts import input_stamps
+from gridsim.scenario.schema import Scenario
 from gridsim.sensors.occupancy import GridSpec, OccupancyGridSensor, SensorMount
 from gridsim.traffic.sources import SyntheticTraffic
 from gridsim.world.world import World
@@ -45,7 +45,7 @@ def build_world(scenario: Scenario, seed: int = 0) -> World:
            int(seed))  # fmt: skip
     pristine = _PRISTINE.get(key)
     if pristine is None:
-        pristine = WORLD_BUILDERS[type(scenario.config.road)](scenario, int(seed))
+        pristine = family_of(scenario).build(scenario, int(seed))
         _PRISTINE[key] = pristine
         if len(_PRISTINE) > _PRISTINE_SIZE:
             _PRISTINE.popitem(last=False)

@@ -20,7 +20,7 @@ from functools import lru_cache
 import numpy as np
 
 from gridsim.road.base import StaticRoad
-from gridsim.scenario.loader import Scenario
+from gridsim.scenario.schema import Scenario
 from gridsim.traffic.track import Track, ids_in_scene
 
 #: A track is on another map when more than this share of its positions is off the drivable

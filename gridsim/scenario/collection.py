@@ -23,7 +23,8 @@ from typing import Any
 
 from gridsim.errors import DataWarning, GridSimError, ScenarioError
 from gridsim.scenario.build import build_world
-from gridsim.scenario.loader import Scenario, load_scenario
+from gridsim.scenario.loader import load_scenario
+from gridsim.scenario.schema import Scenario
 from gridsim.seeding import Salt, stream
 
 SUFFIXES = (".yaml", ".yml", ".xml")

@@ -1,7 +1,7 @@
 """``gridsim import``: CommonRoad scenario files as editable scenario YAML and trajectory CSV.
 
 For ``scene.xml`` it writes into the output folder ``scene.yaml`` (the scenario the XML file
-is when given as it is, :data:`~gridsim.scenario.loader.COMMONROAD_DEFAULTS`, with its tracks
+is when given as it is, :func:`~gridsim.scenario.loader.commonroad_defaults`, with its tracks
 read from the CSV), ``scene.csv`` (the dynamic obstacles as tracks) and a copy of the file
 as the map, ``maps/scene.xml``. Loading the YAML gives the same worlds as the XML file.
 """
@@ -16,7 +16,7 @@ import yaml
 from gridsim.errors import GridSimError, OutputError, ScenarioError
 from gridsim.outputs import output_problem, write_text
 from gridsim.scenario.collection import report_skipped
-from gridsim.scenario.loader import COMMONROAD_DEFAULTS, deep_merge
+from gridsim.scenario.loader import commonroad_defaults, deep_merge
 from gridsim.traffic.commonroad import read_tracks_commonroad, scene_id
 from gridsim.traffic.library import write_tracks_csv
 
@@ -80,7 +80,7 @@ def _write(xml: Path, tracks, scene: str, out: Path) -> Path:
         "name": stem[:80],
         "description": f"CommonRoad scene {xml.name} (imported); one recorded vehicle is the ego",
         "road": {"type": "recorded", "map": f"maps/{xml.name}", "scene": scene},
-        **deep_merge(COMMONROAD_DEFAULTS, {"traffic": {"library": [f"{stem}.csv"]}}),
+        **deep_merge(commonroad_defaults(), {"traffic": {"library": [f"{stem}.csv"]}}),
     }
     path = out / f"{stem}.yaml"
     header = (

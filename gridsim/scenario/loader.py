@@ -8,7 +8,6 @@ import os
 import re
 import typing
 from collections.abc import Mapping
-from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -18,10 +17,10 @@ import yaml
 from pydantic import ValidationError
 
 from gridsim.errors import ScenarioError
-from gridsim.scenario.schema import ScenarioConfig, Strict
+from gridsim.scenario.family import FAMILIES, family_defaults
+from gridsim.scenario.schema import Scenario, ScenarioConfig, Strict
 
 _BUILTIN_DIR = ("data", "scenarios")
-_ROAD_TAGS = ("seamless", "inner_city", "recorded")
 
 
 class _UniqueKeyLoader(yaml.SafeLoader):
@@ -128,19 +127,6 @@ def _expanded_size(root: yaml.Node, source: str) -> tuple[int, int]:
     return size[id(root)]
 
 
-@dataclass(frozen=True)
-class Scenario:
-    """A validated scenario and the folder relative paths in it resolve against."""
-
-    config: ScenarioConfig
-    source: str
-    base_dir: Path | None
-
-    @property
-    def name(self) -> str:
-        return self.config.name
-
-
 def builtin_scenarios() -> dict[str, str]:
     """Built-in scenario names and their one-line descriptions."""
     folder = resources.files("gridsim").joinpath(*_BUILTIN_DIR)
@@ -201,13 +187,21 @@ def _problems(err: ValidationError) -> list[tuple[tuple, str]]:
     out = []
     for e in err.errors():
         parts = list(e["loc"])
-        if len(parts) > 1 and parts[0] == "road" and parts[1] in _ROAD_TAGS:
+        if len(parts) > 1 and parts[0] == "road" and parts[1] in FAMILIES:
             del parts[1]  # pydantic's union tag is not part of the user's key path
         loc = ".".join(str(p) for p in parts) or "(top level)"
         msg = e["msg"]
         if e["type"] == "extra_forbidden":
             msg = "unknown key" + _did_you_mean(parts)
         got = e.get("input")
+        if e["type"] in ("union_tag_invalid", "union_tag_not_found") and parts == ["road"]:
+            tag = got.get("type") if isinstance(got, Mapping) else None
+            close = difflib.get_close_matches(str(tag), list(FAMILIES), n=1, cutoff=0.6)
+            hint = f" (did you mean {close[0]!r}?)" if close and tag is not None else ""
+            said = "is missing" if tag is None else f"{tag!r} is no scenario family{hint}"
+            out.append((("road", "type"), f"road.type {said}; the families: "
+                                           f"{', '.join(FAMILIES)}"))  # fmt: skip
+            continue
         if e["type"] == "value_error" and isinstance(got, Mapping):  # across keys: no input
             for line in msg.removeprefix("Value error, ").splitlines():
                 out.append((tuple(parts), f"{loc}: {line}" if parts else line))
@@ -269,21 +263,6 @@ def deep_merge(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[st
     return out
 
 
-#: What a scenario of each road family gets where its file is silent (before the schema's
-#: own defaults, which are the seamless road's): city speeds and more participants on the
-#: inner-city network, the recorded traffic's speeds on recorded scenes.
-FAMILY_DEFAULTS: dict[str, dict[str, Any]] = {
-    "seamless": {},
-    "inner_city": {
-        "traffic": {"participants": 20, "v_min": 2.77, "v_max": 8.33},
-        "ego": {"speed": 5.0, "vehicle": {"v_max": 8.33}},
-    },
-    "recorded": {
-        "ego": {"vehicle": {"v_max": 25.0, "a_max": 3.0}},
-        "env": {"speed_range": [0.0, 30.0]},
-    },
-}
-
 #: How many files an ``extends:`` chain may pass through.
 MAX_EXTENDS = 8
 
@@ -296,7 +275,8 @@ def parse_scenario(
 ) -> Scenario:
     """Validate a parsed YAML document (plus ``overrides``) into a :class:`Scenario`: the
     scenario it ``extends:`` first, if any (:func:`_extended`), then its road family's
-    :data:`FAMILY_DEFAULTS`, then the document, then ``overrides``."""
+    defaults (:attr:`~gridsim.scenario.family.Family.defaults`), then the document, then
+    ``overrides``."""
     _check_mapping(doc, source)
     if overrides is not None and not isinstance(overrides, Mapping):
         raise ScenarioError(f"{source}: overrides must be a mapping of keys (like the YAML), "
@@ -306,8 +286,7 @@ def parse_scenario(
         doc = deep_merge(doc, overrides)
     road = doc.get("road")
     family = road.get("type") if isinstance(road, Mapping) else None
-    if isinstance(family, str) and family in FAMILY_DEFAULTS:
-        doc = deep_merge(FAMILY_DEFAULTS[family], doc)
+    doc = deep_merge(family_defaults(family), doc)
     return Scenario(_validate(doc, source), source, base_dir)
 
 
@@ -377,23 +356,24 @@ def _absolute_paths(doc: dict[str, Any], base_dir: Path | None) -> dict[str, Any
     return out
 
 
-#: The scenario of a CommonRoad file given as is (see :func:`commonroad_scenario`): like the
-#: built-in recorded scenes (and :data:`FAMILY_DEFAULTS`' recorded family), with the scene's
-#: own tracks and an episode as long as the ego's.
-COMMONROAD_DEFAULTS: dict[str, Any] = deep_merge(FAMILY_DEFAULTS["recorded"], {
-    "simulation": {"dt": 0.1, "duration": 3600.0},
-    "traffic": {"library": ["scene"]},
-    "ego": {"track": "random"},
-})  # fmt: skip
+def commonroad_defaults() -> dict[str, Any]:
+    """The scenario of a CommonRoad file given as is (see :func:`commonroad_scenario`): the
+    recorded family's defaults, with the scene's own tracks and an episode as long as the
+    ego's."""
+    return deep_merge(family_defaults("recorded"), {
+        "simulation": {"dt": 0.1, "duration": 3600.0},
+        "traffic": {"library": ["scene"]},
+        "ego": {"track": "random"},
+    })  # fmt: skip
 
 
 def commonroad_scenario(path: Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
     """A CommonRoad scenario file as it is: its lanelet map and its dynamic obstacles, one
-    of them the ego (drawn from the seed), with :data:`COMMONROAD_DEFAULTS` and ``overrides``."""
+    of them the ego (drawn from the seed), with :func:`commonroad_defaults` and ``overrides``."""
     if not path.is_file():
         raise ScenarioError(f"scenario file not found: {path}")
     doc = deep_merge(
-        COMMONROAD_DEFAULTS,
+        commonroad_defaults(),
         {
             "name": path.stem[:80],
             "description": f"CommonRoad scene {path.name}; one recorded vehicle is the ego",

@@ -13,8 +13,8 @@ import numpy as np
 
 from gridsim.errors import ScenarioError
 from gridsim.road.polyline import Polyline
-from gridsim.scenario.loader import Scenario
-from gridsim.scenario.schema import RecordedRoadConfig, VehicleConfig
+from gridsim.scenario.family import is_recorded
+from gridsim.scenario.schema import Scenario, VehicleConfig
 from gridsim.traffic.library import TrajectoryLibrary
 from gridsim.traffic.sources import SpeedBounds
 from gridsim.traffic.track import Track
@@ -96,7 +96,7 @@ def _library_files(scenario: Scenario) -> tuple:
         if ref == "builtin":
             files.append("builtin")
         elif ref == "scene":
-            if not isinstance(scenario.config.road, RecordedRoadConfig):
+            if not is_recorded(scenario):
                 raise ScenarioError(
                     f"{scenario.source}: traffic.library 'scene' needs road.type recorded (the "
                     "tracks of its CommonRoad map file)"
@@ -111,7 +111,7 @@ def input_stamps(scenario: Scenario) -> tuple:
     """Stamps (:func:`stamped`) of every file a scenario's worlds are built from (its map
     and trajectory files): a cache of worlds keyed by them never serves an edited file's."""
     stamps = _library_files(scenario)
-    if isinstance(scenario.config.road, RecordedRoadConfig):
+    if is_recorded(scenario):
         stamps += (stamped(map_path(scenario)),)
     return stamps
 

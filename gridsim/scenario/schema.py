@@ -6,14 +6,14 @@ given to users (``fov``, ``yaw``, ``max_steer``...), radians nowhere in YAML.
 
 from __future__ import annotations
 
-from typing import Annotated, Any, Literal
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from gridsim.frames import setpoint_times
-from gridsim.road.city import CityParams
-from gridsim.road.seamless import SeamlessParams
 from gridsim.sensors.occupancy import GridSpec
 from gridsim.vehicle.kinematics import BicycleParams
 
@@ -26,6 +26,12 @@ PositiveFloat = Annotated[float, Field(gt=0, allow_inf_nan=False)]
 WindowSide = Annotated[float, Field(ge=50, le=MAX_WINDOW, allow_inf_nan=False)]
 NonNegFloat = Annotated[float, Field(ge=0, allow_inf_nan=False)]
 Seed = Annotated[int, Field(ge=0, le=2**63 - 1)]
+
+
+if TYPE_CHECKING:
+    #: ``ScenarioConfig.road``: at run time the union of the registered families' configs,
+    #: which :mod:`gridsim.scenario.family` resolves when a family registers.
+    RoadConfig = Any
 
 
 class Strict(BaseModel):
@@ -129,71 +135,6 @@ class TrafficConfig(Strict):
         return self
 
 
-class SeamlessRoadConfig(Strict):
-    type: Literal["seamless"]
-    seed: Seed | None = None
-    lanes: Annotated[int, Field(ge=1, le=8)] = SeamlessParams.lanes
-    lane_width: Annotated[float, Field(ge=2, le=6)] = SeamlessParams.lane_width
-    straight_fraction: Annotated[float, Field(ge=0, lt=1)] = SeamlessParams.straight_fraction
-    mean_curve_angle_deg: Annotated[float, Field(gt=0, le=120)] = (
-        SeamlessParams.mean_curve_angle_deg
-    )
-    curve_radius: tuple[PositiveFloat, PositiveFloat] = SeamlessParams.curve_radius
-
-    @model_validator(mode="after")
-    def _radius(self) -> SeamlessRoadConfig:
-        lo, hi = self.curve_radius
-        if lo > hi:
-            raise ValueError(
-                f"curve_radius must be [min, max] with min <= max, got {list(self.curve_radius)}"
-            )
-        half = 0.5 * self.lanes * self.lane_width
-        if lo <= half + 1.0:
-            raise ValueError(
-                f"curve_radius min {lo} m must exceed the road half-width {half} m + 1 m"
-            )
-        return self
-
-
-class CityRoadConfig(Strict):
-    type: Literal["inner_city"]
-    seed: Seed | None = 0
-    blocks_x: Annotated[int, Field(ge=1, le=40)] = CityParams.blocks_x
-    blocks_y: Annotated[int, Field(ge=1, le=40)] = CityParams.blocks_y
-    block_size: Annotated[float, Field(ge=20, le=500)] = CityParams.block_size
-    jitter: Annotated[float, Field(ge=0, le=50)] = CityParams.jitter
-    lanes_per_direction: Annotated[int, Field(ge=1, le=4)] = CityParams.lanes_per_direction
-    lane_width: Annotated[float, Field(ge=2, le=6)] = CityParams.lane_width
-    turn_radius: Annotated[float, Field(ge=3, le=50)] = CityParams.turn_radius
-    turn_probability: Annotated[float, Field(ge=0, le=1)] = CityParams.turn_probability
-
-    @model_validator(mode="after")
-    def _jitter(self) -> CityRoadConfig:
-        if self.jitter >= 0.25 * self.block_size:
-            raise ValueError(
-                f"jitter ({self.jitter}) must be < block_size / 4 ({self.block_size / 4})"
-            )
-        return self
-
-
-class RecordedRoadConfig(Strict):
-    type: Literal["recorded"]
-    map: Annotated[str, Field(min_length=1, description="CommonRoad XML: builtin:NAME or a path")]
-    scene: Annotated[
-        str | None,
-        Field(
-            min_length=1,
-            description="scenario_id of the tracks to replay; default: the map file's "
-            "benchmarkID (or its file name without .xml)",
-        ),
-    ] = None
-
-
-RoadConfig = Annotated[
-    SeamlessRoadConfig | CityRoadConfig | RecordedRoadConfig, Field(discriminator="type")
-]
-
-
 class EgoConfig(Strict):
     lane: Annotated[int, Field(ge=0, le=7)] = 1
     speed: NonNegFloat = 8.0
@@ -262,6 +203,8 @@ class ScenarioConfig(Strict):
     name: Annotated[str, Field(min_length=1, max_length=80)]
     description: str = ""
     simulation: SimulationConfig = SimulationConfig()
+    #: the road family's block, told apart by ``type``: the union of the registered families'
+    #: configs (:mod:`gridsim.scenario.family` builds it when a family registers)
     road: RoadConfig
     traffic: TrafficConfig = TrafficConfig()
     ego: EgoConfig = EgoConfig()
@@ -307,3 +250,16 @@ class ScenarioConfig(Strict):
     def speed_range(self) -> tuple[float, float]:
         """``[v_min, v_max]`` [m/s] inside which l3 counts the speed."""
         return self.env.speed_range or (self.traffic.v_min, self.traffic.v_max)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario and the folder relative paths in it resolve against."""
+
+    config: ScenarioConfig
+    source: str
+    base_dir: Path | None
+
+    @property
+    def name(self) -> str:
+        return self.config.name

@@ -40,8 +40,8 @@ from gridsim.scenario.collection import (
     usable_files,
 )
 from gridsim.scenario.families.recorded import recorded_scene, scene_of
+from gridsim.scenario.family import family_of
 from gridsim.scenario.loader import load_scenario
-from gridsim.scenario.schema import RecordedRoadConfig
 from gridsim.seeding import Salt, stream
 from gridsim.traffic.track import scene_ids, track_name
 from neurotrajectory.data.commands import implied_commands
@@ -161,7 +161,7 @@ def scenario_episodes(
     destination that far ahead (``env.goal_seconds``)."""
     goal = goal_overrides(goal_seconds)
     base = load_scenario(scenario)
-    if isinstance(base.config.road, RecordedRoadConfig):
+    if family_of(base).recorded:
         scene = scene_of(base)
         road, scene_tracks = recorded_scene(base)
         flawed = flawed_tracks(tuple(scene_tracks), road)
@@ -196,7 +196,7 @@ def episodes_of(
     ``goal_seconds`` ahead if given."""
     base = load_scenario(scenario)
     labels = list(dict.fromkeys(windows.track.tolist()))  # in the order they were recorded
-    if isinstance(base.config.road, RecordedRoadConfig):
+    if family_of(base).recorded:
         ids = scene_ids(labels, scene_of(base))
         return scenario_episodes(scenario, tracks=ids, goal_seconds=goal_seconds)[0] if ids else []
     prefix = f"{scenario}/seed"
@@ -315,7 +315,7 @@ def _episode_windows(
 def is_recorded(name: str) -> bool:
     """Whether scenario ``name`` (built-in, YAML or XML path; of a folder or glob, every
     file) replays a recorded scene."""
-    return all(isinstance(sc.config.road, RecordedRoadConfig) for sc in load_collection(name))
+    return all(family_of(sc).recorded for sc in load_collection(name))
 
 
 def record_scenario(

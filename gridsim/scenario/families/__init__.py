@@ -1,35 +1,21 @@
-"""Scenario families, one module each with its world builder and defaults: ``seamless``,
-``inner_city`` and ``recorded``. :data:`WORLD_BUILDERS` maps a road configuration's type to
-its family's builder ``(scenario, seed) -> World``; :func:`scenario_report` checks a scenario's
-recorded data, if its family has any."""
+"""The built-in scenario families, one module each with its typed ``road:`` block, its world
+builder and its defaults, registered in :data:`gridsim.scenario.family.FAMILIES` when this
+package is imported (``gridsim.scenario`` imports it): ``seamless``, ``inner_city`` and
+``recorded``. :func:`scenario_report` checks a scenario's recorded data, if its family has
+any."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-
 from gridsim.scenario.checks import SceneReport
-from gridsim.scenario.families import inner_city, recorded, seamless
-from gridsim.scenario.loader import Scenario
-from gridsim.scenario.schema import CityRoadConfig, RecordedRoadConfig, SeamlessRoadConfig
-from gridsim.world.world import World
-
-WORLD_BUILDERS: dict[type, Callable[[Scenario, int], World]] = {
-    SeamlessRoadConfig: seamless.build,
-    CityRoadConfig: inner_city.build,
-    RecordedRoadConfig: recorded.build,
-}
-
-#: The families whose scenarios have recorded data to check: road configuration type ->
-#: ``scenario -> SceneReport`` (:mod:`gridsim.scenario.checks`).
-DATA_REPORTS: dict[type, Callable[[Scenario], SceneReport]] = {
-    RecordedRoadConfig: recorded.data_report,
-}
+from gridsim.scenario.families import inner_city, recorded, seamless  # noqa: F401 (registers)
+from gridsim.scenario.family import family_of
+from gridsim.scenario.schema import Scenario
 
 
 def scenario_report(scenario: Scenario) -> SceneReport:
     """The plausibility report of ``scenario``'s recorded data (an empty report for a family
     without recorded data)."""
-    report = DATA_REPORTS.get(type(scenario.config.road))
+    report = family_of(scenario).data_report
     return SceneReport((), (), frozenset()) if report is None else report(scenario)
 
 

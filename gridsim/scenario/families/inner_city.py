@@ -5,12 +5,14 @@ long enough for the episode."""
 from __future__ import annotations
 
 from functools import lru_cache, partial
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field, model_validator
 
 from gridsim.errors import ScenarioError
 from gridsim.road.city import CityParams, CityRoad
-from gridsim.scenario.loader import Scenario
+from gridsim.scenario.family import Family, register_family
 from gridsim.scenario.parts import (
     fixed_route,
     seed_streams,
@@ -18,9 +20,33 @@ from gridsim.scenario.parts import (
     synthetic_tracks,
     vehicle_params,
 )
-from gridsim.scenario.schema import CityRoadConfig
+from gridsim.scenario.schema import Scenario, Seed, Strict
 from gridsim.traffic.sources import CityTraffic
 from gridsim.world.world import World
+
+
+class CityRoadConfig(Strict):
+    """``road:`` of the inner-city family (:class:`~gridsim.road.city.CityParams`' defaults)."""
+
+    type: Literal["inner_city"]
+    seed: Seed | None = 0
+    blocks_x: Annotated[int, Field(ge=1, le=40)] = CityParams.blocks_x
+    blocks_y: Annotated[int, Field(ge=1, le=40)] = CityParams.blocks_y
+    block_size: Annotated[float, Field(ge=20, le=500)] = CityParams.block_size
+    jitter: Annotated[float, Field(ge=0, le=50)] = CityParams.jitter
+    lanes_per_direction: Annotated[int, Field(ge=1, le=4)] = CityParams.lanes_per_direction
+    lane_width: Annotated[float, Field(ge=2, le=6)] = CityParams.lane_width
+    turn_radius: Annotated[float, Field(ge=3, le=50)] = CityParams.turn_radius
+    turn_probability: Annotated[float, Field(ge=0, le=1)] = CityParams.turn_probability
+
+    @model_validator(mode="after")
+    def _jitter(self) -> CityRoadConfig:
+        if self.jitter >= 0.25 * self.block_size:
+            raise ValueError(
+                f"jitter ({self.jitter}) must be < block_size / 4 ({self.block_size / 4})"
+            )
+        return self
+
 
 #: An inner-city ego route is as long as the episode at the ego's speed (at least
 #: :data:`ROUTE_MIN_SPEED` [m/s]) plus :data:`ROUTE_MARGIN` [m].
@@ -63,3 +89,14 @@ def build(scenario: Scenario, seed: int) -> World:
     return World(
         road, traffic, ego, state, cfg.simulation.dt, partial(fixed_route, route), traffic_rng
     )
+
+
+FAMILY = register_family(Family(
+    CityRoadConfig,
+    build,
+    # city speeds and more participants than the schema's defaults (the seamless road's)
+    defaults={
+        "traffic": {"participants": 20, "v_min": 2.77, "v_max": 8.33},
+        "ego": {"speed": 5.0, "vehicle": {"v_max": 8.33}},
+    },
+))  # fmt: skip

@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import warnings
 from functools import lru_cache, partial
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field
 
 from gridsim import libm
 from gridsim.errors import DataError, DataWarning, ScenarioError
@@ -14,7 +16,7 @@ from gridsim.road.base import StaticRoad
 from gridsim.road.lanelet import load_lanelet_road
 from gridsim.road.polyline import Polyline
 from gridsim.scenario.checks import flawed_tracks, scene_report
-from gridsim.scenario.loader import Scenario
+from gridsim.scenario.family import Family, register_family
 from gridsim.scenario.parts import (
     MIN_TRACK_SECONDS,
     fixed_route,
@@ -24,6 +26,7 @@ from gridsim.scenario.parts import (
     stamped,
     vehicle_params,
 )
+from gridsim.scenario.schema import Scenario, Strict
 from gridsim.traffic.commonroad import scene_id
 from gridsim.traffic.sources import RecordedSceneTraffic, track_path
 from gridsim.traffic.track import Track, ids_in_scene
@@ -32,6 +35,21 @@ from gridsim.world import collision_kernels
 from gridsim.world.collision import EDGE_TOLERANCE, CollisionChecker
 from gridsim.world.overlaps import overlapping_tracks
 from gridsim.world.world import World
+
+
+class RecordedRoadConfig(Strict):
+    """``road:`` of the recorded family: a CommonRoad map and the scene whose tracks replay."""
+
+    type: Literal["recorded"]
+    map: Annotated[str, Field(min_length=1, description="CommonRoad XML: builtin:NAME or a path")]
+    scene: Annotated[
+        str | None,
+        Field(
+            min_length=1,
+            description="scenario_id of the tracks to replay; default: the map file's "
+            "benchmarkID (or its file name without .xml)",
+        ),
+    ] = None
 
 
 def scene_of(scenario: Scenario) -> str:
@@ -240,3 +258,16 @@ def _near_edge(tracks: tuple[Track, ...], road: StaticRoad) -> set[str]:
                 bad.add(a.track_id)
                 break
     return bad
+
+
+FAMILY = register_family(Family(
+    RecordedRoadConfig,
+    build,
+    # the recorded traffic's speeds (NGSIM: up to about 25 m/s)
+    defaults={
+        "ego": {"vehicle": {"v_max": 25.0, "a_max": 3.0}},
+        "env": {"speed_range": [0.0, 30.0]},
+    },
+    recorded=True,
+    data_report=data_report,
+))  # fmt: skip

@@ -5,17 +5,49 @@ ego in its lane."""
 from __future__ import annotations
 
 from functools import partial
+from typing import Annotated, Literal
 
 import numpy as np
+from pydantic import Field, model_validator
 
 from gridsim.errors import ScenarioError
 from gridsim.road.polyline import Polyline
 from gridsim.road.seamless import SeamlessParams, SeamlessRoad
-from gridsim.scenario.loader import Scenario
+from gridsim.scenario.family import Family, register_family
 from gridsim.scenario.parts import seed_streams, speed_bounds, synthetic_tracks, vehicle_params
-from gridsim.scenario.schema import SeamlessRoadConfig
+from gridsim.scenario.schema import PositiveFloat, Scenario, Seed, Strict
 from gridsim.traffic.sources import SeamlessTraffic
 from gridsim.world.world import World
+
+
+class SeamlessRoadConfig(Strict):
+    """``road:`` of the seamless family (:class:`~gridsim.road.seamless.SeamlessParams`'
+    defaults)."""
+
+    type: Literal["seamless"]
+    seed: Seed | None = None
+    lanes: Annotated[int, Field(ge=1, le=8)] = SeamlessParams.lanes
+    lane_width: Annotated[float, Field(ge=2, le=6)] = SeamlessParams.lane_width
+    straight_fraction: Annotated[float, Field(ge=0, lt=1)] = SeamlessParams.straight_fraction
+    mean_curve_angle_deg: Annotated[float, Field(gt=0, le=120)] = (
+        SeamlessParams.mean_curve_angle_deg
+    )
+    curve_radius: tuple[PositiveFloat, PositiveFloat] = SeamlessParams.curve_radius
+
+    @model_validator(mode="after")
+    def _radius(self) -> SeamlessRoadConfig:
+        lo, hi = self.curve_radius
+        if lo > hi:
+            raise ValueError(
+                f"curve_radius must be [min, max] with min <= max, got {list(self.curve_radius)}"
+            )
+        half = 0.5 * self.lanes * self.lane_width
+        if lo <= half + 1.0:
+            raise ValueError(
+                f"curve_radius min {lo} m must exceed the road half-width {half} m + 1 m"
+            )
+        return self
+
 
 #: Seamless road held beyond the traffic window [m]: behind it and ahead of it (with the
 #: default window of 80 / 160 m, 150 m behind the ego and 400 m ahead).
@@ -54,3 +86,6 @@ def build(scenario: Scenario, seed: int) -> World:
 
 def _lane_centre(road: SeamlessRoad, lane: int) -> Polyline:
     return road.lanes[lane].centre
+
+
+FAMILY = register_family(Family(SeamlessRoadConfig, build))
