@@ -1,13 +1,14 @@
 """The reference's shadow world, ticked: in compiled batches while nothing needs Python
 (:func:`~gridsim.envs.shadow_world_kernels.ticks`), by the world's own tick otherwise.
 
-On a seamless road a batch runs the human driver, the ego's step, the road's tracking, the
+Where the road offers its tracking and the traffic its tick data (the seamless family) a
+batch runs the human driver, the ego's step, the road's tracking, the
 fleet's tick and the samples, and rules near misses out where the boxes are clearly apart.
 Python takes over for a tick that gives way to a vehicle (a revision), grows or trims the
 road, or respawns a participant (it draws random numbers: the new profiles of participants
 whose profile ran out are drawn ahead, from a copy of the stream), and pymunk decides the
 near misses the compiled test cannot rule out. The ticks are the same
-either way (same bits: ``tests/test_shadow_world.py``); other roads always tick in Python.
+either way (same bits: ``tests/test_shadow_world.py``); other roads tick in Python.
 """
 
 from __future__ import annotations
@@ -15,8 +16,6 @@ from __future__ import annotations
 import numpy as np
 
 from gridsim.envs import shadow_world_kernels as kernels
-from gridsim.road.seamless import SeamlessRoad
-from gridsim.traffic.sources import SeamlessTraffic
 from gridsim.vehicle.kinematics import step_limits
 from gridsim.world.collision import CollisionChecker
 from gridsim.world.scripted_drivers import HumanDriver, LaneFollower, driver_limits
@@ -45,9 +44,7 @@ class ShadowWorld:
         self.world, self.driver, self.checker, self.samples = world, driver, checker, samples
         self._compiled = (
             compiled
-            and isinstance(world.road, SeamlessRoad)
-            and isinstance(world.traffic, SeamlessTraffic)
-            and isinstance(driver.follower, LaneFollower)
+            and isinstance(driver.follower, LaneFollower)  # the driver the kernel implements
             and world.ego_params._scalar
         )
         if self._compiled:  # what does not change from tick to tick
@@ -103,8 +100,8 @@ class ShadowWorld:
         """The arguments of a compiled batch of samples ``k`` to ``end - 1`` but the tick
         flags and the samples, or None if the next tick must run in Python."""
         w, d = self.world, self.driver
-        road, traffic = w.road.tracking(), w.traffic.tick_data(w.dt)
-        if road is None or traffic is None:
+        road, traffic = w.road.tracking(), w.traffic.tick_data(w.dt, w.road)
+        if road is None or traffic is None:  # what the road and the traffic offer
             return None
         hint = d.follower.tracked(w)
         c = d.chain

@@ -62,6 +62,16 @@ class Road(ABC):
     def update(self, ego_xy: np.ndarray) -> None:  # noqa: B027 - optional hook
         """Let a generated road extend ahead of / trim behind the ego. Static roads do nothing."""
 
+    def tracking(self) -> tuple | None:
+        """What a compiled world tick needs to follow the ego on this road
+        (:func:`~gridsim.world.world_kernels.follow_tick`'s ``road``), or None: this road
+        ticks in Python only (the default)."""
+        return None
+
+    def set_tracked(self, ego_s: float, hint: int) -> None:  # noqa: B027 - optional hook
+        """Take the ego's arc length [m] and segment from a compiled tick (roads that offer
+        :meth:`tracking`)."""
+
     @abstractmethod
     def drivable_polygons(self, center: np.ndarray, radius: float) -> list[np.ndarray]:
         """Polygons ``(K, 2)`` whose union is the drivable area within ``radius`` of ``center``

@@ -13,6 +13,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from gridsim.road.base import Road
 from gridsim.road.city import CityRoad
 from gridsim.road.seamless import SeamlessRoad
 from gridsim.seeding import copy_generator
@@ -54,6 +55,16 @@ class TrafficSource(ABC):
     @abstractmethod
     def tick(self, dt: float, ego: EgoPose) -> None:
         """Advance the fleet by ``dt`` seconds and refill it."""
+
+    def tick_data(self, dt: float, road: Road) -> tuple | None:
+        """What a compiled world tick on ``road`` needs to tick this traffic
+        (:func:`~gridsim.world.world_kernels.follow_tick`'s ``traffic``; Python then calls
+        :meth:`refill` when it has work), or None: this traffic ticks in Python only (the
+        default), or not now."""
+        return None
+
+    def refill(self, ended: np.ndarray, ego: EgoPose) -> None:  # noqa: B027 - optional hook
+        """The rest of a compiled tick (sources that offer :meth:`tick_data`)."""
 
 
 class RecordedSceneTraffic(TrafficSource):
@@ -280,12 +291,16 @@ class SeamlessTraffic(SyntheticTraffic):
         self._sync_lanes()
         self.refill(self.fleet.tick(dt, ego, (self.behind, self.ahead)), ego)
 
-    def tick_data(self, dt: float) -> tuple | None:
+    def tick_data(self, dt: float, road: Road) -> tuple | None:
         """:meth:`Fleet.tick_data` for :meth:`tick`, and the participants kept: for a compiled
-        tick that leaves :meth:`refill` to Python whenever it has work. None while the fleet's
-        lanes are not the road's or some path has no lane corridor (then only :meth:`tick`
-        ticks it right)."""
-        if self.road.version != self._version or not self.fleet.paths.all_in_corridors:
+        tick that leaves :meth:`refill` to Python whenever it has work. None on another road
+        than this traffic's, and while the fleet's lanes are not the road's or some path has
+        no lane corridor (then only :meth:`tick` ticks it right)."""
+        if (
+            road is not self.road
+            or self.road.version != self._version
+            or not self.fleet.paths.all_in_corridors
+        ):
             return None
         return (*self.fleet.tick_data(dt, (self.behind, self.ahead)), self.count)
 

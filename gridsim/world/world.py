@@ -9,9 +9,8 @@ import numpy as np
 
 from gridsim.road.base import Road
 from gridsim.road.polyline import Polyline
-from gridsim.road.seamless import SeamlessRoad
 from gridsim.traffic.fleet import EgoPose
-from gridsim.traffic.sources import SeamlessTraffic, TrafficSource
+from gridsim.traffic.sources import TrafficSource
 from gridsim.traffic.track import Track
 from gridsim.vehicle.kinematics import (
     PSI,
@@ -133,10 +132,11 @@ class World:
     def tick_following(self, follow) -> TickResult:
         """A checked :meth:`tick` with the inputs of ``follow(world)``, a
         :class:`~gridsim.envs.actions.PathControl` (pure pursuit along a path, or a stop) or
-        :class:`~gridsim.envs.actions.HeldInputs`: on a seamless road in one compiled call
-        with the traffic's tick
-        (:func:`~gridsim.world.world_kernels.follow_tick`; the same bits), otherwise, or when
-        the road must grow, in Python."""
+        :class:`~gridsim.envs.actions.HeldInputs`: in one compiled call with the traffic's
+        tick (:func:`~gridsim.world.world_kernels.follow_tick`; the same bits) where the road
+        offers its :meth:`~gridsim.road.base.Road.tracking` and the traffic its
+        :meth:`~gridsim.traffic.sources.TrafficSource.tick_data` (today the seamless family's),
+        otherwise, or when the road must grow, in Python."""
         args = self._follow_args(follow)
         if args is None:
             return self.tick(*follow(self))
@@ -160,15 +160,10 @@ class World:
         """The arguments of :func:`~gridsim.world.world_kernels.follow_tick`, or None when
         this world does not tick compiled."""
         p = self.ego_params
-        if not (
-            p._scalar
-            and isinstance(self.road, SeamlessRoad)
-            and isinstance(self.traffic, SeamlessTraffic)
-            and self.traffic.road is self.road
-        ):
+        if not p._scalar:
             return None
-        road, traffic = self.road.tracking(), self.traffic.tick_data(self.dt)
-        if road is None or traffic is None:
+        road, traffic = self.road.tracking(), self.traffic.tick_data(self.dt, self.road)
+        if road is None or traffic is None:  # what the road and the traffic offer
             return None
         return (tuple(self.ego.tolist()), step_limits(p), self.dt, follow.kernel_data(), road,
                 traffic, (p.length, p.width, p.center_offset),
