@@ -131,6 +131,14 @@ class NetConfig:
     #: how far ahead the destination input lies [s] (the scenario's ``env.goal_seconds``);
     #: None: at the last set-point
     goal_seconds: float | None = None
+    #: the largest correction to the prior [m] along and across the heading (ego frame):
+    #: the residual ``r`` becomes ``bound * tanh(r / bound)``, so that a network off the
+    #: states it learnt from cannot swing its plan off the road; None: unbounded
+    max_correction: tuple[float, float] | None = None
+
+    #: Fields left out of :meth:`to_dict` while None (configurations saved before they
+    #: existed read and compare the same).
+    UNSET_UNSAVED = ("goal_seconds", "max_correction")
 
     #: What configurations saved before ``frame`` and ``skip`` existed meant.
     LEGACY = {"frame": "grid", "skip": False}
@@ -157,17 +165,26 @@ class NetConfig:
         if self.frame not in ("ego", "grid"):
             raise ValueError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
         object.__setattr__(self, "smoothing", check_keep(self.smoothing, "smoothing"))
+        if self.max_correction is not None:
+            bound = tuple(float(b) for b in self.max_correction)
+            if len(bound) != 2 or not all(math.isfinite(b) and b > 0 for b in bound):
+                raise ValueError("max_correction must be two finite numbers > 0 [m] (along, "
+                                 f"across the heading), got {self.max_correction!r}")  # fmt: skip
+            if self.frame != "ego":
+                raise ValueError("max_correction bounds the correction in the ego frame: it "
+                                 f"needs frame 'ego', got {self.frame!r}")  # fmt: skip
+            object.__setattr__(self, "max_correction", bound)
         if self.grid_size % (self.pool * 8):
             raise ValueError(
                 f"grid_size {self.grid_size} must be divisible by pool * 8 = {self.pool * 8}"
             )
 
     def to_dict(self) -> dict:
-        """The fields, less ``goal_seconds`` when it is None (so that configurations saved
-        before it existed read and compare the same)."""
+        """The fields, less those of :attr:`UNSET_UNSAVED` that are None."""
         d = asdict(self)
-        if d["goal_seconds"] is None:
-            del d["goal_seconds"]
+        for name in self.UNSET_UNSAVED:
+            if d[name] is None:
+                del d[name]
         return d
 
     @property
@@ -308,6 +325,9 @@ class TrajectoryNet(nn.Module):
 def finish_setpoints(cfg: NetConfig, residual, prior, ego) -> torch.Tensor:
     """Set-points [m, grid frame] from the ``residual`` ``(B, tau_o, 2)`` (in ``cfg.frame``)
     and the ``prior`` (grid frame, or None)."""
+    if cfg.max_correction is not None:  # element-wise: the same bits in any batch
+        bound = torch.tensor(cfg.max_correction, dtype=residual.dtype)
+        residual = torch.tanh(residual / bound) * bound
     if cfg.frame == "ego":
         residual = from_ego_frame(residual, ego)
     return residual if prior is None else residual + prior

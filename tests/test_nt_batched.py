@@ -1,6 +1,7 @@
 """Batched population evaluation: an individual's fitness never depends on its batch."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -39,11 +40,13 @@ def _inputs(k, e, cfg, seed=0):
     return grids, ego, dest
 
 
-@pytest.mark.parametrize("preset", ["tiny", "default", "tiny-legacy"])
+@pytest.mark.parametrize("preset", ["tiny", "default", "tiny-legacy", "tiny-bounded"])
 def test_population_forward_matches_trajectorynet_and_ignores_the_batch(preset):
     torch.set_num_threads(1)
     if preset.endswith("-legacy"):  # networks saved before the ego-frame residual and skip
         cfg = NetConfig.from_dict({**PRESETS["tiny"].to_dict(), **NetConfig.LEGACY})
+    elif preset.endswith("-bounded"):  # corrections squashed (tanh): still batch-invariant
+        cfg = replace(PRESETS["tiny"], max_correction=(0.5, 0.2))
     else:
         cfg = PRESETS[preset]
     net = TrajectoryNet(cfg).eval()

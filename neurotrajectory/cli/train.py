@@ -116,6 +116,9 @@ def add_parser(sub) -> None:
                 f"preset's, {NetConfig.prior})", choices=list(PRIORS))  # fmt: skip
     config_flag(t, "--frame", "frame of the network's residual on its prior: 'ego', along "
                 "and across the heading, or 'grid'", choices=["ego", "grid"])  # fmt: skip
+    config_flag(t, "--max-correction", "bound the network's correction to its prior to these "
+                "many metres along and across the heading (tanh-squashed; default: unbounded)",
+                nargs=2, type=float, metavar=("ALONG", "ACROSS"))  # fmt: skip
     config_flag(t, "--activation", "the network's hidden activation (default: the preset's, "
                 f"{NetConfig.activation})", choices=sorted(ACTIVATIONS))  # fmt: skip
     plan_smoothing_flag(t, "in closed loop, keep this share of the previous plan in each new "
@@ -140,7 +143,8 @@ def add_parser(sub) -> None:
 
 def _train_flags(args: argparse.Namespace) -> dict:
     """The ``train`` flags that set :class:`TrainConfig` fields (None where not given)."""
-    return {f.name: getattr(args, f.name) for f in fields(TrainConfig) if hasattr(args, f.name)}
+    flags = {f.name: getattr(args, f.name) for f in fields(TrainConfig) if hasattr(args, f.name)}
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in flags.items()}  # nargs: tuples
 
 
 def execute(args: argparse.Namespace) -> int:

@@ -148,6 +148,13 @@ class TrainConfig:
     #: how far ahead the destination the network is given lies [s] (the scenario's
     #: ``env.goal_seconds``); None: the scenario's (by default the last set-point's time)
     goal_seconds: float | None = None
+    #: the network's largest correction to its prior [m] along and across the heading
+    #: (NetConfig.max_correction); None: unbounded
+    max_correction: tuple[float, float] | None = None
+
+    #: Fields left out of the run's fingerprint while None: added after runs were saved, with
+    #: None meaning what those runs did.
+    UNSET_UNSTAMPED = ("max_correction",)
 
     #: What format-1 configurations (saved before these fields existed) meant.
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human",
@@ -158,6 +165,8 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
+        if isinstance(self.max_correction, list):  # as config.json stores it
+            object.__setattr__(self, "max_correction", tuple(self.max_correction))
         if self.activation is None and self.preset in PRESETS:  # stored resolved
             object.__setattr__(self, "activation", PRESETS[self.preset].activation)
         if self.selection is None:  # stored resolved
@@ -236,6 +245,16 @@ class TrainConfig:
             raise RunError(f"selection {self.selection!r} starts from the warm start and keeps "
                            "a member no worse than it: give --pretrain or --pretrain-episodes, "
                            "or selection 'pareto'")  # fmt: skip
+        if self.max_correction is not None:
+            bound = self.max_correction
+            if not (isinstance(bound, tuple) and len(bound) == 2):
+                raise RunError("max_correction must be two numbers [m] (along, across the "
+                               f"heading), got {bound!r}")  # fmt: skip
+            for b in bound:
+                _check_positive("max_correction", b)
+            if self.frame != "ego":
+                raise RunError("max_correction bounds the correction in the ego frame: it "
+                               f"needs frame 'ego', got {self.frame!r}")  # fmt: skip
         if not (math.isfinite(self.es_step) and 0 < self.es_step <= MAX_ES_STEP):
             raise RunError(f"es_step must be in (0, {MAX_ES_STEP:g}], got {self.es_step}")
 
@@ -261,7 +280,8 @@ class TrainConfig:
         """The preset's network with the configured frame, skip read-out, activation, plan
         smoothing and prior."""
         base = replace(PRESETS[self.preset], frame=self.frame, skip=self.skip,
-                       activation=self.activation, smoothing=self.plan_smoothing)  # fmt: skip
+                       activation=self.activation, smoothing=self.plan_smoothing,
+                       max_correction=self.max_correction)  # fmt: skip
         return base if self.prior is None else replace(base, prior=self.prior)
 
     def episode_seeds(self, generation: int) -> tuple[int, ...]:
@@ -379,7 +399,8 @@ class Run:
     def fingerprint(self) -> str:
         """The run's identity: a digest of every setting that shapes its results (not those a
         resume may change, :attr:`TrainConfig.RESUMABLE`). Its checkpoint carries it."""
-        doc = {k: v for k, v in asdict(self.config).items() if k not in TrainConfig.RESUMABLE}
+        doc = {k: v for k, v in asdict(self.config).items() if k not in TrainConfig.RESUMABLE
+               and not (v is None and k in TrainConfig.UNSET_UNSTAMPED)}  # fmt: skip
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
 
     @classmethod
