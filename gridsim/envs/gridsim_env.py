@@ -30,6 +30,7 @@ from gymnasium import spaces
 
 from gridsim.envs.actions import ACTION_TYPES
 from gridsim.envs.human_reference import ReferenceTrajectory, human_reference, reference_from_track
+from gridsim.envs.observations import OBSERVATION_TYPES
 from gridsim.envs.vector_guard import refuse_scalar_reward_vectorization
 from gridsim.errors import ScenarioError
 from gridsim.frames import EGO_FEATURES, grid_rotation, grid_to_world, world_to_grid
@@ -52,7 +53,10 @@ class GridSimEnv(gym.Env):
     ``scenario``: a built-in name, a YAML or CommonRoad XML path, a folder or glob of such
     files (a collection: one scenario per reset, drawn from the seed), or a loaded
     :class:`Scenario`;
-    ``action_type``: ``"trajectory"`` (default), ``"control"`` or ``"discrete"``;
+    ``action_type``: ``"trajectory"`` (default), ``"control"`` or ``"discrete"``
+    (:data:`~gridsim.envs.actions.ACTION_TYPES`);
+    ``observation_type``: ``"grids"`` (default: the paper's occupancy grids, ego state and
+    destination) or ``"kinematics"`` (:data:`~gridsim.envs.observations.OBSERVATION_TYPES`);
     further keyword arguments are scenario overrides (nested dicts), validated by the
     scenario schema, e.g. ``traffic={"participants": 20}``.
     """
@@ -64,6 +68,7 @@ class GridSimEnv(gym.Env):
         scenario: str | Scenario = "seamless",
         render_mode: str | None = None,
         action_type: str = "trajectory",
+        observation_type: str = "grids",
         **overrides: Any,
     ) -> None:
         vector = sorted(set(overrides) & VECTOR_OPTIONS)
@@ -89,6 +94,9 @@ class GridSimEnv(gym.Env):
             raise ValueError(
                 f"action_type must be one of {sorted(ACTION_TYPES)}, got {action_type!r}"
             )
+        if observation_type not in OBSERVATION_TYPES:
+            raise ValueError(f"observation_type must be one of {sorted(OBSERVATION_TYPES)}, "
+                             f"got {observation_type!r}")  # fmt: skip
         cfg = self.scenario.config
         self.render_mode = render_mode
         self.cfg = cfg
@@ -108,13 +116,9 @@ class GridSimEnv(gym.Env):
                                                      self._orientation, **kwargs)  # fmt: skip
         self.action_type = action_type
         self.action_space = self.action_kind.space
-        s = cfg.sensor
-        big = np.float32(1e4)
-        self.observation_space = spaces.Dict({
-            "grids": spaces.Box(0, 255, (e.history, s.rows, s.cols), np.uint8),
-            "ego": spaces.Box(-big, big, (len(EGO_FEATURES),), np.float32),
-            "destination": spaces.Box(-big, big, (2,), np.float32),
-        })  # fmt: skip
+        self.observation_kind = OBSERVATION_TYPES[observation_type](cfg)
+        self.observation_type = observation_type
+        self.observation_space = self.observation_kind.space
         #: Bounds of the per-step fitness vector [l1, l2, l3] (MO-Gymnasium convention).
         self.reward_space = spaces.Box(
             np.zeros(3, np.float32), np.full(3, np.inf, np.float32), dtype=np.float32
@@ -123,7 +127,7 @@ class GridSimEnv(gym.Env):
         self.world = None
         # The last grids, a ring: the newest at index _newest (the observation puts them in
         # order, oldest first).
-        self._grids = np.zeros(self.observation_space["grids"].shape, np.uint8)
+        self._grids = np.zeros((e.history, cfg.sensor.rows, cfg.sensor.cols), np.uint8)
         self._newest = len(self._grids) - 1
         self._last_plan = None
 
@@ -243,17 +247,31 @@ class GridSimEnv(gym.Env):
         return self._observation(), terms, terminated, truncated, info
 
     # -- observation and info ---------------------------------------------------------------
-    def _observation(self) -> dict[str, np.ndarray]:
-        w = self.world
-        rotation = grid_rotation(self._orientation, w.ego[PSI])
-        heading = w.ego[PSI] - rotation
-        # (math's cos and sin are libm's, as NumPy's on a float64 scalar: see kinematics)
-        ego = np.array([w.ego[V], w.ego[DELTA], self._last_accel, self._last_rate,
-                        math.cos(heading), math.sin(heading)], np.float32)  # fmt: skip
-        dest = self._goal_grid.copy()  # the reference at the goal time
+    def _observation(self) -> Any:
+        return self.observation_kind.observe(self)
+
+    def grid_history(self) -> np.ndarray:
+        """The last ``env.history`` occupancy grids ``(history, rows, cols)`` uint8, oldest
+        first (a copy)."""
+        self._current_world("grid_history")
         k = self._newest + 1
-        grids = np.concatenate((self._grids[k:], self._grids[:k]))  # oldest first
-        return {"grids": grids, "ego": ego, "destination": dest}
+        return np.concatenate((self._grids[k:], self._grids[:k]))
+
+    def ego_features(self) -> np.ndarray:
+        """The ego now, float32 ``(6,)``: :data:`~gridsim.frames.EGO_FEATURES` (speed [m/s],
+        steering angle [rad], the last tick's acceleration [m/s^2] and steering rate [rad/s],
+        cos and sin of the heading in the grid frame)."""
+        w = self._current_world("ego_features")
+        heading = w.ego[PSI] - grid_rotation(self._orientation, w.ego[PSI])
+        # (math's cos and sin are libm's, as NumPy's on a float64 scalar: see kinematics)
+        return np.array([w.ego[V], w.ego[DELTA], self._last_accel, self._last_rate,
+                         math.cos(heading), math.sin(heading)], np.float32)  # fmt: skip
+
+    def destination(self) -> np.ndarray:
+        """The destination [m, grid frame] float32 ``(2,)``: the reference at the goal time
+        (the last set-point's, or ``env.goal_seconds`` ahead)."""
+        self._current_world("destination")
+        return self._goal_grid.copy()
 
     def _info(self, terms: np.ndarray, reached: bool = False) -> dict[str, Any]:
         w = self.world
