@@ -137,6 +137,7 @@ def main() -> None:
                     "episodes": f"{episodes} x {seconds:g} s", "knee": _row(r["network"]),
                     "warm_start": _row(r["warm_start"]) if "warm_start" in r else None,
                     "curve": _row(r["destination curve"]),
+                    "paired": r.get("paired"),
                 }), flush=True)  # fmt: skip
 
 

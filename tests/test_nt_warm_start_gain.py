@@ -184,13 +184,35 @@ def test_heldout_drives_the_warm_start_beside_the_knee(anchored_run, tmp_path, c
     assert policy.keep == run.config.plan_smoothing
     rows = drive_episodes(run.config.scenario, policy, r["seeds"], r["episode_seconds"])
     assert summarise(rows) == r["warm_start"]
+    # the pair compared on the episodes both complete, from the same episode rows
+    pairs = zip(r["episodes"], r["warm_start_episodes"], strict=True)
+    both = [(a["l1"], b["l1"]) for a, b in pairs if a["completed"] == 1 and b["completed"] == 1]
+    assert r["paired"]["episodes"] == len(both)
+    if both:
+        assert r["paired"]["l1"] == np.mean([a for a, _ in both])
+        assert "both the knee member and its warm start complete" in printed
+
+
+def test_paired_l1_compares_only_the_episodes_both_complete():
+    from neurotrajectory.compare.front import paired_l1
+
+    rows = [{"l1": 10.0, "completed": 1.0}, {"l1": 900.0, "completed": 0.0},
+            {"l1": 4.0, "completed": 1.0}, {"l1": 7.0, "completed": 1.0}]  # fmt: skip
+    others = [{"l1": 12.0, "completed": 1.0}, {"l1": 300.0, "completed": 0.0},
+              {"l1": 5.0, "completed": 0.0}, {"l1": 6.0, "completed": 1.0}]  # fmt: skip
+    # episode 1 failed for both (the later failure summed more l1), episode 2 for one
+    assert paired_l1(rows, others) == {"episodes": 2, "l1": 8.5, "other_l1": 9.0,
+                                       "l1_change": 8.5 / 9.0 - 1, "better": 1}  # fmt: skip
+    assert paired_l1(rows[1:2], others[1:2])["episodes"] == 0
+    with pytest.raises(ValueError):
+        paired_l1(rows, others[:2])  # not the same episodes
 
 
 def test_a_run_without_a_warm_start_has_no_warm_start_entry(tmp_path):
     out = tmp_path / "run"
     args = [*TINY_CLI, "--heldout", "1"]
     assert main(["train", *args, "--out", str(out)]) == 0
-    assert "warm_start" not in json.loads((out / "heldout.json").read_text())
+    assert not {"warm_start", "paired"} & set(json.loads((out / "heldout.json").read_text()))
     assert "warm_start" not in json.loads((out / "front.json").read_text())
     assert "warm_start_validation" not in run_history(out)[0]
     assert "knee_validation" in run_history(out)[0]

@@ -109,8 +109,9 @@ def heldout(
     recorded scene trained on some ``ego_tracks``, each of the scene's other tracks that can
     be the ego once, at most ``episodes`` of them in id order), each ``seconds`` long
     (default: as long as the training episodes), beside the destination curve's and, if the
-    run has one, its warm start's (``"warm_start"``: what evolution started from) on the same
-    episodes, all plans smoothed alike: as the run's, or by ``smoothing``."""
+    run has one, its warm start's (``"warm_start"``: what evolution started from; ``"paired"``:
+    the two compared on the episodes both complete, :func:`paired_l1`) on the same episodes,
+    all plans smoothed alike: as the run's, or by ``smoothing``."""
     from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
     from neurotrajectory.compare.closed_loop import drive_episodes, summarise
     from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
@@ -146,10 +147,29 @@ def heldout(
         "seeds": seeds,
         "network": summarise(rows),
         **({"warm_start": summarise(started)} if started else {}),
+        **({"paired": paired_l1(rows, started)} if started else {}),
         DestinationCurve.name: summarise(baseline),
         "episodes": rows,
         **({"warm_start_episodes": started} if started else {}),
     }
+
+
+def paired_l1(rows: list[dict], others: list[dict]) -> dict:
+    """l1 of two planners driven on the same episodes (``rows``, ``others``: one summary per
+    episode, in the same order), compared on the episodes that both complete: an episode
+    that ends early sums l1 only until it ends, so a planner that fails later would seem to
+    do worse; failures are counted by ``completed`` instead. ``episodes``: how many both
+    complete; ``l1`` and ``other_l1``: their mean episode l1 [m^2] there; ``l1_change``: the
+    relative change from the other's (negative: better; None without such episodes);
+    ``better``: on how many of them ``rows``' l1 is lower."""
+    both = [(a["l1"], b["l1"]) for a, b in zip(rows, others, strict=True)
+            if a["completed"] == 1 and b["completed"] == 1]  # fmt: skip
+    if not both:
+        return {"episodes": 0, "l1": None, "other_l1": None, "l1_change": None, "better": 0}
+    mine, theirs = (sum(v) / len(both) for v in zip(*both, strict=True))
+    change = mine / theirs - 1.0 if theirs > 0 else None
+    return {"episodes": len(both), "l1": mine, "other_l1": theirs, "l1_change": change,
+            "better": sum(a < b for a, b in both)}  # fmt: skip
 
 
 def heldout_problem(config) -> str | None:
