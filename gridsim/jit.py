@@ -8,10 +8,13 @@ never used: kernels must give the same bits as the NumPy code they replace. Nor 
 SVML (numba would vectorise ``math`` calls with it when ``intel-cmplr-lib-rt`` is installed,
 with other results than libm's): ``NUMBA_DISABLE_INTEL_SVML`` is set unless the user set it.
 
-numba checks a cached kernel against its own source file only: after editing a kernel that
-kernels in other modules call (e.g. ``polyline_kernels.project``, called by
-``scripted_driver_kernels.route_leader``), delete the ``__pycache__/*.nbi`` and ``*.nbc``
-files of the package (a fresh checkout has none), or the callers keep the old code.
+numba checks a cached kernel against its own source file only, not against the kernels
+and constants it uses from other modules (e.g. ``polyline_kernels.project``, called by
+``scripted_driver_kernels.route_leader``). So this module keeps a digest of every source
+compiled code can depend on (:func:`kernel_sources`) beside the caches, and when the digest
+changes (an edited kernel, another version installed over the package) deletes every cached
+kernel of the package before any is loaded (:func:`drop_stale_caches`): a cache never serves
+a stale kernel.
 
 Compiling all kernels takes about 30 s; ``pip install .`` does it while it builds the package
 (``gridsim compile``), so that a user's first environment starts at once. When a kernel is
@@ -21,9 +24,12 @@ line on stderr says so, once per process (:data:`NOTICE`).
 
 from __future__ import annotations
 
+import hashlib
 import os
+import re
 import sys
 from collections.abc import Callable
+from pathlib import Path
 
 os.environ.setdefault("NUMBA_DISABLE_INTEL_SVML", "1")  # read when numba is first imported
 
@@ -58,6 +64,65 @@ class _CompileNotice(event.Listener):
 
 
 event.register("numba:compile", _CompileNotice())
+
+#: Where the digest of the kernel sources is kept, in the package's ``__pycache__``.
+STAMP = Path("__pycache__") / "kernel_sources.sha256"
+_COMPILED_CODE = re.compile(r"^@(kernel|jitable)\b|register_jitable\(|= jitable\(", re.M)
+_GRIDSIM_IMPORT = re.compile(r"^from (gridsim(?:\.\w+)+) import", re.M)
+
+
+def kernel_sources(package: Path) -> list[Path]:
+    """The sources compiled code of ``package`` (the ``gridsim`` folder) can depend on: every
+    module that defines kernels or jitable functions, and the package's modules they import
+    names from (constants are frozen into the compiled code)."""
+    compiled = [f for f in sorted(package.rglob("*.py")) if _COMPILED_CODE.search(f.read_text())]
+    used = set(compiled)
+    for f in compiled:
+        for name in _GRIDSIM_IMPORT.findall(f.read_text()):
+            parts = name.split(".")[1:]
+            module = package.joinpath(*parts).with_suffix(".py")
+            used.add(module if module.is_file() else package.joinpath(*parts, "__init__.py"))
+    return sorted(p for p in used if p.is_file())
+
+
+def sources_digest(package: Path) -> str:
+    """SHA-256 of :func:`kernel_sources` (their paths in the package and their bytes)."""
+    h = hashlib.sha256()
+    for f in kernel_sources(package):
+        h.update(f.relative_to(package).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def drop_stale_caches(package: Path) -> int:
+    """Delete the cached kernels (``*.nbi``, ``*.nbc``) under ``package`` unless its
+    :data:`STAMP` holds the digest of today's sources, then write the stamp; how many files
+    were deleted. Does nothing where the package cannot be written (numba then caches in its
+    user-wide folder, keyed by the installed sources, which do not change)."""
+    stamp = package / STAMP
+    digest = sources_digest(package)
+    try:
+        if stamp.read_text().strip() == digest:
+            return 0
+    except OSError:
+        pass  # no stamp yet: the caches, if any, are of unknown sources
+    if not os.access(package, os.W_OK):
+        return 0
+    dropped = 0
+    for cache in [*package.rglob("__pycache__/*.nbi"), *package.rglob("__pycache__/*.nbc")]:
+        try:
+            cache.unlink()
+            dropped += 1
+        except OSError:
+            pass
+    try:
+        stamp.parent.mkdir(exist_ok=True)
+        stamp.write_text(digest + "\n")
+    except OSError:
+        pass
+    return dropped
+
+
+drop_stale_caches(Path(__file__).parent)
 
 
 def compiled_kernels() -> dict:

@@ -69,3 +69,45 @@ def test_gridsim_compile_readies_every_kernel_of_the_built_in_scenarios(capsys):
     out = capsys.readouterr().out
     assert out.startswith("compiling or loading the kernels of every built-in scenario:")
     assert f"{compiled_kernels()['kernels']} kernels ready (" in out
+
+
+def _package(root):
+    """A toy package: a kernel module using a jitable function and a constant of two other
+    modules, an unrelated module, and cached kernels in two ``__pycache__`` folders."""
+    pkg = root / "gridsim"
+    (pkg / "sub" / "__pycache__").mkdir(parents=True)
+    (pkg / "__pycache__").mkdir()
+    (pkg / "sub" / "k_kernels.py").write_text(
+        "from gridsim.helpers import step\nfrom gridsim.consts import LIMIT\n\n"
+        "@kernel\ndef go(x):\n    return step(x) + LIMIT\n"
+    )
+    (pkg / "helpers.py").write_text("@jitable\ndef step(x):\n    return x + 1\n")
+    (pkg / "consts.py").write_text("LIMIT = 3\n")
+    (pkg / "unrelated.py").write_text("def f():\n    return 1\n")
+    caches = [pkg / "sub" / "__pycache__" / "k_kernels.go-4.py311.nbi",
+              pkg / "sub" / "__pycache__" / "k_kernels.go-4.py311.0.nbc",
+              pkg / "__pycache__" / "helpers.step-1.py311.nbi"]  # fmt: skip
+    return pkg, caches
+
+
+def _cache(caches):
+    for c in caches:
+        c.write_bytes(b"cached")
+
+
+def test_cached_kernels_are_dropped_when_a_source_they_depend_on_changes(tmp_path):
+    pkg, caches = _package(tmp_path)
+    sources = [p.relative_to(pkg).as_posix() for p in jit.kernel_sources(pkg)]
+    assert sources == ["consts.py", "helpers.py", "sub/k_kernels.py"]  # not unrelated.py
+    _cache(caches)
+    assert jit.drop_stale_caches(pkg) == 3  # caches of unknown sources (no stamp yet)
+    assert (pkg / jit.STAMP).read_text().strip() == jit.sources_digest(pkg)
+    _cache(caches)
+    assert jit.drop_stale_caches(pkg) == 0 and all(c.exists() for c in caches)  # up to date
+    (pkg / "unrelated.py").write_text("def f():\n    return 2\n")
+    assert jit.drop_stale_caches(pkg) == 0  # no compiled code depends on it
+    for edited in ("helpers.py", "consts.py"):  # a callee's body, a constant: both stale
+        path = pkg / edited
+        path.write_text(path.read_text().replace("1", "2").replace("3", "4"))
+        assert jit.drop_stale_caches(pkg) == 3 and not any(c.exists() for c in caches)
+        _cache(caches)
