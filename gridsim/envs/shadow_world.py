@@ -65,18 +65,17 @@ class ShadowWorld:
             if args is not None:
                 out = self.samples if record else _NO_SAMPLES
                 done = kernels.ticks(k, end, *args, yielding, out)
-                status, k_next, t, ego, hint, road_s, road_hint, accel, rate, ended, used = done
-                if k_next > k or status == kernels.TRAFFIC:  # some tick was started
-                    w.ego, w.time = np.array(ego), t
-                    self.driver.follower.set_tracked(hint)
-                    w.road.set_tracked(road_s, road_hint)
-                    w.unchecked(accel, rate)
-                    w.traffic.drew(used)
-                k = k_next
-                if status == kernels.DONE or status == kernels.CHECK:
-                    return k, status == kernels.CHECK
-                if status == kernels.TRAFFIC:  # the rest of tick k
-                    w.traffic.refill(ended, w.ego_pose())
+                if done.next > k or done.status == kernels.TRAFFIC:  # some tick was started
+                    w.ego, w.time = np.array(done.ego), done.time
+                    self.driver.follower.set_tracked(done.hint)
+                    w.road.set_tracked(done.road_s, done.road_hint)
+                    w.unchecked(done.accel, done.rate)
+                    w.traffic.drew(done.used)
+                k = done.next
+                if done.status == kernels.DONE or done.status == kernels.CHECK:
+                    return k, done.status == kernels.CHECK
+                if done.status == kernels.TRAFFIC:  # the rest of tick k
+                    w.traffic.refill(done.ended, w.ego_pose())
                     w.time += w.dt
                     k = self._recorded(k, record)
                     if record:

@@ -10,6 +10,7 @@ profile draws it may use come drawn), never grows or trims the road and never as
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -28,6 +29,22 @@ from gridsim.world.scripted_driver_kernels import follower_inputs
 DONE, BEFORE, TRAFFIC, CHECK = 0, 1, 2, 3
 
 _NO_CROSS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+
+
+class Batch(NamedTuple):
+    """What :func:`ticks` returns."""
+
+    status: int  # DONE, BEFORE, TRAFFIC or CHECK
+    next: int  # the next sample to tick
+    time: float  # the clock after the last tick started [s]
+    ego: tuple  # the ego state (x, y, psi, v, delta)
+    hint: int  # the route segment the driver tracks
+    road_s: float  # the road's arc length [m] of the ego
+    road_hint: int  # and its segment
+    accel: float  # the acceleration applied in the last tick [m/s^2]
+    rate: float  # the steering rate applied in the last tick [rad/s]
+    ended: np.ndarray  # the participants whose profile ran out
+    used: int  # the profile draws used
 
 
 @kernel
@@ -49,9 +66,7 @@ def ticks(k, end, clock, ego, params, driver, chain, road, traffic, renew, near,
     would grow or trim the road (:data:`BEFORE`: nothing of it done); after the fleet's tick
     when a participant is idle or the draws ran out (:data:`TRAFFIC`: the refill, the clock
     and the sample are Python's); after a recorded tick whose near miss the compiled test
-    cannot rule out (:data:`CHECK`). Returns ``(status, next sample, time, ego state, route
-    segment, road's arc length and segment, applied acceleration and steering rate of the last
-    tick, the participants whose profile ran out, the draws used)``.
+    cannot rule out (:data:`CHECK`). Returns a :class:`Batch`.
     """
     t, dt = clock
     x, y, psi, v, delta = ego
@@ -111,4 +126,4 @@ def ticks(k, end, clock, ego, params, driver, chain, road, traffic, renew, near,
             status = CHECK
             break
     ego = (x, y, psi, v, delta)
-    return status, k, t, ego, hint, road_s, road_hint, applied, rate, ended, used
+    return Batch(status, k, t, ego, hint, road_s, road_hint, applied, rate, ended, used)

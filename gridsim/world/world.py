@@ -141,20 +141,19 @@ class World:
         if args is None:
             return self.tick(*follow(self))
         out = world_kernels.follow_tick(*args)
-        status, accel, rate, ego, applied, steer_rate, road_s, road_hint, ended, center, quiet = out
-        if status == world_kernels.NOT_FINITE:
+        if out.status == world_kernels.NOT_FINITE:
             return self.tick(*follow(self))
-        if status == world_kernels.BEFORE:
-            return self.tick(accel, rate)
-        previous, self.ego = self.ego, np.array(ego)
-        self.road.set_tracked(road_s, road_hint)
-        if status == world_kernels.TRAFFIC:
-            self.traffic.refill(ended, self.ego_pose())
+        if out.status == world_kernels.BEFORE:
+            return self.tick(out.accel, out.steer)
+        previous, self.ego = self.ego, np.array(out.ego)
+        self.road.set_tracked(out.road_s, out.road_hint)
+        if out.status == world_kernels.TRAFFIC:
+            self.traffic.refill(out.ended, self.ego_pose())
         self.time += self.dt
         contact = None
-        if quiet and self.collision.keeps_boundaries(self.road.version, *center):
+        if out.quiet and self.collision.keeps_boundaries(self.road.version, *out.center):
             contact = _NO_CONTACT  # what check_contacts finds: nothing near
-        return self._checked_tick(previous, applied, steer_rate, contact)
+        return self._checked_tick(previous, out.applied, out.steer_rate, contact)
 
     def _follow_args(self, follow) -> tuple | None:
         """The arguments of :func:`~gridsim.world.world_kernels.follow_tick`, or None when

@@ -14,6 +14,7 @@ numbers). The contact tests stay in Python.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -35,6 +36,23 @@ DONE, BEFORE, TRAFFIC, NOT_FINITE = 0, 1, 2, 3
 _NO_CROSS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
 
 
+class FollowTick(NamedTuple):
+    """What :func:`follow_tick` returns (with status :data:`BEFORE` only ``accel`` and
+    ``steer`` are meaningful, with :data:`NOT_FINITE` nothing)."""
+
+    status: int  # DONE, BEFORE, TRAFFIC or NOT_FINITE
+    accel: float  # the commanded acceleration [m/s^2]
+    steer: float  # the commanded steering rate [rad/s]
+    ego: tuple  # the new ego state (x, y, psi, v, delta)
+    applied: float  # the acceleration applied (within the vehicle's limits) [m/s^2]
+    steer_rate: float  # the steering rate applied [rad/s]
+    road_s: float  # the road's arc length [m] of the ego
+    road_hint: int  # and its segment
+    ended: np.ndarray  # the participants whose profile ran out
+    center: tuple  # the ego's footprint centre (x, y) [m]
+    quiet: bool  # the contact test can find nothing (no edge near, no vehicle not apart)
+
+
 @kernel
 def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     """One tick of the ego following a path (or holding its inputs). ``ego``: its state
@@ -48,19 +66,15 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     the ego's ``(length, width, center_offset)``; ``broad``:
     :meth:`CollisionChecker.broad_phase_data`.
 
-    Returns ``(status, the commanded acceleration and steering rate, the new ego state, the
-    applied acceleration and steering rate, the road's arc length and segment, the
-    participants whose profile ran out, the ego's centre, whether the contact test can find
-    nothing: no road edge near, no vehicle that is not clearly apart from the ego's box
-    (:func:`~gridsim.world.collision_kernels.may_touch`, as the reference's shadow world
-    rules near misses out))``; with status :data:`BEFORE` only the commanded
-    inputs are meaningful, with :data:`NOT_FINITE` none."""
+    Returns a :class:`FollowTick`; ``quiet``: as the reference's shadow world rules near misses
+    out (:func:`~gridsim.world.collision_kernels.may_touch`)."""
     x, y, psi, v, delta = ego
-    none = _NO_CROSS[0]
+    none = np.zeros(0, np.int64)  # (a new array: a global one is read-only, of another type)
     nan = (np.nan, np.nan)
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(psi) and math.isfinite(v)
             and math.isfinite(delta)):  # fmt: skip
-        return NOT_FINITE, np.nan, np.nan, ego, np.nan, np.nan, np.nan, -1, none, nan, False
+        return FollowTick(NOT_FINITE, np.nan, np.nan, ego, np.nan, np.nan, np.nan, -1, none, nan,
+                          False)  # fmt: skip
     mode, path, speed, min_lookahead, lookahead_time, pursuit_limits, b_max, held = follow
     if mode == HOLD:  # inputs held for the decision period (control and discrete actions)
         accel, steer = held
@@ -72,13 +86,15 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     else:  # nothing ahead to drive to: brake to a stop, hold the wheel
         accel, steer = -min(b_max, v / dt), 0.0
     if not (math.isfinite(accel) and math.isfinite(steer)):
-        return NOT_FINITE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none, nan, False
+        return FollowTick(NOT_FINITE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none, nan,
+                          False)  # fmt: skip
     x1, y1, psi1, v1, d1, a1, r1 = step_one(x, y, psi, v, delta, accel, steer, step_limits, dt)
     line, ref_s, road_hint, keep_ahead, keep_behind, cut_max = road
     points, seg, seg_len, seg_len_pow2, s_road, _ = line
     s1, _, j1 = track(points, seg, seg_len, seg_len_pow2, s_road, x1, y1, road_hint)
     if ref_s[-1] < s1 + keep_ahead or np.searchsorted(ref_s, s1 - keep_behind) > cut_max:
-        return BEFORE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none, nan, False
+        return FollowTick(BEFORE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none, nan,
+                          False)  # fmt: skip
     ego1 = (x1, y1, psi1, v1, d1)
     length, width, center_offset = box
     c, s = math.cos(psi1), math.sin(psi1)
@@ -98,4 +114,4 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
         and not may_touch(state, (cx, cy, psi1, ego_length, ego_width), ego_radius, APART)
         and len(near_segments(edges, cx, cy, core_reach)) == 0
     )
-    return status, accel, steer, ego1, a1, r1, s1, j1, ended, (cx, cy), quiet
+    return FollowTick(status, accel, steer, ego1, a1, r1, s1, j1, ended, (cx, cy), quiet)
