@@ -6,7 +6,7 @@ SIMD code on CPUs with AVX-512 (``numpy.show_runtime()`` lists ``X86_V4``); thos
 from the C library's, and so between machines, in the last bit for a few percent of inputs. On
 AVX2 CPUs NumPy calls the C library (``atan2`` for float64, ``atan2f`` for float32), as numba's
 kernels and Python's ``math`` do. The simulator computes every such function that a result
-depends on here (``tests/test_libm.py`` compares with NumPy on AVX2 and with ``math``).
+depends on here (``tests/test_gridsim/test_libm.py`` compares with NumPy on AVX2 and with ``math``).
 
 Each function takes scalars or arrays of any shape, broadcast together. float32 inputs (all of
 them float32) give float32 results (libm's float function), anything else float64. Python and

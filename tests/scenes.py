@@ -6,11 +6,12 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from paths import COMMONROAD
 
 from gridsim.traffic.library import REQUIRED_COLUMNS
 from gridsim.traffic.track import Track
 
-MAP = Path(__file__).parent / "data" / "commonroad" / "straight_2018b.xml"
+MAP = COMMONROAD / "straight_2018b.xml"
 
 
 def track(tid: str, x, y, heading: float = 0.0, dt: float = 0.1) -> Track:

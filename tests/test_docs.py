@@ -4,14 +4,14 @@ complaint, and every command line the docs show names real subcommands and flags
 import re
 import shlex
 import sys
-from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 #: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
 pytestmark = pytest.mark.slow
 
-ROOT = Path(__file__).parents[1]
+ROOT = ROOT
 DOCS = [ROOT / "README.md", ROOT / "examples" / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 
 

@@ -3,14 +3,14 @@ folder (as a user runs it after the install)."""
 
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
+from paths import ROOT
 
 #: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
 pytestmark = pytest.mark.slow
 
-EXAMPLES = sorted((Path(__file__).parents[1] / "examples").glob("*.py"))
+EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
 
 #: What each example prints when it worked.
 SAYS = {

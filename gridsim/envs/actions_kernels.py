@@ -1,6 +1,7 @@
 """Compiled set-point handling of the trajectory action: the same operations, in the same
 order, as the NumPy code it replaced (clip, :func:`~gridsim.frames.grid_to_world`,
-``np.hypot`` of the steps; ``tests/test_env.py`` compares them on random actions)."""
+``np.hypot`` of the steps; ``tests/test_gridsim/envs/test_env.py`` compares them on random
+actions)."""
 
 from __future__ import annotations
 

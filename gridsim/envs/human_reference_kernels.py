@@ -1,6 +1,6 @@
 """Compiled look-up of a reference trajectory: the same operations, in the same order, as the
-NumPy code it replaced (``np.interp`` compiled gives NumPy's bits; ``tests/test_reference.py``
-compares them on random trajectories)."""
+NumPy code it replaced (``np.interp`` compiled gives NumPy's bits;
+``tests/test_gridsim/envs/test_reference.py`` compares them on random trajectories)."""
 
 from __future__ import annotations
 

@@ -7,8 +7,8 @@ fleet's tick and the samples, and rules near misses out where the boxes are clea
 Python takes over for a tick that gives way to a vehicle (a revision), grows or trims the
 road, or respawns a participant (it draws random numbers: the new profiles of participants
 whose profile ran out are drawn ahead, from a copy of the stream), and pymunk decides the
-near misses the compiled test cannot rule out. The ticks are the same
-either way (same bits: ``tests/test_shadow_world.py``); other roads tick in Python.
+near misses the compiled test cannot rule out. The ticks are the same either way (same bits:
+``tests/test_gridsim/envs/test_shadow_world.py``); other roads tick in Python.
 """
 
 from __future__ import annotations

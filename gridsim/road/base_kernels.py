@@ -1,5 +1,5 @@
 """Compiled look-up of a road's pieces near a point: the same comparisons as the NumPy code
-it replaced (``tests/test_roads.py`` compares them on random boxes)."""
+it replaced (``tests/test_gridsim/road/test_roads.py`` compares them on random boxes)."""
 
 from __future__ import annotations
 

@@ -1,8 +1,9 @@
 """Compiled queries on the arrays of a :class:`~gridsim.road.polyline.Polyline`.
 
 Each kernel does the operations of the NumPy expressions it replaced, in the same order, so
-its results are the same bits (``tests/test_roads.py`` keeps the NumPy versions as the
-reference; ``tests/test_golden.py`` replays whole episodes against recorded digests).
+its results are the same bits (``tests/test_gridsim/road/test_roads.py`` keeps the NumPy
+versions as the reference; ``tests/test_golden.py`` replays whole episodes against recorded
+digests).
 Coordinates are metres in the world frame; ``d`` is positive to the left.
 """
 

@@ -36,7 +36,7 @@ def chain_samples(out, m0, m1, profile, state, limits) -> tuple[int, float]:
 @kernel
 def chain_at(t, times, speeds, offsets, n) -> tuple[float, float]:
     """Speed [m/s] and offset [m] at time ``t`` [s], ``np.interp`` over the first ``n``
-    samples (compiled, the same bits as NumPy's: ``tests/test_reference.py``)."""
+    samples (compiled, the same bits as NumPy's: ``tests/test_gridsim/envs/test_reference.py``)."""
     return np.interp(t, times[:n], speeds[:n]), np.interp(t, times[:n], offsets[:n])
 
 

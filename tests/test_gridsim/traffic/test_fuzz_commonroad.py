@@ -11,10 +11,11 @@ import gymnasium as gym
 import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from paths import COMMONROAD
 
 from gridsim.errors import DataWarning, GridSimError
 
-SCENE = (Path(__file__).parent / "data" / "commonroad" / "straight_2020a.xml").read_text()
+SCENE = (COMMONROAD / "straight_2020a.xml").read_text()
 TAGS = ["x", "y", "exact", "length", "width", "radius"]
 VALUES = st.one_of(
     st.sampled_from(

@@ -3,10 +3,10 @@ revised where it would collide."""
 
 import hashlib
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest
+from paths import DATA
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.envs.human_reference import HumanReference, human_reference
@@ -14,7 +14,7 @@ from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.parts import synthetic_tracks
 from gridsim.traffic.profiles import ProfileChain, SpeedBounds, human_profiles
 
-DIGESTS = json.loads((Path(__file__).parent / "data" / "reference_digests.json").read_text())
+DIGESTS = json.loads((DATA / "reference_digests.json").read_text())
 
 
 def _digest(ref) -> str:

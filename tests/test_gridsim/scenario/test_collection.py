@@ -7,18 +7,17 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
+from paths import COMMONROAD
 
 from gridsim.cli import main
 from gridsim.envs import ENV_ID
 from gridsim.errors import DataWarning, ScenarioError
 from gridsim.scenario.collection import load_collection, scenario_files
 
-DATA = Path(__file__).parent / "data" / "commonroad"
-
 
 @pytest.fixture
 def folder(tmp_path) -> Path:
-    for f in DATA.glob("*.xml"):
+    for f in COMMONROAD.glob("*.xml"):
         shutil.copy(f, tmp_path / f.name)
     (tmp_path / "notes.txt").write_text("not a scenario")
     return tmp_path
@@ -129,7 +128,7 @@ def test_record_a_folder_as_a_named_group(folder, tmp_path):
 
 def add_unusable_files(folder: Path) -> dict[str, str]:
     """Files a real collection holds next to good ones, and the reason each is skipped."""
-    text = (DATA / "straight_2018b.xml").read_text()
+    text = (COMMONROAD / "straight_2018b.xml").read_text()
     glitch = text.replace("<x>25.0000</x>", "<x>3000025.0</x>", 1)  # one jump of 3,000 km
     (folder / "glitch.xml").write_text(glitch.replace("Straight-1_1", "Glitch-1_1"))
     (folder / "truncated.xml").write_text(text[: len(text) // 2])

@@ -4,6 +4,7 @@ import contextlib
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -51,7 +52,7 @@ def test_different_seeds_give_different_worlds():
 @pytest.mark.slow
 def test_same_seed_same_result_in_a_fresh_process():
     code = (
-        "import numpy as np, sys; sys.path.insert(0, 'tests');"
+        f"import numpy as np, sys; sys.path.insert(0, {str(Path(__file__).parent)!r});"
         "from test_world import rollout;"
         "e, f, g = rollout('inner_city', 5, 30);"
         "print(float(e.sum()), float(f.sum()), int(g.astype(np.int64).sum()))"

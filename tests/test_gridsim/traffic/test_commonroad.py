@@ -6,6 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
+from paths import COMMONROAD, ROOT
 
 from gridsim.envs import ENV_ID
 from gridsim.errors import DataError, ScenarioError
@@ -15,8 +16,7 @@ from gridsim.scenario.loader import load_scenario
 from gridsim.traffic.commonroad import read_tracks_commonroad, scene_id
 from gridsim.traffic.library import TrajectoryLibrary
 
-DATA = Path(__file__).parent / "data" / "commonroad"
-SHIPPED = Path(__file__).parents[1] / "gridsim" / "data" / "ngsim" / "commonroad-xml"
+SHIPPED = ROOT / "gridsim" / "data" / "ngsim" / "commonroad-xml"
 OBSTACLE = (
     '<dynamicObstacle id="5"><type>car</type><shape>{shape}</shape>'
     "<initialState><position><point><x>10</x><y>-1.75</y></point></position>"
@@ -50,8 +50,8 @@ def test_shipped_files_give_the_shipped_tracks(path):
 
 
 def test_both_layouts_and_time_step_sizes_agree():
-    old = read_tracks_commonroad(DATA / "straight_2018b.xml")  # <obstacle>, 0.1 s
-    new = read_tracks_commonroad(DATA / "straight_2020a.xml")  # <dynamicObstacle>, 0.2 s
+    old = read_tracks_commonroad(COMMONROAD / "straight_2018b.xml")  # <obstacle>, 0.1 s
+    new = read_tracks_commonroad(COMMONROAD / "straight_2020a.xml")  # <dynamicObstacle>, 0.2 s
     assert [t.track_id for t in old] == [t.track_id for t in new] == ["10", "11", "12"]
     for a, b in zip(old, new, strict=True):
         assert (a.scenario_id, b.scenario_id) == ("ZAM_Straight-1_1_T-1", "ZAM_Straight-1_2_T-1")
@@ -61,7 +61,7 @@ def test_both_layouts_and_time_step_sizes_agree():
 
 
 def test_a_commonroad_file_is_a_scenario():
-    env = gym.make(ENV_ID, scenario=str(DATA / "straight_2020a.xml"))
+    env = gym.make(ENV_ID, scenario=str(COMMONROAD / "straight_2020a.xml"))
     seen = set()
     for seed in range(4):
         _, info = env.reset(seed=seed)
@@ -78,7 +78,7 @@ def test_a_commonroad_file_is_a_scenario():
 
 
 def test_keyword_overrides_and_the_same_scene_from_yaml(tmp_path):
-    xml = DATA / "straight_2018b.xml"
+    xml = COMMONROAD / "straight_2018b.xml"
     env = gym.make(ENV_ID, scenario=str(xml), ego={"track": "10"}, simulation={"duration": 2})
     env.reset(seed=0)
     assert env.unwrapped.world.ego_track.track_id == "10"
@@ -142,7 +142,7 @@ def test_not_a_commonroad_file(tmp_path):
 
 
 def test_a_map_without_its_tracks_says_what_to_do(tmp_path):
-    doc = {"name": "y", "road": {"type": "recorded", "map": str(DATA / "straight_2018b.xml")}}
+    doc = {"name": "y", "road": {"type": "recorded", "map": str(COMMONROAD / "straight_2018b.xml")}}
     (tmp_path / "y.yaml").write_text(yaml.safe_dump(doc))
     with pytest.raises(DataError, match=r"no tracks for scene 'ZAM_Straight-1_1_T-1'.*"
                                         r"set traffic.library: \[scene\]"):  # fmt: skip
@@ -154,7 +154,7 @@ def test_import_writes_yaml_and_csv_that_give_the_same_worlds(tmp_path, capsys):
 
     src = tmp_path / "src"
     src.mkdir()
-    for f in DATA.glob("*.xml"):
+    for f in COMMONROAD.glob("*.xml"):
         (src / f.name).write_bytes(f.read_bytes())
     assert main(["import", str(src), "--out", str(tmp_path / "out")]) == 0
     assert capsys.readouterr().out.count("wrote") == 2
@@ -183,8 +183,8 @@ def test_import_never_overwrites_and_checks_before_writing(tmp_path, capsys):
     a, b = tmp_path / "a", tmp_path / "b"
     a.mkdir()
     b.mkdir()
-    (a / "scene.xml").write_bytes((DATA / "straight_2018b.xml").read_bytes())
-    (b / "scene.xml").write_bytes((DATA / "straight_2020a.xml").read_bytes())
+    (a / "scene.xml").write_bytes((COMMONROAD / "straight_2018b.xml").read_bytes())
+    (b / "scene.xml").write_bytes((COMMONROAD / "straight_2020a.xml").read_bytes())
     out = tmp_path / "out"
     assert main(["import", str(a / "scene.xml"), str(b / "scene.xml"), "--out", str(out)]) == 2
     err = capsys.readouterr().err

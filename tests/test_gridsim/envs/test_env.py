@@ -15,6 +15,7 @@ from gymnasium.utils.env_checker import check_env
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
+from paths import ROOT
 
 import gridsim
 from gridsim.envs import ENV_ID, register_envs
@@ -290,7 +291,7 @@ def test_the_simulator_works_without_the_trainers_extra(tmp_path):
     message = ("neurotrajectory: error: the trainer needs torch, matplotlib, moocore, which the "
                'simulator alone does not install: pip install "gridsim[train]"')  # fmt: skip
     assert message in out.stderr
-    project = tomllib.loads((Path(__file__).parents[1] / "pyproject.toml").read_text())["project"]
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
     base = " ".join(project["dependencies"])
     assert not any(m in base for m in ("torch", "matplotlib", "moocore"))
     assert {d.split("=")[0].split(">")[0] for d in project["optional-dependencies"]["train"]} == {
@@ -569,13 +570,12 @@ def test_the_start_method_of_asynchronous_vector_envs_is_chosen_with_context():
 
 def test_the_distribution_has_one_version_and_ships_its_type_marks():
     import importlib.metadata
-    from pathlib import Path
 
     import gridsim
     import neurotrajectory
 
     assert neurotrajectory.__version__ == gridsim.__version__
-    assert f"## {gridsim.__version__} (" in (Path(__file__).parents[1] / "CHANGELOG.md").read_text()
+    assert f"## {gridsim.__version__} (" in (ROOT / "CHANGELOG.md").read_text()
     assert importlib.metadata.version("gridsim") == gridsim.__version__  # pyproject reads it
     for package in (gridsim, neurotrajectory):
         assert (Path(package.__file__).parent / "py.typed").is_file()
