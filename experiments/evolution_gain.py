@@ -32,13 +32,16 @@ GROUPS = {
     "inner_city": (["--scenario", "inner_city", "--pretrain-episodes", "96", "--activation",
                     "tanh", "--episode-seconds", "15", "--validation-episodes", "32"], None,
                    (40, 20.0)),
-    "highway": (["--scenario", "us101_4_1", "--episode-seconds", "10"],
+    "highway": (["--scenario", "us101_4_1,us101_3_3", "--episode-seconds", "10",
+                 "--validation-episodes", "24"],
                 ["--scenario", "highway", "--split", "train"], (20, 10.0)),
-    "urban": (["--scenario", "lankershim_1_1", "--episode-seconds", "10"],
+    "urban": (["--scenario", "lankershim_1_1,peachtree_4_8", "--episode-seconds", "10",
+               "--validation-episodes", "24"],
               ["--scenario", "urban", "--split", "train"], (20, 10.0)),
 }  # fmt: skip
 
-#: A recorded group's scenes as one collection (the recipe evolves on the first alone).
+#: A recorded group's scenes as one collection (the recipe's since 2026-11-26; before, it
+#: evolved on the first alone).
 SCENES = {"highway": "us101_4_1,us101_3_3", "urban": "lankershim_1_1,peachtree_4_8"}
 
 #: Flags added to the recipe (``{scenes}``: the group's :data:`SCENES`; a variant's

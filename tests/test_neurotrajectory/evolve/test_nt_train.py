@@ -400,7 +400,7 @@ def test_resume_refuses_another_out_and_fewer_generations(finished_run, tmp_path
 
 
 #: A value of every ``train`` flag that differs from ``TrainConfig(preset="tiny")`` (None:
-#: a switch).
+#: a switch; a tuple: a flag of several values).
 _OTHER_VALUES = {
     "--scenario": "inner_city", "--preset": "default", "--population": "3",
     "--generations": "5", "--episodes": "1", "--episode-seconds": "4", "--sigma": "0.1",
@@ -411,6 +411,7 @@ _OTHER_VALUES = {
     "--fixed-episodes": None, "--unconstrained": None, "--validation-episodes": "3",
     "--evolve": "head", "--activation": "tanh", "--plan-smoothing": "0.5",
     "--selection": "anchored", "--goal-seconds": "5", "--es-step": "2",
+    "--max-correction": ("4", "2"),
 }  # fmt: skip
 #: ``train`` flags that are about the command, not the run's configuration.
 _COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quiet"}
@@ -430,7 +431,8 @@ def test_resume_applies_or_refuses_every_training_flag(tmp_path, capsys):
     for flag, value in _OTHER_VALUES.items():
         if dest[flag] in TrainConfig.RESUMABLE:
             continue
-        argv = ["train", "--resume", str(run.out), flag, *([value] if value else []), "--quiet"]
+        given = [] if value is None else [value] if isinstance(value, str) else list(value)
+        argv = ["train", "--resume", str(run.out), flag, *given, "--quiet"]
         assert main(argv) == 2, flag
         err = capsys.readouterr().err
         assert f"cannot resume with a different configuration ({dest[flag]}: run has" in err
