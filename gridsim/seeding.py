@@ -24,6 +24,7 @@ class Salt(IntEnum):
     EPISODES = 0xE915  # the training episodes of a generation
     PRETRAIN_EPISODES = 0x9E7B  # the episodes recorded for the warm start
     VALIDATION_EPISODES = 0x7A11D  # the episodes the final front is chosen on
+    VALIDATION_TRACKS = 0x7A1D7  # the training tracks kept out of evolution to validate on
     HELDOUT_EPISODES = 0x4E1D  # episodes no generation trains on
     WARM_START_MUTATIONS = 0x9E7A  # generation 0 around the fitted network
     WARM_START_BATCHES = 0x9E7  # the order of the warm start's mini-batches

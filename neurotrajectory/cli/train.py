@@ -133,6 +133,9 @@ def add_parser(sub) -> None:
                 dest="constrained", action="store_const", const=False)  # fmt: skip
     config_flag(t, "--validation-episodes", "choose the final front on N more training "
                 "episodes (default {default}; 0: the last generation's)", metavar="N")  # fmt: skip
+    config_flag(t, "--validation-tracks", "recorded scenes: keep this share of the training "
+                "tracks out of evolution and draw the validation episodes from them (0: the "
+                "validation episodes drive the training tracks)", metavar="SHARE")  # fmt: skip
     t.add_argument("--heldout", type=at_least(0), default=None, metavar="N",
                    help="after training, drive the knee member on N held-out episodes "
                    f"(default {AFTER_DEFAULTS['heldout']}, or what the resumed run was given; "

@@ -39,6 +39,8 @@ class WorkerSpec:
     seeds: tuple[int, ...]  # the default episodes; each evaluation names its own
     batch: int = 16  # individuals evaluated together (batch * episodes environments)
     evolve: str = "all"  # what mutation changes (:data:`~neurotrajectory.model.EVOLVE_SCOPES`)
+    #: the scenario overrides of validation episodes, if not ``overrides`` (other ego tracks)
+    validation_overrides: dict | None = None
 
 
 #: One individual's result: its index, mean fitness ``[l1, l2, l3]`` and episode statistics.
@@ -49,10 +51,23 @@ class Worker:
     """Holds the population and evaluates individuals."""
 
     def __init__(self, spec: WorkerSpec) -> None:
+        self.spec = spec
         self.evaluator = Evaluator(
             spec.scenario, spec.overrides, spec.net, list(spec.seeds), batch=spec.batch
         )
+        self._validator: Evaluator | None = None
         self.population = Population(self.evaluator.net, spec.evolve)
+
+    def _evaluator_for(self, validation: bool) -> Evaluator:
+        """The evaluator of training episodes, or of validation episodes (made at first use
+        when they have overrides of their own)."""
+        spec = self.spec
+        if not validation or spec.validation_overrides is None:
+            return self.evaluator
+        if self._validator is None:
+            self._validator = Evaluator(spec.scenario, spec.validation_overrides, spec.net,
+                                        list(spec.seeds), batch=spec.batch)  # fmt: skip
+        return self._validator
 
     @property
     def genome_size(self) -> int:
@@ -66,11 +81,12 @@ class Worker:
         """Hold a copy of ``genomes`` as the population."""
         self.population.load(genomes)
 
-    def evaluate(self, job: tuple[list[int], tuple[int, ...]]) -> list[Evaluated]:
+    def evaluate(self, job: tuple[list[int], tuple[int, ...], bool]) -> list[Evaluated]:
         """Fitness and statistics of individuals ``indices`` on the episodes ``seeds``
-        (``job = (indices, seeds)``), evaluated in batches (the result of each does not depend
+        (``job = (indices, seeds, validation)``: validation episodes drive the spec's
+        ``validation_overrides``), evaluated in batches (the result of each does not depend
         on the batches)."""
-        indices, seeds = job
+        indices, seeds, validation = job
         idx = np.asarray(indices, dtype=np.int64)
         if len(idx) == 0:
             return []
@@ -80,7 +96,7 @@ class Worker:
             rows = genomes[idx[0] : idx[-1] + 1 : step]  # a view, no copy
         else:
             rows = genomes[idx]
-        results = self.evaluator.evaluate_many(rows, seeds)
+        results = self._evaluator_for(validation).evaluate_many(rows, seeds)
         return [(int(i), f, s.__dict__) for i, (f, s) in zip(idx, results, strict=True)]
 
 
@@ -99,13 +115,15 @@ class Backend(ABC):
         """Replace the population by a copy of ``genomes``."""
 
     @abstractmethod
-    def evaluate(self, size: int, seeds: tuple[int, ...]) -> tuple[np.ndarray, list[dict]]:
+    def evaluate(
+        self, size: int, seeds: tuple[int, ...], validation: bool = False
+    ) -> tuple[np.ndarray, list[dict]]:
         """Fitness ``(size, 3)`` and per-individual episode statistics on the episodes
-        ``seeds``."""
+        ``seeds`` (``validation``: validation episodes, see :class:`WorkerSpec`)."""
 
     @abstractmethod
     def evaluate_members(
-        self, indices: list[int], seeds: tuple[int, ...]
+        self, indices: list[int], seeds: tuple[int, ...], validation: bool = False
     ) -> tuple[np.ndarray, list[dict]]:
         """Fitness ``(len(indices), 3)`` and episode statistics of the individuals
         ``indices`` (in that order) on the episodes ``seeds``; the ``j``-th goes to worker
@@ -124,9 +142,9 @@ def _collect(size: int, parts: list[list[Evaluated]]):
     return fitness, stats
 
 
-def _jobs(size: int, workers: int, seeds: tuple[int, ...]) -> list:
+def _jobs(size: int, workers: int, seeds: tuple[int, ...], validation: bool) -> list:
     """Individual ``i`` goes to worker ``i % workers``; every worker runs the same episodes."""
-    return [(list(range(k, size, workers)), tuple(seeds)) for k in range(workers)]
+    return [(list(range(k, size, workers)), tuple(seeds), validation) for k in range(workers)]
 
 
 def _members(indices: list[int], parts: list[list[Evaluated]]):
@@ -156,12 +174,15 @@ class LocalBackend(Backend):
     def load(self, genomes):
         self.worker.load(genomes)
 
-    def evaluate(self, size, seeds):
-        return _collect(size, [self.worker.evaluate((list(range(size)), seeds))])
+    def evaluate(self, size, seeds, validation=False):
+        return _collect(size, self._all_jobs(_jobs(size, 1, seeds, validation)))
 
-    def evaluate_members(self, indices, seeds):
+    def evaluate_members(self, indices, seeds, validation=False):
         indices = _check_members(indices)
-        return _members(indices, [self.worker.evaluate((indices, tuple(seeds)))])
+        return _members(indices, self._all_jobs([(indices, tuple(seeds), validation)]))
+
+    def _all_jobs(self, jobs: list) -> list:
+        return [self.worker.evaluate(job) for job in jobs]
 
 
 def _serve(conn, spec: WorkerSpec) -> None:
@@ -207,12 +228,14 @@ class RemoteBackend(Backend):
         self._all("load", [self._shipped(genomes)] * self.workers)
         self.population.load(genomes)
 
-    def evaluate(self, size, seeds):
-        return _collect(size, self._all("evaluate", _jobs(size, self.workers, seeds)))
+    def evaluate(self, size, seeds, validation=False):
+        jobs = _jobs(size, self.workers, seeds, validation)
+        return _collect(size, self._all("evaluate", jobs))
 
-    def evaluate_members(self, indices, seeds):
+    def evaluate_members(self, indices, seeds, validation=False):
         indices = _check_members(indices)
-        jobs = [(indices[k :: self.workers], tuple(seeds)) for k in range(self.workers)]
+        jobs = [(indices[k :: self.workers], tuple(seeds), validation)
+                for k in range(self.workers)]  # fmt: skip
         return _members(indices, self._all("evaluate", jobs))
 
 

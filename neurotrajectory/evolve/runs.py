@@ -152,9 +152,14 @@ class TrainConfig:
     #: (NetConfig.max_correction); None: unbounded
     max_correction: tuple[float, float] | None = None
 
-    #: Fields left out of the run's fingerprint while None: added after runs were saved, with
-    #: None meaning what those runs did.
-    UNSET_UNSTAMPED = ("max_correction",)
+    #: recorded scenes: the share of the training tracks (``ego_tracks``) that no generation
+    #: drives, whose episodes draw the learning curve and choose the final front (0: the
+    #: validation episodes drive the training tracks too)
+    validation_tracks: float = 0.0
+
+    #: Fields left out of the run's fingerprint while at these values: added after runs were
+    #: saved, with these values meaning what those runs did.
+    UNSTAMPED_DEFAULTS = {"max_correction": None, "validation_tracks": 0.0}  # noqa: RUF012
 
     #: What format-1 configurations (saved before these fields existed) meant.
     LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human",
@@ -227,6 +232,16 @@ class TrainConfig:
             check_keep(self.plan_smoothing, "plan_smoothing")
         except ValueError as exc:
             raise RunError(str(exc)) from None
+        if (
+            isinstance(self.validation_tracks, bool)
+            or not isinstance(self.validation_tracks, int | float | np.number)
+            or not 0 <= self.validation_tracks < 1
+        ):
+            raise RunError("validation_tracks must be a share in [0, 1) of the training tracks, "
+                           f"got {self.validation_tracks!r}")  # fmt: skip
+        if self.validation_tracks and self.ego_tracks and len(self.ego_tracks) < 2:
+            raise RunError(f"validation_tracks {self.validation_tracks:g} needs at least 2 "
+                           f"training tracks to split, got {list(self.ego_tracks)}")  # fmt: skip
         if not 0 <= self.pretrain_validation < 1:
             raise RunError(f"pretrain_validation must be in [0, 1), got {self.pretrain_validation}")
         if self.evolve not in EVOLVE_SCOPES:
@@ -312,9 +327,34 @@ class TrainConfig:
         return tuple(2 * int(s) + 1 for s in rng.integers(0, 2**30 - 1, size=count))
 
     @property
+    def held_tracks(self) -> tuple[str, ...]:
+        """The training tracks kept out of evolution to validate on (``validation_tracks``
+        of ``ego_tracks``, at least 1 and all but 1, drawn from the seed; in their order),
+        or none."""
+        n = len(self.ego_tracks)
+        if not self.validation_tracks or n < 2:
+            return ()
+        k = min(max(round(self.validation_tracks * n), 1), n - 1)
+        picked = stream(self.seed, Salt.VALIDATION_TRACKS).permutation(n)[:k]
+        return tuple(self.ego_tracks[i] for i in sorted(picked))
+
+    @property
     def overrides(self) -> dict:
-        tracks = {"ego": {"track": list(self.ego_tracks)}} if self.ego_tracks else {}
-        return {"simulation": {"duration": self.episode_seconds}, **tracks,
+        """The scenario overrides of the generations' episodes (the training tracks but
+        :attr:`held_tracks` as the ego)."""
+        held = set(self.held_tracks)
+        return self._overrides(tuple(t for t in self.ego_tracks if t not in held))
+
+    @property
+    def validation_overrides(self) -> dict | None:
+        """Those of the validation episodes when they drive :attr:`held_tracks`, else None
+        (as :attr:`overrides`)."""
+        held = self.held_tracks
+        return self._overrides(held) if held else None
+
+    def _overrides(self, tracks: tuple[str, ...]) -> dict:
+        ego = {"ego": {"track": list(tracks)}} if tracks else {}
+        return {"simulation": {"duration": self.episode_seconds}, **ego,
                 **goal_overrides(self.goal_seconds)}  # fmt: skip
 
     #: Fields that may differ between a run and its resumption (they do not change results).
@@ -399,8 +439,9 @@ class Run:
     def fingerprint(self) -> str:
         """The run's identity: a digest of every setting that shapes its results (not those a
         resume may change, :attr:`TrainConfig.RESUMABLE`). Its checkpoint carries it."""
+        unstamped = TrainConfig.UNSTAMPED_DEFAULTS
         doc = {k: v for k, v in asdict(self.config).items() if k not in TrainConfig.RESUMABLE
-               and not (v is None and k in TrainConfig.UNSET_UNSTAMPED)}  # fmt: skip
+               and not (k in unstamped and v == unstamped[k])}  # fmt: skip
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
 
     @classmethod
@@ -510,7 +551,8 @@ class Run:
         new generations (for tests of interrupted runs)."""
         cfg = self.config
         spec = WorkerSpec(cfg.scenario, cfg.overrides, self.net_config, cfg.episode_seeds(0),
-                          batch=cfg.batch, evolve=cfg.evolve)  # fmt: skip
+                          batch=cfg.batch, evolve=cfg.evolve,
+                          validation_overrides=cfg.validation_overrides)  # fmt: skip
         backend = make_backend(cfg.backend, spec, cfg.workers, cfg.ray_address)
         try:
             return self._loop(backend, progress, stop_after)
@@ -646,7 +688,7 @@ class Run:
         knee = ANCHOR if self.config.es else int(front[pick_member(fitness[front], "knee")])
         warm = gen == 0 and source is Source.WARM_START
         members = [knee] + ([ANCHOR] if warm and knee != ANCHOR else [])
-        fit, stats = backend.evaluate_members(members, seeds)
+        fit, stats = backend.evaluate_members(members, seeds, validation=True)
         scores = {i: _score(i, f, s) for i, f, s in zip(members, fit, stats, strict=True)}
         out = {"knee_validation": scores[knee]}
         if warm:
@@ -765,7 +807,7 @@ class Run:
             best = None
         if seeds:
             backend.load(population)
-            fitness, stats = backend.evaluate(len(population), seeds)
+            fitness, stats = backend.evaluate(len(population), seeds, validation=True)
             violation = np.array([s.get("lost", 0.0) for s in stats])
         rank = non_dominated_sort(minimised(fitness), self._violation(violation, fitness))
         members = np.flatnonzero(rank == 0)
@@ -867,7 +909,12 @@ def _checked(config: TrainConfig):
         _dagger_episodes(config, windows)
     elif config.pretrain_episodes:
         _check_pretrain_episodes(config)
-    return _with_training_tracks(config, windows), windows
+    config = _with_training_tracks(config, windows)
+    if config.validation_tracks and len(config.ego_tracks) < 2:
+        raise RunError(f"--validation-tracks {config.validation_tracks:g} holds out some of "
+                       "the training tracks of a recorded scene: train on a recorded scene "
+                       "with --pretrain DATA (windows of at least 2 of its tracks)")  # fmt: skip
+    return config, windows
 
 
 #: The share of the machine's memory a run's populations may take (parents and children).

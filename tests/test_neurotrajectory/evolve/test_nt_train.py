@@ -411,7 +411,7 @@ _OTHER_VALUES = {
     "--fixed-episodes": None, "--unconstrained": None, "--validation-episodes": "3",
     "--evolve": "head", "--activation": "tanh", "--plan-smoothing": "0.5",
     "--selection": "anchored", "--goal-seconds": "5", "--es-step": "2",
-    "--max-correction": ("4", "2"),
+    "--max-correction": ("4", "2"), "--validation-tracks": "0.3",
 }  # fmt: skip
 #: ``train`` flags that are about the command, not the run's configuration.
 _COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quiet"}
