@@ -56,6 +56,7 @@ VARIANTS = {
     "anchored-both-scenes": ["--selection", "anchored", "--scenario", "{scenes}"],
     "es": ["--selection", "es"],
     "es-step-3": ["--selection", "es", "--es-step", "3"],
+    "validation-tracks-0.3": ["--validation-tracks", "0.3"],
     # corrections bounded at about twice the 99th percentile of what the seamless training
     # windows of development seed 3 need at the last set-point, far goal (8 m along, 3 across)
     "bounded-8-3": ["--max-correction", "8", "3"],
