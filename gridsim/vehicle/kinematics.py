@@ -16,7 +16,9 @@ The dynamics are those of CommonRoad's ``vehicle_dynamics_ks``::
 Within one step the (clipped) inputs are constant, so ``delta(t)`` is linear and ``v(t)`` is
 linear, or ``sqrt(v0^2 + 2 a_max v_switch t)`` while the power limit is active. The yaw rate
 is then a known function of time; heading and position are integrated with Simpson's rule on
-the exact speed and steering profiles (fourth order, like RK4, at three evaluations).
+the exact speed and steering profiles (fourth order, like RK4, at three evaluations). The
+integration is written once, :func:`~gridsim.vehicle.kinematics_kernels.step_one`, for one
+vehicle in Python floats and, compiled, for many (:func:`step_bicycle`).
 """
 
 from __future__ import annotations
@@ -28,8 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gridsim import libm
-from gridsim.jit import jitable
+from gridsim.vehicle.kinematics_kernels import step_many, step_one
 
 X, Y, PSI, V, DELTA = range(5)
 STATE_SIZE = 5
@@ -62,7 +63,7 @@ class BicycleParams:
             "width": self.width > 0,
             "a_max": self.a_max > 0,
             "b_max": self.b_max > 0,
-            "delta_max": 0 < self.delta_max < np.pi / 2,
+            "delta_max": np.logical_and(self.delta_max > 0, self.delta_max < np.pi / 2),
             "v_delta_max": self.v_delta_max > 0,
             "v_switch": self.v_switch > 0,
             "v_max": self.v_max >= self.v_min,
@@ -112,55 +113,25 @@ def step_bicycle(
         and math.isfinite(steer_rate)
     ):
         return _step_one(state, accel, steer_rate, params, dt)
-    p = params
     state = np.asarray(state, dtype=np.float64)
-    x0, y0, psi0, v0, d0 = (
-        state[..., X],
-        state[..., Y],
-        state[..., PSI],
-        state[..., V],
-        state[..., DELTA],
+    fields_ = [np.asarray(getattr(params, name), dtype=np.float64) for name in LIMIT_FIELDS]
+    accel = np.asarray(accel, dtype=np.float64)
+    steer_rate = np.asarray(steer_rate, dtype=np.float64)
+    shape = np.broadcast_shapes(state.shape[:-1], accel.shape, steer_rate.shape,
+                                *(f.shape for f in fields_))  # fmt: skip
+    n = math.prod(shape)
+    limits = np.empty((n, len(LIMIT_FIELDS)))
+    for k, f in enumerate(fields_):
+        limits[:, k] = np.broadcast_to(f, shape).reshape(n)
+    out, applied, rates = step_many(
+        np.broadcast_to(state, shape + (STATE_SIZE,)).reshape(n, STATE_SIZE),
+        np.broadcast_to(accel, shape).reshape(n),
+        np.broadcast_to(steer_rate, shape).reshape(n),
+        limits,
+        float(dt),
     )
-    # Steering rate: rate limit, and no farther than the steering limit by the end of the step.
-    vd_lo = np.maximum(-p.v_delta_max, (-p.delta_max - d0) / dt)
-    vd_hi = np.minimum(p.v_delta_max, (p.delta_max - d0) / dt)
-    vd = np.minimum(np.maximum(steer_rate, vd_lo), vd_hi)
-    a = np.minimum(np.maximum(accel, -p.b_max), p.a_max)
-    v1 = v0 + a * dt
-    vh = v0 + (0.5 * dt) * a
-    if np.any(np.isfinite(p.v_switch)):
-        # Power limit above v_switch: a <= a_max v_switch / v (CommonRoad). While it binds,
-        # v(t) = sqrt(v0^2 + 2 a_max v_switch t) exactly.
-        c = p.a_max * p.v_switch
-        with np.errstate(divide="ignore", invalid="ignore"):
-            power = (v0 > p.v_switch) & (a * v0 >= c)
-        v1 = np.where(power, np.sqrt(v0 * v0 + 2.0 * c * dt), v1)
-        vh = np.where(power, np.sqrt(v0 * v0 + c * dt), vh)
-    v1_clipped = np.minimum(np.maximum(v1, p.v_min), p.v_max)
-    if np.any(v1_clipped != v1):  # a speed limit is reached: speed linear to the limit
-        vh = np.where(v1_clipped != v1, 0.5 * (v0 + v1_clipped), vh)
-        v1 = v1_clipped
-    # Yaw rate at t = 0, dt/2, dt; Simpson's rule for the heading and the position.
-    ddt = vd * dt
-    inv_l = 1.0 / p.wheelbase
-    w0 = v0 * libm.tan(d0) * inv_l
-    wh = vh * libm.tan(d0 + 0.5 * ddt) * inv_l
-    w1 = v1 * libm.tan(d0 + ddt) * inv_l
-    psih = psi0 + dt / 24.0 * (5.0 * w0 + 8.0 * wh - w1)
-    psi1 = psi0 + dt / 6.0 * (w0 + 4.0 * wh + w1)
-    x1 = x0 + dt / 6.0 * (v0 * np.cos(psi0) + 4.0 * vh * np.cos(psih) + v1 * np.cos(psi1))
-    y1 = y0 + dt / 6.0 * (v0 * np.sin(psi0) + 4.0 * vh * np.sin(psih) + v1 * np.sin(psi1))
-    shape = np.broadcast_shapes(state.shape[:-1], np.shape(v1), np.shape(vd))
-    out = np.empty(shape + (STATE_SIZE,))
-    out[..., X], out[..., Y], out[..., PSI], out[..., V], out[..., DELTA] = (
-        x1,
-        y1,
-        psi1,
-        v1,
-        d0 + ddt,
-    )
-    accel_applied = np.broadcast_to((v1 - v0) / dt, shape).copy()
-    return StepResult(out, accel_applied, np.broadcast_to(vd, shape).copy())
+    return StepResult(out.reshape(shape + (STATE_SIZE,)), applied.reshape(shape),
+                      rates.reshape(shape))  # fmt: skip
 
 
 def _step_one(
@@ -168,52 +139,22 @@ def _step_one(
 ) -> StepResult:
     """:func:`step_bicycle` for one vehicle with finite float inputs, in Python floats: the
     same operations in the same order (``math`` and NumPy share libm), hence the same bits,
-    without the per-call overhead of some 40 array operations."""
+    without the overhead of a compiled call on arrays of one."""
     x0, y0, psi0, v0, d0 = state.tolist()
     x1, y1, psi1, v1, d1, a, vd = step_one(x0, y0, psi0, v0, d0, accel, steer_rate,
                                            step_limits(p), dt)  # fmt: skip
     return StepResult(np.array([x1, y1, psi1, v1, d1]), np.array(a), np.array(vd))
 
 
+#: The :class:`BicycleParams` fields :func:`step_one` takes as its ``limits``, in order.
+LIMIT_FIELDS = ("wheelbase", "v_min", "v_max", "a_max", "b_max", "delta_max", "v_delta_max",
+                "v_switch")  # fmt: skip
+
+
 @lru_cache(maxsize=16)
 def step_limits(p: BicycleParams) -> tuple:
     """The limits of one vehicle (scalar fields) as :func:`step_one` takes them."""
-    return (p.wheelbase, p.v_min, p.v_max, p.a_max, p.b_max, p.delta_max, p.v_delta_max,
-            p.v_switch)  # fmt: skip
-
-
-@jitable
-def step_one(x0, y0, psi0, v0, d0, accel, steer_rate, limits, dt):
-    """One vehicle's step on floats: the new ``(x, y, psi, v, delta)`` and the applied
-    acceleration [m/s^2] and steering rate [rad/s]. ``limits``: ``(wheelbase, v_min, v_max,
-    a_max, b_max, delta_max, v_delta_max, v_switch)`` of :class:`BicycleParams`. Compiled
-    (inside a kernel) it gives the same bits (``math`` is libm there too)."""
-    wheelbase, v_min, v_max, a_max, b_max, delta_max, v_delta_max, v_switch = limits
-    vd_lo = max(-v_delta_max, (-delta_max - d0) / dt)
-    vd_hi = min(v_delta_max, (delta_max - d0) / dt)
-    vd = float(min(max(steer_rate, vd_lo), vd_hi))
-    a = float(min(max(accel, -b_max), a_max))
-    v1 = v0 + a * dt
-    vh = v0 + (0.5 * dt) * a
-    if math.isfinite(v_switch):
-        c = a_max * v_switch
-        if v0 > v_switch and a * v0 >= c:
-            v1 = math.sqrt(v0 * v0 + 2.0 * c * dt)
-            vh = math.sqrt(v0 * v0 + c * dt)
-    v1_clipped = float(min(max(v1, v_min), v_max))
-    if v1_clipped != v1:
-        vh = 0.5 * (v0 + v1_clipped)
-        v1 = v1_clipped
-    ddt = vd * dt
-    inv_l = 1.0 / wheelbase
-    w0 = v0 * math.tan(d0) * inv_l
-    wh = vh * math.tan(d0 + 0.5 * ddt) * inv_l
-    w1 = v1 * math.tan(d0 + ddt) * inv_l
-    psih = psi0 + dt / 24.0 * (5.0 * w0 + 8.0 * wh - w1)
-    psi1 = psi0 + dt / 6.0 * (w0 + 4.0 * wh + w1)
-    x1 = x0 + dt / 6.0 * (v0 * math.cos(psi0) + 4.0 * vh * math.cos(psih) + v1 * math.cos(psi1))
-    y1 = y0 + dt / 6.0 * (v0 * math.sin(psi0) + 4.0 * vh * math.sin(psih) + v1 * math.sin(psi1))
-    return x1, y1, psi1, v1, d0 + ddt, (v1 - v0) / dt, vd
+    return tuple(getattr(p, name) for name in LIMIT_FIELDS)
 
 
 def rear_axle_of(centre: np.ndarray, heading, center_offset) -> np.ndarray:
