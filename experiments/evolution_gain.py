@@ -57,6 +57,8 @@ VARIANTS = {
     "es": ["--selection", "es"],
     "es-step-3": ["--selection", "es", "--es-step", "3"],
     "validation-tracks-0.3": ["--validation-tracks", "0.3"],
+    "evolve-readout": ["--evolve", "readout"],
+    "evolve-head": ["--evolve", "head"],
     # corrections bounded at about twice the 99th percentile of what the seamless training
     # windows of development seed 3 need at the last set-point, far goal (8 m along, 3 across)
     "bounded-8-3": ["--max-correction", "8", "3"],
