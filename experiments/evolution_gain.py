@@ -33,7 +33,7 @@ GROUPS = {
                     "tanh", "--episode-seconds", "15", "--validation-episodes", "32"], None,
                    (40, 20.0)),
     "highway": (["--scenario", "us101_4_1,us101_3_3", "--episode-seconds", "10",
-                 "--validation-episodes", "24"],
+                 "--validation-episodes", "24", "--evolve", "readout"],
                 ["--scenario", "highway", "--split", "train"], (20, 10.0)),
     "urban": (["--scenario", "lankershim_1_1,peachtree_4_8", "--episode-seconds", "10",
                "--validation-episodes", "24"],
