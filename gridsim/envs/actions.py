@@ -160,14 +160,16 @@ class PathControl:
         """``w.tick(*self(w))`` (the same bits)."""
         return w.tick_following(self)
 
-    def kernel_data(self) -> tuple:
+    def kernel_data(self) -> world_kernels.Follow:
         """What :func:`~gridsim.world.world_kernels.follow_tick` takes as ``follow``."""
         a = self._arrays
         if a is None:
-            return (world_kernels.STOP, _NO_PATH, float(self.speed), *self._pursuit, _NO_HOLD)
+            return world_kernels.Follow(world_kernels.STOP, _NO_PATH, float(self.speed),
+                                        *self._pursuit, _NO_HOLD)  # fmt: skip
         # segments' order is (points, segments, lengths, headings, arc lengths)
         arrays = (a[0], a[1], a[2], a[4], a[3])
-        return (world_kernels.PURSUIT, arrays, float(self.speed), *self._pursuit, _NO_HOLD)
+        return world_kernels.Follow(world_kernels.PURSUIT, arrays, float(self.speed),
+                                    *self._pursuit, _NO_HOLD)  # fmt: skip
 
 
 _NO_HOLD = (0.0, 0.0)
@@ -191,10 +193,10 @@ class HeldInputs:
         """``w.tick(*self(w))`` (the same bits)."""
         return w.tick_following(self)
 
-    def kernel_data(self) -> tuple:
+    def kernel_data(self) -> world_kernels.Follow:
         """What :func:`~gridsim.world.world_kernels.follow_tick` takes as ``follow``."""
         held = (float(self.accel), float(self.rate))
-        return (world_kernels.HOLD, _NO_PATH, 0.0, *_NO_PURSUIT, held)
+        return world_kernels.Follow(world_kernels.HOLD, _NO_PATH, 0.0, *_NO_PURSUIT, held)
 
 
 class ControlAction(ActionType):

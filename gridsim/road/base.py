@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import cv2
 import numpy as np
@@ -48,6 +49,18 @@ def near(boxes: np.ndarray, center: np.ndarray, radius: float) -> np.ndarray:
     return base_kernels.near(boxes, float(center[0]), float(center[1]), float(radius))
 
 
+class RoadTracking(NamedTuple):
+    """What a compiled tick needs to follow the ego on a road that may grow (its ``road``
+    argument): while the ego stays within the stretch, the road needs no Python."""
+
+    line: tuple  # the reference line's Polyline.tracking_data()
+    ref_s: np.ndarray  # the reference line's arc lengths [m]
+    hint: int  # the segment the ego was tracked on
+    keep_ahead: float  # road kept ahead of the ego [m]: less means grow (in Python)
+    keep_behind: float  # road kept behind the ego [m]
+    cut_max: float  # samples behind beyond which the road is trimmed (in Python)
+
+
 class Road(ABC):
     """Abstract road. Generated roads may change as the ego drives (see :meth:`update`)."""
 
@@ -62,7 +75,7 @@ class Road(ABC):
     def update(self, ego_xy: np.ndarray) -> None:  # noqa: B027 - optional hook
         """Let a generated road extend ahead of / trim behind the ego. Static roads do nothing."""
 
-    def tracking(self) -> tuple | None:
+    def tracking(self) -> RoadTracking | None:
         """What a compiled world tick needs to follow the ego on this road
         (:func:`~gridsim.world.world_kernels.follow_tick`'s ``road``), or None: this road
         ticks in Python only (the default)."""

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from gridsim.road.base import Lane, Road, bbox_of, near
+from gridsim.road.base import Lane, Road, RoadTracking, bbox_of, near
 from gridsim.road.polyline import Polyline
 from gridsim.seeding import copy_generator
 
@@ -241,7 +241,7 @@ class SeamlessRoad(Road):
         if changed:
             self._rebuild()
 
-    def tracking(self) -> tuple | None:
+    def tracking(self) -> RoadTracking | None:
         """What a compiled tick needs to follow the ego as :meth:`update` does, while the road
         stays as it is: ``(reference line's tracking_data, reference arc lengths, segment
         tracked, keep_ahead, keep_behind, trim threshold [samples])``; None before the first
@@ -249,8 +249,14 @@ class SeamlessRoad(Road):
         if self._hint is None:
             return None
         p = self.p
-        return (self._ref_line.tracking_data(), self._ref_s, self._hint, p.keep_ahead,
-                p.keep_behind, self._chunk / p.sample_spacing)  # fmt: skip
+        return RoadTracking(
+            self._ref_line.tracking_data(),
+            self._ref_s,
+            self._hint,
+            p.keep_ahead,
+            p.keep_behind,
+            self._chunk / p.sample_spacing,
+        )
 
     def set_tracked(self, ego_s: float, hint: int) -> None:
         """The ego's arc length [m] and segment as :meth:`update` would have tracked them

@@ -10,6 +10,7 @@ import copy
 import math
 from abc import ABC, abstractmethod
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 
@@ -43,6 +44,19 @@ def track_path(track: Track) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return path_pts, path_s, s_samples
 
 
+class TrafficTick(NamedTuple):
+    """What a compiled tick needs to tick a fleet (its ``traffic`` argument): the fleet's
+    :meth:`~gridsim.traffic.fleet.Fleet.tick_data` and the participants kept."""
+
+    state: tuple  # the fleet's arrays (FleetState order)
+    paths: tuple  # its path bank's kernel data
+    profiles: tuple  # its profile tables' kernel data
+    settings: tuple  # leader search, replay limits, IDM parameters
+    decay: float  # the lateral bias' decay over the tick
+    window: tuple  # (behind, ahead) [m] of the ego kept populated
+    count: int  # participants kept
+
+
 class TrafficSource(ABC):
     """Populates and maintains a :class:`Fleet`."""
 
@@ -56,7 +70,7 @@ class TrafficSource(ABC):
     def tick(self, dt: float, ego: EgoPose) -> None:
         """Advance the fleet by ``dt`` seconds and refill it."""
 
-    def tick_data(self, dt: float, road: Road) -> tuple | None:
+    def tick_data(self, dt: float, road: Road) -> TrafficTick | None:
         """What a compiled world tick on ``road`` needs to tick this traffic
         (:func:`~gridsim.world.world_kernels.follow_tick`'s ``traffic``; Python then calls
         :meth:`refill` when it has work), or None: this traffic ticks in Python only (the
@@ -291,7 +305,7 @@ class SeamlessTraffic(SyntheticTraffic):
         self._sync_lanes()
         self.refill(self.fleet.tick(dt, ego, (self.behind, self.ahead)), ego)
 
-    def tick_data(self, dt: float, road: Road) -> tuple | None:
+    def tick_data(self, dt: float, road: Road) -> TrafficTick | None:
         """:meth:`Fleet.tick_data` for :meth:`tick`, and the participants kept: for a compiled
         tick that leaves :meth:`refill` to Python whenever it has work. None on another road
         than this traffic's, and while the fleet's lanes are not the road's or some path has
@@ -302,7 +316,7 @@ class SeamlessTraffic(SyntheticTraffic):
             or not self.fleet.paths.all_in_corridors
         ):
             return None
-        return (*self.fleet.tick_data(dt, (self.behind, self.ahead)), self.count)
+        return TrafficTick(*self.fleet.tick_data(dt, (self.behind, self.ahead)), self.count)
 
     def refill(self, ended: np.ndarray, ego: EgoPose) -> None:
         """The rest of :meth:`tick` after the fleet's: participants whose profile ran out

@@ -9,6 +9,7 @@ are moved into place, so the cost does not grow with the number of vehicles far 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 import pymunk
@@ -43,6 +44,16 @@ class Contact:
 def _box(body: pymunk.Body, length: float, width: float) -> pymunk.Poly:
     hl, hw = 0.5 * length, 0.5 * width
     return pymunk.Poly(body, [(-hl, -hw), (hl, -hw), (hl, hw), (-hl, hw)])
+
+
+class BroadPhase(NamedTuple):
+    """What the compiled contact pre-tests read besides the ego and the fleet."""
+
+    edges: np.ndarray  # the road edges loaded, (M, 4)
+    length: float  # the ego's box [m]
+    width: float
+    radius: float  # the ego box's circumradius [m]
+    core_reach: float  # how far from the ego's centre an edge can touch [m]
 
 
 class CollisionChecker:
@@ -127,7 +138,7 @@ class CollisionChecker:
         bx, by = self._boundary_center
         return version == self._road_version and np.hypot(cx - bx, cy - by) < BOUNDARY_RELOAD
 
-    def broad_phase_data(self) -> tuple:
+    def broad_phase_data(self) -> BroadPhase:
         """``(loaded edges, ego length, width, radius, core reach)``: what the broad phases of
         :meth:`check_fleet` (``collision_kernels.within_reach``) and :meth:`_query`
         (``collision_kernels.near_segments``) read besides the ego and the fleet. When no
@@ -135,8 +146,8 @@ class CollisionChecker:
         (``collision_kernels.may_touch``) and :meth:`keeps_boundaries` holds, a check reports
         no contact (and may be skipped: boxes placed by an earlier check stay listed in
         ``_placed``, and the next check parks them)."""
-        return (self._edges, float(self._args[0]), float(self._args[1]),
-                float(self._ego_radius), float(self._core_reach))  # fmt: skip
+        return BroadPhase(self._edges, float(self._args[0]), float(self._args[1]),
+                          float(self._ego_radius), float(self._core_reach))  # fmt: skip
 
     def _shape_for(self, index: int, length: float, width: float) -> pymunk.Body:
         """The kinematic body of participant ``index``, its box resized if needed."""

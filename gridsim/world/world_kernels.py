@@ -36,6 +36,19 @@ DONE, BEFORE, TRAFFIC, NOT_FINITE = 0, 1, 2, 3
 _NO_CROSS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
 
 
+class Follow(NamedTuple):
+    """What the ego does in :func:`follow_tick` (its ``follow`` argument)."""
+
+    mode: int  # STOP, PURSUIT or HOLD
+    path: tuple  # (points, segments, segment lengths, arc lengths, headings) of the path
+    speed: float  # the target speed [m/s]
+    min_lookahead: float  # pure pursuit's look-ahead [m] at standstill
+    lookahead_time: float  # and its growth with speed [s]
+    pursuit_limits: tuple  # pursuit_one's limits
+    b_max: float  # the braking limit [m/s^2] of a stop
+    held: tuple  # (acceleration, steering rate) held (HOLD)
+
+
 class FollowTick(NamedTuple):
     """What :func:`follow_tick` returns (with status :data:`BEFORE` only ``accel`` and
     ``steer`` are meaningful, with :data:`NOT_FINITE` nothing)."""
@@ -57,14 +70,12 @@ class FollowTick(NamedTuple):
 def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     """One tick of the ego following a path (or holding its inputs). ``ego``: its state
     ``(x, y, psi, v, delta)``; ``step_limits``: as
-    :func:`~gridsim.vehicle.kinematics.step_one` takes them; ``follow``: ``(mode, the path's
-    (points, segments, segment lengths, arc lengths, headings), target speed,
-    min_lookahead, lookahead_time, pursuit_one limits, b_max, held inputs)``, where the mode
-    :data:`PURSUIT` follows the path by pure pursuit, :data:`STOP` brakes to a stop holding
-    the wheel and :data:`HOLD` holds ``(accel, steer rate)``; ``road``:
-    :meth:`SeamlessRoad.tracking`; ``traffic``: :meth:`SeamlessTraffic.tick_data`; ``box``:
-    the ego's ``(length, width, center_offset)``; ``broad``:
-    :meth:`CollisionChecker.broad_phase_data`.
+    :func:`~gridsim.vehicle.kinematics_kernels.step_one` takes them; ``follow``: a
+    :class:`Follow` (the mode :data:`PURSUIT` follows the path by pure pursuit, :data:`STOP`
+    brakes to a stop holding the wheel, :data:`HOLD` holds the inputs); ``road``: a
+    :class:`~gridsim.road.base.RoadTracking`; ``traffic``: a
+    :class:`~gridsim.traffic.sources.TrafficTick`; ``box``: the ego's ``(length, width,
+    center_offset)``; ``broad``: a :class:`~gridsim.world.collision.BroadPhase`.
 
     Returns a :class:`FollowTick`; ``quiet``: as the reference's shadow world rules near misses
     out (:func:`~gridsim.world.collision_kernels.may_touch`)."""
