@@ -134,3 +134,13 @@ def test_record_refuses_a_test_fraction_without_a_split(tmp_path, capsys):
     assert main(argv) == 2
     assert "--test-fraction 0.2 sets the test side of --split" in capsys.readouterr().err
     assert not (tmp_path / "ds").exists()
+
+
+@pytest.mark.parametrize(("field", "before"), list(TrainConfig.UNSTAMPED_DEFAULTS.items()))
+def test_runs_saved_before_a_later_field_keep_their_fingerprint(tmp_path, field, before):
+    run = Run.create(tmp_path / "run", TrainConfig(preset="tiny"))
+    doc = json.loads((run.out / "config.json").read_text())
+    del doc["train"][field]  # as a run saved before the field existed
+    (run.out / "config.json").write_text(json.dumps(doc))
+    old = Run.open(run.out)
+    assert getattr(old.config, field) == before and old.fingerprint == run.fingerprint

@@ -2,8 +2,6 @@
 scene, a share of the training tracks is kept out of evolution, and the learning curve and the
 final front are chosen on episodes that drive them."""
 
-import json
-
 import numpy as np
 import pytest
 
@@ -74,12 +72,3 @@ def test_validation_episodes_drive_only_the_held_tracks():
     fit, _ = backend.evaluate_members([1, 0], seeds, validation=True)
     again, _ = backend.evaluate(2, seeds, validation=True)
     assert np.array_equal(fit, again[[1, 0]])
-
-
-def test_runs_without_held_tracks_keep_their_fingerprint(tmp_path):
-    run = Run.create(tmp_path / "p", TrainConfig(preset="tiny"))
-    doc = json.loads((run.out / "config.json").read_text())
-    del doc["train"]["validation_tracks"]  # a run saved before the field existed
-    (run.out / "config.json").write_text(json.dumps(doc))
-    old = Run.open(run.out)
-    assert old.config.validation_tracks == 0.0 and old.fingerprint == run.fingerprint
