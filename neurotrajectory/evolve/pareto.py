@@ -116,6 +116,15 @@ def hypervolume_ratio(fitness: np.ndarray, reference: np.ndarray,
     return max(hypervolume(np.vstack([ratios, np.ones((1, 3))]), box), own) / own
 
 
+def generation_hypervolume(record: dict, first: dict, anchored: bool) -> float:
+    """:func:`hypervolume_ratio` of a generation's ``history.json`` record against the
+    reference on its own episodes: its individual 0 (the warm start or the centre) in an
+    ``anchored`` run, else the median member of generation 0 (``first``)."""
+    f = np.array(record["fitness"])
+    ref = f[0] if anchored else np.median(np.array(first["fitness"]), axis=0)
+    return hypervolume_ratio(f, ref, np.array(record.get("violation", np.zeros(len(f)))))
+
+
 def minimised(fitness: np.ndarray) -> np.ndarray:
     """Fitness ``[l1, l2, l3]`` as objectives to minimise: ``[l1, l2, -l3]``."""
     f = np.asarray(fitness, dtype=np.float64)

@@ -15,7 +15,7 @@ from matplotlib.ticker import MaxNLocator  # noqa: E402
 
 from neurotrajectory.evolve.pareto import (  # noqa: E402
     HV_MARGIN,
-    hypervolume_ratio,
+    generation_hypervolume,
     pick_member,
 )
 
@@ -103,12 +103,7 @@ def _hypervolume(path: Path, history: list[dict], anchored: bool) -> Path:
     """Each generation's hypervolume against a reference on the same episodes
     (:func:`~neurotrajectory.evolve.pareto.hypervolume_ratio`): individual 0 (the warm start or
     the centre) of an anchored run, else the median member of generation 0."""
-    first = np.array(history[0]["fitness"])
-    values = []
-    for h in history:
-        f = np.array(h["fitness"])
-        ref = f[0] if anchored else np.median(first, axis=0)
-        values.append(hypervolume_ratio(f, ref, np.array(h.get("violation", np.zeros(len(f))))))
+    values = [generation_hypervolume(h, history[0], anchored) for h in history]
     who = ("individual 0 (the warm start or the centre)" if anchored
            else "generation 0's median member")  # fmt: skip
     fig, ax = plt.subplots(figsize=(6.5, 4))

@@ -67,7 +67,13 @@ from neurotrajectory.evolve.evolution import (
 )
 from neurotrajectory.evolve.fitness import net_config_for, scenario_net_config
 from neurotrajectory.evolve.genome import genome_mismatch, initial_genome, set_genome, table_size
-from neurotrajectory.evolve.pareto import hypervolume, minimised, non_dominated_sort, pick_member
+from neurotrajectory.evolve.pareto import (
+    generation_hypervolume,
+    hypervolume,
+    minimised,
+    non_dominated_sort,
+    pick_member,
+)
 from neurotrajectory.evolve.population import Population, Source, Start
 from neurotrajectory.model import (
     ACTIVATIONS,
@@ -610,7 +616,9 @@ class Run:
                 run=np.array(self.fingerprint),
             )
             write_json(self.out / "history.json", {"run": self.fingerprint, "generations": history})
-            bar.set_postfix(hv=f"{history[-1]['hypervolume']:.3f}", front=int(np.sum(rank == 0)))
+            # the hypervolume plot's figure: what the generation dominates beyond its reference
+            hv = generation_hypervolume(history[-1], history[0], cfg.anchored)
+            bar.set_postfix(hv=f"{hv:.2f}", front=int(np.sum(rank == 0)))
             if gen + 1 < cfg.generations:
                 if parents is not None:
                     backend.load(parents)

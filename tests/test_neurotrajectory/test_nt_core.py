@@ -20,6 +20,7 @@ from neurotrajectory.evolve.genome import (
 )
 from neurotrajectory.evolve.pareto import (
     crowding_distance,
+    generation_hypervolume,
     hypervolume,
     hypervolume_ratio,
     minimised,
@@ -152,6 +153,21 @@ def test_hypervolume_ratio_is_measured_against_the_reference_alone():
     assert hypervolume_ratio(np.vstack([ref, worse]), ref) == pytest.approx(1.0)
     lost = np.array([0.0, 0.3])
     assert hypervolume_ratio(np.vstack([ref, better]), ref, lost) == pytest.approx(1.0)
+
+
+def test_a_generation_is_measured_against_its_own_anchor_or_generation_0s_median():
+    """The figure of the hypervolume plot and of train's progress bar."""
+    ref = [100.0, 2.0, 500.0]
+    better = [90.0, 1.8, 500.0 / 0.9]
+    first = {"fitness": [[200.0, 4.0, 250.0], ref, [50.0, 1.0, 1000.0]]}  # median: ref
+    record = {"fitness": [ref, better], "violation": [0.0, 0.0]}
+    assert generation_hypervolume(record, first, anchored=True) == pytest.approx(8.0)
+    assert generation_hypervolume(record, first, anchored=False) == pytest.approx(8.0)
+    behind = {"fitness": [better, ref], "violation": [0.0, 0.0]}  # the anchor is the better one
+    assert generation_hypervolume(behind, first, anchored=True) == pytest.approx(1.0)
+    assert generation_hypervolume(behind, first, anchored=False) == pytest.approx(8.0)
+    lost = {"fitness": [ref, better], "violation": [0.0, 0.2]}
+    assert generation_hypervolume(lost, first, anchored=True) == pytest.approx(1.0)
 
 
 def test_selection_keeps_the_front_and_is_reproducible():
