@@ -13,8 +13,10 @@ and constants it uses from other modules (e.g. ``polyline_kernels.project``, cal
 ``scripted_driver_kernels.route_leader``). So this module keeps a digest of every source
 compiled code can depend on (:func:`kernel_sources`) beside the caches, and when the digest
 changes (an edited kernel, another version installed over the package) deletes every cached
-kernel of the package before any is loaded (:func:`drop_stale_caches`): a cache never serves
-a stale kernel.
+kernel of the package before any is loaded (:func:`drop_stale_caches`), so that the caches
+beside the package never serve a stale kernel (numba's user-wide cache, used where the
+package cannot be written, and ``NUMBA_CACHE_DIR`` are not watched: installed sources do not
+change).
 
 Compiling all kernels takes about 30 s; ``pip install .`` does it while it builds the package
 (``gridsim compile``), so that a user's first environment starts at once. When a kernel is
@@ -68,7 +70,7 @@ event.register("numba:compile", _CompileNotice())
 #: Where the digest of the kernel sources is kept, in the package's ``__pycache__``.
 STAMP = Path("__pycache__") / "kernel_sources.sha256"
 _COMPILED_CODE = re.compile(r"^@(kernel|jitable)\b|register_jitable\(|= jitable\(", re.M)
-_GRIDSIM_IMPORT = re.compile(r"^from (gridsim(?:\.\w+)+) import", re.M)
+_GRIDSIM_IMPORT = re.compile(r"^from (gridsim(?:\.\w+)*) import (\([^)]*\)|[^\n]*)", re.M)
 
 
 def kernel_sources(package: Path) -> list[Path]:
@@ -78,11 +80,18 @@ def kernel_sources(package: Path) -> list[Path]:
     compiled = [f for f in sorted(package.rglob("*.py")) if _COMPILED_CODE.search(f.read_text())]
     used = set(compiled)
     for f in compiled:
-        for name in _GRIDSIM_IMPORT.findall(f.read_text()):
-            parts = name.split(".")[1:]
-            module = package.joinpath(*parts).with_suffix(".py")
-            used.add(module if module.is_file() else package.joinpath(*parts, "__init__.py"))
+        for module, names in _GRIDSIM_IMPORT.findall(f.read_text()):
+            parts = module.split(".")[1:]
+            used.add(_module_file(package, parts))
+            for name in re.findall(r"\w+", names):  # ``from gridsim.x import y``: y a module?
+                used.add(_module_file(package, [*parts, name]))
     return sorted(p for p in used if p.is_file())
+
+
+def _module_file(package: Path, parts: list[str]) -> Path:
+    """The file of module ``gridsim.<parts>`` (a module or a package's ``__init__.py``)."""
+    module = package.joinpath(*parts).with_suffix(".py") if parts else package / "__init__.py"
+    return module if module.is_file() else package.joinpath(*parts, "__init__.py")
 
 
 def sources_digest(package: Path) -> str:
@@ -114,9 +123,11 @@ def drop_stale_caches(package: Path) -> int:
             dropped += 1
         except OSError:
             pass
-    try:
+    try:  # atomically: a process starting beside this one reads the old stamp or the new
         stamp.parent.mkdir(exist_ok=True)
-        stamp.write_text(digest + "\n")
+        part = stamp.with_name(f"{stamp.name}.{os.getpid()}")
+        part.write_text(digest + "\n")
+        os.replace(part, stamp)
     except OSError:
         pass
     return dropped

@@ -166,7 +166,10 @@ class NetConfig:
             raise ValueError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
         object.__setattr__(self, "smoothing", check_keep(self.smoothing, "smoothing"))
         if self.max_correction is not None:
-            bound = tuple(float(b) for b in self.max_correction)
+            try:
+                bound = tuple(float(b) for b in self.max_correction)
+            except (TypeError, ValueError):
+                bound = ()
             if len(bound) != 2 or not all(math.isfinite(b) and b > 0 for b in bound):
                 raise ValueError("max_correction must be two finite numbers > 0 [m] (along, "
                                  f"across the heading), got {self.max_correction!r}")  # fmt: skip

@@ -14,6 +14,8 @@ import time
 import warnings
 from collections.abc import Callable
 
+import numpy as np
+
 from gridsim.errors import DataWarning
 
 
@@ -66,6 +68,10 @@ def compile_kernels(report: Callable[[str], None] = print) -> dict:
                 _, _, terminated, truncated, info = env.step(action)
                 if terminated or truncated:
                     _, info = env.reset(seed=1)
+    # the batched bicycle step (many vehicles: DWA's rollouts), which the envs do not take
+    from gridsim.vehicle.kinematics import BicycleParams, step_bicycle
+
+    step_bicycle(np.zeros((2, 5)), np.zeros(2), np.zeros(2), BicycleParams(), 0.1)
     after = compiled_kernels()
     return {"scenarios": len(names), "kernels": after["kernels"],
             "compiled": after["compiled"] - before["compiled"],

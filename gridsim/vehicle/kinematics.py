@@ -123,10 +123,11 @@ def step_bicycle(
     limits = np.empty((n, len(LIMIT_FIELDS)))
     for k, f in enumerate(fields_):
         limits[:, k] = np.broadcast_to(f, shape).reshape(n)
+    # writable C-contiguous copies: one compiled signature whatever the caller's layout
     out, applied, rates = step_many(
-        np.broadcast_to(state, shape + (STATE_SIZE,)).reshape(n, STATE_SIZE),
-        np.broadcast_to(accel, shape).reshape(n),
-        np.broadcast_to(steer_rate, shape).reshape(n),
+        np.array(np.broadcast_to(state, shape + (STATE_SIZE,)).reshape(n, STATE_SIZE), order="C"),
+        np.array(np.broadcast_to(accel, shape).reshape(n), order="C"),
+        np.array(np.broadcast_to(steer_rate, shape).reshape(n), order="C"),
         limits,
         float(dt),
     )

@@ -71,7 +71,12 @@ def report_heldout(
                   f"of the human's  mean l1 {r['l1']:8.0f} m^2  steering "
                   f"{r['mean_steer_rate']:.2f} rad/s")  # fmt: skip
     paired = report.get("paired")
-    if paired and paired["l1_change"] is not None:
+    if paired is None:
+        return
+    if not paired["episodes"]:
+        print(f"  no {which[:-1]} is completed by both the {pick} member and its warm start: "
+              "their l1 is not compared")  # fmt: skip
+    elif paired["l1_change"] is not None:
         print(f"  on the {paired['episodes']} {which} both the {pick} member and its warm start "
               f"complete: mean l1 {paired['l1']:.1f} against {paired['other_l1']:.1f} m^2 "
               f"({paired['l1_change']:+.1%}), lower on {paired['better']} of them")  # fmt: skip

@@ -176,8 +176,8 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
-        if isinstance(self.max_correction, list):  # as config.json stores it
-            object.__setattr__(self, "max_correction", tuple(self.max_correction))
+        if self.max_correction is not None:  # as floats (config.json stores a list)
+            object.__setattr__(self, "max_correction", _bound_pair(self.max_correction))
         if self.activation is None and self.preset in PRESETS:  # stored resolved
             object.__setattr__(self, "activation", PRESETS[self.preset].activation)
         if self.selection is None:  # stored resolved
@@ -245,9 +245,13 @@ class TrainConfig:
         ):
             raise RunError("validation_tracks must be a share in [0, 1) of the training tracks, "
                            f"got {self.validation_tracks!r}")  # fmt: skip
-        if self.validation_tracks and self.ego_tracks and len(self.ego_tracks) < 2:
-            raise RunError(f"validation_tracks {self.validation_tracks:g} needs at least 2 "
-                           f"training tracks to split, got {list(self.ego_tracks)}")  # fmt: skip
+        if self.validation_tracks and self.ego_tracks and not self.held_tracks:
+            raise RunError(f"validation_tracks {self.validation_tracks:g} needs a scene with "
+                           "at least 2 training tracks to split, got "
+                           f"{list(self.ego_tracks)}")  # fmt: skip
+        if self.validation_tracks and not self.validation_episodes:
+            raise RunError(f"validation_tracks {self.validation_tracks:g} holds tracks out for "
+                           "the validation episodes: give validation_episodes >= 1")  # fmt: skip
         if not 0 <= self.pretrain_validation < 1:
             raise RunError(f"pretrain_validation must be in [0, 1), got {self.pretrain_validation}")
         if self.evolve not in EVOLVE_SCOPES:
@@ -267,15 +271,10 @@ class TrainConfig:
                            "a member no worse than it: give --pretrain or --pretrain-episodes, "
                            "or selection 'pareto'")  # fmt: skip
         if self.max_correction is not None:
-            bound = self.max_correction
-            if not (isinstance(bound, tuple) and len(bound) == 2):
-                raise RunError("max_correction must be two numbers [m] (along, across the "
-                               f"heading), got {bound!r}")  # fmt: skip
-            for b in bound:
-                _check_positive("max_correction", b)
-            if self.frame != "ego":
-                raise RunError("max_correction bounds the correction in the ego frame: it "
-                               f"needs frame 'ego', got {self.frame!r}")  # fmt: skip
+            try:  # the network's own check
+                replace(PRESETS[self.preset], frame=self.frame, max_correction=self.max_correction)
+            except ValueError as exc:
+                raise RunError(str(exc)) from None
         if not (math.isfinite(self.es_step) and 0 < self.es_step <= MAX_ES_STEP):
             raise RunError(f"es_step must be in (0, {MAX_ES_STEP:g}], got {self.es_step}")
 
@@ -334,15 +333,24 @@ class TrainConfig:
 
     @property
     def held_tracks(self) -> tuple[str, ...]:
-        """The training tracks kept out of evolution to validate on (``validation_tracks``
-        of ``ego_tracks``, at least 1 and all but 1, drawn from the seed; in their order),
-        or none."""
-        n = len(self.ego_tracks)
-        if not self.validation_tracks or n < 2:
+        """The training tracks kept out of evolution to validate on, or none: of each scene's
+        tracks in ``ego_tracks`` (``SCENE/ID`` names of a collection's scenes; plain ids of
+        one scene), the share ``validation_tracks``, at least one and all but one, drawn from
+        the seed, so that both sides drive every scene; in their order. A scene of one track
+        keeps it in evolution."""
+        if not self.validation_tracks:
             return ()
-        k = min(max(round(self.validation_tracks * n), 1), n - 1)
-        picked = stream(self.seed, Salt.VALIDATION_TRACKS).permutation(n)[:k]
-        return tuple(self.ego_tracks[i] for i in sorted(picked))
+        scenes: dict[str, list[int]] = {}
+        for i, name in enumerate(self.ego_tracks):
+            scenes.setdefault(name.rpartition("/")[0], []).append(i)
+        rng = stream(self.seed, Salt.VALIDATION_TRACKS)
+        held = []
+        for _, rows in sorted(scenes.items()):
+            n = len(rows)
+            if n >= 2:
+                k = min(max(round(self.validation_tracks * n), 1), n - 1)
+                held.extend(rows[j] for j in rng.permutation(n)[:k])
+        return tuple(self.ego_tracks[i] for i in sorted(held))
 
     @property
     def overrides(self) -> dict:
@@ -918,10 +926,16 @@ def _checked(config: TrainConfig):
     elif config.pretrain_episodes:
         _check_pretrain_episodes(config)
     config = _with_training_tracks(config, windows)
-    if config.validation_tracks and len(config.ego_tracks) < 2:
+    if config.validation_tracks and not config.ego_tracks:
         raise RunError(f"--validation-tracks {config.validation_tracks:g} holds out some of "
                        "the training tracks of a recorded scene: train on a recorded scene "
                        "with --pretrain DATA (windows of at least 2 of its tracks)")  # fmt: skip
+    if config.validation_overrides is not None:  # the validation episodes can be driven
+        try:
+            GridSimEnv(config.scenario, **config.validation_overrides).reset(seed=0)
+        except GridSimError as exc:
+            raise RunError(f"--validation-tracks {config.validation_tracks:g}: "
+                           f"{exc}") from None  # fmt: skip
     return config, windows
 
 
@@ -1036,6 +1050,19 @@ def _read_npz(path: Path, *keys: str) -> tuple[np.ndarray, ...] | None:
     except Exception as exc:
         raise RunError(f"{path}: not a readable .npz archive of a run (damaged or replaced?): "
                        f"{type(exc).__name__}: {exc}") from None  # fmt: skip
+
+
+def _bound_pair(value) -> tuple:
+    """``max_correction`` as a pair of floats where it is a pair of numbers (left as it is
+    otherwise, for :class:`NetConfig`'s check to name)."""
+    try:
+        pair = tuple(value)
+    except TypeError:
+        return value
+    if len(pair) == 2 and all(isinstance(v, int | float | np.number) and not isinstance(v, bool)
+                              for v in pair):  # fmt: skip
+        return tuple(float(v) for v in pair)
+    return pair
 
 
 def _check_positive(name: str, value) -> None:

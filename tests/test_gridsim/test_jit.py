@@ -78,9 +78,11 @@ def _package(root):
     (pkg / "sub" / "__pycache__").mkdir(parents=True)
     (pkg / "__pycache__").mkdir()
     (pkg / "sub" / "k_kernels.py").write_text(
-        "from gridsim.helpers import step\nfrom gridsim.consts import LIMIT\n\n"
-        "@kernel\ndef go(x):\n    return step(x) + LIMIT\n"
+        "from gridsim.helpers import step\nfrom gridsim.consts import LIMIT\n"
+        "from gridsim import more\n\n"
+        "@kernel\ndef go(x):\n    return step(x) + LIMIT + more.OFFSET\n"
     )
+    (pkg / "more.py").write_text("OFFSET = 1\n")
     (pkg / "helpers.py").write_text("@jitable\ndef step(x):\n    return x + 1\n")
     (pkg / "consts.py").write_text("LIMIT = 3\n")
     (pkg / "unrelated.py").write_text("def f():\n    return 1\n")
@@ -98,7 +100,7 @@ def _cache(caches):
 def test_cached_kernels_are_dropped_when_a_source_they_depend_on_changes(tmp_path):
     pkg, caches = _package(tmp_path)
     sources = [p.relative_to(pkg).as_posix() for p in jit.kernel_sources(pkg)]
-    assert sources == ["consts.py", "helpers.py", "sub/k_kernels.py"]  # not unrelated.py
+    assert sources == ["consts.py", "helpers.py", "more.py", "sub/k_kernels.py"]  # not unrelated
     _cache(caches)
     assert jit.drop_stale_caches(pkg) == 3  # caches of unknown sources (no stamp yet)
     assert (pkg / jit.STAMP).read_text().strip() == jit.sources_digest(pkg)
@@ -106,7 +108,7 @@ def test_cached_kernels_are_dropped_when_a_source_they_depend_on_changes(tmp_pat
     assert jit.drop_stale_caches(pkg) == 0 and all(c.exists() for c in caches)  # up to date
     (pkg / "unrelated.py").write_text("def f():\n    return 2\n")
     assert jit.drop_stale_caches(pkg) == 0  # no compiled code depends on it
-    for edited in ("helpers.py", "consts.py"):  # a callee's body, a constant: both stale
+    for edited in ("helpers.py", "consts.py", "more.py"):  # a callee, constants: all stale
         path = pkg / edited
         path.write_text(path.read_text().replace("1", "2").replace("3", "4"))
         assert jit.drop_stale_caches(pkg) == 3 and not any(c.exists() for c in caches)

@@ -50,8 +50,11 @@ def test_a_bad_bound_is_refused_saying_why(bound, frame, message):
 
 
 def test_train_config_checks_saves_and_resumes_the_bound(tmp_path):
-    with pytest.raises(RunError, match="max_correction must be a finite number > 0"):
-        TrainConfig(preset="tiny", max_correction=(4.0, -1.0))
+    for bad in ((4.0, -1.0), (None, 3.0), 5.0, (1.0, 2.0, 3.0)):
+        with pytest.raises(RunError, match="max_correction must be two finite numbers > 0"):
+            TrainConfig(preset="tiny", max_correction=bad)
+    # ints from Python and floats from the command line are the same run
+    assert TrainConfig(max_correction=(8, 3)) == TrainConfig(max_correction=(8.0, 3.0))
     with pytest.raises(RunError, match="needs frame 'ego'"):
         TrainConfig(preset="tiny", max_correction=(4.0, 1.0), frame="grid")
     run = Run.create(tmp_path / "b", TrainConfig(preset="tiny", max_correction=(4.0, 1.5)))

@@ -38,12 +38,28 @@ def test_the_held_tracks_are_a_seeded_share_kept_out_of_the_generations():
         (1.0, TRACKS, r"share in \[0, 1\)"),
         (-0.1, TRACKS, r"share in \[0, 1\)"),
         ("0.3", TRACKS, r"share in \[0, 1\)"),
-        (0.3, ("381",), "needs at least 2 training tracks"),
+        (0.3, ("381",), "needs a scene with at least 2 training tracks"),
+        (0.3, ("a/1", "b/2"), "needs a scene with at least 2 training tracks"),
     ],
 )
 def test_a_bad_share_is_refused_saying_why(share, tracks, message):
     with pytest.raises(RunError, match=message):
         TrainConfig(ego_tracks=tracks, validation_tracks=share)
+    with pytest.raises(RunError, match="give validation_episodes >= 1"):
+        TrainConfig(ego_tracks=TRACKS, validation_tracks=0.3, validation_episodes=0)
+
+
+def test_every_scene_of_a_collection_keeps_tracks_on_both_sides():
+    names = tuple(f"us101_4_1/{i}" for i in range(14)) + ("us101_3_3/1", "us101_3_3/2",
+                                                          "us101_3_3/3", "lonely/9")  # fmt: skip
+    for seed in range(50):
+        cfg = TrainConfig(ego_tracks=names, validation_tracks=0.3, seed=seed)
+        held = set(cfg.held_tracks)
+        trained = set(cfg.overrides["ego"]["track"])
+        for scene in ("us101_4_1/", "us101_3_3/"):
+            assert any(t.startswith(scene) for t in held), (seed, scene)
+            assert any(t.startswith(scene) for t in trained), (seed, scene)
+        assert "lonely/9" in trained and len([t for t in held if "4_1" in t]) == 4
 
 
 def test_a_scene_without_training_tracks_cannot_hold_any_out(tmp_path):
