@@ -19,7 +19,7 @@ from gridsim.road.polyline_kernels import track
 from gridsim.traffic.fleet_kernels import FleetState
 from gridsim.traffic.fleet_kernels import tick as fleet_tick
 from gridsim.traffic.profile_kernels import chain_at, continue_profiles
-from gridsim.vehicle.kinematics import step_one
+from gridsim.vehicle.kinematics_kernels import step_one
 from gridsim.world.collision_kernels import APART, may_touch
 from gridsim.world.scripted_driver_kernels import follower_inputs
 

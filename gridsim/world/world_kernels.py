@@ -23,7 +23,7 @@ from gridsim.road.polyline_kernels import ahead_of, track
 from gridsim.traffic.fleet_kernels import FleetState
 from gridsim.traffic.fleet_kernels import tick as fleet_tick
 from gridsim.vehicle.control import pursuit_one
-from gridsim.vehicle.kinematics import step_one
+from gridsim.vehicle.kinematics_kernels import step_one
 from gridsim.world.collision_kernels import APART, may_touch, near_segments
 
 #: What the ego does (``follow``'s first item): stop, follow the path, hold the inputs.
