@@ -119,6 +119,8 @@ class GridSimEnv(gym.Env):
         self.observation_kind = OBSERVATION_TYPES[observation_type](cfg)
         self.observation_type = observation_type
         self.observation_space = self.observation_kind.space
+        #: whether the sensor renders a grid every step (its observations or frames need it)
+        self._sensing = self.observation_kind.needs_grids or render_mode is not None
         #: Bounds of the per-step fitness vector [l1, l2, l3] (MO-Gymnasium convention).
         self.reward_space = spaces.Box(
             np.zeros(3, np.float32), np.full(3, np.inf, np.float32), dtype=np.float32
@@ -145,8 +147,8 @@ class GridSimEnv(gym.Env):
         self._last_plan = None
         self._travelled = 0.0
         self._terminated = False
-        grid = self.sensor.observe(self.world)
-        self._grids[:] = grid[None]
+        if self._sensing:
+            self._grids[:] = self.sensor.observe(self.world)[None]
         self._newest = len(self._grids) - 1
         self._look_ahead()
         return self._observation(), self._info(terms=np.zeros(3, np.float32))
@@ -235,7 +237,8 @@ class GridSimEnv(gym.Env):
         self._last_accel, self._last_rate = result.accel, result.steer_rate
         self._last_plan = plan
         self._newest = (self._newest + 1) % len(self._grids)
-        self.sensor.observe(world, out=self._grids[self._newest])
+        if self._sensing:
+            self.sensor.observe(world, out=self._grids[self._newest])
         self._look_ahead()
         tol = self.cfg.env.destination_tolerance
         reached = self.reference.reached(world.ego[:2], self._travelled, tol)
@@ -254,6 +257,10 @@ class GridSimEnv(gym.Env):
         """The last ``env.history`` occupancy grids ``(history, rows, cols)`` uint8, oldest
         first (a copy)."""
         self._current_world("grid_history")
+        if not self._sensing:
+            raise RuntimeError(f"observation_type {self.observation_type!r} renders no grids "
+                               "(its observations do not need them): use an observation type "
+                               "with needs_grids = True, or render_mode='rgb_array'")  # fmt: skip
         k = self._newest + 1
         return np.concatenate((self._grids[k:], self._grids[:k]))
 

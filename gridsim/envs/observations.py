@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from gymnasium import spaces
@@ -35,7 +35,11 @@ def _vector(size: int) -> spaces.Box:
 
 
 class ObservationType(ABC):
-    """What the agent observes of the environment after each reset and step."""
+    """What the agent observes of the environment after each reset and step. A type whose
+    observations need no occupancy grid says so (``needs_grids = False``): the environment
+    then renders none (unless it renders frames), which saves most of a step's time."""
+
+    needs_grids: ClassVar[bool] = True
 
     def __init__(self, cfg: ScenarioConfig) -> None:
         self.cfg = cfg
@@ -79,6 +83,7 @@ class KinematicsObservation(ObservationType):
 
     VEHICLES = 8
     FEATURES = ("presence", "x", "y", "vx", "vy", "cos_h", "sin_h")
+    needs_grids = False
 
     def _make_space(self) -> spaces.Dict:
         vehicles = spaces.Box(-BIG, BIG, (self.VEHICLES, len(self.FEATURES)), np.float32)

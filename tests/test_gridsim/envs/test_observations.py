@@ -55,8 +55,11 @@ def test_kinematics_passes_check_env_and_holds_the_nearest_vehicles(scenario):
         assert n == min(len(in_range), KinematicsObservation.VEHICLES)
         np.testing.assert_allclose(rows[:n, 5] ** 2 + rows[:n, 6] ** 2, 1.0, rtol=1e-5)
         action = info["reference_setpoints"]
-        obs, _, term, trunc, info = env.step(action)
-        ref, *_ = grids.step(action)
+        obs, reward, term, trunc, info = env.step(action)
+        ref, ref_reward, *_, ref_info = grids.step(action)
+        # no grid rendered, the same episode: rewards and poses bit for bit
+        np.testing.assert_array_equal(reward, ref_reward)
+        np.testing.assert_array_equal(info["pose"], ref_info["pose"])
         if term or trunc:
             break
 
@@ -110,6 +113,17 @@ def test_an_unknown_observation_type_is_refused_with_the_choices():
     with pytest.raises(ValueError, match=r"observation_type must be one of \['grids', "
                        r"'kinematics'\], got 'lidar'"):  # fmt: skip
         GridSimEnv(observation_type="lidar")
+
+
+def test_kinematics_renders_no_grid_unless_frames_are_rendered():
+    env = GridSimEnv(observation_type="kinematics", **SHORT)
+    env.reset(seed=0)
+    with pytest.raises(RuntimeError, match="'kinematics' renders no grids"):
+        env.grid_history()
+    shown = GridSimEnv(observation_type="kinematics", render_mode="rgb_array", **SHORT)
+    shown.reset(seed=0)
+    shown.step(shown.action_space.sample())
+    assert shown.grid_history().any() and shown.render().ndim == 3  # the sensor inset's grid
 
 
 def test_building_blocks_need_a_reset():
