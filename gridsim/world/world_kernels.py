@@ -18,7 +18,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gridsim.jit import kernel
+from gridsim.jit import jitable, kernel
 from gridsim.road.polyline_kernels import ahead_of, track
 from gridsim.traffic.fleet_kernels import FleetState
 from gridsim.traffic.fleet_kernels import tick as fleet_tick
@@ -66,6 +66,15 @@ class FollowTick(NamedTuple):
     quiet: bool  # the contact test can find nothing (no edge near, no vehicle not apart)
 
 
+@jitable
+def _not_done(status, accel, steer, ego):
+    """The :class:`FollowTick` of a tick not done (:data:`BEFORE`, :data:`NOT_FINITE`): the
+    commanded inputs and the ego as it was (its empty ``ended`` a new array: a global one is
+    read-only, of another type)."""
+    return FollowTick(status, accel, steer, ego, np.nan, np.nan, np.nan, -1,
+                      np.zeros(0, np.int64), (np.nan, np.nan), False)  # fmt: skip
+
+
 @kernel
 def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     """One tick of the ego following a path (or holding its inputs). ``ego``: its state
@@ -80,12 +89,9 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     Returns a :class:`FollowTick`; ``quiet``: as the reference's shadow world rules near misses
     out (:func:`~gridsim.world.collision_kernels.may_touch`)."""
     x, y, psi, v, delta = ego
-    none = np.zeros(0, np.int64)  # (a new array: a global one is read-only, of another type)
-    nan = (np.nan, np.nan)
     if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(psi) and math.isfinite(v)
             and math.isfinite(delta)):  # fmt: skip
-        return FollowTick(NOT_FINITE, np.nan, np.nan, ego, np.nan, np.nan, np.nan, -1, none, nan,
-                          False)  # fmt: skip
+        return _not_done(NOT_FINITE, np.nan, np.nan, ego)
     mode, path, speed, min_lookahead, lookahead_time, pursuit_limits, b_max, held = follow
     if mode == HOLD:  # inputs held for the decision period (control and discrete actions)
         accel, steer = held
@@ -97,15 +103,13 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     else:  # nothing ahead to drive to: brake to a stop, hold the wheel
         accel, steer = -min(b_max, v / dt), 0.0
     if not (math.isfinite(accel) and math.isfinite(steer)):
-        return FollowTick(NOT_FINITE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none, nan,
-                          False)  # fmt: skip
+        return _not_done(NOT_FINITE, accel, steer, ego)
     x1, y1, psi1, v1, d1, a1, r1 = step_one(x, y, psi, v, delta, accel, steer, step_limits, dt)
     line, ref_s, road_hint, keep_ahead, keep_behind, cut_max = road
     points, seg, seg_len, seg_len_pow2, s_road, _ = line
     s1, _, j1 = track(points, seg, seg_len, seg_len_pow2, s_road, x1, y1, road_hint)
     if ref_s[-1] < s1 + keep_ahead or np.searchsorted(ref_s, s1 - keep_behind) > cut_max:
-        return FollowTick(BEFORE, accel, steer, ego, np.nan, np.nan, np.nan, -1, none, nan,
-                          False)  # fmt: skip
+        return _not_done(BEFORE, accel, steer, ego)
     ego1 = (x1, y1, psi1, v1, d1)
     length, width, center_offset = box
     c, s = math.cos(psi1), math.sin(psi1)
