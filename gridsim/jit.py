@@ -77,10 +77,11 @@ def kernel_sources(package: Path) -> list[Path]:
     """The sources compiled code of ``package`` (the ``gridsim`` folder) can depend on: every
     module that defines kernels or jitable functions, and the package's modules they import
     names from (constants are frozen into the compiled code)."""
-    compiled = [f for f in sorted(package.rglob("*.py")) if _COMPILED_CODE.search(f.read_text())]
+    texts = {f: f.read_text() for f in sorted(package.rglob("*.py"))}
+    compiled = [f for f, text in texts.items() if _COMPILED_CODE.search(text)]
     used = set(compiled)
     for f in compiled:
-        for module, names in _GRIDSIM_IMPORT.findall(f.read_text()):
+        for module, names in _GRIDSIM_IMPORT.findall(texts[f]):
             parts = module.split(".")[1:]
             used.add(_module_file(package, parts))
             for name in re.findall(r"\w+", names):  # ``from gridsim.x import y``: y a module?
