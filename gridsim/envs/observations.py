@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 from gymnasium import spaces
 
-from gridsim.frames import EGO_FEATURES, grid_rotation, world_to_grid
+from gridsim.frames import EGO_FEATURES, grid_rotation
 from gridsim.scenario.schema import ScenarioConfig
 from gridsim.vehicle.kinematics import PSI, V
 
@@ -100,7 +100,7 @@ class KinematicsObservation(ObservationType):
         fleet = w.traffic.fleet
         idx = np.flatnonzero(fleet.active)
         rotation = grid_rotation(self.cfg.sensor.orientation, w.ego[PSI])
-        xy = world_to_grid(np.column_stack([fleet.x[idx], fleet.y[idx]]), w.ego[:2], rotation)
+        xy = env.to_grid(np.column_stack([fleet.x[idx], fleet.y[idx]]))
         dist = np.hypot(xy[:, 0], xy[:, 1])
         near = np.flatnonzero(dist <= self.cfg.sensor.max_range)
         near = near[np.argsort(dist[near], kind="stable")][: self.VEHICLES]
