@@ -175,14 +175,12 @@ class LocalBackend(Backend):
         self.worker.load(genomes)
 
     def evaluate(self, size, seeds, validation=False):
-        return _collect(size, self._all_jobs(_jobs(size, 1, seeds, validation)))
+        job = (list(range(size)), tuple(seeds), validation)
+        return _collect(size, [self.worker.evaluate(job)])
 
     def evaluate_members(self, indices, seeds, validation=False):
         indices = _check_members(indices)
-        return _members(indices, self._all_jobs([(indices, tuple(seeds), validation)]))
-
-    def _all_jobs(self, jobs: list) -> list:
-        return [self.worker.evaluate(job) for job in jobs]
+        return _members(indices, [self.worker.evaluate((indices, tuple(seeds), validation))])
 
 
 def _serve(conn, spec: WorkerSpec) -> None:
