@@ -166,16 +166,7 @@ class NetConfig:
             raise ValueError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
         object.__setattr__(self, "smoothing", check_keep(self.smoothing, "smoothing"))
         if self.max_correction is not None:
-            try:
-                bound = tuple(float(b) for b in self.max_correction)
-            except (TypeError, ValueError):
-                bound = ()
-            if len(bound) != 2 or not all(math.isfinite(b) and b > 0 for b in bound):
-                raise ValueError("max_correction must be two finite numbers > 0 [m] (along, "
-                                 f"across the heading), got {self.max_correction!r}")  # fmt: skip
-            if self.frame != "ego":
-                raise ValueError("max_correction bounds the correction in the ego frame: it "
-                                 f"needs frame 'ego', got {self.frame!r}")  # fmt: skip
+            bound = checked_max_correction(self.max_correction, self.frame)
             object.__setattr__(self, "max_correction", bound)
         if self.grid_size % (self.pool * 8):
             raise ValueError(
@@ -193,6 +184,22 @@ class NetConfig:
     @property
     def curve_limits(self) -> CurveLimits:
         return CurveLimits(*self.limits)
+
+
+def checked_max_correction(bound, frame: str) -> tuple[float, float]:
+    """``bound`` (:attr:`NetConfig.max_correction`) as two floats [m], or a ``ValueError``
+    saying why it cannot bound the correction of a network whose residual is in ``frame``."""
+    try:
+        pair = tuple(float(b) for b in bound)
+    except (TypeError, ValueError):
+        pair = ()
+    if len(pair) != 2 or not all(math.isfinite(b) and b > 0 for b in pair):
+        raise ValueError("max_correction must be two finite numbers > 0 [m] (along, across "
+                         f"the heading), got {bound!r}")  # fmt: skip
+    if frame != "ego":
+        raise ValueError("max_correction bounds the correction in the ego frame: it needs "
+                         f"frame 'ego', got {frame!r}")  # fmt: skip
+    return pair
 
 
 #: ``paper``: the full FC 1024 / 512 on 128 x 128 grids (about 19 M parameters);

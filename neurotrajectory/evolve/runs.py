@@ -83,6 +83,7 @@ from neurotrajectory.model import (
     NetConfig,
     NetPolicy,
     TrajectoryNet,
+    checked_max_correction,
     size_mismatch,
 )
 
@@ -176,8 +177,6 @@ class TrainConfig:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
-        if self.max_correction is not None:  # as floats (config.json stores a list)
-            object.__setattr__(self, "max_correction", _bound_pair(self.max_correction))
         if self.activation is None and self.preset in PRESETS:  # stored resolved
             object.__setattr__(self, "activation", PRESETS[self.preset].activation)
         if self.selection is None:  # stored resolved
@@ -270,11 +269,12 @@ class TrainConfig:
             raise RunError(f"selection {self.selection!r} starts from the warm start and keeps "
                            "a member no worse than it: give --pretrain or --pretrain-episodes, "
                            "or selection 'pareto'")  # fmt: skip
-        if self.max_correction is not None:
-            try:  # the network's own check
-                replace(PRESETS[self.preset], frame=self.frame, max_correction=self.max_correction)
+        if self.max_correction is not None:  # as floats (config.json stores a list)
+            try:
+                bound = checked_max_correction(self.max_correction, self.frame)
             except ValueError as exc:
                 raise RunError(str(exc)) from None
+            object.__setattr__(self, "max_correction", bound)
         if not (math.isfinite(self.es_step) and 0 < self.es_step <= MAX_ES_STEP):
             raise RunError(f"es_step must be in (0, {MAX_ES_STEP:g}], got {self.es_step}")
 
@@ -1050,19 +1050,6 @@ def _read_npz(path: Path, *keys: str) -> tuple[np.ndarray, ...] | None:
     except Exception as exc:
         raise RunError(f"{path}: not a readable .npz archive of a run (damaged or replaced?): "
                        f"{type(exc).__name__}: {exc}") from None  # fmt: skip
-
-
-def _bound_pair(value) -> tuple:
-    """``max_correction`` as a pair of floats where it is a pair of numbers (left as it is
-    otherwise, for :class:`NetConfig`'s check to name)."""
-    try:
-        pair = tuple(value)
-    except TypeError:
-        return value
-    if len(pair) == 2 and all(isinstance(v, int | float | np.number) and not isinstance(v, bool)
-                              for v in pair):  # fmt: skip
-        return tuple(float(v) for v in pair)
-    return pair
 
 
 def _check_positive(name: str, value) -> None:
