@@ -13,6 +13,9 @@ from enum import IntEnum
 
 import numpy as np
 
+#: The largest seed a user gives (a flag, a training run's ``seed``).
+MAX_SEED = 2**32 - 1
+
 
 class Salt(IntEnum):
     """What a random stream is for (simulator, then trainer and evaluation)."""

@@ -36,6 +36,9 @@ from gridsim.frames import EGO_ACCEL, EGO_COS, EGO_SIN, EGO_SPEED, EGO_STEERING
 from neurotrajectory.curves import CurveLimits, destination_curves
 
 ACTIVATIONS = {"sigmoid": nn.Sigmoid, "relu": nn.ReLU, "tanh": nn.Tanh}
+#: The frames of the network's residual on its prior (:attr:`NetConfig.frame`): ``ego``,
+#: along and across the heading; ``grid``, the grid's axes.
+FRAMES = ("ego", "grid")
 DESTINATION_SCALE = 20.0  # m: destination inputs are divided by this
 
 
@@ -162,8 +165,8 @@ class NetConfig:
             )
         if self.prior not in PRIORS:
             raise ValueError(f"prior must be one of {list(PRIORS)}, got {self.prior!r}")
-        if self.frame not in ("ego", "grid"):
-            raise ValueError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
+        if self.frame not in FRAMES:
+            raise ValueError(f"frame must be one of {list(FRAMES)}, got {self.frame!r}")
         object.__setattr__(self, "smoothing", check_keep(self.smoothing, "smoothing"))
         if self.max_correction is not None:
             bound = checked_max_correction(self.max_correction, self.frame)

@@ -5,11 +5,11 @@ from __future__ import annotations
 
 import argparse
 
+from gridsim.seeding import MAX_SEED
+
 #: The largest count a flag takes (episodes, generations, steps, members): more would run
 #: for days or fill the memory with per-episode results before anything is written.
 MAX_COUNT = 100_000
-#: The largest seed a flag takes.
-MAX_SEED = 2**32 - 1
 
 
 def at_least(minimum: int, maximum: int = MAX_COUNT):

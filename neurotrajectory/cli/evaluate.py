@@ -7,21 +7,12 @@ import argparse
 import sys
 from pathlib import Path
 
-from gridsim.cli.flags import at_least, quiet_flag, seed_flag
-from neurotrajectory.cli.flags import (
-    episode_seconds_flag,
-    goal_flag,
-    pick_flag,
-    run_flag,
-    test_fraction_flag,
-)
+from gridsim.cli.flags import quiet_flag
+from neurotrajectory.cli.flags import goal_flag, run_flag, settings_flag
 from neurotrajectory.compare.baselines.end2end import TrainSettings
 from neurotrajectory.compare.evaluation import EvalConfig
 from neurotrajectory.data.windows import GROUPS
 from neurotrajectory.evolve.runs import RunError
-
-#: The defaults of every flag that sets an :class:`EvalConfig` field.
-EVAL = EvalConfig()
 
 
 def add_parser(sub) -> None:
@@ -46,35 +37,11 @@ def add_parser(sub) -> None:
     p.add_argument("--group", action="append", default=[], metavar="NAME=FOLDER",
                    help="a group of your scenarios: a folder or glob of scenario files "
                         "(repeatable)")  # fmt: skip
-    p.add_argument(
-        "--episodes",
-        type=at_least(1),
-        default=EVAL.episodes,
-        help=f"episodes recorded per generated scenario (default {EVAL.episodes})",
-    )
-    episode_seconds_flag(p, f"length of each recorded episode [s] (default "
-                            f"{EVAL.episode_seconds:g})", default=EVAL.episode_seconds)  # fmt: skip
-    test_fraction_flag(p, f"share of each group's tracks held out for testing (default "
-                          f"{EVAL.test_fraction:g})", default=EVAL.test_fraction)  # fmt: skip
-    pick_flag(p, "the front member compared (picked without test data)")
-    p.add_argument("--e2e-epochs", dest="e2e_epochs", type=at_least(1),
-                   default=TrainSettings.epochs,
-                   help=f"training epochs of the End2End baseline (default "
-                        f"{TrainSettings.epochs})")  # fmt: skip
-    p.add_argument("--closed-loop-episodes", dest="closed_loop_episodes", type=at_least(0),
-                   default=EVAL.closed_loop_episodes,
-                   help=f"closed-loop episodes per scenario (default "
-                        f"{EVAL.closed_loop_episodes}; 0: skip)")  # fmt: skip
-    p.add_argument("--closed-loop-seconds", dest="closed_loop_seconds", type=float,
-                   default=EVAL.closed_loop_seconds,
-                   help=f"length of each closed-loop episode [s] (default "
-                        f"{EVAL.closed_loop_seconds:g})")  # fmt: skip
-    p.add_argument(
-        "--videos",
-        action="store_true",
-        help="export each method's first closed-loop episode to <out>/videos/",
-    )
-    seed_flag(p, "seed of the split and episodes")
+    for flag in ("--episodes", "--episode-seconds", "--test-fraction", "--pick",
+                 "--closed-loop-episodes", "--closed-loop-seconds", "--seed"):  # fmt: skip
+        settings_flag(p, EvalConfig, flag)
+    settings_flag(p, TrainSettings, "--e2e-epochs", dest="epochs")
+    settings_flag(p, EvalConfig, "--videos", action="store_true")
     quiet_flag(p, "no progress messages")
     p.set_defaults(func=execute)
 
@@ -96,15 +63,13 @@ def execute(args: argparse.Namespace) -> int:
     if twice:
         raise RunError(f"--groups names {', '.join(twice)} more than once")
     groups = [*groups, *(g for g in sources if g not in groups)]
-    cfg = EvalConfig(
-        groups=tuple(groups), episodes=args.episodes, episode_seconds=args.episode_seconds,
-        sources=sources,
-        test_fraction=args.test_fraction, seed=args.seed, pick=args.pick,
-        end2end=TrainSettings(epochs=args.e2e_epochs, seed=args.seed),
-        closed_loop_episodes=args.closed_loop_episodes,
-        closed_loop_seconds=args.closed_loop_seconds, videos=args.videos,
-        goal_seconds=args.goal_seconds,
-    )  # fmt: skip
+    flags = set(EvalConfig.model_fields) - {"groups", "sources", "end2end"}
+    given = {name: getattr(args, name) for name in flags if getattr(args, name) is not None}
+    end2end = {"seed": args.seed} if args.seed is not None else {}
+    if args.epochs is not None:
+        end2end["epochs"] = args.epochs
+    cfg = EvalConfig(**given, groups=tuple(groups), sources=sources,
+                     end2end=TrainSettings(**end2end))  # fmt: skip
     log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
     group_runs = {}
     for item in args.group_run:

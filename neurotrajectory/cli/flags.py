@@ -6,8 +6,38 @@ from __future__ import annotations
 import argparse
 import math
 
+from gridsim.cli.flags import MAX_COUNT, at_least
+from gridsim.seeding import MAX_SEED
 from neurotrajectory.evolve.pareto import PICKS
 from neurotrajectory.evolve.runs import RunError
+from neurotrajectory.settings import Settings, base_type, bounds, choices
+
+
+def settings_flag(
+    parser: argparse.ArgumentParser, settings: type[Settings], flag: str, **kwargs
+) -> None:
+    """Declare ``flag`` for the field of ``settings`` of its name (``--a-b``: ``a_b``; or
+    ``dest``), its help the field's description (or ``help``) and its default. The flag's
+    default is None (so that a command can tell a flag given from one not given; the
+    field's default applies). An integer field parses as an integer within the field's
+    bounds, a number as a float, a :class:`~neurotrajectory.settings.OneOf` field takes its
+    choices; ``kwargs`` (``action``, ``nargs``, ...) go to argparse as given."""
+    name = kwargs.pop("dest", flag.lstrip("-").replace("-", "_"))
+    field = settings.model_fields[name]  # a KeyError here is a flag without its field: a bug
+    kind = base_type(field)
+    if "action" not in kwargs and "type" not in kwargs and "choices" not in kwargs:
+        if kind is int:
+            low = bounds(field).get("ge", 0)
+            kwargs["type"] = at_least(low, MAX_SEED if name == "seed" else MAX_COUNT)
+        elif kind is float:
+            kwargs["type"] = float
+        if choices(field) is not None:
+            kwargs["choices"] = choices(field)
+    what = kwargs.pop("help", field.description)
+    default = settings.defaults()[name]
+    if default is not None and not isinstance(default, bool | tuple | dict):
+        what += f" (default {default:g})" if isinstance(default, float) else f" (default {default})"
+    parser.add_argument(flag, dest=name, default=None, help=what, **kwargs)
 
 
 def run_flag(parser: argparse.ArgumentParser, what: str = "a finished training run's folder"):
@@ -41,19 +71,6 @@ def plan_smoothing_flag(parser: argparse.ArgumentParser, what: str) -> None:
     """``--plan-smoothing KEEP``: the share of the previous plan kept in each new one."""
     parser.add_argument("--plan-smoothing", dest="plan_smoothing", type=float, default=None,
                         metavar="KEEP", help=what)  # fmt: skip
-
-
-def episode_seconds_flag(parser: argparse.ArgumentParser, what: str, **kwargs) -> None:
-    """``--episode-seconds S``: the length of each episode [s]."""
-    kwargs.setdefault("default", None)
-    parser.add_argument("--episode-seconds", dest="episode_seconds", type=float, help=what,
-                        **kwargs)  # fmt: skip
-
-
-def test_fraction_flag(parser: argparse.ArgumentParser, what: str, **kwargs) -> None:
-    """``--test-fraction F``: the share of the tracks on the test side of the split."""
-    kwargs.setdefault("default", None)
-    parser.add_argument("--test-fraction", dest="test_fraction", type=float, help=what, **kwargs)
 
 
 def positive_seconds(text: str) -> float:

@@ -8,13 +8,13 @@ from pathlib import Path
 
 from gridsim.cli.flags import at_least, quiet_flag, seed_flag
 from gridsim.outputs import new_folder
-from neurotrajectory.cli.flags import episode_seconds_flag, goal_flag, test_fraction_flag
+from neurotrajectory.cli.flags import goal_flag, settings_flag
 from neurotrajectory.compare.evaluation import EvalConfig
 from neurotrajectory.data.windows import GROUPS
 from neurotrajectory.evolve.runs import RunError
 
 #: The evaluation's defaults: a split recorded here is the one ``evaluate`` makes.
-EVAL = EvalConfig()
+EVAL = EvalConfig.defaults()
 
 
 def add_parser(sub) -> None:
@@ -26,9 +26,9 @@ def add_parser(sub) -> None:
     p.add_argument("--name", default=None, metavar="NAME",
                    help="the group name the dataset records (default: --scenario)")  # fmt: skip
     p.add_argument("--group", default=None, help=argparse.SUPPRESS)  # the old --name: refused
-    p.add_argument("--episodes", type=at_least(1), default=EVAL.episodes,
-                   help=f"episodes per generated scenario (default {EVAL.episodes})")  # fmt: skip
-    episode_seconds_flag(p, "length of each episode [s] (default: the scenario's)")
+    settings_flag(p, EvalConfig, "--episodes")
+    p.add_argument("--episode-seconds", dest="episode_seconds", type=float, default=None,
+                   help="length of each episode [s] (default: the scenario's)")  # fmt: skip
     p.add_argument(
         "--stride",
         type=at_least(1),
@@ -43,8 +43,8 @@ def add_parser(sub) -> None:
         help="keep only this side of the split by track that `evaluate` with the same --seed "
         "and --test-fraction makes (e.g. train data for a group's run)",
     )
-    test_fraction_flag(p, f"share of the tracks on the test side of --split (default "
-                          f"{EVAL.test_fraction})")  # fmt: skip
+    settings_flag(p, EvalConfig, "--test-fraction",
+                  help="share of the tracks on the test side of --split")  # fmt: skip
     goal_flag(p, "the windows see the destination")
     p.add_argument("--out", required=True, help="dataset folder (created)")
     quiet_flag(p)
@@ -63,7 +63,9 @@ def execute(args: argparse.Namespace) -> int:
         raise RunError(f"--test-fraction {args.test_fraction:g} sets the test side of --split: "
                        "give --split train or --split test (or leave it out)")  # fmt: skip
     if args.test_fraction is None:
-        args.test_fraction = EVAL.test_fraction
+        args.test_fraction = EVAL["test_fraction"]
+    if args.episodes is None:
+        args.episodes = EVAL["episodes"]
     name, source = (args.name, args.scenario) if args.name else (args.scenario, None)
     with new_folder(args.out) as partial:  # held before recording; --out appears when done
         with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:

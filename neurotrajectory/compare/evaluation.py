@@ -20,19 +20,20 @@ speed, mean steering rate and the episode fitness vector ``[l1, l2, l3]``.
 
 from __future__ import annotations
 
-import math
 import re
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated, ClassVar
 
 import numpy as np
+from pydantic import Field, model_validator
 from tqdm import tqdm
 
 from gridsim.outputs import new_folder, write_json
 from gridsim.policies import Reference
 from gridsim.scenario.schema import MAX_DURATION
-from gridsim.seeding import Salt, stream
+from gridsim.seeding import MAX_SEED, Salt, stream
 from neurotrajectory.compare.baselines.end2end import CommandPolicy, End2End, TrainSettings
 from neurotrajectory.compare.closed_loop import closed_loop
 from neurotrajectory.compare.front import NetPredictor, load_front
@@ -50,48 +51,67 @@ from neurotrajectory.data.windows import (
     save_dataset,
     split_by_track,
 )
-from neurotrajectory.evolve.pareto import pick_member
+from neurotrajectory.evolve.pareto import PICKS, pick_member
+from neurotrajectory.settings import Bool, Integer, OneOf, Real, Settings
 
 #: A group's name: it names folders of the output (``data/NAME``, ``models/end2end-NAME``).
 GROUP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
 
 
-@dataclass(frozen=True)
-class EvalConfig:
-    """What an evaluation records, trains and runs (saved as ``eval_config.json``)."""
+class EvalConfig(Settings):
+    """What an evaluation records, trains and runs (saved as ``eval_config.json``). Each
+    field's description is its ``evaluate`` flag's help."""
 
-    groups: tuple[str, ...] = tuple(GROUPS)
-    episodes: int = 8  # recorded episodes per generated scenario
-    episode_seconds: float = 30.0  # length of recorded generated episodes [s]
-    test_fraction: float = 0.3
-    seed: int = 0
-    pick: str = "knee"
-    end2end: TrainSettings = field(default_factory=TrainSettings)
-    closed_loop_episodes: int = 3  # per scenario of a group
-    closed_loop_seconds: float = 20.0
-    videos: bool = False  # export the first closed-loop episode of each method and scenario
-    #: Groups of the user's scenarios: name -> folder or glob of scenario files.
-    sources: dict[str, str] = field(default_factory=dict)
-    #: how far ahead every planner's destination lies [s] (``env.goal_seconds``); None: at
-    #: the last set-point, where the human will be
-    goal_seconds: float | None = None
+    Error: ClassVar[type[Exception]] = DatasetError
 
-    def __post_init__(self) -> None:
+    groups: tuple[str, ...] = Field(
+        tuple(GROUPS), description="the scenario groups compared: built-in groups and the "
+        "names of sources")  # fmt: skip
+    episodes: Annotated[Integer, Field(ge=1)] = Field(
+        8, description="episodes recorded per generated scenario"
+    )
+    episode_seconds: Annotated[Real, Field(gt=0, le=MAX_DURATION)] = Field(
+        30.0, description="length of each recorded episode [s]"
+    )
+    test_fraction: Annotated[Real, Field(gt=0, lt=1)] = Field(
+        0.3, description="share of each group's tracks held out for testing"
+    )
+    seed: Annotated[Integer, Field(ge=0, le=MAX_SEED)] = Field(
+        0, description="seed of the split and episodes"
+    )
+    pick: Annotated[str, OneOf(PICKS)] = Field(
+        "knee", description="the front member compared (picked without test data)"
+    )
+    end2end: TrainSettings = Field(default_factory=TrainSettings)
+    closed_loop_episodes: Annotated[Integer, Field(ge=0)] = Field(
+        3, description="closed-loop episodes per scenario (0: skip)"
+    )
+    closed_loop_seconds: Annotated[Real, Field(gt=0, le=MAX_DURATION)] = Field(
+        20.0, description="length of each closed-loop episode [s]"
+    )
+    videos: Bool = Field(
+        False, description="export each method's first closed-loop episode to <out>/videos/"
+    )
+    sources: dict[str, str] = Field(
+        default_factory=dict, description="groups of the user's scenarios: name -> folder or "
+        "glob of scenario files")  # fmt: skip
+    goal_seconds: Annotated[Real, Field(gt=0)] | None = Field(
+        None,
+        description="how far ahead every planner's destination lies [s] "
+        "(env.goal_seconds; default: at the last set-point, where the human will be)",
+    )
+
+    @model_validator(mode="after")
+    def _groups(self) -> EvalConfig:
         unknown = [g for g in self.groups if g not in GROUPS and g not in self.sources]
         if unknown:
-            raise DatasetError(
-                f"unknown scenario groups {unknown}; choose from {list(GROUPS)} or give NAME=FOLDER"
-            )
+            raise ValueError(f"unknown scenario groups {unknown}; choose from {list(GROUPS)} "
+                             "or give NAME=FOLDER")  # fmt: skip
         bad = [g for g in self.groups if not GROUP_NAME.fullmatch(g)]
         if bad:
-            raise DatasetError(f"group name {bad[0]!r}: use letters, digits, '_', '-', '.', "
-                               "starting with a letter or digit (it names folders)")  # fmt: skip
-        if self.episodes < 1 or self.closed_loop_episodes < 0:
-            raise DatasetError("need episodes >= 1 and closed_loop_episodes >= 0")
-        for name in ("episode_seconds", "closed_loop_seconds"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and 0 < value <= MAX_DURATION):
-                raise DatasetError(f"{name} must be in (0, {MAX_DURATION:g}] s, got {value}")
+            raise ValueError(f"group name {bad[0]!r}: use letters, digits, '_', '-', '.', "
+                             "starting with a letter or digit (it names folders)")  # fmt: skip
+        return self
 
 
 @dataclass
@@ -258,7 +278,7 @@ def evaluate(
     with new_folder(out) as partial:  # out appears, whole, when everything is written
         write_json(partial / "eval_config.json",
                    {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
-                    **asdict(cfg)})  # fmt: skip
+                    **cfg.as_dict()})  # fmt: skip
         results = []
         for group in cfg.groups:
             t0 = time.perf_counter()

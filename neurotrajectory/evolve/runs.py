@@ -15,19 +15,19 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import os
 import shutil
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import replace
 from pathlib import Path
+from typing import Annotated, Any, ClassVar
 
 import numpy as np
+from pydantic import BeforeValidator, Field, model_validator
 from tqdm import tqdm
 
-from gridsim.envs.plan_smoothing import check_keep
 from gridsim.errors import GridSimError
 from gridsim.outputs import (
     empty_folder,
@@ -38,7 +38,8 @@ from gridsim.outputs import (
     write_npz,
     write_text,
 )
-from gridsim.seeding import Salt, stream
+from gridsim.scenario.schema import MAX_DURATION
+from gridsim.seeding import MAX_SEED, Salt, stream
 from neurotrajectory.data.windows import (
     DAGGER_LABELS,
     GENERATED_STRIDE,
@@ -78,6 +79,7 @@ from neurotrajectory.evolve.population import Population, Source, Start
 from neurotrajectory.model import (
     ACTIVATIONS,
     EVOLVE_SCOPES,
+    FRAMES,
     PRESETS,
     PRIORS,
     NetConfig,
@@ -86,6 +88,7 @@ from neurotrajectory.model import (
     checked_max_correction,
     size_mismatch,
 )
+from neurotrajectory.settings import Bool, Integer, OneOf, Real, Settings
 
 FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
 PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
@@ -97,186 +100,218 @@ class RunError(RuntimeError):
     """A run directory is missing, corrupt or incompatible with the requested run."""
 
 
-@dataclass(frozen=True)
-class TrainConfig:
-    """Everything that determines a run (saved as ``config.json``)."""
+#: The largest mutation step accepted (``sigma``): larger ones overflow the network's
+#: weights (the recipes use 0.02 to 0.1).
+MAX_SIGMA = 10.0
 
-    scenario: str = "seamless"
-    preset: str = "default"
-    population: int = 16
-    generations: int = 10
-    episodes: int = 2
-    episode_seconds: float = 15.0
-    sigma: float = GAConfig.sigma
-    elite_fraction: float = GAConfig.elite_fraction
-    seed: int = 0
-    backend: str = "local"
-    workers: int = 2
-    batch: int = 16  # individuals a worker evaluates together (does not change results)
-    ray_address: str | None = None
-    pretrain: str | None = None  # dataset folder to fit the network to before evolving
-    pretrain_episodes: int = 0  # or record this many episodes of the scenario to fit it to
-    pretrain_epochs: int = 20
-    prior: str | None = None  # the network's kinematic prior; None: the preset's
-    resample_episodes: bool = True  # new episode seeds every generation (else fixed)
-    constrained: bool = True  # collisions and leaving the road rank below any fitness
-    validation_episodes: int = 8  # the final population's front is chosen on these
-    frame: str = "ego"  # the frame of the network's residual (NetConfig.frame)
-    skip: bool = True  # the network's kinematic skip read-out (NetConfig.skip)
-    pretrain_validation: float = 0.2  # share of the warm start's tracks that pick its epoch
-    #: recorded scenes: the tracks the episodes drive as the ego (empty: any; with pretrain
-    #: data on a recorded scene, Run.create sets the data's tracks of that scene)
-    ego_tracks: tuple[str, ...] = ()
-    #: after the warm start: rounds of driving the fitted network on the warm start's episodes
-    #: and refitting it to all windows so far, labelled with the human's set-points (DAgger)
-    dagger_rounds: int = 0
-    #: the DAgger windows' total weight in the refit as a share of the human windows' (each
-    #: human window weighs 1); None: every window weighs 1, however many were visited
-    dagger_weight: float | None = None
-    #: how the DAgger windows are labelled (see :data:`neurotrajectory.data.windows.DAGGER_LABELS`)
-    dagger_labels: str = "rejoin"
-    #: what mutation changes (:data:`~neurotrajectory.model.EVOLVE_SCOPES`); a scope other
-    #: than "all" keeps the warm start's weights outside the scope and evolves the scope's
-    evolve: str = "all"
-    #: the network's hidden activation (:attr:`NetConfig.activation`); None (and configs
-    #: saved before the field existed): the preset's
-    activation: str | None = None
-    #: closed loop: the share of the previous plan kept in each plan the car follows (in
-    #: training, held-out episodes, evaluation and videos; see NetConfig.smoothing)
-    plan_smoothing: float = 0.7
-    #: how parents are selected (:data:`~neurotrajectory.evolve.evolution.SELECTIONS`):
-    #: "anchored" keeps the warm start in every generation and its l1 as a constraint; None:
-    #: "anchored" with a warm start, else "pareto" (stored resolved)
-    selection: str | None = None
-    #: selection "es": how far the centre moves each generation, in units of the mean of its
-    #: pairs' utility-weighted noise steps (see :func:`~neurotrajectory.evolve.evolution.es_centre`;
-    #: 3 chosen on the main job's development seeds, JOURNAL.md)
-    es_step: float = 3.0
-    #: how far ahead the destination the network is given lies [s] (the scenario's
-    #: ``env.goal_seconds``); None: the scenario's (by default the last set-point's time)
-    goal_seconds: float | None = None
-    #: the network's largest correction to its prior [m] along and across the heading
-    #: (NetConfig.max_correction); None: unbounded
-    max_correction: tuple[float, float] | None = None
+#: The largest ``es_step`` accepted (the centre would leap past its pairs' noise).
+MAX_ES_STEP = 100.0
 
-    #: recorded scenes: the share of the training tracks (``ego_tracks``) that no generation
-    #: drives, whose episodes draw the learning curve and choose the final front (0: the
-    #: validation episodes drive the training tracks too)
-    validation_tracks: float = 0.0
+
+def _names(tracks: Any) -> Any:
+    """Track ids as names (``ego_tracks`` may be given as integers)."""
+    if isinstance(tracks, list | tuple):
+        return tuple(str(t) for t in tracks)
+    return tracks
+
+
+def _bound(bound: Any) -> tuple[float, float] | None:
+    """``max_correction`` as two floats [m] (``config.json`` stores a list)."""
+    if bound is None:
+        return None
+    return checked_max_correction(bound, "ego")  # the frame is checked with the others
+
+
+class TrainConfig(Settings):
+    """Everything that determines a run (saved as ``config.json``). Each field's description
+    is its ``train`` flag's help. ``activation`` and ``selection`` given as None are stored
+    resolved (from the preset; from whether there is a warm start)."""
+
+    Error: ClassVar[type[Exception]] = RunError
+
+    scenario: str = Field("seamless", description="built-in name, YAML path, or a "
+                          "comma-separated list, folder or glob of them")  # fmt: skip
+    preset: Annotated[str, OneOf(PRESETS)] = Field("default", description="network size")
+    population: Annotated[Integer, Field(ge=2)] = Field(16, description="networks per generation")
+    generations: Annotated[Integer, Field(ge=1)] = Field(10, description="generations to evolve")
+    episodes: Annotated[Integer, Field(ge=1)] = Field(
+        2, description="evaluation episodes per individual"
+    )
+    episode_seconds: Annotated[Real, Field(gt=0, le=MAX_DURATION)] = Field(
+        15.0, description="length of each training episode [s]"
+    )
+    sigma: Annotated[Real, Field(gt=0, le=MAX_SIGMA)] = Field(
+        GAConfig.sigma, description="mutation noise scale (the standard deviation per weight; "
+        "larger than 10 overflows the network's weights)")  # fmt: skip
+    elite_fraction: Annotated[Real, Field(gt=0, lt=1)] = Field(
+        GAConfig.elite_fraction, description="share of each generation kept as parents"
+    )
+    seed: Annotated[Integer, Field(ge=0, le=MAX_SEED)] = Field(
+        0, description="seed of the whole run"
+    )
+    backend: Annotated[str, OneOf(BACKENDS)] = Field(
+        "local", description="where individuals are evaluated"
+    )
+    workers: Annotated[Integer, Field(ge=1)] = Field(
+        2, description="worker processes or Ray actors"
+    )
+    batch: Annotated[Integer, Field(ge=1)] = Field(
+        16, description="individuals each worker evaluates together (does not change results)"
+    )
+    ray_address: str | None = Field(
+        None, description="an existing Ray cluster (default: start a local one)"
+    )
+    pretrain: str | None = Field(
+        None, description="first fit the network to the windows of this recorded dataset"
+    )
+    pretrain_episodes: Annotated[Integer, Field(ge=0)] = Field(
+        0, description="first fit the network to N episodes of the scenario recorded now (30 s "
+        "each, training seeds; generated scenarios only)")  # fmt: skip
+    pretrain_epochs: Annotated[Integer, Field(ge=1)] = Field(
+        20, description="epochs of the warm start's fit"
+    )
+    prior: Annotated[str, OneOf(PRIORS)] | None = Field(
+        None, description=f"the kinematic prior the network refines (default: the preset's, "
+        f"{NetConfig.prior})")  # fmt: skip
+    resample_episodes: Bool = Field(
+        True, description="new episode seeds every generation (else the same for all)"
+    )
+    constrained: Bool = Field(
+        True, description="collisions and leaving the road rank below any fitness"
+    )
+    validation_episodes: Annotated[Integer, Field(ge=0)] = Field(
+        8, description="choose the final front on N more training episodes (0: the last "
+        "generation's)")  # fmt: skip
+    frame: Annotated[str, OneOf(FRAMES)] = Field(
+        "ego", description="frame of the network's residual on its prior: 'ego', along and "
+        "across the heading, or 'grid'")  # fmt: skip
+    skip: Bool = Field(True, description="the linear read-out of the ego's kinematic features")
+    pretrain_validation: Annotated[Real, Field(ge=0, lt=1)] = Field(
+        0.2, description="share of the warm start's tracks held out to pick its epoch (0: keep "
+        "the last epoch)")  # fmt: skip
+    ego_tracks: Annotated[tuple[str, ...], BeforeValidator(_names)] = Field(
+        (), description="recorded scenes: the tracks the episodes drive as the ego (empty: any; "
+        "with pretrain data on a recorded scene, Run.create sets the data's tracks of that "
+        "scene)")  # fmt: skip
+    dagger_rounds: Annotated[Integer, Field(ge=0)] = Field(
+        0, description="after the warm start, N rounds of driving the fitted network on its "
+        "episodes and refitting it to the states it visited (DAgger), labelled as dagger_labels "
+        "says")  # fmt: skip
+    dagger_weight: Annotated[Real, Field(gt=0)] | None = Field(
+        None,
+        description="the DAgger windows' total weight in the refit as a share of the "
+        "human windows' (default: every window weighs alike, however many were visited)",
+    )
+    dagger_labels: Annotated[str, OneOf(DAGGER_LABELS)] = Field(
+        "rejoin", description="how the DAgger windows are labelled: 'rejoin', the human's path "
+        "shifted by the ego's offset from the human, the shift fading out over the horizon; "
+        "'human', the human's next set-points from there")  # fmt: skip
+    evolve: Annotated[str, OneOf(EVOLVE_SCOPES, "evolve scope")] = Field(
+        "all",
+        description="what mutation changes: 'all' weights, or with a warm start only the "
+        "planning 'head' (LSTM branches and read-outs) or only the linear 'readout's",
+    )
+    activation: Annotated[str, OneOf(ACTIVATIONS)] | None = Field(
+        None, description=f"the network's hidden activation (default: the preset's, "
+        f"{NetConfig.activation})")  # fmt: skip
+    plan_smoothing: Annotated[Real, Field(ge=0, lt=1)] = Field(
+        0.7,
+        description="in closed loop (training, held-out episodes, evaluation, videos), "
+        "keep this share of the previous plan in each new one (0: follow every plan as given)",
+    )
+    selection: Annotated[str, OneOf(SELECTIONS)] | None = Field(
+        None, description="how parents are selected: 'anchored' (the default with a warm "
+        "start): the warm start stays in every generation and a member whose l1 is worse than "
+        "its is ranked as a constraint violation; 'es': evolution strategies, a centre (first "
+        "the warm start) and antithetic pairs around it, the centre moved by their "
+        "rank-weighted noise (es_step); 'pareto' (the default without): constrained NSGA-II on "
+        "the three objectives")  # fmt: skip
+    es_step: Annotated[Real, Field(gt=0, le=MAX_ES_STEP)] = Field(
+        3.0, description="selection 'es': how far the centre moves per generation, in mean noise "
+        "steps of its pairs (3 chosen on the main job's development seeds)")  # fmt: skip
+    goal_seconds: Annotated[Real, Field(gt=0)] | None = Field(
+        None,
+        description="how far ahead the destination the network is given lies [s] (the "
+        "scenario's env.goal_seconds; default the scenario's, the last set-point's time)",
+    )
+    max_correction: Annotated[tuple[float, float] | None, BeforeValidator(_bound)] = Field(
+        None, description="bound the network's correction to its prior to these many metres "
+        "along and across the heading (tanh-squashed; default: unbounded)")  # fmt: skip
+    validation_tracks: Annotated[Real, Field(ge=0, lt=1)] = Field(
+        0.0, description="recorded scenes: keep this share of the training tracks out of "
+        "evolution and draw the validation episodes from them (0: the validation episodes "
+        "drive the training tracks)")  # fmt: skip
 
     #: Fields left out of the run's fingerprint while at these values: added after runs were
     #: saved, with these values meaning what those runs did.
-    UNSTAMPED_DEFAULTS = {"max_correction": None, "validation_tracks": 0.0}  # noqa: RUF012
-
+    UNSTAMPED_DEFAULTS: ClassVar[dict] = {"max_correction": None, "validation_tracks": 0.0}
     #: What format-1 configurations (saved before these fields existed) meant.
-    LEGACY = {"frame": "grid", "skip": False, "pretrain_validation": 0.0, "dagger_labels": "human",
-              "plan_smoothing": 0.0, "selection": "pareto"}  # fmt: skip
+    LEGACY: ClassVar[dict] = {"frame": "grid", "skip": False, "pretrain_validation": 0.0,
+                              "dagger_labels": "human", "plan_smoothing": 0.0,
+                              "selection": "pareto"}  # fmt: skip
     #: Fields added within format 2, and what a format-2 configuration without them meant.
-    LATER = {"dagger_labels": "human", "plan_smoothing": 0.0, "selection": "pareto",
-             "es_step": 3.0}  # fmt: skip
+    LATER: ClassVar[dict] = {"dagger_labels": "human", "plan_smoothing": 0.0,
+                             "selection": "pareto", "es_step": 3.0}  # fmt: skip
+    #: Fields that may differ between a run and its resumption (they do not change results).
+    RESUMABLE: ClassVar[tuple] = ("generations", "backend", "workers", "ray_address", "batch")
 
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "ego_tracks", tuple(str(t) for t in self.ego_tracks))
-        if self.activation is None and self.preset in PRESETS:  # stored resolved
-            object.__setattr__(self, "activation", PRESETS[self.preset].activation)
-        if self.selection is None:  # stored resolved
-            warm = bool(self.pretrain or self.pretrain_episodes)
-            object.__setattr__(self, "selection", "anchored" if warm else "pareto")
-        self._check()
+    @model_validator(mode="before")
+    @classmethod
+    def _resolve(cls, data: Any) -> Any:
+        """The activation (from the preset) and the selection (from the warm start) where
+        None: stored resolved."""
+        if not isinstance(data, dict):
+            return data
+        data = dict(data)
+        preset = data.get("preset", cls.model_fields["preset"].default)
+        if data.get("activation") is None and isinstance(preset, str) and preset in PRESETS:
+            data["activation"] = PRESETS[preset].activation
+        if data.get("selection") is None:
+            warm = bool(data.get("pretrain") or data.get("pretrain_episodes"))
+            data["selection"] = "anchored" if warm else "pareto"
+        return data
 
-    #: The smallest value of each integer field.
-    MINIMUM = {"population": 2, "generations": 1, "episodes": 1, "workers": 1, "batch": 1,
-               "seed": 0, "validation_episodes": 0, "pretrain_episodes": 0,
-               "pretrain_epochs": 1, "dagger_rounds": 0}  # fmt: skip
-
-    def _check(self) -> None:
-        if self.preset not in PRESETS:
-            raise RunError(f"unknown preset {self.preset!r}; choose from {sorted(PRESETS)}")
-        for name, low in self.MINIMUM.items():
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < low:
-                raise RunError(f"{name} must be >= {low} (an integer), got {value!r}")
-        for name in ("sigma", "elite_fraction", "episode_seconds", "pretrain_validation"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int | float | np.number):
-                raise RunError(f"{name} must be a number, got {value!r}")
-            if not math.isfinite(value):
-                raise RunError(f"{name} must be a finite number, got {value}")
-        if not 0 < self.sigma <= MAX_SIGMA:
-            raise RunError(f"sigma must be in (0, {MAX_SIGMA:g}] (the mutation's standard "
-                           f"deviation per weight), got {self.sigma}")  # fmt: skip
-        if not 0 < self.elite_fraction < 1:
-            raise RunError(f"elite_fraction must be in (0, 1), got {self.elite_fraction}")
-        if self.backend not in BACKENDS:
-            raise RunError(f"unknown backend {self.backend!r}; choose from {list(BACKENDS)}")
+    @model_validator(mode="after")
+    def _together(self) -> TrainConfig:
+        """The checks across fields (each field was valid on its own)."""
+        warm = bool(self.pretrain or self.pretrain_episodes)
+        problems = []
         if self.pretrain and self.pretrain_episodes:
-            raise RunError("give either pretrain (a dataset) or pretrain_episodes, not both")
-        if self.dagger_rounds and not (self.pretrain or self.pretrain_episodes):
-            raise RunError("dagger_rounds refit the warm start: give pretrain or pretrain_episodes")
-        for name in ("dagger_weight", "goal_seconds"):  # optional, > 0 where given
-            _check_positive(name, getattr(self, name))
-        if self.dagger_weight is not None:
-            w = self.dagger_weight
-            if not self.dagger_rounds:
-                raise RunError(f"dagger_weight {w:g} weighs the DAgger rounds' windows: give "
-                               "dagger_rounds >= 1")  # fmt: skip
-        if self.dagger_labels not in DAGGER_LABELS:
-            raise RunError(f"unknown dagger_labels {self.dagger_labels!r}; choose from "
-                           f"{sorted(DAGGER_LABELS)}")  # fmt: skip
+            problems.append("give either pretrain (a dataset) or pretrain_episodes, not both")
+        if self.dagger_rounds and not warm:
+            problems.append("dagger_rounds refit the warm start: give pretrain or "
+                            "pretrain_episodes")  # fmt: skip
+        if self.dagger_weight is not None and not self.dagger_rounds:
+            problems.append(f"dagger_weight {self.dagger_weight:g} weighs the DAgger rounds' "
+                            "windows: give dagger_rounds >= 1")  # fmt: skip
         if self.pretrain_episodes == 1 and self.pretrain_validation > 0:
-            raise RunError("pretrain_episodes 1 leaves no episode to validate the warm start on: "
-                           "record >= 2 or set pretrain_validation to 0")  # fmt: skip
-        if not self.episode_seconds > 0:
-            raise RunError(f"episode_seconds must be > 0, got {self.episode_seconds}")
-        if self.activation not in ACTIVATIONS:  # None was resolved in __post_init__
-            raise RunError(f"unknown activation {self.activation!r}; choose from "
-                           f"{sorted(ACTIVATIONS)}")  # fmt: skip
-        if self.frame not in ("ego", "grid"):
-            raise RunError(f"frame must be 'ego' or 'grid', got {self.frame!r}")
-        try:
-            check_keep(self.plan_smoothing, "plan_smoothing")
-        except ValueError as exc:
-            raise RunError(str(exc)) from None
-        if (
-            isinstance(self.validation_tracks, bool)
-            or not isinstance(self.validation_tracks, int | float | np.number)
-            or not 0 <= self.validation_tracks < 1
-        ):
-            raise RunError("validation_tracks must be a share in [0, 1) of the training tracks, "
-                           f"got {self.validation_tracks!r}")  # fmt: skip
+            problems.append("pretrain_episodes 1 leaves no episode to validate the warm start "
+                            "on: record >= 2 or set pretrain_validation to 0")  # fmt: skip
         if self.validation_tracks and self.ego_tracks and not self.held_tracks:
-            raise RunError(f"validation_tracks {self.validation_tracks:g} needs a scene with "
-                           "at least 2 training tracks to split, got "
-                           f"{list(self.ego_tracks)}")  # fmt: skip
+            problems.append(f"validation_tracks {self.validation_tracks:g} needs a scene with "
+                            "at least 2 training tracks to split, got "
+                            f"{list(self.ego_tracks)}")  # fmt: skip
         if self.validation_tracks and not self.validation_episodes:
-            raise RunError(f"validation_tracks {self.validation_tracks:g} holds tracks out for "
-                           "the validation episodes: give validation_episodes >= 1")  # fmt: skip
-        if not 0 <= self.pretrain_validation < 1:
-            raise RunError(f"pretrain_validation must be in [0, 1), got {self.pretrain_validation}")
-        if self.evolve not in EVOLVE_SCOPES:
-            raise RunError(f"unknown evolve scope {self.evolve!r}; choose from "
-                           f"{list(EVOLVE_SCOPES)}")  # fmt: skip
-        if self.evolve != "all" and not (self.pretrain or self.pretrain_episodes):
-            raise RunError(f"evolve {self.evolve!r} keeps the warm start's encoder: give "
-                           "--pretrain or --pretrain-episodes (TrainConfig.pretrain / "
-                           "pretrain_episodes), or evolve 'all'")  # fmt: skip
-        if self.prior is not None and self.prior not in PRIORS:
-            raise RunError(f"unknown prior {self.prior!r}; choose from {list(PRIORS)}")
-        if self.selection not in SELECTIONS:
-            raise RunError(f"unknown selection {self.selection!r}; choose from "
-                           f"{list(SELECTIONS)}")  # fmt: skip
-        if self.anchored and not (self.pretrain or self.pretrain_episodes):
-            raise RunError(f"selection {self.selection!r} starts from the warm start and keeps "
-                           "a member no worse than it: give --pretrain or --pretrain-episodes, "
-                           "or selection 'pareto'")  # fmt: skip
-        if self.max_correction is not None:  # as floats (config.json stores a list)
+            problems.append(
+                f"validation_tracks {self.validation_tracks:g} holds tracks out "
+                "for the validation episodes: give validation_episodes >= 1"
+            )
+        if self.evolve != "all" and not warm:
+            problems.append(f"evolve {self.evolve!r} keeps the warm start's encoder: give "
+                            "--pretrain or --pretrain-episodes (TrainConfig.pretrain / "
+                            "pretrain_episodes), or evolve 'all'")  # fmt: skip
+        if self.anchored and not warm:
+            problems.append(f"selection {self.selection!r} starts from the warm start and "
+                            "keeps a member no worse than it: give --pretrain or "
+                            "--pretrain-episodes, or selection 'pareto'")  # fmt: skip
+        if self.max_correction is not None:
             try:
-                bound = checked_max_correction(self.max_correction, self.frame)
+                checked_max_correction(self.max_correction, self.frame)
             except ValueError as exc:
-                raise RunError(str(exc)) from None
-            object.__setattr__(self, "max_correction", bound)
-        if not (math.isfinite(self.es_step) and 0 < self.es_step <= MAX_ES_STEP):
-            raise RunError(f"es_step must be in (0, {MAX_ES_STEP:g}], got {self.es_step}")
+                problems.append(str(exc))
+        if problems:
+            raise ValueError("\n".join(problems))
+        return self
 
     @property
     def anchored(self) -> bool:
@@ -371,16 +406,6 @@ class TrainConfig:
         return {"simulation": {"duration": self.episode_seconds}, **ego,
                 **goal_overrides(self.goal_seconds)}  # fmt: skip
 
-    #: Fields that may differ between a run and its resumption (they do not change results).
-    RESUMABLE = ("generations", "backend", "workers", "ray_address", "batch")
-
-
-#: The largest mutation step accepted (``sigma``): larger ones overflow the network's
-#: weights (the recipes use 0.02 to 0.1).
-MAX_SIGMA = 10.0
-
-#: The largest ``es_step`` accepted (the centre would leap past its pairs' noise).
-MAX_ES_STEP = 100.0
 
 #: A run folder's README.md: what its files are and what to do with them.
 RUN_README = """# A NeuroTrajectory training run
@@ -445,7 +470,7 @@ class Run:
         return run
 
     def _write_config(self) -> None:
-        doc = {"format": FORMAT_VERSION, "run": self.fingerprint, "train": asdict(self.config),
+        doc = {"format": FORMAT_VERSION, "run": self.fingerprint, "train": self.config.as_dict(),
                "after": self.after}  # fmt: skip
         write_json(self.out / "config.json", doc)
 
@@ -454,7 +479,7 @@ class Run:
         """The run's identity: a digest of every setting that shapes its results (not those a
         resume may change, :attr:`TrainConfig.RESUMABLE`). Its checkpoint carries it."""
         unstamped = TrainConfig.UNSTAMPED_DEFAULTS
-        doc = {k: v for k, v in asdict(self.config).items() if k not in TrainConfig.RESUMABLE
+        doc = {k: v for k, v in self.config.as_dict().items() if k not in TrainConfig.RESUMABLE
                and not (k in unstamped and v == unstamped[k])}  # fmt: skip
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()[:16]
 
@@ -471,7 +496,7 @@ class Run:
         if not isinstance(doc["train"], dict):
             raise RunError(f"{cfg_path}: 'train' must be an object, got {doc['train']!r}")
         try:
-            known = {f.name for f in fields(TrainConfig)}
+            known = set(TrainConfig.model_fields)
             legacy = TrainConfig.LEGACY if doc["format"] == 1 else TrainConfig.LATER
             stored = TrainConfig(
                 **{**legacy, **{k: v for k, v in doc["train"].items() if k in known}}
@@ -489,7 +514,7 @@ class Run:
             detail = ", ".join(f"{k}: run has {a!r}, asked {b!r}" for k, (a, b) in clash.items())
             raise RunError(f"{out}: cannot resume with a different configuration ({detail})")
         allowed = {k: v for k, v in changes.items() if v is not None and k in TrainConfig.RESUMABLE}
-        config = TrainConfig(**{**asdict(stored), **allowed})
+        config = stored.replace(**allowed)
         kept = doc.get("after") if isinstance(doc.get("after"), dict) else {}
         given = {k: v for k, v in after.items() if v is not None}
         run = cls(out, config, {k: kept[k] for k in AFTER_DEFAULTS if k in kept} | given)
@@ -1032,9 +1057,8 @@ def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
                        f"{', '.join(map(repr, missing))}, which {config.scenario!r} replays: "
                        "record windows of that scene")  # fmt: skip
     if not is_collection(config.scenario):
-        return replace(config, ego_tracks=tuple(per_scene[scenes[0]]))
-    return replace(
-        config,
+        return config.replace(ego_tracks=tuple(per_scene[scenes[0]]))
+    return config.replace(
         ego_tracks=tuple(track_name(scene, i) for scene, ids in per_scene.items() for i in ids),
     )
 
@@ -1050,16 +1074,6 @@ def _read_npz(path: Path, *keys: str) -> tuple[np.ndarray, ...] | None:
     except Exception as exc:
         raise RunError(f"{path}: not a readable .npz archive of a run (damaged or replaced?): "
                        f"{type(exc).__name__}: {exc}") from None  # fmt: skip
-
-
-def _check_positive(name: str, value) -> None:
-    """A :class:`RunError` unless ``value`` is None or a finite number > 0."""
-    if value is None:
-        return
-    if isinstance(value, bool) or not isinstance(value, int | float | np.number):
-        raise RunError(f"{name} must be a number, got {value!r}")
-    if not (math.isfinite(value) and value > 0):
-        raise RunError(f"{name} must be a finite number > 0, got {value}")
 
 
 def _score(index: int, fitness: np.ndarray, stats: dict) -> dict:

@@ -13,16 +13,18 @@ every other method. In closed loop it drives GridSim-v0 through the discrete act
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated
 
 import numpy as np
 import torch
+from pydantic import Field
 from torch import nn
 from tqdm import tqdm
 
 from gridsim import libm
 from gridsim.outputs import write_json
+from gridsim.seeding import MAX_SEED
 from neurotrajectory.compare.predictors import Setting, observation_batch
 from neurotrajectory.data.commands import (
     LONGITUDINAL,
@@ -33,6 +35,7 @@ from neurotrajectory.data.commands import (
 )
 from neurotrajectory.data.windows import Windows
 from neurotrajectory.model import PRESETS, GridEncoder, NetConfig, window_inputs
+from neurotrajectory.settings import Integer, Real, Settings
 
 
 class End2EndNet(nn.Module):
@@ -52,18 +55,17 @@ class End2EndNet(nn.Module):
         return self.steer(feats), self.longitudinal(feats)
 
 
-@dataclass(frozen=True)
-class TrainSettings:
+class TrainSettings(Settings):
     """Supervised training of End2End (Adam, cross-entropy on both heads)."""
 
-    epochs: int = 8
-    batch_size: int = 32
-    learning_rate: float = 1e-3
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        if self.epochs < 1 or self.batch_size < 1 or not self.learning_rate > 0:
-            raise ValueError(f"need epochs >= 1, batch_size >= 1, learning_rate > 0: {self}")
+    epochs: Annotated[Integer, Field(ge=1)] = Field(
+        8, description="training epochs of the End2End baseline"
+    )
+    batch_size: Annotated[Integer, Field(ge=1)] = Field(32, description="windows per batch")
+    learning_rate: Annotated[Real, Field(gt=0)] = Field(1e-3, description="Adam's step size")
+    seed: Annotated[Integer, Field(ge=0, le=MAX_SEED)] = Field(
+        0, description="seed of the initial weights and the batches' order"
+    )
 
 
 class End2End:

@@ -121,7 +121,7 @@ def test_bad_runs_give_clear_errors_and_overwrite_nothing(tmp_path, capsys):
     assert "invalid choice: 'huge'" in capsys.readouterr().err
     with pytest.raises(RunError, match="unknown preset 'huge'"):
         TrainConfig(preset="huge")
-    with pytest.raises(RunError, match="population must be >= 2"):
+    with pytest.raises(RunError, match="population must be an integer >= 2, got"):
         TrainConfig(population=1)
     busy = tmp_path / "busy"
     busy.mkdir()
@@ -238,14 +238,14 @@ QUICK = ["--preset", "tiny", "--population", "4", "--generations", "1", "--episo
         (["--seed", "-3"], ["argument --seed: expected an integer >= 0, got '-3'"]),
         (["--seed", "x"], ["argument --seed: expected an integer >= 0, got 'x'"]),
         (["--population", "1"], ["argument --population: expected an integer >= 2, got '1'"]),
-        (["--sigma", "nan"], ["sigma must be a finite number, got nan"]),
+        (["--sigma", "nan"], ["sigma must be a finite number in (0, 10], got nan"]),
         (
             ["--sigma", "-0.1"],
-            ["sigma must be in (0, 10] (the mutation's standard deviation per weight), got -0.1"],
+            ["sigma must be a finite number in (0, 10], got -0.1"],
         ),
         (["--workers", "0"], ["argument --workers: expected an integer >= 1, got '0'"]),
-        (["--episode-seconds", "inf"], ["episode_seconds must be a finite number, got inf"]),
-        (["--episode-seconds", "5000"], ["--episode-seconds 5000", "simulation.duration", "3600"]),
+        (["--episode-seconds", "inf"], ["episode_seconds must be a finite number in (0, 3600]"]),
+        (["--episode-seconds", "5000"], ["episode_seconds must be a finite number in (0, 3600]"]),
         (["--pretrain", "no-such-data"], ["--pretrain no-such-data", "not a dataset"]),
         (["--pretrain-episodes", "2", "--scenario", "us101_3_3"], ["replays a recorded scene"]),
         (["--video", "knee.avi"], ["--video knee.avi: unsupported extension '.avi'"]),
@@ -266,18 +266,15 @@ def test_bad_train_arguments_are_refused_before_the_run_folder_is_made(
 
 def test_train_config_checks_every_field():
     for bad, text in [
-        ({"seed": -3}, "seed must be >= 0 (an integer), got -3"),
-        ({"seed": 1.5}, "seed must be >= 0 (an integer), got 1.5"),
-        ({"workers": 0}, "workers must be >= 1 (an integer), got 0"),
-        ({"sigma": float("inf")}, "sigma must be a finite number, got inf"),
-        ({"episode_seconds": float("nan")}, "episode_seconds must be a finite number, got nan"),
+        ({"seed": -3}, "seed must be an integer in [0, 4.29497e+09], got -3"),
+        ({"seed": 1.5}, "seed must be an integer in [0, 4.29497e+09], got 1.5"),
+        ({"workers": 0}, "workers must be an integer >= 1, got 0"),
+        ({"sigma": float("inf")}, "sigma must be a finite number in (0, 10], got inf"),
+        ({"episode_seconds": float("nan")}, "episode_seconds must be a finite number in (0, 3"),
         ({"backend": "gpu"}, "unknown backend 'gpu'; choose from ['local', 'processes', 'ray']"),
-        ({"elite_fraction": 1.0}, "elite_fraction must be in (0, 1), got 1.0"),
-        ({"activation": "gelu"}, "unknown activation 'gelu'; choose from ['relu', 'sigmoid', "),
-        (
-            {"plan_smoothing": 1.0},
-            "plan_smoothing (the share of the previous plan kept) must be in [0, 1), got 1.0",
-        ),
+        ({"elite_fraction": 1.0}, "elite_fraction must be a finite number in (0, 1), got 1.0"),
+        ({"activation": "gelu"}, "unknown activation 'gelu'; choose from ['sigmoid', 'relu', "),
+        ({"plan_smoothing": 1.0}, "plan_smoothing must be a finite number in [0, 1), got 1.0"),
     ]:
         with pytest.raises(RunError) as info:
             TrainConfig(**bad)
@@ -418,14 +415,12 @@ _COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quie
 
 
 def test_resume_applies_or_refuses_every_training_flag(tmp_path, capsys):
-    from dataclasses import fields
-
     from neurotrajectory.cli import build_parser
 
     train = next(a for a in build_parser()._actions if a.dest == "command").choices["train"]
     dest = {a.option_strings[-1]: a.dest for a in train._actions}
     assert set(dest) == set(_OTHER_VALUES) | _COMMAND_FLAGS  # a new flag is tested here
-    assert {dest[f] for f in _OTHER_VALUES} <= {f.name for f in fields(TrainConfig)}
+    assert {dest[f] for f in _OTHER_VALUES} <= set(TrainConfig.model_fields)
     run = Run.create(tmp_path / "run", TrainConfig(preset="tiny"))
     before = (run.out / "config.json").read_text()
     for flag, value in _OTHER_VALUES.items():

@@ -163,7 +163,7 @@ def test_a_missing_pretraining_dataset_is_a_clear_error(tmp_path, capsys):
                       episode_seconds=2.0, pretrain=str(tmp_path / "nothing"))  # fmt: skip
     with pytest.raises(RunError, match=r"--pretrain .*nothing.*no manifest.json"):
         Run.create(tmp_path / "run", cfg).train(progress=False)
-    with pytest.raises(RunError, match="pretrain_epochs must be >= 1"):
+    with pytest.raises(RunError, match="pretrain_epochs must be an integer >= 1, got 0"):
         TrainConfig(pretrain_epochs=0)
     assert not (tmp_path / "run").exists()  # refused before the run folder is made
 
@@ -381,8 +381,8 @@ def test_visited_windows_weigh_their_share_of_the_fit(windows_dir):
     [(0, "dagger_weight must be a finite number > 0, got 0"),
      (-0.5, "dagger_weight must be a finite number > 0, got -0.5"),
      (float("nan"), "dagger_weight must be a finite number > 0, got nan"),
-     ("half", "dagger_weight must be a number, got 'half'"),
-     (True, "dagger_weight must be a number, got True")],
+     ("half", "dagger_weight must be a finite number > 0, got 'half'"),
+     (True, "dagger_weight must be a finite number > 0, got True")],
 )  # fmt: skip
 def test_the_dagger_weight_is_checked(weight, message):
     with pytest.raises(RunError, match=message):
@@ -390,8 +390,8 @@ def test_the_dagger_weight_is_checked(weight, message):
 
 
 def test_unknown_dagger_labels_are_refused():
-    with pytest.raises(RunError, match=r"unknown dagger_labels 'expert'; choose from \['human', "
-                                       r"'rejoin'\]"):  # fmt: skip
+    with pytest.raises(RunError, match=r"unknown dagger_labels 'expert'; choose from \['rejoin', "
+                                       r"'human'\]"):  # fmt: skip
         TrainConfig(pretrain_episodes=2, dagger_rounds=1, dagger_labels="expert")
 
 

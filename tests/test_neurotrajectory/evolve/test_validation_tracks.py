@@ -35,9 +35,9 @@ def test_the_held_tracks_are_a_seeded_share_kept_out_of_the_generations():
 @pytest.mark.parametrize(
     ("share", "tracks", "message"),
     [
-        (1.0, TRACKS, r"share in \[0, 1\)"),
-        (-0.1, TRACKS, r"share in \[0, 1\)"),
-        ("0.3", TRACKS, r"share in \[0, 1\)"),
+        (1.0, TRACKS, r"validation_tracks must be a finite number in \[0, 1\), got"),
+        (-0.1, TRACKS, r"validation_tracks must be a finite number in \[0, 1\), got"),
+        ("0.3", TRACKS, r"validation_tracks must be a finite number in \[0, 1\), got"),
         (0.3, ("381",), "needs a scene with at least 2 training tracks"),
         (0.3, ("a/1", "b/2"), "needs a scene with at least 2 training tracks"),
     ],
