@@ -1,7 +1,8 @@
 """The reference's shadow world, ticked: in compiled batches while nothing needs Python
 (:func:`~gridsim.envs.shadow_world_kernels.ticks`), by the world's own tick otherwise.
 
-Where the road offers its tracking and the traffic its tick data (the seamless family) a
+Where the road offers its tracking, the traffic its tick data (the seamless family) and the
+driver's follower its own (:meth:`~gridsim.world.scripted_drivers.LaneFollower.tick_data`) a
 batch runs the human driver, the ego's step, the road's tracking, the
 fleet's tick and the samples, and rules near misses out where the boxes are clearly apart.
 Python takes over for a tick that gives way to a vehicle (a revision), grows or trims the
@@ -18,7 +19,7 @@ import numpy as np
 from gridsim.envs import shadow_world_kernels as kernels
 from gridsim.vehicle.kinematics import step_limits
 from gridsim.world.collision import CollisionChecker
-from gridsim.world.scripted_drivers import HumanDriver, LaneFollower, driver_limits
+from gridsim.world.scripted_drivers import HumanDriver, driver_limits
 from gridsim.world.world import World
 
 _NO_SAMPLES = (np.zeros((0, 2)), np.zeros(0), np.zeros(0))
@@ -42,11 +43,7 @@ class ShadowWorld:
         compiled: bool = True,
     ) -> None:
         self.world, self.driver, self.checker, self.samples = world, driver, checker, samples
-        self._compiled = (
-            compiled
-            and isinstance(driver.follower, LaneFollower)  # the driver the kernel implements
-            and world.ego_params._scalar
-        )
+        self._compiled = compiled and world.ego_params._scalar
         if self._compiled:  # what does not change from tick to tick
             p = world.ego_params
             self._params = (step_limits(p), driver_limits(p))
@@ -100,9 +97,9 @@ class ShadowWorld:
         flags and the samples, or None if the next tick must run in Python."""
         w, d = self.world, self.driver
         road, traffic = w.road.tracking(), w.traffic.tick_data(w.dt, w.road)
-        if road is None or traffic is None:  # what the road and the traffic offer
+        driver = d.follower.tick_data(w)
+        if road is None or traffic is None or driver is None:  # what they offer the kernel
             return None
-        hint = d.follower.tracked(w)
         c = d.chain
         c.extend(end + _CHAIN_AHEAD)  # what ProfileChain.at would compute on the way
         # profiles run out on about one tick in seven: no draws ahead for a tick or two
@@ -111,7 +108,7 @@ class ShadowWorld:
             (w.time, w.dt),
             tuple(w.ego.tolist()),
             self._params,
-            (w.route.tracking_data(), hint, d.follower.settings),
+            driver,
             (c.times, c.speeds, c.offsets, c.ready),
             road,
             traffic,

@@ -75,6 +75,15 @@ class LaneFollower:
             accel = conflict_free_accel(world, route, s_rear, d_rear, accel, yield_to)
         return accel, steer_rate
 
+    def tick_data(self, world) -> tuple | None:
+        """What a compiled tick needs to drive as this follower does (the ``driver`` of
+        :func:`~gridsim.envs.shadow_world_kernels.ticks`): the route's tracking data, the
+        segment tracked and :attr:`settings`; None where the kernel would not drive as it
+        does (a subclass with inputs of its own), so that its world ticks in Python."""
+        if type(self).inputs is not LaneFollower.inputs:
+            return None
+        return (world.route.tracking_data(), self.tracked(world), self.settings)
+
     @property
     def settings(self) -> tuple:
         """Pursuit gains, IDM parameters, projection window and leader look-ahead, as

@@ -15,7 +15,7 @@ from gridsim.vehicle.idm import idm_accel
 from gridsim.vehicle.kinematics import V
 from gridsim.world.collision_kernels import boxes_apart
 from gridsim.world.scripted_driver_kernels import route_inputs
-from gridsim.world.scripted_drivers import LaneFollower
+from gridsim.world.scripted_drivers import HumanDriver, LaneFollower
 
 
 def _both(monkeypatch, scenario, seed, duration):
@@ -118,3 +118,41 @@ def test_compiled_follower_inputs_equal_the_python_code():
             world.tick(accel + float(rng.normal(0, 0.5)), rate, check=False)
             led += leader
         assert led > 30  # the IDM behind a leader, too
+
+
+class _Slower(LaneFollower):
+    """A follower with inputs of its own (half the profile's speed)."""
+
+    def inputs(self, world, speed, offset, yield_to=()):
+        return super().inputs(world, 0.5 * speed, offset, yield_to)
+
+
+def test_a_follower_with_its_own_inputs_ticks_in_python(monkeypatch):
+    """The compiled batch drives as :class:`LaneFollower` does: a subclass with inputs of its
+    own offers no tick data, so its shadow world ticks in Python (its own inputs), and the
+    plain follower's is what the kernel takes."""
+    calls = []
+    ticks = shadow_world_kernels.ticks
+    monkeypatch.setattr(shadow_world_kernels, "ticks",
+                        lambda *args: calls.append(1) or ticks(*args))  # fmt: skip
+    sc = load_scenario("seamless", {"simulation": {"duration": 10.0}})
+    world = build_world(sc, 0)
+    plain = LaneFollower(speed=10.0)
+    route, hint, settings = plain.tick_data(world)
+    assert all(a is b for a, b in zip(route, world.route.tracking_data(), strict=True))
+    assert hint == plain.tracked(world)
+    assert settings == plain.settings
+    slower = _Slower(speed=10.0)
+    assert slower.tick_data(world) is None
+    monkeypatch.setattr(human_reference, "HumanDriver", _slower_driver)
+    ref = HumanReference(sc, 0, 5.0)
+    ref.positions(np.array([5.0]))
+    assert not calls  # every tick in Python
+    monkeypatch.undo()
+    normal = HumanReference(sc, 0, 5.0)
+    normal.positions(np.array([5.0]))
+    assert (ref.v[10:] < 0.8 * normal.v[10:]).all()  # it drove as its own inputs say
+
+
+def _slower_driver(chain, yield_to):
+    return HumanDriver(chain, _Slower(speed=chain.profiles.bounds.v_max), yield_to)
