@@ -64,12 +64,21 @@ class ActionType(ABC):
     """How an action drives the ego for one decision period."""
 
     def __init__(
-        self, params: BicycleParams, horizon: int, setpoint_period: float, orientation: str
+        self,
+        params: BicycleParams,
+        horizon: int,
+        setpoint_period: float,
+        orientation: str,
+        decision_period: float = 0.1,
     ) -> None:
+        """``params``: the ego's vehicle; ``horizon`` set-points ``setpoint_period`` [s]
+        apart; ``orientation``: the grid frame's (:mod:`gridsim.frames`); an action drives
+        for ``decision_period`` [s]."""
         self.params = params
         self.horizon = horizon
         self.period = setpoint_period
         self.orientation = orientation
+        self.decision_period = decision_period
         self.space = self._make_space()
 
     @abstractmethod
@@ -227,10 +236,6 @@ class DiscreteAction(ActionType):
 
     STEER_STEP_DEG = 3.0
     NAMES = ("keep", "accelerate", "decelerate", "left", "right")
-
-    def __init__(self, *args, decision_period: float = 0.1, **kwargs) -> None:
-        self.decision_period = decision_period
-        super().__init__(*args, **kwargs)
 
     def _make_space(self) -> spaces.Discrete:
         return spaces.Discrete(len(self.NAMES))

@@ -111,9 +111,9 @@ class GridSimEnv(gym.Env):
         self.metadata = {**self.metadata, "render_fps": 1.0 / e.decision_period}
         # Spaces depend only on the scenario, not on the episode.
         params = vehicle_params(cfg.ego.vehicle)
-        kwargs = {"decision_period": e.decision_period} if action_type == "discrete" else {}
-        self.action_kind = ACTION_TYPES[action_type](params, e.horizon, e.setpoint_period,
-                                                     self._orientation, **kwargs)  # fmt: skip
+        self.action_kind = ACTION_TYPES[action_type](
+            params, e.horizon, e.setpoint_period, self._orientation, e.decision_period
+        )
         self.action_type = action_type
         self.action_space = self.action_kind.space
         self.observation_kind = OBSERVATION_TYPES[observation_type](cfg)

@@ -81,6 +81,11 @@ class Road(ABC):
         ticks in Python only (the default)."""
         return None
 
+    def shared_parts(self) -> list:
+        """The parts of this road that copies of a world share (never changed, the same for
+        every seed; see :func:`~gridsim.scenario.build.build_world`): none by default."""
+        return []
+
     def set_tracked(self, ego_s: float, hint: int) -> None:  # noqa: B027 - optional hook
         """Take the ego's arc length [m] and segment from a compiled tick (roads that offer
         :meth:`tracking`)."""
@@ -170,6 +175,10 @@ class StaticRoad(Road):
     @property
     def lanes(self) -> list[Lane]:
         return self._lanes
+
+    def shared_parts(self) -> list:
+        """The whole road: its geometry never changes."""
+        return [self]
 
     @property
     def bounds(self) -> np.ndarray:

@@ -12,12 +12,10 @@ from collections import OrderedDict
 
 import numpy as np
 
-from gridsim.road.base import StaticRoad
 from gridsim.scenario.family import family_of
 from gridsim.scenario.parts import input_stamps
 from gridsim.scenario.schema import Scenario
 from gridsim.sensors.occupancy import GridSpec, OccupancyGridSensor, SensorMount
-from gridsim.traffic.sources import SyntheticTraffic
 from gridsim.world.world import World
 
 
@@ -60,8 +58,4 @@ def _shared_parts(world: World) -> list:
     parts = [world.ego_params, world.last, world.traffic.fleet.p]
     if world.ego_track is not None:
         parts.append(world.ego_track)
-    if isinstance(world.road, StaticRoad):
-        parts.append(world.road)
-    if isinstance(world.traffic, SyntheticTraffic):
-        parts += [world.traffic.profiles, world.traffic.fleet.profiles]
-    return parts
+    return parts + world.road.shared_parts() + world.traffic.shared_parts()

@@ -80,6 +80,11 @@ class TrafficSource(ABC):
     def refill(self, ended: np.ndarray, ego: EgoPose) -> None:  # noqa: B027 - optional hook
         """The rest of a compiled tick (sources that offer :meth:`tick_data`)."""
 
+    def shared_parts(self) -> list:
+        """The parts of this source that copies of a world share (never changed, the same
+        for every seed; see :func:`~gridsim.scenario.build.build_world`): none by default."""
+        return []
+
 
 class RecordedSceneTraffic(TrafficSource):
     """Replays the tracks of a recorded scene in their own geometry (exact poses, 10 Hz data
@@ -172,6 +177,10 @@ class SyntheticTraffic(TrafficSource):
         self.fleet.profiles = _profile_tables(self.profiles)
         self._sizes = self.profiles.sizes
         self.rng = np.random.default_rng(0)
+
+    def shared_parts(self) -> list:
+        """The profile tables: drawn from, never changed."""
+        return [self.profiles, self.fleet.profiles]
 
     def __deepcopy__(self, memo) -> SyntheticTraffic:
         """A deep copy whose random stream is copied through its state

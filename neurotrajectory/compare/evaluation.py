@@ -34,10 +34,11 @@ from gridsim.outputs import new_folder, write_json
 from gridsim.policies import Reference
 from gridsim.scenario.schema import MAX_DURATION
 from gridsim.seeding import MAX_SEED, Salt, stream
+from neurotrajectory.compare import methods
 from neurotrajectory.compare.baselines.end2end import CommandPolicy, End2End, TrainSettings
 from neurotrajectory.compare.closed_loop import closed_loop
 from neurotrajectory.compare.front import NetPredictor, load_front
-from neurotrajectory.compare.methods import NT_BEST, NT_PICKED, PLANNERS
+from neurotrajectory.compare.methods import NT_BEST, NT_PICKED
 from neurotrajectory.compare.metrics import Accuracy, accuracy
 from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
 from neurotrajectory.data.windows import (
@@ -193,13 +194,13 @@ def _evaluate_group(
     e2e.save(out / "models" / f"end2end-{group}")
     picked = front.nets[front.picked]
     nt = NetPredictor(picked)
-    planners = {cls.name: cls(setting) for cls in PLANNERS}
-    methods = {**planners, End2End.name: e2e}
+    planners = {cls.name: cls(setting) for cls in methods.PLANNERS}
+    compared = {**planners, End2End.name: e2e}
     log(
-        f"{group}: scoring {len(methods)} methods and {len(front.nets)} front members on "
+        f"{group}: scoring {len(compared)} methods and {len(front.nets)} front members on "
         f"{len(test)} test windows"
     )
-    to_score = [*methods.items(), *((f"member {k}", NetPredictor(n))
+    to_score = [*compared.items(), *((f"member {k}", NetPredictor(n))
                                     for k, n in enumerate(front.nets))]  # fmt: skip
     scored = tqdm(to_score, desc=f"score {group}", unit="method", leave=False,
                   disable=not progress)  # fmt: skip
@@ -207,7 +208,7 @@ def _evaluate_group(
     for name, m in scored:
         scored.set_postfix(method=name)
         a = accuracy(m.predict(test), test.target, test.heading)
-        if name in methods:
+        if name in compared:
             scores[name] = a
         else:
             members.append(a)

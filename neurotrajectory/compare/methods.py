@@ -9,8 +9,10 @@ from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
 from neurotrajectory.compare.baselines.dwa import DWA
 
 #: The trajectory planners made from a scenario's setting alone, in the order the tables
-#: list them: ``cls(setting)`` predicts windows and plans in closed loop.
-PLANNERS = (ConstantVelocity, DestinationCurve, DWA)
+#: list them: ``cls(setting)`` predicts windows (``predict(windows)``: set-points ``(N,
+#: tau_o, 2)`` [m, grid frame]) and plans in closed loop; its ``name`` labels its rows.
+#: Append a class to compare one more.
+PLANNERS: list[type] = [ConstantVelocity, DestinationCurve, DWA]
 #: NeuroTrajectory as compared: the front member picked without test data.
 NT_PICKED = "NeuroTrajectory"
 #: NeuroTrajectory's front member with the lowest test RMSE (an optimistic pick).

@@ -225,3 +225,35 @@ def test_progress_is_left_out_when_the_human_did_not_move():
     out = summarise(rows)
     assert out["progress"] == pytest.approx(1.2) and out["completed"] == 0.5
     assert out["episodes"] == 2
+
+
+class StandStill:
+    """A toy baseline: every set-point where the ego is now."""
+
+    name = "stand still"
+
+    def __init__(self, setting) -> None:
+        self.setting = setting
+
+    def predict(self, batch) -> np.ndarray:
+        return np.zeros((len(batch), len(self.setting.times), 2))
+
+
+def test_a_registered_baseline_is_scored_open_and_closed_loop(tiny_run, data, tmp_path,
+                                                               monkeypatch):  # fmt: skip
+    """A planner class appended to ``methods.PLANNERS`` gets its rows in Table II and the
+    closed loop, under its ``name``."""
+    from neurotrajectory.compare import methods
+    from neurotrajectory.compare.metrics import accuracy
+
+    monkeypatch.setattr(methods, "PLANNERS", [*methods.PLANNERS, StandStill])
+    out = tmp_path / "eval"
+    assert main(["evaluate", "--run", str(tiny_run), "--data", str(data), "--out", str(out),
+                 "--groups", "seamless", "--e2e-epochs", "1", "--closed-loop-episodes", "1",
+                 "--closed-loop-seconds", "3", "--quiet"]) == 0  # fmt: skip
+    (row,) = [r for r in _table(out / "table2.csv") if r["method"] == StandStill.name]
+    _, test = split_by_track(load_dataset(data / "seamless").windows, 0.3, seed=0)
+    still = accuracy(np.zeros_like(test.target), test.target, test.heading)
+    assert float(row["rmse"]) == pytest.approx(still.rmse, abs=1e-4) and still.rmse > 1.0
+    (loop,) = [r for r in _table(out / "closed_loop.csv") if r["method"] == StandStill.name]
+    assert float(loop["progress"]) < 0.5  # it brakes to a stop
