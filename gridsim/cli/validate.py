@@ -16,12 +16,15 @@ def add_parser(sub) -> None:
         "each file of a folder or glob, and print precise errors",
     )
     p.add_argument("path", help="a scenario file, a folder or a glob of them")
+    p.add_argument("--resolved", action="store_true",
+                   help="also print the scenario as it is run: every key, the family's "
+                   "defaults and extends: filled in (one file)")  # fmt: skip
     p.set_defaults(func=execute)
 
 
 def _report(path: str):
-    """``(summary, report)`` of one scenario file: it loads, builds, and its recorded data
-    (if any) is plausible (:class:`~gridsim.scenario.checks.SceneReport`)."""
+    """``(scenario, summary, report)`` of one scenario file: it loads, builds, and its
+    recorded data (if any) is plausible (:class:`~gridsim.scenario.checks.SceneReport`)."""
     from gridsim.scenario.build import build_world
     from gridsim.scenario.families import scenario_report
     from gridsim.scenario.loader import load_scenario
@@ -32,7 +35,7 @@ def _report(path: str):
         with warnings.catch_warnings():  # the report lists them
             warnings.simplefilter("ignore", DataWarning)
             build_world(sc, seed=0)  # also resolves maps and libraries
-    return f"scenario {sc.name!r}, road type {sc.config.road.type}", report
+    return sc, f"scenario {sc.name!r}, road type {sc.config.road.type}", report
 
 
 def execute(args: argparse.Namespace) -> int:
@@ -40,16 +43,25 @@ def execute(args: argparse.Namespace) -> int:
     from gridsim.scenario.collection import scenario_files
 
     files = scenario_files(args.path)
+    if args.resolved and files is not None:
+        raise GridSimError(f"--resolved prints one scenario; {args.path} is a folder or glob "
+                           f"of {len(files)}: give one file")  # fmt: skip
     if files is None:  # one file: its problems are the error
-        summary, report = _report(args.path)
+        sc, summary, report = _report(args.path)
         if report.problems:
             raise DataError(report.refusal(args.path))
         print(f"{args.path}: OK ({summary})" + _warning_lines(report.warnings))
+        if args.resolved:  # what the file means, every default filled in
+            import yaml
+
+            doc = sc.config.model_dump(mode="json")
+            print(f"# {args.path} as it is run (every key; the family's defaults filled in)")
+            print(yaml.safe_dump(doc, sort_keys=False, width=100), end="")
         return 0
     failed = 0
     for f in files:  # a collection: one line per file, its problems below it
         try:
-            summary, report = _report(str(f))
+            _, summary, report = _report(str(f))
             problems, notes = report.problems, report.warnings
         except GridSimError as exc:
             summary, problems, notes = "error", str(exc).splitlines(), ()

@@ -1,6 +1,7 @@
 """Scenario YAML: loading by name and path, precise errors, overrides, fuzzing."""
 
 import string
+from pathlib import Path
 
 import pytest
 import yaml
@@ -47,7 +48,7 @@ def test_load_by_path_and_relative_files(tmp_path):
         + "\n"
     )
     doc = yaml.safe_load(open_builtin("seamless"))
-    doc["traffic"]["library"] = ["my_tracks.csv"]
+    doc["traffic"] = {"library": ["my_tracks.csv"]}
     path = tmp_path / "mine.yaml"
     path.write_text(yaml.safe_dump(doc))
     sc = load_scenario(path)
@@ -127,11 +128,11 @@ def test_bad_references_are_reported(tmp_path):
     with pytest.raises(ScenarioError, match="no built-in file 'builtin:USA_nowhere'"):
         build_world(parse_scenario(doc, "x.yaml"), 0)
     doc = yaml.safe_load(open_builtin("us101_3_3"))
-    doc["ego"]["track"] = "999999"
+    doc["ego"] = {"track": "999999"}
     with pytest.raises(ScenarioError, match="ego.track '999999' is not in scene"):
         build_world(parse_scenario(doc, "x.yaml"), 0)
     doc = yaml.safe_load(open_builtin("seamless"))
-    doc["traffic"]["library"] = ["missing.csv"]
+    doc["traffic"] = {"library": ["missing.csv"]}
     with pytest.raises(ScenarioError, match="file not found: 'missing.csv'"):
         build_world(parse_scenario(doc, "x.yaml", base_dir=tmp_path), 0)
 
@@ -144,6 +145,49 @@ def test_validate_command(tmp_path, capsys):
     assert main(["validate", str(p)]) == 2
     err = capsys.readouterr().err
     assert "road.lanes: Input should be greater than or equal to 1 (got 0)" in err
+
+
+def _leaves(doc: dict, path: tuple = ()):
+    for key, value in doc.items():
+        if isinstance(value, dict):
+            yield from _leaves(value, (*path, key))
+        else:
+            yield (*path, key)
+
+
+def _without(doc: dict, path: tuple) -> dict:
+    out = {k: (_without(v, path[1:]) if k == path[0] and len(path) > 1 else v)
+           for k, v in doc.items() if not (k == path[0] and len(path) == 1)}  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize("name", sorted(builtin_scenarios()))
+def test_builtin_files_state_only_what_differs_from_their_family(name, tmp_path, capsys):
+    """Every key a built-in file gives changes the scenario (the rest is its family's
+    default, in one place); ``validate --resolved`` prints the scenario as it is run, and
+    that YAML loads as the same scenario."""
+    path = f"scenarios/{name}.yaml"
+    doc = yaml.safe_load(Path(path).read_text())
+    config = load_scenario(path).config
+    for leaf in _leaves(doc):
+        if leaf in (("name",), ("description",), ("road", "type")):
+            continue
+        try:
+            without = parse_scenario(_without(doc, leaf), path, base_dir=tmp_path).config
+        except ScenarioError:  # a key the family requires
+            continue
+        assert without != config, f"{path}: {'.'.join(leaf)} states its family's default"
+    assert main(["validate", "--resolved", path]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"{path}: OK") and f"# {path} as it is run" in out
+    resolved = yaml.safe_load(out.split("\n", 2)[2])
+    assert set(resolved) >= {"simulation", "road", "traffic", "ego", "sensor", "env"}
+    assert parse_scenario(resolved, path, base_dir=tmp_path).config == config
+
+
+def test_validate_resolved_takes_one_file(capsys):
+    assert main(["validate", "--resolved", "scenarios/"]) == 2
+    assert "--resolved prints one scenario; scenarios/ is a folder" in capsys.readouterr().err
 
 
 def test_scenarios_command(capsys):
