@@ -59,6 +59,11 @@ VARIANTS = {
     "validation-tracks-0.3": ["--validation-tracks", "0.3"],
     "evolve-readout": ["--evolve", "readout"],
     "evolve-head": ["--evolve", "head"],
+    "sigma-0.0025": ["--sigma", "0.0025"],
+    "sigma-0.01": ["--sigma", "0.01"],
+    # evolution strategies in the read-outs' subspace (a few hundred weights)
+    "es-readout": ["--selection", "es", "--evolve", "readout"],
+    "es-readout-4-episodes": ["--selection", "es", "--evolve", "readout", "--episodes", "4"],
     # corrections bounded at about twice the 99th percentile of what the seamless training
     # windows of development seed 3 need at the last set-point, far goal (8 m along, 3 across)
     "bounded-8-3": ["--max-correction", "8", "3"],
