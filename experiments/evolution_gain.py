@@ -61,6 +61,8 @@ VARIANTS = {
     "evolve-head": ["--evolve", "head"],
     "sigma-0.0025": ["--sigma", "0.0025"],
     "sigma-0.01": ["--sigma", "0.01"],
+    "episodes-4": ["--episodes", "4"],
+    "generations-50": ["--generations", "50"],
     # evolution strategies in the read-outs' subspace (a few hundred weights)
     "es-readout": ["--selection", "es", "--evolve", "readout"],
     "es-readout-4-episodes": ["--selection", "es", "--evolve", "readout", "--episodes", "4"],
