@@ -126,12 +126,14 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
     objective, with the warm start on the same episodes as a line. The axes span the knees
     that completed every episode (and the warm start); a knee that lost episode time (a
     collision or leaving the road, its remaining steps counted at the worst values) is a
-    cross at the top edge, not drawn to scale. None without validation scores."""
+    cross at the top edge, a warm start that lost some a dotted line there, neither drawn to
+    scale. None without validation scores."""
     points = [(h["generation"], h["knee_validation"]) for h in history if "knee_validation" in h]
     if not points:
         return None
     gens = np.array([g for g, _ in points])
     warm = history[0].get("warm_start_validation")
+    warm_lost = warm is not None and warm["violation"] > 0
     lost = np.array([v["violation"] > 0 for _, v in points])
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for ax, key, name in zip(axes, ("l1", "l2", "l3"), NAMES, strict=True):
@@ -139,16 +141,19 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
         kept = np.where(lost, np.nan, y)
         ax.plot(gens, kept, marker="o", ms=4, color="tab:blue",
                 label="knee of the generation")  # fmt: skip
-        if warm is not None:
-            lost_warm = " (lost an episode)" if warm["violation"] > 0 else ""
-            ax.axhline(warm[key], color="tab:orange", ls="--", label=f"warm start{lost_warm}")
-        shown = np.append(kept[~lost], [] if warm is None else [warm[key]])
+        # the axes span what completed every episode: a padded score would flatten the rest
+        shown = np.append(kept[~lost], [] if warm is None or warm_lost else [warm[key]])
         if len(shown):
             lo, hi = float(shown.min()), float(shown.max())
             pad = 0.08 * (hi - lo) or 0.05 * max(abs(hi), 1e-9)
             ax.set_ylim(lo - pad, hi + 2 * pad)
+        top = ax.get_ylim()[1]
+        if warm is not None and not warm_lost:
+            ax.axhline(warm[key], color="tab:orange", ls="--", label="warm start")
+        elif warm_lost:
+            ax.axhline(top, color="tab:orange", ls=":", lw=2, clip_on=False,
+                       label="warm start: lost an episode (not drawn to scale)")  # fmt: skip
         if lost.any():
-            top = ax.get_ylim()[1]
             ax.scatter(gens[lost], np.full(lost.sum(), top), s=60, marker="x", color="black",
                        zorder=3, clip_on=False,
                        label="the knee lost an episode (not drawn to scale)")  # fmt: skip

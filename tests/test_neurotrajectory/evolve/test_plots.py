@@ -1,0 +1,35 @@
+"""The run's plots show what a user needs to read: a padded score (an episode lost to a
+collision or leaving the road) never sets the scale."""
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import pytest  # noqa: E402
+
+from neurotrajectory.evolve import plots  # noqa: E402
+
+
+def _score(l1, lost=0.0):
+    return {"index": 0, "l1": l1, "l2": 0.5 + l1 / 1000, "l3": 1700.0 + l1, "violation": lost}
+
+
+@pytest.mark.parametrize("warm_lost", [False, True])
+def test_the_learning_curve_is_scaled_to_what_completed(tmp_path, monkeypatch, warm_lost):
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig) or path)
+    warm = _score(5e5, lost=0.2) if warm_lost else _score(110.0)
+    history = [{"generation": g, "knee_validation": _score(100.0 - g)} for g in range(6)]
+    history[3]["knee_validation"] = _score(4e5, lost=0.1)  # a knee that lost an episode
+    history[0]["warm_start_validation"] = warm
+    plots.learning_curve(tmp_path / "lc.png", history)
+    (fig,) = figures
+    l1 = fig.axes[0]
+    low, high = l1.get_ylim()
+    assert low < 95.0 and 100.0 < high < 150.0  # the completed knees, not 4e5 or 5e5
+    labels = l1.get_legend_handles_labels()[1]
+    if warm_lost:
+        assert "warm start: lost an episode (not drawn to scale)" in labels
+    else:
+        assert "warm start" in labels and high > 110.0  # the warm start's line is on the axes
+    assert "the knee lost an episode (not drawn to scale)" in labels
