@@ -12,12 +12,20 @@ taken as the Python numbers they hold.
 from __future__ import annotations
 
 import difflib
+import re
 from collections.abc import Collection
 from typing import Annotated, Any, ClassVar, Union, get_args, get_origin
 
 import annotated_types
 import numpy as np
-from pydantic import BaseModel, BeforeValidator, ConfigDict, Field, ValidationError
+from pydantic import (
+    BaseModel,
+    BeforeValidator,
+    ConfigDict,
+    Field,
+    ValidationError,
+    WrapValidator,
+)
 from pydantic.fields import FieldInfo
 from pydantic_core import PydanticCustomError, core_schema
 
@@ -29,12 +37,33 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def _as_given(value: Any, handler) -> Any:
+    """A whole number given as a Python ``int`` stays one once checked as a number: the
+    settings are saved as given (a run's identity is a digest of them, and runs saved before
+    the typed settings kept integers)."""
+    checked = handler(value)
+    return value if type(value) is int else checked
+
+
+def _switch(value: Any) -> Any:
+    """0 and 1 as False and True (settings saved by hand or by older code); other integers,
+    strings and the rest are left to be refused."""
+    if type(value) is int and value in (0, 1):
+        return bool(value)
+    return value
+
+
 #: An integer (not a bool, a float or a string); NumPy integers accepted.
 Integer = Annotated[int, BeforeValidator(_plain), Field(strict=True)]
-#: A finite number (not a bool or a string); integers and NumPy numbers accepted.
-Real = Annotated[float, BeforeValidator(_plain), Field(strict=True, allow_inf_nan=False)]
-#: True or False (not 0, 1, "yes" or "no").
-Bool = Annotated[bool, Field(strict=True)]
+#: A finite number (not a bool or a string); NumPy numbers accepted (as floats), a Python
+#: integer kept as given.
+Real = Annotated[float, BeforeValidator(_plain), Field(strict=True, allow_inf_nan=False),
+                 WrapValidator(_as_given)]  # fmt: skip
+#: A seed: an integer >= 0 (the command lines take up to
+#: :data:`gridsim.seeding.MAX_SEED`; the API, as NumPy's generators, any below 2**63).
+Seed = Annotated[int, BeforeValidator(_plain), Field(strict=True, ge=0, le=2**63 - 1)]
+#: True or False (or 0 and 1; not "yes", "no" or other numbers).
+Bool = Annotated[bool, BeforeValidator(_switch), Field(strict=True)]
 
 
 class OneOf:
@@ -144,12 +173,16 @@ def describe_range(b: dict[str, float]) -> str:
     low = ("(", b["gt"]) if "gt" in b else ("[", b["ge"]) if "ge" in b else None
     high = (")", b["lt"]) if "lt" in b else ("]", b["le"]) if "le" in b else None
     if low and high:
-        return f"in {low[0]}{low[1]:g}, {high[1]:g}{high[0]}"
+        return f"in {low[0]}{_number(low[1])}, {_number(high[1])}{high[0]}"
     if low:
-        return f"{'>' if low[0] == '(' else '>='} {low[1]:g}"
+        return f"{'>' if low[0] == '(' else '>='} {_number(low[1])}"
     if high:
-        return f"{'<' if high[0] == ')' else '<='} {high[1]:g}"
+        return f"{'<' if high[0] == ')' else '<='} {_number(high[1])}"
     return ""
+
+
+def _number(bound: float) -> str:
+    return str(bound) if isinstance(bound, int) else f"{bound:g}"
 
 
 _NUMBER_ERRORS = {"int_type", "int_parsing", "int_from_float", "float_type", "float_parsing",
@@ -173,8 +206,9 @@ def _problem(cls: type[Settings], e: dict) -> str:
     if isinstance(inner, type) and issubclass(inner, Settings):  # nested settings
         if len(loc) > 1:
             return f"{loc[0]}." + _problem(inner, {**e, "loc": e["loc"][1:]})
-        if kind == "value_error":  # raised by the nested class's own __init__
-            return f"{loc[0]}." + e["msg"].removeprefix("Value error, ")
+        if kind == "value_error":  # raised by the nested class's own __init__: its problems
+            said = re.sub(r"^\d+ problems: ", "", e["msg"].removeprefix("Value error, "))
+            return "; ".join(f"{loc[0]}.{line}" for line in said.split("; "))
     if kind == "extra_forbidden":
         close = difflib.get_close_matches(name, list(cls.model_fields), n=1, cutoff=0.6)
         hint = f" (did you mean {close[0]!r}?)" if close else ""

@@ -50,13 +50,18 @@ def execute(args: argparse.Namespace) -> int:
         sc, summary, report = _report(args.path)
         if report.problems:
             raise DataError(report.refusal(args.path))
-        print(f"{args.path}: OK ({summary})" + _warning_lines(report.warnings))
-        if args.resolved:  # what the file means, every default filled in
-            import yaml
+        said = f"{args.path}: OK ({summary})" + _warning_lines(report.warnings)
+        if not args.resolved:
+            print(said)
+            return 0
+        # what the file means, every default filled in: YAML that loads as the same scenario
+        # (the verdict as comments, so that the output can be saved as a file)
+        import yaml
 
-            doc = sc.config.model_dump(mode="json")
-            print(f"# {args.path} as it is run (every key; the family's defaults filled in)")
-            print(yaml.safe_dump(doc, sort_keys=False, width=100), end="")
+        print("\n".join(f"# {line}" for line in said.splitlines()))
+        print(f"# {args.path} as it is run (every key; the family's defaults filled in)")
+        print(yaml.safe_dump(sc.config.model_dump(mode="json"), sort_keys=False, width=100),
+              end="")  # fmt: skip
         return 0
     failed = 0
     for f in files:  # a collection: one line per file, its problems below it

@@ -97,7 +97,8 @@ class ShadowWorld:
         flags and the samples, or None if the next tick must run in Python."""
         w, d = self.world, self.driver
         road, traffic = w.road.tracking(), w.traffic.tick_data(w.dt, w.road)
-        driver = d.follower.tick_data(w)
+        offer = getattr(d.follower, "tick_data", None)  # a follower of another kind: Python
+        driver = offer(w) if offer is not None else None
         if road is None or traffic is None or driver is None:  # what they offer the kernel
             return None
         c = d.chain

@@ -33,7 +33,7 @@ from tqdm import tqdm
 from gridsim.outputs import new_folder, write_json
 from gridsim.policies import Reference
 from gridsim.scenario.schema import MAX_DURATION
-from gridsim.seeding import MAX_SEED, Salt, stream
+from gridsim.seeding import Salt, stream
 from neurotrajectory.compare import methods
 from neurotrajectory.compare.baselines.end2end import CommandPolicy, End2End, TrainSettings
 from neurotrajectory.compare.closed_loop import closed_loop
@@ -53,7 +53,7 @@ from neurotrajectory.data.windows import (
     split_by_track,
 )
 from neurotrajectory.evolve.pareto import PICKS, pick_member
-from neurotrajectory.settings import Bool, Integer, OneOf, Real, Settings
+from neurotrajectory.settings import Bool, Integer, OneOf, Real, Seed, Settings
 
 #: A group's name: it names folders of the output (``data/NAME``, ``models/end2end-NAME``).
 GROUP_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
@@ -77,9 +77,7 @@ class EvalConfig(Settings):
     test_fraction: Annotated[Real, Field(gt=0, lt=1)] = Field(
         0.3, description="share of each group's tracks held out for testing"
     )
-    seed: Annotated[Integer, Field(ge=0, le=MAX_SEED)] = Field(
-        0, description="seed of the split and episodes"
-    )
+    seed: Seed = Field(0, description="seed of the split and episodes")
     pick: Annotated[str, OneOf(PICKS)] = Field(
         "knee", description="the front member compared (picked without test data)"
     )

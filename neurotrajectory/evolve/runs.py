@@ -18,7 +18,7 @@ import json
 import os
 import shutil
 import time
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import replace
 from pathlib import Path
@@ -39,7 +39,7 @@ from gridsim.outputs import (
     write_text,
 )
 from gridsim.scenario.schema import MAX_DURATION
-from gridsim.seeding import MAX_SEED, Salt, stream
+from gridsim.seeding import Salt, stream
 from neurotrajectory.data.windows import (
     DAGGER_LABELS,
     GENERATED_STRIDE,
@@ -88,7 +88,7 @@ from neurotrajectory.model import (
     checked_max_correction,
     size_mismatch,
 )
-from neurotrajectory.settings import Bool, Integer, OneOf, Real, Settings
+from neurotrajectory.settings import Bool, Integer, OneOf, Real, Seed, Settings
 
 FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
 PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
@@ -109,10 +109,11 @@ MAX_ES_STEP = 100.0
 
 
 def _names(tracks: Any) -> Any:
-    """Track ids as names (``ego_tracks`` may be given as integers)."""
-    if isinstance(tracks, list | tuple):
-        return tuple(str(t) for t in tracks)
-    return tracks
+    """Track ids as names (``ego_tracks`` may be given as integers, in any collection: a
+    list, a tuple, a NumPy array, a range); a single string is left to be refused."""
+    if isinstance(tracks, str | bytes) or not isinstance(tracks, Iterable):
+        return tracks
+    return tuple(str(t) for t in tracks)
 
 
 def _bound(bound: Any) -> tuple[float, float] | None:
@@ -146,9 +147,7 @@ class TrainConfig(Settings):
     elite_fraction: Annotated[Real, Field(gt=0, lt=1)] = Field(
         GAConfig.elite_fraction, description="share of each generation kept as parents"
     )
-    seed: Annotated[Integer, Field(ge=0, le=MAX_SEED)] = Field(
-        0, description="seed of the whole run"
-    )
+    seed: Seed = Field(0, description="seed of the whole run")
     backend: Annotated[str, OneOf(BACKENDS)] = Field(
         "local", description="where individuals are evaluated"
     )
@@ -310,7 +309,8 @@ class TrainConfig(Settings):
             except ValueError as exc:
                 problems.append(str(exc))
         if problems:
-            raise ValueError("\n".join(problems))
+            count = f"{len(problems)} problems: " if len(problems) > 1 else ""
+            raise ValueError(count + "; ".join(problems))
         return self
 
     @property

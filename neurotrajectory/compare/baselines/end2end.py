@@ -24,7 +24,6 @@ from tqdm import tqdm
 
 from gridsim import libm
 from gridsim.outputs import write_json
-from gridsim.seeding import MAX_SEED
 from neurotrajectory.compare.predictors import Setting, observation_batch
 from neurotrajectory.data.commands import (
     LONGITUDINAL,
@@ -35,7 +34,7 @@ from neurotrajectory.data.commands import (
 )
 from neurotrajectory.data.windows import Windows
 from neurotrajectory.model import PRESETS, GridEncoder, NetConfig, window_inputs
-from neurotrajectory.settings import Integer, Real, Settings
+from neurotrajectory.settings import Integer, Real, Seed, Settings
 
 
 class End2EndNet(nn.Module):
@@ -63,9 +62,7 @@ class TrainSettings(Settings):
     )
     batch_size: Annotated[Integer, Field(ge=1)] = Field(32, description="windows per batch")
     learning_rate: Annotated[Real, Field(gt=0)] = Field(1e-3, description="Adam's step size")
-    seed: Annotated[Integer, Field(ge=0, le=MAX_SEED)] = Field(
-        0, description="seed of the initial weights and the batches' order"
-    )
+    seed: Seed = Field(0, description="seed of the initial weights and the batches' order")
 
 
 class End2End:

@@ -156,3 +156,26 @@ def test_a_follower_with_its_own_inputs_ticks_in_python(monkeypatch):
 
 def _slower_driver(chain, yield_to):
     return HumanDriver(chain, _Slower(speed=chain.profiles.bounds.v_max), yield_to)
+
+
+class _Wrapped:
+    """A follower of another kind (no LaneFollower): it passes on a LaneFollower's inputs."""
+
+    def __init__(self, speed: float) -> None:
+        self.inner = LaneFollower(speed=speed)
+
+    def inputs(self, world, speed, offset, yield_to=()):
+        return self.inner.inputs(world, speed, offset, yield_to)
+
+
+def test_a_follower_of_another_kind_ticks_in_python_with_the_same_result(monkeypatch):
+    """A follower that offers no tick data (it has no ``tick_data``) ticks in Python; as it
+    drives as a LaneFollower, its reference is the compiled one, bit for bit."""
+    sc = load_scenario("seamless", {"simulation": {"duration": 10.0}})
+    compiled = HumanReference(sc, 3, 8.0)
+    compiled.positions(np.array([8.0]))
+    monkeypatch.setattr(human_reference, "HumanDriver", lambda chain, yield_to: HumanDriver(
+        chain, _Wrapped(chain.profiles.bounds.v_max), yield_to))  # fmt: skip
+    wrapped = HumanReference(sc, 3, 8.0)
+    wrapped.positions(np.array([8.0]))
+    _assert_same(compiled, wrapped)

@@ -179,8 +179,8 @@ def test_builtin_files_state_only_what_differs_from_their_family(name, tmp_path,
         assert without != config, f"{path}: {'.'.join(leaf)} states its family's default"
     assert main(["validate", "--resolved", path]) == 0
     out = capsys.readouterr().out
-    assert out.startswith(f"{path}: OK") and f"# {path} as it is run" in out
-    resolved = yaml.safe_load(out.split("\n", 2)[2])
+    assert out.startswith(f"# {path}: OK") and f"# {path} as it is run" in out
+    resolved = yaml.safe_load(out)  # the whole output: saved as a file, it loads
     assert set(resolved) >= {"simulation", "road", "traffic", "ego", "sensor", "env"}
     assert parse_scenario(resolved, path, base_dir=tmp_path).config == config
 
