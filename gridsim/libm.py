@@ -58,6 +58,10 @@ arctan = _function("arctan", math.atan)
 tan = _function("tan", math.tan)
 exp = _function("exp", math.exp)
 
+#: Each function and how many arguments it takes (``gridsim compile`` readies each kernel
+#: for both dtypes it runs on, float64 and float32).
+ARITY = {arctan2: 2, power: 2, arctan: 1, tan: 1, exp: 1}
+
 
 def angle(z) -> np.ndarray | float:
     """The argument of complex ``z`` [rad] (``np.angle``, with :func:`arctan2`)."""

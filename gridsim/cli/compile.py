@@ -68,6 +68,12 @@ def compile_kernels(report: Callable[[str], None] = print) -> dict:
                 _, _, terminated, truncated, info = env.step(action)
                 if terminated or truncated:
                     _, info = env.reset(seed=1)
+    # the C library's functions on float32 too (the trainer's kernels of the ego state)
+    from gridsim import libm
+
+    for dtype in (np.float64, np.float32):
+        for function, arity in libm.ARITY.items():
+            function(*[np.full(2, 0.5, dtype)] * arity)
     # the batched bicycle step (many vehicles: DWA's rollouts), which the envs do not take
     from gridsim.vehicle.kinematics import BicycleParams, step_bicycle
 

@@ -69,6 +69,13 @@ def test_gridsim_compile_readies_every_kernel_of_the_built_in_scenarios(capsys):
     out = capsys.readouterr().out
     assert out.startswith("compiling or loading the kernels of every built-in scenario:")
     assert f"{compiled_kernels()['kernels']} kernels ready (" in out
+    # every signature a trainer meets too: the C library's functions on float32 arrays
+    from gridsim import libm
+
+    before = compiled_kernels()["compiled"]
+    for function, arity in libm.ARITY.items():
+        function(*[np.linspace(0.1, 0.9, 3, dtype=np.float32)] * arity)
+    assert compiled_kernels()["compiled"] == before
 
 
 def _package(root):
