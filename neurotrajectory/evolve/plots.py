@@ -51,14 +51,25 @@ def plot_run(
         for g, f, gone in zip(gens, fit, lost, strict=True):
             ax.scatter(np.full((~gone).sum(), g), f[~gone, k], s=8, alpha=0.4, color="tab:blue",
                        label="a member" if g == gens[0] else None)  # fmt: skip
-            ax.scatter(np.full(gone.sum(), g), f[gone, k], s=14, marker="x", color="black",
-                       label="a member that lost an episode" if g == gens[0] else None)  # fmt: skip
         ax.plot(gens, [np.median(f[:, k]) for f in fit], color="tab:red", label="median")
+        if k == 0:
+            ax.set_yscale("symlog")
+        # the axes span the members that completed every episode: a padded score (the
+        # episode's remaining steps at the worst values) would flatten the rest
+        done = np.concatenate([f[~gone, k] for f, gone in zip(fit, lost, strict=True)])
+        if len(done) and k > 0:
+            lo, hi = float(done.min()), float(done.max())
+            pad = 0.08 * (hi - lo) or 0.05 * max(abs(hi), 1e-9)
+            ax.set_ylim(lo - pad, hi + 2 * pad)
+        top = ax.get_ylim()[1] if k > 0 else None
+        for g, f, gone in zip(gens, fit, lost, strict=True):
+            y = f[gone, k] if top is None else np.full(gone.sum(), top)
+            ax.scatter(np.full(gone.sum(), g), y, s=14, marker="x", color="black", clip_on=False,
+                       label="a member that lost an episode" + ("" if top is None else
+                             " (not drawn to scale)") if g == gens[0] else None)  # fmt: skip
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(NAMES[k], fontsize=9)
-        if k == 0:
-            ax.set_yscale("symlog")
     axes[0].legend(fontsize=8)
     fig.suptitle("every member of every generation, on that generation's training episodes "
                  "(drawn anew each generation)", fontsize=10)  # fmt: skip

@@ -33,3 +33,25 @@ def test_the_learning_curve_is_scaled_to_what_completed(tmp_path, monkeypatch, w
     else:
         assert "warm start" in labels and high > 110.0  # the warm start's line is on the axes
     assert "the knee lost an episode (not drawn to scale)" in labels
+
+
+def test_the_objectives_plot_is_scaled_to_the_members_that_completed(tmp_path, monkeypatch):
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig) or path)
+    history = []
+    for g in range(4):
+        fitness = [[100.0 + i, 1.0 + 0.1 * i, 1700.0 - i] for i in range(5)]
+        violation = [0.0] * 5
+        if g == 2:  # one member lost an episode: its remaining steps at the worst values
+            fitness[4], violation[4] = [5e6, 30.0, 800.0], 0.4
+        history.append({"generation": g, "fitness": fitness, "violation": violation,
+                        "rank": [0] * 5, "hypervolume": 1.0})  # fmt: skip
+    monkeypatch.setattr(plots, "generation_hypervolume", lambda *args: 1.0)
+    plots.plot_run(tmp_path, history)
+    l2, l3 = figures[0].axes[1], figures[0].axes[2]
+    assert l2.get_ylim()[1] < 2.0 and l3.get_ylim()[0] > 1600.0  # 30 and 800 left out
+    # the member that lost one is a cross at the top edge, at its generation
+    top = l2.get_ylim()[1]
+    crosses = [c.get_offsets().tolist() for c in l2.collections
+               if len(c.get_offsets()) and c.get_offsets()[0][1] == top]  # fmt: skip
+    assert crosses == [[[2.0, top]]]
