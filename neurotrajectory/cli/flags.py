@@ -10,7 +10,7 @@ from gridsim.cli.flags import MAX_COUNT, at_least
 from gridsim.seeding import MAX_SEED
 from neurotrajectory.evolve.pareto import PICKS
 from neurotrajectory.evolve.runs import RunError
-from neurotrajectory.settings import Settings, base_type, bounds, choices
+from neurotrajectory.settings import Settings, base_type, bounds, choices, describe_range
 
 
 def settings_flag(
@@ -20,8 +20,8 @@ def settings_flag(
     ``dest``), its help the field's description (or ``help``) and its default. The flag's
     default is None (so that a command can tell a flag given from one not given; the
     field's default applies). An integer field parses as an integer within the field's
-    bounds, a number as a float, a :class:`~neurotrajectory.settings.OneOf` field takes its
-    choices; ``kwargs`` (``action``, ``nargs``, ...) go to argparse as given."""
+    bounds, a number as a finite float within them, a :class:`~neurotrajectory.settings.OneOf`
+    field takes its choices; ``kwargs`` (``action``, ``nargs``, ...) go to argparse as given."""
     name = kwargs.pop("dest", flag.lstrip("-").replace("-", "_"))
     field = settings.model_fields[name]  # a KeyError here is a flag without its field: a bug
     kind = base_type(field)
@@ -30,7 +30,7 @@ def settings_flag(
             low = bounds(field).get("ge", 0)
             kwargs["type"] = at_least(low, MAX_SEED if name == "seed" else MAX_COUNT)
         elif kind is float:
-            kwargs["type"] = float
+            kwargs["type"] = number_in(bounds(field))
         if choices(field) is not None:
             kwargs["choices"] = choices(field)
     what = kwargs.pop("help", field.description)
@@ -71,6 +71,28 @@ def plan_smoothing_flag(parser: argparse.ArgumentParser, what: str) -> None:
     """``--plan-smoothing KEEP``: the share of the previous plan kept in each new one."""
     parser.add_argument("--plan-smoothing", dest="plan_smoothing", type=float, default=None,
                         metavar="KEEP", help=what)  # fmt: skip
+
+
+def number_in(limits: dict[str, float]):
+    """An argparse type: a finite number within ``limits`` (some of ``gt``, ``ge``, ``lt``,
+    ``le``, as :func:`~neurotrajectory.settings.bounds` gives them). argparse names the
+    option in its error (``argument --sigma: expected a finite number in (0, 10], got
+    'nan'``) and exits with status 2."""
+    checks = {"gt": float.__gt__, "ge": float.__ge__, "lt": float.__lt__, "le": float.__le__}
+    wanted = " ".join(["a finite number", describe_range(limits)]).strip()
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = math.nan
+        if not math.isfinite(value) or not all(checks[k](value, float(v))
+                                               for k, v in limits.items()):  # fmt: skip
+            raise argparse.ArgumentTypeError(f"expected {wanted}, got {text!r}")
+        return value
+
+    parse.__name__ = wanted
+    return parse
 
 
 def positive_seconds(text: str) -> float:

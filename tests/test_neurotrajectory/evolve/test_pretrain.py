@@ -400,8 +400,12 @@ def test_a_dagger_weight_without_rounds_is_refused_before_the_run(tmp_path, caps
         TrainConfig(pretrain_episodes=2, dagger_weight=0.5)
     out = tmp_path / "run"
     args = ["train", "--pretrain-episodes", "2", "--dagger-rounds", "1", "--out", str(out)]
-    assert main([*args, "--dagger-weight", "-1"]) == 2
-    assert "dagger_weight must be a finite number > 0, got -1.0" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as usage:  # argparse's error, before anything is made
+        main([*args, "--dagger-weight", "-1"])
+    assert usage.value.code == 2 and not out.exists()
+    assert "argument --dagger-weight: expected a finite number > 0, got '-1'" in (
+        capsys.readouterr().err
+    )
     assert main([*args[:3], *args[5:], "--dagger-weight", "0.5"]) == 2
     assert "give dagger_rounds >= 1" in capsys.readouterr().err
     assert main([*args[:3], *args[5:], "--dagger-labels", "human"]) == 2
