@@ -181,6 +181,14 @@ def describe_range(b: dict[str, float]) -> str:
     return ""
 
 
+def describe_number(kind: type, limits: dict[str, float]) -> str:
+    """What a number field takes, in words: ``an integer >= 2``, ``a finite number in (0,
+    10]`` (``kind``: int or float; ``limits``: :func:`bounds`)."""
+    rng = describe_range(limits)
+    what = "an integer" if kind is int else "a finite number"
+    return f"{what} {rng}" if rng else what
+
+
 def _number(bound: float) -> str:
     return str(bound) if isinstance(bound, int) else f"{bound:g}"
 
@@ -220,9 +228,7 @@ def _problem(cls: type[Settings], e: dict) -> str:
     if kind == "value_error":  # a check in the class's own words
         return e["msg"].removeprefix("Value error, ")
     if kind in _NUMBER_ERRORS and field is not None and len(loc) == 1:
-        what = "an integer" if base_type(field) is int else "a finite number"
-        rng = describe_range(bounds(field))
-        return f"{name} must be {what}{' ' + rng if rng else ''}, got {got!r}"
+        return f"{name} must be {describe_number(base_type(field), bounds(field))}, got {got!r}"
     if kind in ("bool_type", "bool_parsing"):
         return f"{name} must be true or false, got {got!r}"
     return f"{name}: {e['msg'][:1].lower()}{e['msg'][1:]}, got {got!r}"

@@ -10,7 +10,7 @@ from gridsim.cli.flags import MAX_COUNT, at_least
 from gridsim.seeding import MAX_SEED
 from neurotrajectory.evolve.pareto import PICKS
 from neurotrajectory.evolve.runs import RunError
-from neurotrajectory.settings import Settings, base_type, bounds, choices, describe_range
+from neurotrajectory.settings import Settings, base_type, bounds, choices, describe_number
 
 
 def settings_flag(
@@ -31,10 +31,10 @@ def settings_flag(
             kwargs["type"] = at_least(low, MAX_SEED if name == "seed" else MAX_COUNT)
         elif kind is float:
             kwargs["type"] = number_in(bounds(field))
-        if choices(field) is not None:
-            kwargs["choices"] = choices(field)
+        if (options := choices(field)) is not None:
+            kwargs["choices"] = options
     what = kwargs.pop("help", field.description)
-    default = settings.defaults()[name]
+    default = field.get_default(call_default_factory=True)
     if default is not None and not isinstance(default, bool | tuple | dict):
         what += f" (default {default:g})" if isinstance(default, float) else f" (default {default})"
     parser.add_argument(flag, dest=name, default=None, help=what, **kwargs)
@@ -79,7 +79,7 @@ def number_in(limits: dict[str, float]):
     option in its error (``argument --sigma: expected a finite number in (0, 10], got
     'nan'``) and exits with status 2."""
     checks = {"gt": float.__gt__, "ge": float.__ge__, "lt": float.__lt__, "le": float.__le__}
-    wanted = " ".join(["a finite number", describe_range(limits)]).strip()
+    wanted = describe_number(float, limits)
 
     def parse(text: str) -> float:
         try:

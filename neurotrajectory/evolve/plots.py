@@ -56,11 +56,8 @@ def plot_run(
             ax.set_yscale("symlog")
         # the axes span the members that completed every episode: a padded score (the
         # episode's remaining steps at the worst values) would flatten the rest
-        done = np.concatenate([f[~gone, k] for f, gone in zip(fit, lost, strict=True)])
-        if len(done) and k > 0:
-            lo, hi = float(done.min()), float(done.max())
-            pad = 0.08 * (hi - lo) or 0.05 * max(abs(hi), 1e-9)
-            ax.set_ylim(lo - pad, hi + 2 * pad)
+        if k > 0:
+            _span(ax, np.concatenate([f[~gone, k] for f, gone in zip(fit, lost, strict=True)]))
         top = ax.get_ylim()[1] if k > 0 else None
         for g, f, gone in zip(gens, fit, lost, strict=True):
             y = f[gone, k] if top is None else np.full(gone.sum(), top)
@@ -153,11 +150,7 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
         ax.plot(gens, kept, marker="o", ms=4, color="tab:blue",
                 label="knee of the generation")  # fmt: skip
         # the axes span what completed every episode: a padded score would flatten the rest
-        shown = np.append(kept[~lost], [] if warm is None or warm_lost else [warm[key]])
-        if len(shown):
-            lo, hi = float(shown.min()), float(shown.max())
-            pad = 0.08 * (hi - lo) or 0.05 * max(abs(hi), 1e-9)
-            ax.set_ylim(lo - pad, hi + 2 * pad)
+        _span(ax, np.append(kept[~lost], [] if warm is None or warm_lost else [warm[key]]))
         top = ax.get_ylim()[1]
         if warm is not None and not warm_lost:
             ax.axhline(warm[key], color="tab:orange", ls="--", label="warm start")
@@ -175,6 +168,15 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
     fig.suptitle("learning curve: on the validation episodes (none trained on)", fontsize=10)
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _span(ax, values: np.ndarray) -> None:
+    """The y axis spans ``values`` (with a margin, more above), if there are any: the scores
+    of what completed every episode, so that a padded score never sets the scale."""
+    if len(values):
+        lo, hi = float(values.min()), float(values.max())
+        pad = 0.08 * (hi - lo) or 0.05 * max(abs(hi), 1e-9)
+        ax.set_ylim(lo - pad, hi + 2 * pad)
 
 
 def _save(fig, path: Path) -> Path:
