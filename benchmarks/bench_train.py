@@ -2,7 +2,7 @@
 plus one env step), default scenario, for a preset and backend.
 
     python benchmarks/bench_train.py [--preset default] [--backend processes] [--workers 2]
-        [--population 32] [--batch 16]
+        [--population 32] [--batch 16] [--rounds 5]
 
 Targets (population 32, ``--backend processes --workers 2``, 2 cores): ``default`` 6,000
 (issue 25; 1,500 before), ``paper`` 300 individual-steps/s; ``ratio`` is the measured rate
@@ -18,6 +18,8 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
+import statistics
 import time
 
 from neurotrajectory.evolve.backends import WorkerSpec, make_backend
@@ -36,6 +38,7 @@ def main() -> None:
     ap.add_argument("--batch", type=int, default=16, help="individuals per worker batch")
     ap.add_argument("--episodes", type=int, default=2)
     ap.add_argument("--seconds", type=float, default=10.0, help="episode length [s]")
+    ap.add_argument("--rounds", type=int, default=5, help="timed evaluations (median reported)")
     args = ap.parse_args()
     seeds = tuple(range(100, 100 + args.episodes))
     spec = WorkerSpec(
@@ -49,13 +52,15 @@ def main() -> None:
     try:
         backend.advance(initial_recipes(GAConfig(population=args.population), 0))
         backend.evaluate(args.population, spec.seeds)  # warm-up: references cached, kernels loaded
-        t0 = time.perf_counter()
-        _, stats = backend.evaluate(args.population, spec.seeds)
-        seconds = time.perf_counter() - t0
+        rates = []
+        for _ in range(args.rounds):
+            t0 = time.perf_counter()
+            _, stats = backend.evaluate(args.population, spec.seeds)
+            rates.append(sum(s["steps"] for s in stats) / (time.perf_counter() - t0))
     finally:
         backend.close()
     steps = sum(s["steps"] for s in stats)
-    rate = steps / seconds
+    rate = statistics.median(rates)
     target = TARGETS[args.preset]
     pop_net = PopulationNet(spec.net)
     big_bytes = 4 * sum(
@@ -66,7 +71,9 @@ def main() -> None:
     print(json.dumps({"bench": "individual_steps", "preset": args.preset, "backend": args.backend,
                       "workers": args.workers, "population": args.population,
                       "batch": args.batch, "individual_steps": steps,
-                      "individual_steps_per_s": round(rate, 1), "target": target,
+                      "individual_steps_per_s": round(rate, 1),
+                      "rounds_min_max": [round(min(rates), 1), round(max(rates), 1)],
+                      "loadavg_1min": os.getloadavg()[0], "target": target,
                       "ratio": round(rate / target, 2),
                       "big_weights_mb": round(big_bytes / 1e6, 1),
                       "big_weights_gb_per_s": round(streamed, 2)}))  # fmt: skip

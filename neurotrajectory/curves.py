@@ -12,16 +12,19 @@ closest point to it, then straight on), the acceleration within ``[-b_max, a_max
 speed within ``[0, v_max]`` (the car never reverses: a destination that is not ahead of the
 rear axle means "stop").
 
-Computed one sample at a time in Python floats: a sample's set-points do not depend on which
-other samples share its batch (training requires it of every part of the forward pass).
+Computed one sample at a time on floats (:mod:`gridsim.vehicle.curve_kernels`, compiled for a
+batch): a sample's set-points do not depend on which other samples share its batch (training
+requires it of every part of the forward pass).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import astuple, dataclass
 
 import numpy as np
+
+from gridsim.vehicle.curve_kernels import curve_into, curves_many
 
 
 @dataclass(frozen=True)
@@ -45,28 +48,8 @@ class CurveLimits:
         )
 
 
-def _distance(v: float, a: float, t: float, v_max: float) -> float:
-    """Distance [m] covered in ``t`` [s] from speed ``v`` at acceleration ``a``, the speed
-    held in ``[0, v_max]``."""
-    if a < 0.0 and v + a * t < 0.0:  # stops on the way
-        return v * v / (-2.0 * a)
-    if a > 0.0 and v + a * t > v_max:  # reaches v_max on the way
-        t_sw = max(v_max - v, 0.0) / a
-        return v * t_sw + 0.5 * a * t_sw * t_sw + v_max * (t - t_sw)
-    return v * t + 0.5 * a * t * t
-
-
-def _on_path(curvature: float, turn: float, d: float) -> tuple[float, float]:
-    """Position [m, body frame] after distance ``d`` on a path that leaves the origin along
-    +x on a circle of ``curvature`` for ``turn`` metres, then goes straight on."""
-    along = min(d, turn)
-    theta = curvature * along
-    if abs(theta) < 1e-9:
-        x, y = along, 0.5 * along * theta
-    else:
-        x, y = math.sin(theta) / curvature, (1.0 - math.cos(theta)) / curvature
-    rest = d - along
-    return x + rest * math.cos(theta), y + rest * math.sin(theta)
+def _floats(limits: CurveLimits) -> tuple[float, float, float, float]:
+    return tuple(float(x) for x in astuple(limits))
 
 
 def curve_to(
@@ -82,27 +65,10 @@ def curve_to(
     with ``speed`` [m/s] and heading (``cos_h``, ``sin_h``) in the grid frame, heading for
     ``dest`` (x, y) [m, grid frame] to arrive at time ``arrive`` [s] (default: the last
     set-point's time)."""
-    dx, dy = float(dest[0]), float(dest[1])
-    fwd, left = cos_h * dx + sin_h * dy, -sin_h * dx + cos_h * dy
     horizon = float(times[-1]) if arrive is None else float(arrive)
-    v = min(max(float(speed), 0.0), limits.v_max)
-    curvature = length = 0.0
-    if fwd > 0.0:  # else not ahead: stop
-        r2 = fwd * fwd + left * left
-        curvature = 2.0 * left / r2  # of the arc through dest
-        ratio = left / fwd
-        length = r2 / fwd * (math.atan(ratio) / ratio if abs(ratio) > 1e-12 else 1.0)
-        k = limits.max_curvature
-        if abs(curvature) > k:  # dest inside the turning circle: turn to the closest point
-            radius = 1.0 / k
-            length = radius * math.atan2(fwd, radius - abs(left))
-            curvature = math.copysign(k, left)
-    accel = 2.0 * (length - v * horizon) / (horizon * horizon)
-    accel = min(max(accel, -limits.b_max), limits.a_max)
     out = np.empty((len(times), 2), np.float32)
-    for i, t in enumerate(times):
-        x, y = _on_path(curvature, length, _distance(v, accel, float(t), limits.v_max))
-        out[i] = (cos_h * x - sin_h * y, sin_h * x + cos_h * y)
+    curve_into(out, float(speed), float(cos_h), float(sin_h), float(dest[0]), float(dest[1]),
+               times, horizon, _floats(limits))  # fmt: skip
     return out
 
 
@@ -116,9 +82,11 @@ def destination_curves(
     """:func:`curve_to` for a batch: ``ego`` ``(N, 6)`` (GridSim-v0's ego features: speed
     first, cos / sin of the heading last), ``dest`` ``(N, 2)`` [m] reached at ``arrive`` [s]
     (default: the last of ``times``) -> ``(N, T, 2)`` float32."""
-    ego = np.asarray(ego, np.float64).reshape(-1, ego.shape[-1])
-    dest = np.asarray(dest, np.float64).reshape(-1, 2)
+    ego = np.asarray(ego, np.float64).reshape(-1, np.shape(ego)[-1])
+    dest = np.ascontiguousarray(np.asarray(dest, np.float64).reshape(-1, 2))
+    times = np.asarray(times, np.float64)  # float32 times are exact in float64
+    horizon = float(times[-1]) if arrive is None else float(arrive)
     out = np.empty((len(ego), len(times), 2), np.float32)
-    for n in range(len(ego)):
-        out[n] = curve_to(ego[n, 0], ego[n, 4], ego[n, 5], dest[n], times, limits, arrive)
+    speed, cos_h, sin_h = (np.ascontiguousarray(ego[:, k]) for k in (0, 4, 5))
+    curves_many(speed, cos_h, sin_h, dest, times, horizon, _floats(limits), out)
     return out

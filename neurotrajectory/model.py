@@ -506,6 +506,7 @@ class PopulationNet:
         self.n_cnn = cfg.channels[2] * (cfg.grid_size // cfg.pool // 8) ** 2
         self.times = template.times.clone()
         self.act = _PW_ACTIVATIONS[cfg.activation]
+        self._grouped_ok: dict[tuple[int, int], bool] = {}  # see :meth:`grouped`
 
     # -- parameters ---------------------------------------------------------------------------
     def store(self, population) -> torch.Tensor:
@@ -562,15 +563,68 @@ class PopulationNet:
         k, e, h, w = frames.shape
         p = self.cfg.pool
         x = (block_means(frames.reshape(k * e, h, w), p) / 255.0).view(k, e, 1, h // p, w // p)
+        if self.grouped(k, e):
+            return self._features_grouped(params, x)
+        return self._features_per_individual(params, x)
+
+    def _features_grouped(self, params: dict, x: torch.Tensor) -> torch.Tensor:
+        """:meth:`frame_features` of the pooled frames ``x`` ``(K, E, 1, h, w)``, the second
+        and later convolutions as one grouped call for all individuals."""
+        k, e = x.shape[:2]
+        first = _CONV_NAMES[0]  # per individual (grouped, it is slower and rounds otherwise)
+        y = torch.stack([self._conv(x[i], params, first, i, 0) for i in range(k)], dim=1)
+        y = y.view(e, k * y.shape[2], *y.shape[3:])
+        for layer, name in enumerate(_CONV_NAMES[1:], 1):
+            y = self._conv(y, params, name, None, layer, groups=k)
+        return y.reshape(e, k, -1).transpose(0, 1).contiguous()
+
+    def _features_per_individual(self, params: dict, x: torch.Tensor) -> torch.Tensor:
+        """:meth:`frame_features` of the pooled frames ``x`` ``(K, E, 1, h, w)``, one
+        ``conv2d`` call per individual and layer."""
+        k, e = x.shape[:2]
         out = torch.empty(k, e, self.n_cnn)
         for i in range(k):  # one call per individual, always on its E frames
             y = x[i]
-            for (stride, pad), name in zip(_CONVS, _CONV_NAMES, strict=True):
-                y = torch.nn.functional.conv2d(
-                    y, params[name + ".weight"][i], params[name + ".bias"][i], stride, pad
-                ).relu_()
+            for layer, name in enumerate(_CONV_NAMES):
+                y = self._conv(y, params, name, i, layer)
             out[i] = y.reshape(e, -1)
         return out
+
+    @staticmethod
+    def _conv(x, params: dict, name: str, i: int | None, layer: int, groups: int = 1):
+        """Convolution ``layer`` (named ``name``) and its ReLU, of individual ``i``'s weights
+        or (``i`` None) of every individual's, as ``groups`` groups."""
+        weight, bias = params[name + ".weight"], params[name + ".bias"]
+        if i is None:
+            weight, bias = weight.reshape(-1, *weight.shape[2:]), bias.reshape(-1)
+        else:
+            weight, bias = weight[i], bias[i]
+        stride, pad = _CONVS[layer]
+        return torch.nn.functional.conv2d(x, weight, bias, stride, pad, 1, groups).relu_()
+
+    def grouped(self, k: int, e: int) -> bool:
+        """Whether :meth:`frame_features` of ``k`` individuals on ``e`` frames each runs the
+        second and later convolutions as one grouped call for all individuals: where oneDNN's
+        grouped convolution gives the bits of one call per individual, which a probe on
+        random weights and frames of these shapes decides once per ``(k, e)`` (oneDNN picks
+        its kernels by shape and CPU, never by values). One frame per individual: never
+        (torch then convolves each individual without oneDNN)."""
+        if e < 2:
+            return False
+        known = self._grouped_ok.get((k, e))
+        if known is None:
+            g = torch.Generator().manual_seed(0)
+            params = {}
+            for name in _CONV_NAMES:
+                w_shape = (k, *self.shapes[name + ".weight"])
+                params[name + ".weight"] = 0.2 * torch.randn(w_shape, generator=g)
+                params[name + ".bias"] = 0.1 * torch.randn(w_shape[:2], generator=g)
+            side = self.cfg.grid_size // self.cfg.pool
+            x = torch.rand(k, e, 1, side, side, generator=g)
+            known = self._grouped_ok[(k, e)] = torch.equal(
+                self._features_grouped(params, x), self._features_per_individual(params, x)
+            )
+        return known
 
     def grid_part(self, params: dict, feats: torch.Tensor) -> torch.Tensor:
         """``fc1``'s product with the CNN features of one frame: ``feats`` ``(K, E, n_cnn)`` ->

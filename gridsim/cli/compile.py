@@ -78,6 +78,13 @@ def compile_kernels(report: Callable[[str], None] = print) -> dict:
     from gridsim.vehicle.kinematics import BicycleParams, step_bicycle
 
     step_bicycle(np.zeros((2, 5)), np.zeros(2), np.zeros(2), BicycleParams(), 0.1)
+    # the destination curves of a batch (the trainer's prior, the destination-curve baseline)
+    from gridsim.vehicle.curve_kernels import curves_many
+
+    one = np.ones(2)
+    curves_many(
+        one, one, 0 * one, np.ones((2, 2)), one, 1.0, (1.0,) * 4, np.empty((2, 2, 2), np.float32)
+    )
     after = compiled_kernels()
     return {"scenarios": len(names), "kernels": after["kernels"],
             "compiled": after["compiled"] - before["compiled"],

@@ -80,3 +80,24 @@ def test_rows_do_not_depend_on_their_batch():
         np.testing.assert_array_equal(
             batch[k], destination_curves(ego[k : k + 1], dest[k : k + 1], TIMES, LIMITS)[0]
         )
+
+
+@pytest.mark.parametrize("arrive", [None, 5.0])
+def test_the_compiled_batch_is_the_python_curve_bit_for_bit(arrive):
+    """``destination_curves`` (one compiled call) gives the bits of ``curve_to`` run in Python
+    for every row: destinations ahead, behind, inside the turning circle, on the heading,
+    near the origin; speeds negative, zero, above v_max, infinite."""
+    rng = np.random.default_rng(5)
+    n = 400
+    heading = rng.uniform(-np.pi, np.pi, n)
+    speeds = rng.choice([0.0, 1e-3, 5.0, 20.0, 35.0, 45.0], n) * rng.uniform(0.5, 1.5, n)
+    ego = np.stack([_ego(v, h) for v, h in zip(speeds, heading, strict=True)])
+    ego[:3, 0] = [-1.0, 0.0, np.inf]
+    dest = rng.uniform(-80, 80, (n, 2)).astype(np.float32)
+    dest[:40] *= 1e-3
+    dest[40:80, 1] = 0.0
+    for times in (TIMES.astype(np.float32), 0.1 * np.arange(1, 26)):
+        batch = destination_curves(ego, dest, times, LIMITS, arrive)
+        one = [curve_to(ego[k, 0], ego[k, 4], ego[k, 5], dest[k], times, LIMITS, arrive)
+               for k in range(n)]  # fmt: skip
+        np.testing.assert_array_equal(batch, np.stack(one))

@@ -66,6 +66,30 @@ def test_population_forward_matches_trajectorynet_and_ignores_the_batch(preset):
         assert torch.equal(shifted.flip(0), together)
 
 
+@pytest.mark.parametrize("preset", ["default", "paper"])
+def test_frame_features_are_those_of_one_convolution_call_per_individual(preset):
+    """Where the probe lets the convolutions after the first run grouped, for all individuals
+    at once, they give the bits of one call per individual (on other frames and weights than
+    the probe's); one frame per individual is never grouped."""
+    torch.set_num_threads(1)
+    cfg = PRESETS[preset]
+    pnet = PopulationNet(cfg)
+    pop = _population(TrajectoryNet(cfg), 16, seed=4)
+    store = pnet.store(pop)
+    for k, e in ((1, 2), (3, 2), (16, 2), (5, 3), (4, 1)):
+        params = pnet.params(store, pnet.small_copy(store), np.arange(k))
+        frames = _inputs(k, e, cfg, seed=k)[0][:, :, 0]
+        p = cfg.pool
+        x = (model.block_means(frames.reshape(k * e, 128, 128), p) / 255.0).view(
+            k, e, 1, 128 // p, 128 // p
+        )
+        one_per_individual = pnet._features_per_individual(params, x)
+        assert torch.equal(pnet.frame_features(params, frames), one_per_individual)
+        if pnet.grouped(k, e):
+            assert torch.equal(pnet._features_grouped(params, x), one_per_individual)
+    assert not pnet.grouped(4, 1)
+
+
 def _results(ev, pop):
     return [(f.tolist(), s.__dict__) for f, s in ev.evaluate_many(pop)]
 
