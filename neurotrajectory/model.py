@@ -33,6 +33,7 @@ from torch import nn
 
 from gridsim.envs.plan_smoothing import PlanSmoother, check_keep
 from gridsim.frames import EGO_ACCEL, EGO_COS, EGO_SIN, EGO_SPEED, EGO_STEERING
+from gridsim.sensors.occupancy_kernels import block_sums
 from neurotrajectory.curves import CurveLimits, destination_curves
 
 ACTIVATIONS = {"sigmoid": nn.Sigmoid, "relu": nn.ReLU, "tanh": nn.Tanh}
@@ -446,17 +447,13 @@ def _items(x: torch.Tensor) -> torch.Tensor:
 def block_means(frames: np.ndarray, p: int) -> torch.Tensor:
     """The means of ``p x p`` blocks of ``frames`` uint8 ``(N, H, W)``: float32 ``(N, 1, H / p,
     W / p)``, bit for bit ``avg_pool2d`` of their float values (the integer sums are exact, then
-    one division), four times faster: the sums are taken in integers."""
+    one division), several times faster: the sums are taken in integers, in one compiled call."""
     n, h, w = frames.shape
     if p == 1:
         return torch.from_numpy(frames).float()[:, None]
-    blocks = frames.reshape(n, h // p, p, w // p, p)
-    total = blocks[:, :, 0, :, 0].astype(np.uint16 if 255 * p * p <= 0xFFFF else np.uint32)
-    for i in range(p):
-        for j in range(p):
-            if i or j:
-                total += blocks[:, :, i, :, j]
-    return torch.from_numpy(total.astype(np.float32))[:, None].div_(float(p * p))
+    total = np.empty((n, h // p, w // p), np.float32)
+    block_sums(np.ascontiguousarray(frames), p, total)
+    return torch.from_numpy(total)[:, None].div_(float(p * p))
 
 
 def _sigmoid(x: torch.Tensor) -> torch.Tensor:

@@ -78,8 +78,12 @@ def compile_kernels(report: Callable[[str], None] = print) -> dict:
     from gridsim.vehicle.kinematics import BicycleParams, step_bicycle
 
     step_bicycle(np.zeros((2, 5)), np.zeros(2), np.zeros(2), BicycleParams(), 0.1)
-    # the destination curves of a batch (the trainer's prior, the destination-curve baseline)
+    # the trainer's: pooled grids, the destination curves of a batch (its prior, the
+    # destination-curve baseline)
+    from gridsim.sensors.occupancy_kernels import block_sums
     from gridsim.vehicle.curve_kernels import curves_many
+
+    block_sums(np.zeros((1, 2, 2), np.uint8), 2, np.empty((1, 1, 1), np.float32))
 
     one = np.ones(2)
     curves_many(

@@ -95,3 +95,32 @@ def box_quads(active, x, y, psi, length, width, ex, ey, radius, a):
     n = corners.shape[0]
     px = diagonal_map(corners.reshape((n * 4, 2)), a)
     return pixel_quads(px.reshape((n, 4, 2)))
+
+
+@kernel
+def block_sums(frames, p, out) -> None:
+    """The sums of the ``p x p`` blocks of grids ``frames`` uint8 ``(N, H, W)`` into ``out``
+    float32 ``(N, H / p, W / p)``, for pooling a grid: exact in any order (integers below
+    2**24). Each block row's ``p`` grid rows are summed first, then each block's ``p``
+    columns (``p = 2`` written out: six times faster)."""
+    n, rows, cols = out.shape
+    acc = np.empty(frames.shape[2], np.float32)
+    for k in range(n):
+        for i in range(rows):
+            row = frames[k, i * p]
+            for c in range(len(acc)):
+                acc[c] = row[c]
+            for a in range(1, p):
+                row = frames[k, i * p + a]
+                for c in range(len(acc)):
+                    acc[c] += row[c]
+            o = out[k, i]
+            if p == 2:
+                for j in range(cols):
+                    o[j] = acc[2 * j] + acc[2 * j + 1]
+                continue
+            for j in range(cols):
+                o[j] = acc[j * p]
+            for b in range(1, p):
+                for j in range(cols):
+                    o[j] += acc[j * p + b]

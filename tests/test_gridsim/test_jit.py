@@ -71,7 +71,7 @@ def test_gridsim_compile_readies_every_kernel_of_the_built_in_scenarios(capsys):
     assert out.startswith("compiling or loading the kernels of every built-in scenario:")
     assert f"{compiled_kernels()['kernels']} kernels ready (" in out
     # every signature a trainer meets too: the C library's functions on float32 arrays, the
-    # destination curves of its prior (float32 features and times)
+    # destination curves of its prior (float32 features and times), its pooled grids
     from gridsim import libm
 
     before = compiled_kernels()["compiled"]
@@ -79,10 +79,12 @@ def test_gridsim_compile_readies_every_kernel_of_the_built_in_scenarios(capsys):
         function(*[np.linspace(0.1, 0.9, 3, dtype=np.float32)] * arity)
     pytest.importorskip("torch")  # the trainer's extra
     from neurotrajectory.curves import CurveLimits, destination_curves
+    from neurotrajectory.model import block_means
 
     ego = np.tile(np.float32([10, 0, 0, 0, 1, 0]), (3, 1))
     times = np.float32([0.5, 1.0])
     destination_curves(ego, np.ones((3, 2), np.float32), times, CurveLimits(), 5.0)
+    block_means(np.zeros((2, 4, 4), np.uint8), 2)
     assert compiled_kernels()["compiled"] == before
 
 
