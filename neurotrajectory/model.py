@@ -394,7 +394,8 @@ def size_mismatch(cfg: NetConfig, windows) -> str | None:
 # * every matrix product is a ``torch.bmm`` item of a fixed shape per individual (one item
 #   per individual with all ``E`` rows, finished episodes included: MKL does not compute a
 #   row alike for different row counts), and every convolution one ``conv2d`` call per
-#   individual on its ``E`` frames;
+#   individual on its ``E`` frames, or, for the second and later convolutions, one grouped
+#   call for the batch where a probe shows it gives those bits (:meth:`PopulationNet.grouped`);
 # * MKL's result for an item also depends on the 64-byte alignment of its operands, so every
 #   item starts at the same alignment: weights live in 64-byte aligned rows (the population
 #   store, and a per-batch copy of the small parameters, each at an aligned offset), and
