@@ -56,7 +56,8 @@ class GridSimEnv(gym.Env):
     ``action_type``: ``"trajectory"`` (default), ``"control"`` or ``"discrete"``
     (:data:`~gridsim.envs.actions.ACTION_TYPES`);
     ``observation_type``: ``"grids"`` (default: the paper's occupancy grids, ego state and
-    destination) or ``"kinematics"`` (:data:`~gridsim.envs.observations.OBSERVATION_TYPES`);
+    destination), ``"grid"`` (the newest grid only) or ``"kinematics"``
+    (:data:`~gridsim.envs.observations.OBSERVATION_TYPES`);
     further keyword arguments are scenario overrides (nested dicts), validated by the
     scenario schema, e.g. ``traffic={"participants": 20}``.
     """
@@ -256,13 +257,23 @@ class GridSimEnv(gym.Env):
     def grid_history(self) -> np.ndarray:
         """The last ``env.history`` occupancy grids ``(history, rows, cols)`` uint8, oldest
         first (a copy)."""
-        self._current_world("grid_history")
+        self._rendered_grids("grid_history")
+        k = self._newest + 1
+        return np.concatenate((self._grids[k:], self._grids[:k]))
+
+    def newest_grid(self) -> np.ndarray:
+        """The occupancy grid of now ``(rows, cols)`` uint8 (a copy): the last of
+        :meth:`grid_history`."""
+        return self._rendered_grids("newest_grid")[self._newest].copy()
+
+    def _rendered_grids(self, caller: str) -> np.ndarray:
+        """The ring of the last grids, after the checks that they are rendered."""
+        self._current_world(caller)
         if not self._sensing:
             raise RuntimeError(f"observation_type {self.observation_type!r} renders no grids "
                                "(its observations do not need them): use an observation type "
                                "with needs_grids = True, or render_mode='rgb_array'")  # fmt: skip
-        k = self._newest + 1
-        return np.concatenate((self._grids[k:], self._grids[:k]))
+        return self._grids
 
     def ego_features(self) -> np.ndarray:
         """The ego now, float32 ``(6,)``: :data:`~gridsim.frames.EGO_FEATURES` (speed [m/s],

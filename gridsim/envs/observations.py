@@ -3,6 +3,7 @@
 Each type defines its space from the scenario (built once per environment) and reads the
 observation off the environment after every reset and step, from its building blocks
 (:meth:`~gridsim.envs.gridsim_env.GridSimEnv.grid_history`,
+:meth:`~gridsim.envs.gridsim_env.GridSimEnv.newest_grid`,
 :meth:`~gridsim.envs.gridsim_env.GridSimEnv.ego_features`,
 :meth:`~gridsim.envs.gridsim_env.GridSimEnv.destination` and the world). Positions are in
 the ego's grid frame (rear axle at the origin, axes as ``sensor.orientation`` says), in
@@ -72,6 +73,25 @@ class GridsObservation(ObservationType):
                 "destination": env.destination()}  # fmt: skip
 
 
+class NewestGridObservation(ObservationType):
+    """:class:`GridsObservation` with the newest grid only, ``"grid"``: ``(rows, cols)`` uint8,
+    for an agent that keeps its own history (a recurrent policy; NeuroTrajectory's rollouts,
+    which keep each frame's CNN features). After a reset the history it stands for is that
+    grid ``history`` times; each step adds one."""
+
+    def _make_space(self) -> spaces.Dict:
+        s = self.cfg.sensor
+        return spaces.Dict({
+            "grid": spaces.Box(0, 255, (s.rows, s.cols), np.uint8),
+            "ego": _vector(len(EGO_FEATURES)),
+            "destination": _vector(2),
+        })  # fmt: skip
+
+    def observe(self, env: GridSimEnv) -> dict[str, np.ndarray]:
+        return {"grid": env.newest_grid(), "ego": env.ego_features(),
+                "destination": env.destination()}  # fmt: skip
+
+
 class KinematicsObservation(ObservationType):
     """No grids, for policies that read numbers (highway-env's ``Kinematics``): ``{"ego",
     "destination"}`` as :class:`GridsObservation`'s, and ``"vehicles"``: ``(VEHICLES, 7)``
@@ -122,5 +142,6 @@ class KinematicsObservation(ObservationType):
 #: The observation types by name (``observation_type=`` of GridSim-v0).
 OBSERVATION_TYPES: dict[str, type[ObservationType]] = {
     "grids": GridsObservation,
+    "grid": NewestGridObservation,
     "kinematics": KinematicsObservation,
 }

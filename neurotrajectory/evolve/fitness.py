@@ -92,10 +92,10 @@ class Evaluator:
         if batch < 1:
             raise ValueError(f"batch must be >= 1, got {batch}")
         self.scenario, self.overrides = scenario, overrides
-        self.envs = [GridSimEnv(scenario, **overrides) for _ in seeds]
         self.seeds = list(seeds)
         self.batch, self.cache = batch, cache
-        env = self.envs[0]
+        self._envs: dict[bool, list[GridSimEnv]] = {True: [], False: []}  # by ``cache``
+        env = self._env_grid(1, max(len(seeds), 1))[0][0]
         self.net_cfg = net_config_for(env.cfg, net_cfg)
         self.net = TrajectoryNet(self.net_cfg).eval()  # the parameter layout of a genome
         self.pop_net = PopulationNet(self.net_cfg)
@@ -108,11 +108,19 @@ class Evaluator:
                                     ticks * env.action_kind.params.v_delta_max, 0.0])  # fmt: skip
         self.best_step = np.array([0.0, 0.0, ticks * min(vmax, cfg.speed_range[1])])
 
+    @property
+    def envs(self) -> list[GridSimEnv]:
+        """The environments made so far for the current ``cache`` setting."""
+        return self._envs[self.cache]
+
     def _env_grid(self, k: int, e: int) -> list[list[GridSimEnv]]:
-        """Environments for ``k`` individuals of ``e`` episodes each (created on first use)."""
-        while len(self.envs) < k * e:
-            self.envs.append(GridSimEnv(self.scenario, **self.overrides))
-        return [self.envs[i * e : (i + 1) * e] for i in range(k)]
+        """Environments for ``k`` individuals of ``e`` episodes each (created on first use):
+        with the frame cache, observing the newest grid only (the cache holds the history)."""
+        envs = self._envs[self.cache]
+        while len(envs) < k * e:
+            kind = "grid" if self.cache else "grids"
+            envs.append(GridSimEnv(self.scenario, observation_type=kind, **self.overrides))
+        return [envs[i * e : (i + 1) * e] for i in range(k)]
 
     def evaluate(self, genome: np.ndarray, seeds=None) -> tuple[np.ndarray, EpisodeStats]:
         """Mean episode fitness ``[l1, l2, l3]`` of ``genome`` and episode statistics, on
@@ -141,7 +149,8 @@ class Evaluator:
         envs = self._env_grid(k_all, e)
         obs = [[env.reset(seed=s)[0] for env, s in zip(row, seeds, strict=True)]
                for row in envs]  # fmt: skip
-        prev: list[list[np.ndarray | None]] = [[None] * e for _ in range(k_all)]
+        # after a reset every frame of the history is the first grid; each step adds one
+        reset = np.ones((k_all, e), bool)
         keep = self.net_cfg.smoothing  # one plan smoother per environment, if any
         smoothers = [[PlanSmoother(keep) for _ in range(e)] for _ in range(k_all)] if keep else None
         grid = torch.zeros(k_all, e, t, self.net_cfg.fc1)  # fc1 x CNN features, per frame
@@ -156,32 +165,26 @@ class Evaluator:
                 break
             if rows is None or not np.array_equal(rows, active):
                 rows, params = active, net.params(store, small, active)
-            # how each running episode's frame cache is brought up to date
-            shift, fill, full = [], [], []
-            for a, k in enumerate(rows):
-                for j in np.flatnonzero(live[k]):
-                    g, old = obs[k][j]["grids"], prev[k][j]
-                    if self.cache and old is not None and np.array_equal(g[:-1], old[1:]):
-                        shift.append((a, k, j))  # one new frame
-                    elif self.cache and old is None and (g[:-1] == g[-1]).all():
-                        fill.append((a, k, j))  # after a reset: all frames the same
-                    else:
-                        full.append((a, k, j))
-                    prev[k][j] = g
-            for slot in range(t) if full else [t - 1]:
-                # every environment of every running individual, always: fixed shapes
-                frames = np.stack([[o["grids"][slot] for o in obs[k]] for k in rows])
+            # every environment of every running individual, always: fixed shapes
+            if self.cache:  # the newest frame's features, into each running episode's cache
+                frames = np.stack([[o["grid"] for o in obs[k]] for k in rows])
                 new = net.grid_part(params, net.frame_features(params, frames))
-                for which, mode in ((shift, "shift"), (fill, "fill"), (full, "full")):
-                    if not which or (mode != "full" and slot != t - 1):
+                a, j = np.nonzero(live[rows])
+                k = rows[a]
+                fill = reset[k, j]
+                for which, part in ((~fill, "shift"), (fill, "fill")):
+                    if not which.any():
                         continue
-                    a, k, j = (torch.tensor(v) for v in zip(*which, strict=True))
-                    if mode == "shift":
-                        grid[k, j] = torch.cat([grid[k, j, 1:], new[a, j][:, None]], dim=1)
-                    elif mode == "fill":
-                        grid[k, j] = new[a, j][:, None].expand(-1, t, -1)
+                    ka, ja, aa = (torch.from_numpy(v[which]) for v in (k, j, a))
+                    if part == "shift":
+                        grid[ka, ja] = torch.cat([grid[ka, ja, 1:], new[aa, ja][:, None]], dim=1)
                     else:
-                        grid[k, j, slot] = new[a, j]
+                        grid[ka, ja] = new[aa, ja][:, None].expand(-1, t, -1)
+                reset[k, j] = False
+            else:  # every frame of the history, every step
+                for slot in range(t):
+                    frames = np.stack([[o["grids"][slot] for o in obs[k]] for k in rows])
+                    grid[rows, :, slot] = net.grid_part(params, net.frame_features(params, frames))
             ego = torch.from_numpy(
                 np.array([[o["ego"] for o in obs[k]] for k in rows], dtype=np.float32)
             )

@@ -109,8 +109,32 @@ def test_a_registered_observation_type_drives_end_to_end(speed_only):
     assert len(set(speeds)) > 1  # it moves
 
 
+def test_the_newest_grid_is_the_last_of_the_grids_and_passes_check_env():
+    """``observation_type="grid"``: the same episode as ``"grids"``, whose history is the
+    first grid repeated after a reset, then one newest grid more per step."""
+    env = GridSimEnv(observation_type="grid", **SHORT)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_env(env, skip_render_check=True)
+    assert not [w for w in caught if "reward" not in str(w.message)
+                and "symmetric and normalized" not in str(w.message)]  # fmt: skip
+    grids = GridSimEnv(**SHORT)
+    obs, info = env.reset(seed=5)
+    ref, _ = grids.reset(seed=5)
+    history = [obs["grid"]] * env.cfg.env.history
+    for _ in range(12):
+        assert set(obs) == {"grid", "ego", "destination"} and obs in env.observation_space
+        np.testing.assert_array_equal(np.stack(history), ref["grids"])
+        for key in ("ego", "destination"):
+            np.testing.assert_array_equal(obs[key], ref[key])
+        action = info["reference_setpoints"]
+        obs, *_, info = env.step(action)
+        ref, *_ = grids.step(action)
+        history = history[1:] + [obs["grid"]]
+
+
 def test_an_unknown_observation_type_is_refused_with_the_choices():
-    with pytest.raises(ValueError, match=r"observation_type must be one of \['grids', "
+    with pytest.raises(ValueError, match=r"observation_type must be one of \['grid', 'grids', "
                        r"'kinematics'\], got 'lidar'"):  # fmt: skip
         GridSimEnv(observation_type="lidar")
 
