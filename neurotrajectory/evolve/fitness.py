@@ -76,7 +76,9 @@ class Evaluator:
 
     The CNN features of a frame, and their product with ``fc1``, are computed once, when the
     frame is the newest one, and kept per environment while it moves back through the
-    observation (``cache=False`` recomputes every frame every step; the result is the same).
+    history: the environments then observe the newest grid only (``observation_type="grid"``;
+    after a reset the history is its first grid repeated). ``cache=False`` observes the whole
+    history (``"grids"``) and recomputes every frame every step; the result is the same.
     """
 
     def __init__(
