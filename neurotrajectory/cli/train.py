@@ -20,7 +20,14 @@ from neurotrajectory.cli.flags import check_video, goal_flag, settings_flag
 from neurotrajectory.cli.heldout import report_heldout
 from neurotrajectory.cli.rollout import rollout
 from neurotrajectory.compare.front import heldout_problem
-from neurotrajectory.evolve.runs import AFTER_DEFAULTS, Run, RunError, TrainConfig, run_folder
+from neurotrajectory.evolve.runs import (
+    AFTER_DEFAULTS,
+    WARM_START_FILE,
+    Run,
+    RunError,
+    TrainConfig,
+    run_folder,
+)
 
 DEFAULT_OUT = "runs/default"
 
@@ -90,6 +97,30 @@ def execute(args: argparse.Namespace) -> int:
     if args.video:
         check_video(args.video)
     out = args.resume or args.out or DEFAULT_OUT
+    try:
+        return _train(args, out, started)
+    except KeyboardInterrupt:
+        print(f"neurotrajectory: interrupted; {kept_note(Path(out))}", file=sys.stderr)
+        return 130
+
+
+def kept_note(out: Path) -> str:
+    """What an interrupted ``train`` left in the run folder ``out``, and how to go on."""
+    resume = f"go on with: neurotrajectory train --resume {out}"
+    if not (out / "config.json").exists():
+        return "nothing was kept (no generation finished, no warm start saved)"
+    try:
+        done = Run.open(out).completed_generations()
+    except RunError as exc:  # interrupted while it was being written
+        return f"{out} may not resume: {exc}"
+    if done:
+        return f"{out} keeps its {done} finished generation{'s' * (done > 1)}; {resume}"
+    if (out / WARM_START_FILE).exists():
+        return f"{out} keeps its warm start (not fitted again); {resume}"
+    return f"{out} has no finished generation yet; {resume}"
+
+
+def _train(args: argparse.Namespace, out: str, started: float) -> int:
     with run_folder(out, resume=bool(args.resume)):  # one writer; a failure early undoes
         if args.resume:
             # flags that would change the run's results are refused unless they match it

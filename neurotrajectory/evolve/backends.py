@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import contextlib
 import multiprocessing as mp
+import signal
+import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
@@ -184,17 +186,23 @@ class LocalBackend(Backend):
 
 
 def _serve(conn, spec: WorkerSpec) -> None:
-    """Worker process loop: commands arrive as (name, argument) pairs."""
+    """Worker process loop: commands arrive as (name, argument) pairs. Ctrl-C is the
+    trainer's to handle (it stops the workers): a worker ignores it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     worker = Worker(spec)
-    conn.send(("ready", worker.genome_size))
+    reply = ("ready", worker.genome_size)
     while True:
-        name, arg = conn.recv()
+        try:  # the trainer may be gone (interrupted, failed): nothing to answer then
+            conn.send(reply)
+            name, arg = conn.recv()
+        except (EOFError, OSError):
+            return
         if name == "stop":
-            break
+            return
         try:
-            conn.send(("ok", getattr(worker, name)(arg)))
+            reply = ("ok", getattr(worker, name)(arg))
         except Exception as exc:  # report, do not die silently
-            conn.send(("error", f"{type(exc).__name__}: {exc}"))
+            reply = ("error", f"{type(exc).__name__}: {exc}")
 
 
 class RemoteBackend(Backend):
@@ -244,15 +252,19 @@ class ProcessBackend(RemoteBackend):
         super().__init__(spec, workers)
         ctx = mp.get_context("spawn")
         self.conns, self.procs = [], []
-        for _ in range(workers):
-            parent, child = ctx.Pipe()
-            proc = ctx.Process(target=_serve, args=(child, spec), daemon=True)
-            proc.start()
-            child.close()  # the worker's end: a worker that dies then ends our recv with EOF
-            self.conns.append(parent)
-            self.procs.append(proc)
+        self._waiting = False  # for the workers' answers to a command (see close)
+        with _sigint_ignored():  # from their start on (an ignored signal stays so in the child)
+            for _ in range(workers):
+                parent, child = ctx.Pipe()
+                proc = ctx.Process(target=_serve, args=(child, spec), daemon=True)
+                proc.start()
+                child.close()  # the worker's end: a worker that dies ends our recv with EOF
+                self.conns.append(parent)
+                self.procs.append(proc)
+        self._waiting = True
         for conn in self.conns:
             self._reply(conn)
+        self._waiting = False
 
     def _reply(self, conn):
         try:
@@ -264,17 +276,40 @@ class ProcessBackend(RemoteBackend):
         return value
 
     def _all(self, name, args):
+        self._waiting = True
         for conn, arg in zip(self.conns, args, strict=True):
             conn.send((name, arg))
-        return [self._reply(conn) for conn in self.conns]
+        replies = [self._reply(conn) for conn in self.conns]
+        self._waiting = False
+        return replies
 
     def close(self):
+        """Stop the workers: at once if a command's answers were still awaited (the trainer
+        was interrupted or failed meanwhile: the workers would first finish it), else after
+        they read ``stop``."""
         for conn, proc in zip(self.conns, self.procs, strict=True):
-            with contextlib.suppress(BrokenPipeError, OSError):
-                conn.send(("stop", None))
+            if self._waiting:
+                proc.terminate()
+            else:
+                with contextlib.suppress(BrokenPipeError, OSError):
+                    conn.send(("stop", None))
             proc.join(timeout=10)
             if proc.is_alive():
                 proc.terminate()
+
+
+@contextlib.contextmanager
+def _sigint_ignored():
+    """Ctrl-C ignored in the block, when called from the main thread (the only one that may
+    set signal handlers; elsewhere the block runs as it is)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 def _check_reachable(address: str, timeout: float = 3.0) -> None:

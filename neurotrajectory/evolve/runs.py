@@ -671,7 +671,9 @@ class Run:
             recipes, _, parents = self._next_generation(genomes, gen, fitness, violation)
             return Start(gen + 1, recipes, genomes if parents is None else parents)
         if source is Source.WARM_START:
-            base = self._warm_start(probe)
+            base = self._saved_warm_start(probe)
+            if base is None:
+                base = self._warm_start(probe)
             table = len(population.table)
             if cfg.es:
                 rng = stream(cfg.seed, Salt.WARM_START_MUTATIONS)
@@ -772,6 +774,14 @@ class Run:
         write_json(self.out / "pretrain.json", {**source, **stats})
         write_npz(self.out / WARM_START_FILE, genome=base,
                   net=np.array(json.dumps(self.net_config.to_dict())))  # fmt: skip
+        return base
+
+    def _saved_warm_start(self, probe: TrajectoryNet) -> np.ndarray | None:
+        """The warm start an interrupted first attempt saved (fitting it again gives the same
+        genome: it is deterministic), or None."""
+        base = self.warm_start_genome()
+        if base is not None and (problem := genome_mismatch(probe, len(base))):
+            raise RunError(f"{self.out / WARM_START_FILE}: {problem}")
         return base
 
     def warm_start_genome(self) -> np.ndarray | None:
@@ -893,7 +903,8 @@ def run_folder(out: str | Path, resume: bool) -> Iterator[Path]:
     new run (not ``resume``), ``out`` must be new or empty, and if the block fails before a
     generation is complete, what it wrote is removed again (the folder too, if it made it),
     so that the corrected command can run in the same ``--out``; later the run stays, to be
-    resumed."""
+    resumed (from the first complete generation on, or from the warm start once it is saved,
+    which can take minutes to fit)."""
     out = Path(out)
     if resume:  # a run folder, not one the lock would make
         read_manifest(out, "config.json", "run directory", RunError, (1, FORMAT_VERSION))
@@ -906,7 +917,8 @@ def run_folder(out: str | Path, resume: bool) -> Iterator[Path]:
         try:
             yield out
         except BaseException:
-            if not resume and not (out / "checkpoint.npz").exists():
+            kept = [f for f in ("checkpoint.npz", WARM_START_FILE) if (out / f).exists()]
+            if not resume and not kept:
                 _undo(out, remove_folder=not existed)
             raise
 

@@ -109,6 +109,40 @@ def test_backends_give_identical_results(tmp_path):
     np.testing.assert_array_equal(results["local"], results["ray"])
 
 
+def test_ctrl_c_is_the_trainers_and_stops_the_process_workers_at_once(capfd):
+    """Ctrl-C reaches the whole process group (a terminal's): the workers ignore it, the
+    trainer's interrupted call stops them without waiting for their answers, and no worker
+    prints a traceback, nor when its trainer is gone without a word."""
+    import threading
+
+    spec = WorkerSpec("seamless", {"simulation": {"duration": 60.0}}, PRESETS["tiny"],
+                      (5, 6, 7, 8))  # fmt: skip
+    backend = make_backend("processes", spec, workers=2)
+    backend.advance([Recipe(init_seed=i) for i in range(16)])
+
+    def ctrl_c():
+        for pid in [p.pid for p in backend.procs] + [os.getpid()]:
+            os.kill(pid, signal.SIGINT)
+
+    timer = threading.Timer(0.5, ctrl_c)
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        backend.evaluate(16, spec.seeds)  # 16 x 4 episodes of 60 s: far longer than this
+    time.sleep(0.5)
+    assert all(p.is_alive() for p in backend.procs)  # the workers ignored it
+    t0 = time.perf_counter()
+    backend.close()
+    assert time.perf_counter() - t0 < 3.0
+    assert not any(p.is_alive() for p in backend.procs)
+    gone = make_backend("processes", spec, workers=2)
+    for conn in gone.conns:  # the trainer vanishes: the workers read the end of their pipe
+        conn.close()
+    for proc in gone.procs:
+        proc.join(timeout=30)
+        assert proc.exitcode == 0
+    assert "Traceback" not in capfd.readouterr().err
+
+
 def test_ray_address_that_cannot_be_reached():
     spec = WorkerSpec("seamless", {}, PRESETS["tiny"], (1,))
     with pytest.raises(BackendError, match="cannot connect to Ray at 127.0.0.1:1"):

@@ -144,3 +144,45 @@ def test_runs_saved_before_a_later_field_keep_their_fingerprint(tmp_path, field,
     (run.out / "config.json").write_text(json.dumps(doc))
     old = Run.open(run.out)
     assert getattr(old.config, field) == before and old.fingerprint == run.fingerprint
+
+
+def test_ctrl_c_keeps_the_warm_start_and_the_resumed_run_ends_as_an_uninterrupted_one(
+    tmp_path, monkeypatch, capsys
+):
+    """Interrupted in generation 0, a new run keeps its warm start (minutes to fit on a big
+    recipe), says how to go on, and its resume uses it without fitting it again: the same
+    generations as a run never interrupted."""
+    from neurotrajectory.evolve.backends import LocalBackend
+
+    warm = [*QUICK[:-1], "--generations", "2", "--pretrain-episodes", "2", "--pretrain-epochs",
+            "1", "--heldout", "0", "--quiet"]  # fmt: skip
+    assert main(["train", *warm, "--out", str(tmp_path / "a")]) == 0
+    evaluate = LocalBackend.evaluate
+
+    def interrupted(self, *args, **kwargs):
+        raise KeyboardInterrupt
+
+    out = tmp_path / "b"
+    monkeypatch.setattr(LocalBackend, "evaluate", interrupted)
+    capsys.readouterr()
+    assert main(["train", *warm, "--out", str(out)]) == 130
+    err = capsys.readouterr().err
+    assert err == (f"neurotrajectory: interrupted; {out} keeps its warm start (not fitted "
+                   f"again); go on with: neurotrajectory train --resume {out}\n")  # fmt: skip
+    assert (out / "warm_start.npz").exists() and not (out / "checkpoint.npz").exists()
+
+    def fitted_again(self, probe):
+        raise AssertionError("the warm start was fitted again")
+
+    monkeypatch.setattr(LocalBackend, "evaluate", evaluate)
+    monkeypatch.setattr(Run, "_warm_start", fitted_again)
+    assert main(["train", "--resume", str(out), "--quiet"]) == 0
+
+    def generations(run):
+        return [h["fitness"] for h in json.loads((run / "history.json").read_text())["generations"]]
+
+    assert generations(out) == generations(tmp_path / "a")
+    # interrupted later, the note counts the finished generations
+    monkeypatch.setattr(LocalBackend, "evaluate", interrupted)
+    assert main(["train", "--resume", str(out), "--generations", "3", "--quiet"]) == 130
+    assert "keeps its 2 finished generations; go on with" in capsys.readouterr().err
