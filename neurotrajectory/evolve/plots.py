@@ -81,8 +81,12 @@ def plot_run(
         last, rank, lost = np.asarray(final[0]), np.asarray(final[1]), np.asarray(final[2]) > 0
         title = f"the final front, chosen on {chosen_on} (front.json)"
     front = np.flatnonzero(rank == 0)
-    knee = front[pick_member(last[front], "knee")]
+    at = pick_member(last[front], "knee")
+    knee = front[at]
     k1, k2, k3 = last[knee]
+    # numbered as train prints the final front (and rollout --pick takes it), else as the
+    # generation's individuals
+    who = f"member {at} of the front" if final is not None else f"member {knee}"
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for ax, (i, j) in zip(axes, [(0, 1), (0, 2), (1, 2)], strict=True):
         ax.scatter(last[rank > 0, i], last[rank > 0, j], s=10, color="0.6", label="dominated")
@@ -93,7 +97,7 @@ def plot_run(
             ax.scatter(last[lost, i], last[lost, j], s=40, marker="x", color="black",
                        label="an episode ended in a collision or off-road")  # fmt: skip
         ax.scatter(last[knee, i], last[knee, j], s=120, facecolors="none", edgecolors="tab:green",
-                   linewidths=2, label=f"knee (member {knee}): l1 {k1:.4g}, l2 {k2:.3g}, "
+                   linewidths=2, label=f"knee ({who}): l1 {k1:.4g}, l2 {k2:.3g}, "
                                        f"l3 {k3:.4g}")  # fmt: skip
         ax.set_xlabel(NAMES[i], fontsize=8)
         ax.set_ylabel(NAMES[j], fontsize=8)

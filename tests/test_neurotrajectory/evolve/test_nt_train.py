@@ -602,6 +602,11 @@ def test_front_plot_marks_the_knee_and_lost_members(tmp_path, monkeypatch):
     assert knee_label == "knee (member 3): l1 1.5, l2 1.5, l3 25"  # the printout's numbers
     knee = front.axes[0].collections[labels.index(knee_label)].get_offsets()
     assert knee.tolist() == [[1.5, 1.5]]  # the member closest to the ideal point
+    # the final front: its knee numbered as train prints the front (and rollout --pick)
+    figures.clear()
+    plots.plot_run(tmp_path, history, (fitness, [0, 0, 1, 0], [0.0] * 4), "8 episodes")
+    labels = figures[1].axes[0].get_legend_handles_labels()[1]
+    assert "knee (member 2 of the front): l1 1.5, l2 1.5, l3 25" in labels
 
 
 def test_a_scenario_whose_world_cannot_be_built_is_refused_before_the_run(tmp_path, capsys):
