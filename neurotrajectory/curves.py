@@ -48,6 +48,16 @@ class CurveLimits:
         )
 
 
+def _horizon(times: np.ndarray, arrive: float | None) -> float:
+    """When the curve arrives [s]: ``arrive``, or the last of ``times`` (1-D, not empty)."""
+    if times.ndim != 1 or not len(times):
+        raise ValueError(f"times must be a 1-D array of set-point times, got shape {times.shape}")
+    horizon = float(times[-1]) if arrive is None else float(arrive)
+    if not horizon > 0:
+        raise ValueError(f"the arrival time must be > 0 s, got {horizon}")
+    return horizon
+
+
 def _floats(limits: CurveLimits) -> tuple[float, float, float, float]:
     return tuple(float(x) for x in astuple(limits))
 
@@ -64,8 +74,8 @@ def curve_to(
     """Set-points ``(T, 2)`` [m, grid frame] at ``times`` [s] for an ego at the grid origin
     with ``speed`` [m/s] and heading (``cos_h``, ``sin_h``) in the grid frame, heading for
     ``dest`` (x, y) [m, grid frame] to arrive at time ``arrive`` [s] (default: the last
-    set-point's time)."""
-    horizon = float(times[-1]) if arrive is None else float(arrive)
+    set-point's time). Computed in float64 whatever the inputs' type."""
+    horizon = _horizon(np.asarray(times), arrive)
     out = np.empty((len(times), 2), np.float32)
     curve_into(out, float(speed), float(cos_h), float(sin_h), float(dest[0]), float(dest[1]),
                times, horizon, _floats(limits))  # fmt: skip
@@ -85,7 +95,10 @@ def destination_curves(
     ego = np.asarray(ego, np.float64).reshape(-1, np.shape(ego)[-1])
     dest = np.ascontiguousarray(np.asarray(dest, np.float64).reshape(-1, 2))
     times = np.asarray(times, np.float64)  # float32 times are exact in float64
-    horizon = float(times[-1]) if arrive is None else float(arrive)
+    if len(dest) != len(ego) or ego.shape[1] < 6:
+        raise ValueError(f"need one destination (x, y) per ego state of 6 features, got "
+                         f"ego {ego.shape} and destinations {dest.shape}")  # fmt: skip
+    horizon = _horizon(times, arrive)
     out = np.empty((len(ego), len(times), 2), np.float32)
     speed, cos_h, sin_h = (np.ascontiguousarray(ego[:, k]) for k in (0, 4, 5))
     curves_many(speed, cos_h, sin_h, dest, times, horizon, _floats(limits), out)

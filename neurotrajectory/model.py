@@ -452,6 +452,8 @@ def block_means(frames: np.ndarray, p: int) -> torch.Tensor:
     n, h, w = frames.shape
     if p == 1:
         return torch.from_numpy(frames).float()[:, None]
+    if h % p or w % p:
+        raise ValueError(f"grids of {h} x {w} cells do not split into blocks of {p} x {p}")
     total = np.empty((n, h // p, w // p), np.float32)
     block_sums(np.ascontiguousarray(frames), p, total)
     return torch.from_numpy(total)[:, None].div_(float(p * p))

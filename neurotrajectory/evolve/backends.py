@@ -193,7 +193,7 @@ def _serve(conn, spec: WorkerSpec) -> None:
     reply = ("ready", worker.genome_size)
     while True:
         try:  # the trainer may be gone (interrupted, failed): nothing to answer then
-            conn.send(reply)
+            _answer(conn, reply)
             name, arg = conn.recv()
         except (EOFError, OSError):
             return
@@ -203,6 +203,17 @@ def _serve(conn, spec: WorkerSpec) -> None:
             reply = ("ok", getattr(worker, name)(arg))
         except Exception as exc:  # report, do not die silently
             reply = ("error", f"{type(exc).__name__}: {exc}")
+
+
+def _answer(conn, reply) -> None:
+    """Send ``reply``; one that cannot be pickled becomes an error reply (pickling fails
+    before anything is written)."""
+    try:
+        conn.send(reply)
+    except (EOFError, OSError):
+        raise
+    except Exception as exc:
+        conn.send(("error", f"cannot send the answer: {type(exc).__name__}: {exc}"))
 
 
 class RemoteBackend(Backend):
@@ -262,8 +273,12 @@ class ProcessBackend(RemoteBackend):
                 self.conns.append(parent)
                 self.procs.append(proc)
         self._waiting = True
-        for conn in self.conns:
-            self._reply(conn)
+        try:
+            for conn in self.conns:
+                self._reply(conn)
+        except BaseException:  # interrupted or failed while they start: none is left behind
+            self.close()
+            raise
         self._waiting = False
 
     def _reply(self, conn):
@@ -308,8 +323,8 @@ def _sigint_ignored():
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
+    finally:  # None: a handler set outside Python, which Python cannot set back
+        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None else previous)
 
 
 def _check_reachable(address: str, timeout: float = 3.0) -> None:

@@ -101,3 +101,37 @@ def test_the_compiled_batch_is_the_python_curve_bit_for_bit(arrive):
         one = [curve_to(ego[k, 0], ego[k, 4], ego[k, 5], dest[k], times, LIMITS, arrive)
                for k in range(n)]  # fmt: skip
         np.testing.assert_array_equal(batch, np.stack(one))
+
+
+#: SHA-256 of the curves below as the pure-Python implementation computed them (before the
+#: compiled one, 5194d29), arriving at the horizon and 5 s ahead: the compiled curves keep
+#: its bits (libm's sin, cos, atan and atan2 on every x86-64 CPU).
+PYTHON_DIGESTS = {
+    None: "2644c448487837d503af9048c8cc0a3588d956d1863ed14c5800124a521a9730",
+    5.0: "b13a3922e69b79b9bae2e919f9af286870b9797c9ebd6f46cf2139a919d502b0",
+}
+
+
+@pytest.mark.parametrize("arrive", [None, 5.0])
+def test_the_curves_keep_the_bits_of_the_python_implementation(arrive):
+    import hashlib
+
+    rng = np.random.default_rng(11)
+    n = 300
+    heading = rng.uniform(-np.pi, np.pi, n)
+    ego = np.zeros((n, 6), np.float32)
+    ego[:, 0] = rng.uniform(-2, 45, n)
+    ego[:, 4], ego[:, 5] = np.cos(heading), np.sin(heading)
+    dest = rng.uniform(-60, 60, (n, 2)).astype(np.float32)
+    out = destination_curves(ego, dest, TIMES.astype(np.float32), LIMITS, arrive)
+    assert hashlib.sha256(out.tobytes()).hexdigest() == PYTHON_DIGESTS[arrive]
+
+
+def test_curves_of_mismatched_or_empty_inputs_are_refused():
+    ego = np.stack([_ego(10.0, 0.0)] * 3)
+    with pytest.raises(ValueError, match=r"one destination \(x, y\) per ego state"):
+        destination_curves(ego, np.zeros((2, 2)), TIMES, LIMITS)
+    with pytest.raises(ValueError, match="times must be a 1-D array"):
+        destination_curves(ego, np.zeros((3, 2)), np.array([]), LIMITS)
+    with pytest.raises(ValueError, match="arrival time must be > 0 s, got 0.0"):
+        curve_to(10.0, 1.0, 0.0, (5.0, 0.0), TIMES, LIMITS, arrive=0.0)

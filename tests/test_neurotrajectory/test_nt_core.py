@@ -229,3 +229,6 @@ def test_block_means_are_avg_pool_bit_for_bit(p):
     got = block_means(frames, p)
     assert got.dtype == torch.float32 and got.shape == want.shape
     assert torch.equal(got, want)
+    if p > 1:
+        with pytest.raises(ValueError, match=f"do not split into blocks of {p} x {p}"):
+            block_means(frames[:, 1:], p)

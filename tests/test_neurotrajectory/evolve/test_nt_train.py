@@ -143,6 +143,19 @@ def test_ctrl_c_is_the_trainers_and_stops_the_process_workers_at_once(capfd):
     assert "Traceback" not in capfd.readouterr().err
 
 
+def test_a_worker_answer_that_cannot_be_sent_becomes_an_error_reply():
+    import multiprocessing as mp
+
+    from neurotrajectory.evolve.backends import _answer
+
+    trainer, worker = mp.Pipe()
+    _answer(worker, ("ok", lambda: 0))  # a lambda does not pickle
+    status, message = trainer.recv()
+    assert status == "error" and message.startswith("cannot send the answer: ")
+    _answer(worker, ("ok", [1, 2]))
+    assert trainer.recv() == ("ok", [1, 2])
+
+
 def test_ray_address_that_cannot_be_reached():
     spec = WorkerSpec("seamless", {}, PRESETS["tiny"], (1,))
     with pytest.raises(BackendError, match="cannot connect to Ray at 127.0.0.1:1"):
