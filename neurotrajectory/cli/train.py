@@ -102,6 +102,11 @@ def execute(args: argparse.Namespace) -> int:
     except KeyboardInterrupt:
         print(f"neurotrajectory: interrupted; {kept_note(Path(out))}", file=sys.stderr)
         return 130
+    except Exception:  # a new run that failed after its warm start was saved: say it stays
+        if not args.resume and (Path(out) / WARM_START_FILE).exists():
+            print(f"neurotrajectory: note: {kept_note(Path(out))} once the cause below is "
+                  "fixed (or remove it to start again)", file=sys.stderr)  # fmt: skip
+        raise
 
 
 def kept_note(out: Path) -> str:

@@ -146,7 +146,7 @@ def test_runs_saved_before_a_later_field_keep_their_fingerprint(tmp_path, field,
     assert getattr(old.config, field) == before and old.fingerprint == run.fingerprint
 
 
-def test_ctrl_c_keeps_the_warm_start_and_the_resumed_run_ends_as_an_uninterrupted_one(
+def test_a_new_run_stopped_after_its_warm_start_keeps_it_and_resumes_as_if_uninterrupted(
     tmp_path, monkeypatch, capsys
 ):
     """Interrupted in generation 0, a new run keeps its warm start (minutes to fit on a big
@@ -171,6 +171,19 @@ def test_ctrl_c_keeps_the_warm_start_and_the_resumed_run_ends_as_an_uninterrupte
                    f"again); go on with: neurotrajectory train --resume {out}\n")  # fmt: skip
     assert (out / "warm_start.npz").exists() and not (out / "checkpoint.npz").exists()
 
+    # failed after the warm start: the folder stays, and the note says so beside the error
+    def broken(self, *args, **kwargs):
+        raise RuntimeError("a bug in generation 0")
+
+    monkeypatch.setattr(LocalBackend, "evaluate", broken)
+    again = tmp_path / "c"
+    assert main(["train", *warm, "--out", str(again)]) == 3
+    err = capsys.readouterr().err
+    assert err.startswith(f"neurotrajectory: note: {again} keeps its warm start (not fitted "
+                          "again); go on with: neurotrajectory train --resume ")  # fmt: skip
+    assert "internal error: RuntimeError: a bug in generation 0" in err
+    assert (again / "warm_start.npz").exists()
+
     def fitted_again(self, probe):
         raise AssertionError("the warm start was fitted again")
 
@@ -182,6 +195,7 @@ def test_ctrl_c_keeps_the_warm_start_and_the_resumed_run_ends_as_an_uninterrupte
         return [h["fitness"] for h in json.loads((run / "history.json").read_text())["generations"]]
 
     assert generations(out) == generations(tmp_path / "a")
+
     # interrupted later, the note counts the finished generations
     monkeypatch.setattr(LocalBackend, "evaluate", interrupted)
     assert main(["train", "--resume", str(out), "--generations", "3", "--quiet"]) == 130
