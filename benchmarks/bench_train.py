@@ -6,7 +6,9 @@ plus one env step), default scenario, for a preset and backend.
 
 Targets (population 32, ``--backend processes --workers 2``, 2 cores): ``default`` 6,000
 (issue 25; 1,500 before), ``paper`` 300 individual-steps/s; ``ratio`` is the measured rate
-over the target.
+over the target. ``individual_steps_per_cpu_s``: the same steps per CPU-second of the
+processes that evaluate (all workers together; steadier than the wall clock when other jobs
+share the machine; with 2 idle cores the wall-clock rate is about twice it).
 ``big_weights_gb_per_s``: how fast the rollouts stream the parameters too big to stay in a
 cache (each individual's copy is read once per decision, for all its episodes at once; a lower
 bound, counted as if no episode ended early): the ``paper`` preset is bound by memory
@@ -52,11 +54,13 @@ def main() -> None:
     try:
         backend.advance(initial_recipes(GAConfig(population=args.population), 0))
         backend.evaluate(args.population, spec.seeds)  # warm-up: references cached, kernels loaded
-        rates = []
+        rates, per_cpu_s = [], []
         for _ in range(args.rounds):
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), _cpu_seconds(backend)
             _, stats = backend.evaluate(args.population, spec.seeds)
-            rates.append(sum(s["steps"] for s in stats) / (time.perf_counter() - t0))
+            done = sum(s["steps"] for s in stats)
+            rates.append(done / (time.perf_counter() - t0))
+            per_cpu_s.append(done / (_cpu_seconds(backend) - c0))
     finally:
         backend.close()
     steps = sum(s["steps"] for s in stats)
@@ -73,10 +77,27 @@ def main() -> None:
                       "batch": args.batch, "individual_steps": steps,
                       "individual_steps_per_s": round(rate, 1),
                       "rounds_min_max": [round(min(rates), 1), round(max(rates), 1)],
+                      "individual_steps_per_cpu_s": round(statistics.median(per_cpu_s), 1),
                       "loadavg_1min": os.getloadavg()[0], "target": target,
                       "ratio": round(rate / target, 2),
                       "big_weights_mb": round(big_bytes / 1e6, 1),
                       "big_weights_gb_per_s": round(streamed, 2)}))  # fmt: skip
+
+
+def _cpu_seconds(backend) -> float:
+    """CPU time [s] used so far by the processes that evaluate: the worker processes of the
+    ``processes`` backend (``/proc/PID/stat``), else this one. Steadier than the wall clock
+    on a machine shared with other jobs (Ray's actors are not counted: this process's)."""
+    procs = getattr(backend, "procs", None)
+    if not procs:
+        return time.process_time()
+    tick = os.sysconf("SC_CLK_TCK")
+    total = 0
+    for proc in procs:
+        with open(f"/proc/{proc.pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        total += int(fields[11]) + int(fields[12])  # utime, stime (fields 14 and 15)
+    return total / tick
 
 
 if __name__ == "__main__":
