@@ -60,36 +60,40 @@ class GridsObservation(ObservationType):
     128 unknown, 255 occupied), "ego": (6,) float32 (:data:`~gridsim.frames.EGO_FEATURES`),
     "destination": (2,) float32 [m, grid frame]}``."""
 
-    def _make_space(self) -> spaces.Dict:
+    key = "grids"  #: the grids' key
+
+    def _grid_shape(self) -> tuple[int, ...]:
         e, s = self.cfg.env, self.cfg.sensor
+        return (e.history, s.rows, s.cols)
+
+    def _grids(self, env: GridSimEnv) -> np.ndarray:
+        return env.grid_history()
+
+    def _make_space(self) -> spaces.Dict:
         return spaces.Dict({
-            "grids": spaces.Box(0, 255, (e.history, s.rows, s.cols), np.uint8),
+            self.key: spaces.Box(0, 255, self._grid_shape(), np.uint8),
             "ego": _vector(len(EGO_FEATURES)),
             "destination": _vector(2),
         })  # fmt: skip
 
     def observe(self, env: GridSimEnv) -> dict[str, np.ndarray]:
-        return {"grids": env.grid_history(), "ego": env.ego_features(),
+        return {self.key: self._grids(env), "ego": env.ego_features(),
                 "destination": env.destination()}  # fmt: skip
 
 
-class NewestGridObservation(ObservationType):
+class NewestGridObservation(GridsObservation):
     """:class:`GridsObservation` with the newest grid only, ``"grid"``: ``(rows, cols)`` uint8,
     for an agent that keeps its own history (a recurrent policy; NeuroTrajectory's rollouts,
     which keep each frame's CNN features). After a reset the history it stands for is that
     grid ``history`` times; each step adds one."""
 
-    def _make_space(self) -> spaces.Dict:
-        s = self.cfg.sensor
-        return spaces.Dict({
-            "grid": spaces.Box(0, 255, (s.rows, s.cols), np.uint8),
-            "ego": _vector(len(EGO_FEATURES)),
-            "destination": _vector(2),
-        })  # fmt: skip
+    key = "grid"
 
-    def observe(self, env: GridSimEnv) -> dict[str, np.ndarray]:
-        return {"grid": env.newest_grid(), "ego": env.ego_features(),
-                "destination": env.destination()}  # fmt: skip
+    def _grid_shape(self) -> tuple[int, ...]:
+        return (self.cfg.sensor.rows, self.cfg.sensor.cols)
+
+    def _grids(self, env: GridSimEnv) -> np.ndarray:
+        return env.newest_grid()
 
 
 class KinematicsObservation(ObservationType):
