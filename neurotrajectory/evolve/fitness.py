@@ -171,17 +171,14 @@ class Evaluator:
             if self.cache:  # the newest frame's features, into each running episode's cache
                 frames = np.stack([[o["grid"] for o in obs[k]] for k in rows])
                 new = net.grid_part(params, net.frame_features(params, frames))
-                a, j = np.nonzero(live[rows])
-                k = rows[a]
-                fill = reset[k, j]
-                for which, part in ((~fill, "shift"), (fill, "fill")):
-                    if not which.any():
-                        continue
-                    ka, ja, aa = (torch.from_numpy(v[which]) for v in (k, j, a))
-                    if part == "shift":
-                        grid[ka, ja] = torch.cat([grid[ka, ja, 1:], new[aa, ja][:, None]], dim=1)
-                    else:
-                        grid[ka, ja] = new[aa, ja][:, None].expand(-1, t, -1)
+                a, j = np.nonzero(live[rows])  # running episodes: batch row a, episode j
+                k, fresh = rows[a], reset[rows[a], j]
+                if (~fresh).any():  # one new frame at the end of the history
+                    ka, ja, aa = (torch.from_numpy(v[~fresh]) for v in (k, j, a))
+                    grid[ka, ja] = torch.cat([grid[ka, ja, 1:], new[aa, ja][:, None]], dim=1)
+                if fresh.any():  # just reset: every frame of the history is this one
+                    ka, ja, aa = (torch.from_numpy(v[fresh]) for v in (k, j, a))
+                    grid[ka, ja] = new[aa, ja][:, None].expand(-1, t, -1)
                 reset[k, j] = False
             else:  # every frame of the history, every step
                 for slot in range(t):
