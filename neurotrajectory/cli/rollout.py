@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from gridsim.cli.flags import at_least, overlay_flag, seed_flag
-from neurotrajectory.cli.flags import check_video, pick_flag, run_flag
+from neurotrajectory.cli.flags import check_video, pick_flag, positive_seconds, run_flag
 
 
 def add_parser(sub) -> None:
@@ -21,34 +21,49 @@ def add_parser(sub) -> None:
         "--steps",
         type=at_least(1),
         default=None,
-        help="decisions to drive at most (default: the run's episode length)",
+        help="decisions to drive at most (default: the whole episode)",
     )
+    p.add_argument("--seconds", type=positive_seconds, default=None, metavar="S",
+                   help="episode length [s] (default: the run's; heldout drives its own: see "
+                   "episode_seconds in heldout.json)")  # fmt: skip
+    p.add_argument("--track", default=None, metavar="NAME",
+                   help="recorded scenes: drive this track as the ego (as heldout.json names "
+                   "it: the id, or FILE/ID on a collection of scenes; default: as the run's "
+                   "generations, one of its training tracks)")  # fmt: skip
     p.set_defaults(func=execute)
 
 
 def execute(args: argparse.Namespace) -> int:
     check_video(args.video)
-    rollout(args.run, args.pick, args.video, args.seed, args.steps, args.overlay)
+    rollout(args.run, args.pick, args.video, args.seed, args.steps, args.overlay, args.seconds,
+            args.track)  # fmt: skip
     return 0
 
 
 def rollout(
-    run_dir: str, pick: str, video: str, seed: int, steps: int | None, overlay: bool = True
+    run_dir: str,
+    pick: str,
+    video: str,
+    seed: int,
+    steps: int | None,
+    overlay: bool = True,
+    seconds: float | None = None,
+    track: str | None = None,
 ) -> dict:
     """Drive the front member ``pick`` of the run ``run_dir`` for at most ``steps`` decisions
-    (default: the run's episode) on the episode ``seed`` into ``video``; print and return a
-    summary."""
-    from gridsim.envs.gridsim_env import GridSimEnv
+    on the episode ``seed`` (``seconds`` long, default the run's; the ego driving the recorded
+    ``track``, default as the run's generations; a held-out episode of ``heldout.json`` is
+    its seed, track and episode_seconds) into ``video``; print and return a summary."""
     from gridsim.video import record_episode
-    from neurotrajectory.compare.front import load_front_member
+    from neurotrajectory.compare.front import episode_env, load_front_member
 
     run, policy, member = load_front_member(run_dir, pick)
-    env = GridSimEnv(run.config.scenario, render_mode="rgb_array", **run.config.overrides)
+    env = episode_env(run, seconds, track, render_mode="rgb_array")
     episode = env.cfg.episode_decisions
     if steps and steps > episode:
-        print(f"neurotrajectory: note: --steps {steps} is more than the run's episodes of "
-              f"{episode} decisions ({env.cfg.simulation.duration:g} s): the episode ends at "
-              f"{episode}", file=sys.stderr)  # fmt: skip
+        print(f"neurotrajectory: note: --steps {steps} is more than the episode's "
+              f"{episode} decisions ({env.cfg.simulation.duration:g} s; --seconds makes it "
+              f"longer): the episode ends at {episode}", file=sys.stderr)  # fmt: skip
     label = f"NeuroTrajectory, {pick} member {member['index']} of {Path(run_dir).name}"
     driven, path = record_episode(env, policy, video, min(steps or episode, episode), seed=seed,
                                   overlay=overlay, label=label)  # fmt: skip
@@ -58,7 +73,8 @@ def rollout(
     ended = ("a collision" if s["collision"] else "leaving the road" if s["off_road"]
              else "reaching the destination" if s["destination_reached"]
              else "the time or --steps limit")  # fmt: skip
-    print(f"{pick} member {member['index']}, seed {seed}: {s['steps']} decisions, "
+    on = f", track {track}" if track else ""
+    print(f"{pick} member {member['index']}, seed {seed}{on}: {s['steps']} decisions, "
           f"{s['simulated_s']:.1f} s, {s['distance_m']:.0f} m at {s['mean_speed']:.1f} m/s, "
           f"ended by {ended}\n"
           f"  fitness sums: l1 {f['l1']:.4g} m^2, l2 {f['l2']:.3g} rad/s, l3 {f['l3']:.4g} m/s\n"

@@ -11,6 +11,7 @@ import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.traffic.track import track_name
+from neurotrajectory.data.windows import goal_overrides
 from neurotrajectory.evolve.fitness import scenario_net_config
 from neurotrajectory.evolve.genome import genome_mismatch, set_genome
 from neurotrajectory.evolve.pareto import pick_member
@@ -120,8 +121,7 @@ def heldout(
     cfg = run.config
     seconds = cfg.episode_seconds if seconds is None else float(seconds)
     tracks = _other_tracks(cfg.scenario, cfg.ego_tracks)[:episodes] if cfg.ego_tracks else None
-    several = tracks is not None and len({ref for ref, _ in tracks}) > 1
-    names = [track_name(ref, track) if several else track for ref, track in tracks or ()]
+    names = _track_names(tracks or [])
     seeds = list(cfg.heldout_seeds(len(tracks) if tracks else episodes))
 
     def drive(planner) -> list[dict]:
@@ -152,6 +152,49 @@ def heldout(
         "episodes": rows,
         **({"warm_start_episodes": started} if started else {}),
     }
+
+
+def _track_names(tracks: list[tuple[str, str]]) -> list[str]:
+    """How reports name ``(scenario file, track id)`` pairs: the id, or ``FILE/ID`` when they
+    come from more than one scene."""
+    several = len({ref for ref, _ in tracks}) > 1
+    return [track_name(ref, track) if several else track for ref, track in tracks]
+
+
+def episode_env(
+    run: Run, seconds: float | None = None, track: str | None = None, **kwargs
+) -> GridSimEnv:
+    """An environment for the run's episodes as :func:`heldout` drives them: ``seconds`` long
+    (default: the run's episode length), the ego driving the recorded ``track`` (named as a
+    held-out report names it: the id, or ``FILE/ID`` on a collection of scenes; default: the
+    run's training tracks, if any); ``kwargs`` go to :class:`GridSimEnv`."""
+    cfg = run.config
+    duration = {"simulation": {"duration": cfg.episode_seconds if seconds is None else seconds}}
+    if track is None:
+        return GridSimEnv(cfg.scenario, **(cfg.overrides | duration), **kwargs)
+    if not _recorded(cfg.scenario):
+        raise RunError(f"--track {track}: the run's scenario {cfg.scenario} is generated, it "
+                       "has no recorded tracks to drive (drop --track)")  # fmt: skip
+    every = _other_tracks(cfg.scenario, ())
+    names = _track_names(every)
+    if track not in names:
+        raise RunError(f"--track {track}: not a track of {cfg.scenario} that can be the ego; "
+                       f"its tracks are named like {', '.join(names[:3])} (as heldout.json "
+                       "names them)")  # fmt: skip
+    ref, track_id = every[names.index(track)]
+    return GridSimEnv(ref, ego={"track": track_id}, **duration,
+                      **goal_overrides(cfg.goal_seconds), **kwargs)  # fmt: skip
+
+
+def _recorded(scenario: str) -> bool:
+    """Whether ``scenario`` (a name, file or collection) is made of recorded scenes."""
+    from gridsim.scenario.collection import scenario_files
+    from gridsim.scenario.family import is_recorded
+    from gridsim.scenario.loader import load_scenario
+
+    files = scenario_files(scenario)
+    refs = [scenario] if files is None else [str(f) for f in files]
+    return all(is_recorded(load_scenario(ref)) for ref in refs)
 
 
 def paired_l1(rows: list[dict], others: list[dict]) -> dict:

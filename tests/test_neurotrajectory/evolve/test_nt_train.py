@@ -589,13 +589,31 @@ def test_rollout_says_when_steps_exceed_the_episode(finished_run, tmp_path, caps
     video = str(tmp_path / "v.gif")
     assert main(["rollout", "--run", str(finished_run), "--video", video, "--steps", "300"]) == 0
     out, err = capsys.readouterr()
-    assert "--steps 300 is more than the run's episodes of 40 decisions (4 s)" in err
+    assert "--steps 300 is more than the episode's 40 decisions (4 s; --seconds" in err
     steps = int(out.split(" decisions,")[0].rsplit(" ", 1)[-1])
     assert 0 < steps <= 40
     assert cli(["rollout", "--run", str(finished_run), "--steps", "-5"]) == 2
     assert "argument --steps: expected an integer >= 1, got '-5'" in capsys.readouterr().err
     assert main(["rollout", "--run", str(finished_run), "--video", "x.avi"]) == 2
     assert "--video x.avi: unsupported extension '.avi'" in capsys.readouterr().err
+    assert main(["rollout", "--run", str(finished_run), "--video", video, "--track", "7"]) == 2
+    assert "--track 7: the run's scenario seamless is generated" in capsys.readouterr().err
+    assert cli(["rollout", "--run", str(finished_run), "--seconds", "0"]) == 2
+    assert "argument --seconds: must be a finite number of seconds > 0" in capsys.readouterr().err
+
+
+def test_rollout_drives_a_held_out_episode_as_heldout_did(finished_run, tmp_path):
+    """heldout.json's seed and episode_seconds give rollout the same episode, longer than the
+    run's own (4 s)."""
+    from neurotrajectory.cli.rollout import rollout
+    from neurotrajectory.compare.front import heldout
+
+    report = heldout(finished_run, 1, seconds=6.0)
+    row = report["episodes"][0]
+    driven = rollout(str(finished_run), "knee", str(tmp_path / "v.gif"), row["seed"], None,
+                     overlay=False, seconds=report["episode_seconds"])  # fmt: skip
+    assert driven["simulated_s"] == pytest.approx(row["seconds"]) and row["seconds"] > 4.0
+    assert driven["fitness_sums"]["l1"] == pytest.approx(row["l1"], rel=1e-12)
 
 
 def test_front_plot_marks_the_knee_and_lost_members(tmp_path, monkeypatch):
@@ -684,6 +702,14 @@ def test_heldout_on_a_recorded_scene_drives_each_held_out_track_once(tmp_path):
     first = drive_episodes("us101_4_1", policy, report["seeds"][:1], 2.0,
                            ego={"track": held[0]})  # fmt: skip
     assert {**first[0], "track": held[0]} == report["episodes"][0]
+    # rollout drives it too, named as the report names it
+    from neurotrajectory.cli.rollout import rollout
+
+    driven = rollout(str(tmp_path / "run"), "knee", str(tmp_path / "v.gif"), report["seeds"][0],
+                     None, overlay=False, seconds=2.0, track=held[0])  # fmt: skip
+    assert driven["fitness_sums"]["l1"] == pytest.approx(first[0]["l1"], rel=1e-12)
+    with pytest.raises(RunError, match=f"--track nope: not a track of us101_4_1 .* like {held[0]}"):
+        rollout(str(tmp_path / "run"), "knee", str(tmp_path / "v.gif"), 0, None, track="nope")
 
 
 def test_a_run_on_a_collection_of_recorded_scenes_holds_out_the_tracks_of_every_scene(tmp_path):
@@ -719,6 +745,12 @@ def test_a_run_on_a_collection_of_recorded_scenes_holds_out_the_tracks_of_every_
     held = [f"{names[0]}/{usable[names[0]][0]}"] + [f"{names[1]}/{t}" for t in usable[names[1]][:2]]
     assert sorted(report["ego_tracks"]) == sorted(held)
     assert [e["track"] for e in report["episodes"]] == report["ego_tracks"]
+    from neurotrajectory.cli.rollout import rollout  # drives a FILE/ID track on its scene
+
+    row = report["episodes"][-1]
+    driven = rollout(str(tmp_path / "run"), "knee", str(tmp_path / "v.gif"), row["seed"], None,
+                     overlay=False, seconds=2.0, track=row["track"])  # fmt: skip
+    assert driven["fitness_sums"]["l1"] == pytest.approx(row["l1"], rel=1e-12)
 
 
 def test_a_population_too_big_for_memory_is_refused_before_allocating(tmp_path, capsys):
