@@ -70,6 +70,7 @@ def report_heldout(
             print(f"  {name:<18} completed {r['completed']:4.0%}  progress {r['progress']:4.0%} "
                   f"of the human's  mean l1 {r['l1']:8.0f} m^2  steering "
                   f"{r['mean_steer_rate']:.2f} rad/s")  # fmt: skip
+    _print_failures(run, pick, report)
     paired = report.get("paired")
     if paired is None:
         return
@@ -80,3 +81,23 @@ def report_heldout(
         print(f"  on the {paired['episodes']} {which} both the {pick} member and its warm start "
               f"complete: mean l1 {paired['l1']:.1f} against {paired['other_l1']:.1f} m^2 "
               f"({paired['l1_change']:+.1%}), lower on {paired['better']} of them")  # fmt: skip
+
+
+def _print_failures(run: Run, pick: str, report: dict, shown: int = 3) -> None:
+    """The member's episodes that ended early (a few), and how to watch one."""
+    failed = [e for e in report["episodes"] if not e["completed"]]
+    if not failed:
+        return
+
+    def name(e: dict) -> str:
+        how = "collision" if e["collision"] else "off the road" if e["off_road"] else "ended"
+        on = f", track {e['track']}" if "track" in e else ""
+        return f"seed {e['seed']}{on} ({how} at {e['seconds']:.1f} s)"
+
+    more = f" and {len(failed) - shown} more" if len(failed) > shown else ""
+    first = failed[0]
+    track = f" --track {first['track']}" if "track" in first else ""
+    print(f"  not completed by the {pick} member: {', '.join(map(name, failed[:shown]))}{more}; "
+          f"watch one: neurotrajectory rollout --run {run.out} --pick {pick} --seed "
+          f"{first['seed']} --seconds {report['episode_seconds']:g}{track} --video "
+          "episode.mp4")  # fmt: skip

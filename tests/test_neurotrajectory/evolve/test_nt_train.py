@@ -602,6 +602,26 @@ def test_rollout_says_when_steps_exceed_the_episode(finished_run, tmp_path, caps
     assert "argument --seconds: must be a finite number of seconds > 0" in capsys.readouterr().err
 
 
+def test_heldout_names_the_episodes_the_member_failed_and_how_to_watch_one(capsys):
+    from types import SimpleNamespace
+
+    from neurotrajectory.cli.heldout import _print_failures
+
+    ok = {"completed": 1.0, "collision": 0.0, "off_road": 0.0, "seconds": 10.0}
+    crash = {"completed": 0.0, "collision": 1.0, "off_road": 0.0, "seconds": 7.25}
+    off = {"completed": 0.0, "collision": 0.0, "off_road": 1.0, "seconds": 3.0}
+    report = {"episode_seconds": 10.0, "episodes": [
+        {**ok, "seed": 1, "track": "a/1"}, {**crash, "seed": 3, "track": "a/2"},
+        {**off, "seed": 5, "track": "b/9"}]}  # fmt: skip
+    _print_failures(SimpleNamespace(out=Path("runs/x")), "knee", report)
+    out = capsys.readouterr().out
+    assert ("not completed by the knee member: seed 3, track a/2 (collision at 7.2 s), seed 5, "
+            "track b/9 (off the road at 3.0 s); watch one: neurotrajectory rollout --run "
+            "runs/x --pick knee --seed 3 --seconds 10 --track a/2 --video episode.mp4") in out
+    _print_failures(SimpleNamespace(out=Path("runs/x")), "knee", {**report, "episodes": [ok]})
+    assert capsys.readouterr().out == ""
+
+
 def test_rollout_drives_a_held_out_episode_as_heldout_did(finished_run, tmp_path):
     """heldout.json's seed and episode_seconds give rollout the same episode, longer than the
     run's own (4 s)."""
