@@ -121,7 +121,7 @@ def heldout(
     cfg = run.config
     seconds = cfg.episode_seconds if seconds is None else float(seconds)
     tracks = _other_tracks(cfg.scenario, cfg.ego_tracks)[:episodes] if cfg.ego_tracks else None
-    names = _track_names(tracks or [])
+    names = _track_names(tracks or [], _scene_refs(cfg.scenario))
     seeds = list(cfg.heldout_seeds(len(tracks) if tracks else episodes))
 
     def drive(planner) -> list[dict]:
@@ -154,11 +154,46 @@ def heldout(
     }
 
 
-def _track_names(tracks: list[tuple[str, str]]) -> list[str]:
-    """How reports name ``(scenario file, track id)`` pairs: the id, or ``FILE/ID`` when they
-    come from more than one scene."""
-    several = len({ref for ref, _ in tracks}) > 1
+def _scene_refs(scenario: str) -> list[str]:
+    """The scenario files of ``scenario``: its own name for one scene, each file of a
+    collection."""
+    from gridsim.scenario.collection import scenario_files
+
+    files = scenario_files(scenario)
+    return [scenario] if files is None else [str(f) for f in files]
+
+
+def _track_names(tracks: list[tuple[str, str]], refs: list[str]) -> list[str]:
+    """How reports name ``(scenario file, track id)`` pairs of the scenario files ``refs``:
+    the id on one scene, ``FILE/ID`` on a collection (a track id may be on several)."""
+    several = len(refs) > 1
     return [track_name(ref, track) if several else track for ref, track in tracks]
+
+
+def _resolve_track(scenario: str, name: str) -> tuple[str, str]:
+    """``(scenario file, track id)`` of the track ``name`` of ``scenario`` that can be the
+    ego: named as reports name it (:func:`_track_names`), as ``SCENE/ID`` with the scene's
+    id (as ``config.json`` and datasets name it), or by its id alone where one scene has it."""
+    from gridsim.scenario.families.recorded import scene_of
+    from gridsim.scenario.loader import load_scenario
+
+    refs = _scene_refs(scenario)
+    every = _other_tracks(scenario, ())
+    scenes = {ref: scene_of(load_scenario(ref)) for ref in refs}
+    names: dict[str, list[tuple[str, str]]] = {}
+    for ref, track in every:
+        for alias in {track_name(ref, track), track_name(scenes[ref], track), track}:
+            names.setdefault(alias, []).append((ref, track))
+    found = names.get(name, [])
+    if len(found) == 1:
+        return found[0]
+    if found:
+        named = ", ".join(track_name(r, t) for r, t in found)
+        raise RunError(f"--track {name}: a track of {len(found)} scenes of {scenario}; name "
+                       f"one as FILE/ID: {named}")  # fmt: skip
+    like = ", ".join(_track_names(every, refs)[:3])
+    raise RunError(f"--track {name}: not a track of {scenario} that can be the ego ({len(every)} "
+                   f"are, named like {like}, as heldout.json names them)")  # fmt: skip
 
 
 def episode_env(
@@ -175,26 +210,17 @@ def episode_env(
     if not _recorded(cfg.scenario):
         raise RunError(f"--track {track}: the run's scenario {cfg.scenario} is generated, it "
                        "has no recorded tracks to drive (drop --track)")  # fmt: skip
-    every = _other_tracks(cfg.scenario, ())
-    names = _track_names(every)
-    if track not in names:
-        raise RunError(f"--track {track}: not a track of {cfg.scenario} that can be the ego; "
-                       f"its tracks are named like {', '.join(names[:3])} (as heldout.json "
-                       "names them)")  # fmt: skip
-    ref, track_id = every[names.index(track)]
+    ref, track_id = _resolve_track(cfg.scenario, track)
     return GridSimEnv(ref, ego={"track": track_id}, **duration,
                       **goal_overrides(cfg.goal_seconds), **kwargs)  # fmt: skip
 
 
 def _recorded(scenario: str) -> bool:
     """Whether ``scenario`` (a name, file or collection) is made of recorded scenes."""
-    from gridsim.scenario.collection import scenario_files
     from gridsim.scenario.family import is_recorded
     from gridsim.scenario.loader import load_scenario
 
-    files = scenario_files(scenario)
-    refs = [scenario] if files is None else [str(f) for f in files]
-    return all(is_recorded(load_scenario(ref)) for ref in refs)
+    return all(is_recorded(load_scenario(ref)) for ref in _scene_refs(scenario))
 
 
 def paired_l1(rows: list[dict], others: list[dict]) -> dict:
@@ -231,14 +257,12 @@ def _other_tracks(scenario: str, trained: tuple[str, ...]) -> list[tuple[str, st
     """``(scenario file, track id)`` of every track of ``scenario``'s scenes (one, or each of
     a collection's) that can be the ego and is not in ``trained`` (ids, or ``SCENE/ID``
     names)."""
-    from gridsim.scenario.collection import scenario_files
     from gridsim.scenario.families.recorded import ego_candidates, scene_of
     from gridsim.scenario.loader import load_scenario
     from gridsim.traffic.track import ids_in_scene
 
-    files = scenario_files(scenario)
     others = []
-    for ref in [scenario] if files is None else [str(f) for f in files]:
+    for ref in _scene_refs(scenario):
         sc = load_scenario(ref)
         seen = set(ids_in_scene(list(trained), scene_of(sc))[0])
         need = sc.config.env.horizon_time

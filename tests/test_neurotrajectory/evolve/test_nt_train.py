@@ -622,6 +622,24 @@ def test_heldout_names_the_episodes_the_member_failed_and_how_to_watch_one(capsy
     assert capsys.readouterr().out == ""
 
 
+def test_tracks_are_found_by_the_names_reports_configs_and_datasets_give_them():
+    from gridsim.scenario.families.recorded import scene_of
+    from gridsim.scenario.loader import load_scenario
+    from neurotrajectory.compare.front import _resolve_track, _track_names
+
+    both = "us101_4_1,us101_3_3"
+    scene = scene_of(load_scenario("us101_4_1"))
+    assert _resolve_track(both, "us101_4_1/399") == ("us101_4_1", "399")  # heldout.json
+    assert _resolve_track(both, f"{scene}/399") == ("us101_4_1", "399")  # config.json, data
+    assert _resolve_track("us101_4_1", "399") == ("us101_4_1", "399")
+    with pytest.raises(RunError, match="--track 399: a track of 2 scenes of us101_4_1,us101_3_3; "
+                       "name one as FILE/ID: us101_4_1/399, us101_3_3/399"):  # fmt: skip
+        _resolve_track(both, "399")
+    # a collection's tracks are FILE/ID even when the ones reported are of one scene
+    assert _track_names([("us101_3_3", "399")], ["us101_4_1", "us101_3_3"]) == ["us101_3_3/399"]
+    assert _track_names([("us101_3_3", "399")], ["us101_3_3"]) == ["399"]
+
+
 def test_rollout_drives_a_held_out_episode_as_heldout_did(finished_run, tmp_path):
     """heldout.json's seed and episode_seconds give rollout the same episode, longer than the
     run's own (4 s)."""
