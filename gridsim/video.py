@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 from collections.abc import Callable
 from pathlib import Path
 
@@ -32,6 +33,9 @@ class VideoWriter:
 
     ``.mp4`` is encoded with H.264 by imageio-ffmpeg; if that is not available the frames go to
     a ``.gif`` beside it instead (:attr:`path` tells which). ``.gif`` is written directly.
+    Frames go to a hidden file beside :attr:`path` that :meth:`close` renames to it: a video
+    stopped half-way (an error, Ctrl-C: leaving the ``with`` block by an exception, or
+    :meth:`abort`) leaves no file and an earlier one at :attr:`path` as it was.
     """
 
     def __init__(self, path: str | Path, fps: float) -> None:
@@ -46,18 +50,26 @@ class VideoWriter:
         self.frames = 0
         self._writer = None
         if self.path.suffix.lower() == ".mp4":
+            self._partial = self._partial_of(self.path)
             try:
                 self._writer = imageio.get_writer(
-                    self.path, fps=self.fps, codec="libx264", macro_block_size=1,
+                    self._partial, fps=self.fps, codec="libx264", macro_block_size=1,
                     ffmpeg_log_level="error", pixelformat="yuv420p",
                 )  # fmt: skip
             except Exception as exc:  # no ffmpeg backend: fall back to GIF
                 log.warning("MP4 export unavailable (%s); writing a GIF instead", exc)
                 self.path = self.path.with_suffix(".gif")
         if self._writer is None:
+            self._partial = self._partial_of(self.path)
             self._writer = imageio.get_writer(
-                self.path, mode="I", duration=1000.0 / self.fps, loop=0
+                self._partial, mode="I", duration=1000.0 / self.fps, loop=0
             )
+
+    @staticmethod
+    def _partial_of(path: Path) -> Path:
+        """Where the frames of ``path`` are written until :meth:`close` (same folder and
+        suffix, so that the same writer takes it and the rename stays on one file system)."""
+        return path.with_name(f".{path.stem}.partial{path.suffix}")
 
     def write(self, frame: np.ndarray) -> None:
         frame = np.asarray(frame)
@@ -67,15 +79,30 @@ class VideoWriter:
         self.frames += 1
 
     def close(self) -> None:
+        """Finish the video and put it at :attr:`path` (replacing any file there)."""
         if self._writer is not None:
             self._writer.close()
             self._writer = None
+            if self._partial.exists():  # (a writer given no frame may write no file)
+                os.replace(self._partial, self.path)
+
+    def abort(self) -> None:
+        """Stop without a video: the frames so far are deleted, :attr:`path` left as it was."""
+        if self._writer is not None:
+            writer, self._writer = self._writer, None
+            try:
+                writer.close()
+            finally:
+                self._partial.unlink(missing_ok=True)
 
     def __enter__(self) -> VideoWriter:
         return self
 
-    def __exit__(self, *exc) -> None:
-        self.close()
+    def __exit__(self, kind, *exc) -> None:
+        if kind is None:
+            self.close()
+        else:
+            self.abort()
 
 
 def record_episode(

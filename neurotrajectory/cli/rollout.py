@@ -14,7 +14,9 @@ def add_parser(sub) -> None:
     p = sub.add_parser("rollout", help="drive a Pareto-front member and export a video")
     run_flag(p)
     pick_flag(p)
-    p.add_argument("--video", default="rollout.mp4", help="video to write (.mp4 or .gif)")
+    p.add_argument("--video", default="rollout.mp4",
+                   help="video to write (.mp4 or .gif; default %(default)s, replacing a file "
+                   "there once the video is complete)")  # fmt: skip
     overlay_flag(p)
     seed_flag(p)
     p.add_argument(

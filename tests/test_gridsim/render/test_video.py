@@ -69,6 +69,25 @@ def test_video_writer_rejects_bad_input(tmp_path):
         record_rollout(env, Reference(), None, 0)
 
 
+@pytest.mark.parametrize("suffix", [".mp4", ".gif"])
+def test_a_video_stopped_half_way_leaves_the_earlier_one_and_no_partial_file(tmp_path, suffix):
+    path = tmp_path / f"v{suffix}"
+    frame = np.full((32, 48, 3), 90, np.uint8)
+    with VideoWriter(path, 10) as v:
+        for k in range(3):
+            v.write(frame + np.uint8(40 * k))  # distinct frames (a GIF merges equal ones)
+    kept = path.read_bytes()
+    assert len(iio.imread(path, index=None)) == 3
+    with pytest.raises(KeyboardInterrupt), VideoWriter(path, 10) as v:
+        v.write(frame)
+        raise KeyboardInterrupt  # Ctrl-C while filming
+    assert path.read_bytes() == kept and sorted(tmp_path.iterdir()) == [path]
+    env = gym.make(ENV_ID, render_mode="rgb_array", simulation={"duration": 3.0})
+    with pytest.raises(GridSimError, match="steps must be"):  # fails before any frame
+        record_rollout(env, Reference(), tmp_path / f"w{suffix}", steps=0)
+    assert sorted(tmp_path.iterdir()) == [path]
+
+
 def test_gymnasium_record_video_wrapper(tmp_path):
     env = gym.make(ENV_ID, render_mode="rgb_array", simulation={"duration": 2.0})
     folder = tmp_path / "videos"
