@@ -62,7 +62,12 @@ def report_heldout(
     write_json(path, report)
     count = len(report["episodes"])
     which = "held-out tracks" if "ego_tracks" in report else "held-out episodes"
-    print(f"{pick} member on {count} {which} ({report['episode_seconds']:g} s each):")
+    length = f"{report['episode_seconds']:g} s each"
+    if "ego_tracks" in report:  # a recorded track's episode ends with its recording
+        driven = report["destination curve"]["seconds"]
+        length = f"up to {report['episode_seconds']:g} s each, {driven:.1f} s on average"
+    fewer = f"; {episodes} asked, the run holds out {count}" if count < episodes else ""
+    print(f"{pick} member on {count} {which} ({length}{fewer}):")
     rows = [(f"{pick} member", report["network"]), ("its warm start", report.get("warm_start")),
             ("destination curve", report["destination curve"])]  # fmt: skip
     for name, r in rows:

@@ -718,7 +718,7 @@ def test_heldout_tracks_last_the_planning_horizon():
     assert not {t for ref, t in held if ref == "peachtree_4_8"} & short
 
 
-def test_heldout_on_a_recorded_scene_drives_each_held_out_track_once(tmp_path):
+def test_heldout_on_a_recorded_scene_drives_each_held_out_track_once(tmp_path, capsys):
     from gridsim.scenario.families.recorded import ego_candidates
     from gridsim.scenario.loader import load_scenario
     from neurotrajectory.compare.closed_loop import drive_episodes
@@ -748,6 +748,13 @@ def test_heldout_on_a_recorded_scene_drives_each_held_out_track_once(tmp_path):
     assert driven["fitness_sums"]["l1"] == pytest.approx(first[0]["l1"], rel=1e-12)
     with pytest.raises(RunError, match=f"--track nope: not a track of us101_4_1 .* like {held[0]}"):
         rollout(str(tmp_path / "run"), "knee", str(tmp_path / "v.gif"), 0, None, track="nope")
+    from neurotrajectory.cli.heldout import report_heldout  # says what it drove
+
+    capsys.readouterr()
+    report_heldout(Run.open(tmp_path / "run"), 20, out=tmp_path / "h.json")
+    mean = json.loads((tmp_path / "h.json").read_text())["destination curve"]["seconds"]
+    assert (f"knee member on {len(held)} held-out tracks (up to 2 s each, {mean:.1f} s on "
+            f"average; 20 asked, the run holds out {len(held)}):") in capsys.readouterr().out
 
 
 def test_a_run_on_a_collection_of_recorded_scenes_holds_out_the_tracks_of_every_scene(tmp_path):
