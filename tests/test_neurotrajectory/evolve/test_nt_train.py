@@ -615,9 +615,11 @@ def test_heldout_names_the_episodes_the_member_failed_and_how_to_watch_one(capsy
         {**off, "seed": 5, "track": "b/9"}]}  # fmt: skip
     _print_failures(SimpleNamespace(out=Path("runs/x")), "knee", report)
     out = capsys.readouterr().out
-    assert ("not completed by the knee member: seed 3, track a/2 (collision at 7.2 s), seed 5, "
-            "track b/9 (off the road at 3.0 s); watch one: neurotrajectory rollout --run "
-            "runs/x --pick knee --seed 3 --seconds 10 --track a/2 --video episode.mp4") in out
+    assert (
+        "not completed by the knee member: seed 3, track a/2 (collision at 7.2 s), seed 5, "
+        "track b/9 (off the road at 3.0 s); watch one: neurotrajectory rollout --run "
+        "runs/x --pick knee --seed 3 --seconds 10 --track a/2 --video episode.mp4"
+    ) in out
     _print_failures(SimpleNamespace(out=Path("runs/x")), "knee", {**report, "episodes": [ok]})
     assert capsys.readouterr().out == ""
 
@@ -753,8 +755,10 @@ def test_heldout_on_a_recorded_scene_drives_each_held_out_track_once(tmp_path, c
     capsys.readouterr()
     report_heldout(Run.open(tmp_path / "run"), 20, out=tmp_path / "h.json")
     mean = json.loads((tmp_path / "h.json").read_text())["destination curve"]["seconds"]
-    assert (f"knee member on {len(held)} held-out tracks (up to 2 s each, {mean:.1f} s on "
-            f"average; 20 asked, the run holds out {len(held)}):") in capsys.readouterr().out
+    assert (
+        f"knee member on {len(held)} held-out tracks (up to 2 s each, {mean:.1f} s on "
+        f"average; 20 asked, the run holds out {len(held)}):"
+    ) in capsys.readouterr().out
 
 
 def test_a_run_on_a_collection_of_recorded_scenes_holds_out_the_tracks_of_every_scene(tmp_path):
