@@ -128,15 +128,20 @@ def report_skipped(
                   f"\n{lines}", DataWarning, stacklevel=3)  # fmt: skip
 
 
+#: Lines of one skipped file's reason shown (the rest: ``gridsim validate FILE``).
+REASON_LINES = 6
+
+
 def skipped_lines(skipped: list[tuple[Path, str]]) -> str:
-    """One ``  - FILE: REASON`` line per skipped file (the reason's first line, without a
-    leading copy of the file name)."""
+    """``  - FILE: REASON`` per skipped file (without a leading copy of the file name), the
+    reason's further lines indented under it, at most :data:`REASON_LINES` of them."""
     out = []
     for f, reason in skipped:
-        first = reason.splitlines()[0] if reason else "unknown"
-        first = first.removeprefix(f"{f}: ")
-        extra = len(reason.splitlines()) - 1
-        out.append(f"  - {f}: {first}" + (f" (+{extra} more lines)" if extra > 0 else ""))
+        lines = (reason or "unknown").splitlines() or ["unknown"]
+        out.append(f"  - {f}: {lines[0].removeprefix(f'{f}: ')}")
+        out += [f"      {line.strip()}" for line in lines[1:REASON_LINES]]
+        if len(lines) > REASON_LINES:
+            out.append(f"      (+{len(lines) - REASON_LINES} more lines: gridsim validate {f})")
     return "\n".join(out)
 
 
@@ -152,11 +157,22 @@ def load_collection(ref: str | Path, overrides: Mapping[str, Any] | None = None)
         doc = sc.config.model_dump()
         for key in SHARED_KEYS:
             if _get(doc, key) != _get(first, key):
+                where, mine, theirs = _difference(_get(doc, key), _get(first, key), key)
                 raise ScenarioError(
                     f"{ref}: the scenarios of a collection must agree on {key}; "
-                    f"{sc.source} differs from {scenarios[0].source}"
+                    f"{sc.source} has {where} = {mine!r}, {scenarios[0].source} {theirs!r}"
                 )
     return scenarios
+
+
+def _difference(a: Any, b: Any, key: str) -> tuple[str, Any, Any]:
+    """The first key (dotted, under ``key``) whose values differ between ``a`` and ``b``, and
+    the two values."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for k in sorted(set(a) | set(b), key=str):
+            if a.get(k) != b.get(k):
+                return _difference(a.get(k), b.get(k), f"{key}.{k}")
+    return key, a, b
 
 
 def pick(scenarios: list[Scenario], seed: int) -> Scenario:

@@ -12,7 +12,7 @@ from paths import COMMONROAD
 from gridsim.cli import main
 from gridsim.envs import ENV_ID
 from gridsim.errors import DataWarning, ScenarioError
-from gridsim.scenario.collection import load_collection, scenario_files
+from gridsim.scenario.collection import load_collection, scenario_files, skipped_lines
 
 
 @pytest.fixture
@@ -89,7 +89,9 @@ def test_an_environment_draws_a_scene_per_reset_from_the_seed(folder):
 def test_a_collection_must_share_spaces(folder):
     doc = {"name": "other", "road": {"type": "seamless"}, "sensor": {"rows": 64}}
     (folder / "other.yaml").write_text(yaml.safe_dump(doc))
-    with pytest.raises(ScenarioError, match="agree on sensor; .*2018b.xml differs from .*other"):
+    with pytest.raises(
+        ScenarioError, match="agree on sensor; .*2018b.xml has sensor.rows = 128, .*other.yaml 64"
+    ):
         load_collection(folder)
 
 
@@ -153,6 +155,20 @@ def test_unusable_files_of_a_collection_are_skipped_and_named(folder):
     for seed in range(6):
         env.reset(seed=seed)
         assert env.unwrapped.scenario.name in names
+
+
+def test_a_skipped_file_is_shown_with_every_problem_it_has(folder):
+    doc = {"name": "bad", "road": {"type": "seamless"}, "sensor": {"rows": -3, "colour": 1}}
+    (folder / "bad.yaml").write_text(yaml.safe_dump(doc))
+    with pytest.warns(DataWarning) as caught:
+        gym.make(ENV_ID, scenario=str(folder))
+    (message,) = [str(w.message) for w in caught if "skipped" in str(w.message)]
+    shown = message.split(f"{folder / 'bad.yaml'}: ", 1)[1]
+    assert "sensor.rows" in shown and "-3" in shown and "sensor.colour" in shown, shown
+    many = [(Path("f.yaml"), "\n".join(f"problem {k}" for k in range(10)))]
+    lines = skipped_lines(many).splitlines()
+    assert lines[0] == "  - f.yaml: problem 0" and lines[5] == "      problem 5"
+    assert lines[-1] == "      (+4 more lines: gridsim validate f.yaml)"
 
 
 def test_a_collection_with_no_usable_file_names_them_all(tmp_path):
