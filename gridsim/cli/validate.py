@@ -68,8 +68,13 @@ def execute(args: argparse.Namespace) -> int:
         try:
             _, summary, report = _report(str(f))
             problems, notes = report.problems, report.warnings
-        except GridSimError as exc:
-            summary, problems, notes = "error", str(exc).splitlines(), ()
+        except GridSimError as exc:  # one error, its own lines (a count and a list) kept
+            failed += 1
+            first, *rest = str(exc).splitlines() or ["error"]
+            print(f"{f}: {first.removeprefix(f'{f}: ')}")
+            for line in rest:
+                print(f"  {line.strip()}")
+            continue
         if problems:
             failed += 1
             print(f"{f}: {len(problems)} problem(s)")
