@@ -25,7 +25,9 @@ LOCK_NAME = ".lock"
 
 def output_problem(path: str | Path, directory: bool) -> str | None:
     """Why ``path`` cannot be created (or written) as a folder (``directory``) or a file, or
-    None if it can. Nothing is created."""
+    None if it can. Nothing is left behind (a probe file is created in the folder it would be
+    made in and removed: permissions alone do not tell a read-only or virtual file system,
+    such as /proc, from a writable one)."""
     path = Path(path)
     if path.is_dir() and not directory:
         return "is a folder, expected a file"
@@ -41,6 +43,11 @@ def output_problem(path: str | Path, directory: bool) -> str | None:
             return f"{target} is a file, not a folder"
     if not os.access(target, os.W_OK | os.X_OK):
         return f"{target} is not writable"
+    try:
+        with tempfile.TemporaryFile(dir=target):
+            pass
+    except OSError as exc:
+        return f"{target} is not writable ({exc.strerror or exc})"
     return None
 
 

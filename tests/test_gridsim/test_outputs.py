@@ -86,3 +86,16 @@ def test_a_folders_manifest_is_checked_and_errors_name_the_file(tmp_path, conten
     write_text(tmp_path / "m.json", '{"format": 1, "items": [3]}')  # an older format is read
     assert read_manifest(tmp_path, "m.json", "thing", ValueError, (1, 2), ("items",)) == {
         "format": 1, "items": [3]}  # fmt: skip
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self"), reason="needs Linux's /proc")
+def test_a_folder_that_refuses_files_is_caught_before_any_work(tmp_path):
+    """/proc passes a permission check, even for root, but takes no new file."""
+    from pathlib import Path
+
+    assert output_problem(Path("/proc/x.json"), directory=False).startswith(
+        "/proc is not writable"
+    )
+    assert output_problem(Path("/proc/run"), directory=True).startswith("/proc is not writable")
+    assert output_problem(tmp_path / "x.json", directory=False) is None
+    assert list(tmp_path.iterdir()) == []  # the probe leaves nothing
