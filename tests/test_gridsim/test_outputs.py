@@ -11,6 +11,7 @@ import pytest
 from gridsim.outputs import (
     atomic_text,
     new_folder_problem,
+    output_problem,
     read_manifest,
     write_json,
     write_npz,
@@ -93,9 +94,7 @@ def test_a_folder_that_refuses_files_is_caught_before_any_work(tmp_path):
     """/proc passes a permission check, even for root, but takes no new file."""
     from pathlib import Path
 
-    assert output_problem(Path("/proc/x.json"), directory=False).startswith(
-        "/proc is not writable"
-    )
+    assert output_problem(Path("/proc/x.json"), directory=False).startswith("/proc is not writable")
     assert output_problem(Path("/proc/run"), directory=True).startswith("/proc is not writable")
     assert output_problem(tmp_path / "x.json", directory=False) is None
     assert list(tmp_path.iterdir()) == []  # the probe leaves nothing
