@@ -58,7 +58,8 @@ def plot_run(
         # episode's remaining steps at the worst values) would flatten the rest
         if k > 0:
             _span(ax, np.concatenate([f[~gone, k] for f, gone in zip(fit, lost, strict=True)]))
-        top = ax.get_ylim()[1] if k > 0 else None
+        # a padded score is drawn at the worse edge: the top for l2, the bottom for l3
+        top = None if k == 0 else ax.get_ylim()[1 if k == 1 else 0]
         for g, f, gone in zip(gens, fit, lost, strict=True):
             y = f[gone, k] if top is None else np.full(gone.sum(), top)
             ax.scatter(np.full(gone.sum(), g), y, s=14, marker="x", color="black", clip_on=False,
@@ -66,7 +67,7 @@ def plot_run(
                              " (not drawn to scale)") if g == gens[0] else None)  # fmt: skip
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_title(NAMES[k], fontsize=9)
+        ax.set_title(NAMES[k], fontsize=9, pad=10)
     axes[0].legend(fontsize=8)
     fig.suptitle("every member of every generation, on that generation's training episodes "
                  "(drawn anew each generation)", fontsize=10)  # fmt: skip
@@ -87,23 +88,33 @@ def plot_run(
     # numbered as train prints the final front (and rollout --pick takes it), else as the
     # generation's individuals
     who = f"member {at} of the front" if final is not None else f"member {knee}"
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
+    kept = ~lost
     for ax, (i, j) in zip(axes, [(0, 1), (0, 2), (1, 2)], strict=True):
-        ax.scatter(last[rank > 0, i], last[rank > 0, j], s=10, color="0.6", label="dominated")
-        ax.scatter(
-            last[rank == 0, i], last[rank == 0, j], s=18, color="tab:red", label="Pareto front"
-        )
+        shown = kept & (rank > 0)
+        ax.scatter(last[shown, i], last[shown, j], s=10, color="0.6", label="dominated")
+        shown = kept & (rank == 0)
+        ax.scatter(last[shown, i], last[shown, j], s=18, color="tab:red", label="Pareto front")
+        # the axes span the members that completed every episode: a padded score (the
+        # episode's remaining steps at the worst values) would squash them into a dot
+        if kept.any():
+            _span(ax, last[kept, i], "x")
+            _span(ax, last[kept, j], "y")
         if lost.any():
-            ax.scatter(last[lost, i], last[lost, j], s=40, marker="x", color="black",
-                       label="an episode ended in a collision or off-road")  # fmt: skip
+            (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+            ax.scatter(np.clip(last[lost, i], x0, x1), np.clip(last[lost, j], y0, y1), s=40,
+                       marker="x", color="black", clip_on=False,
+                       label="lost an episode (a collision or off-road; at the edge, not to "
+                             "scale)" if kept.any() else "lost an episode")  # fmt: skip
         ax.scatter(last[knee, i], last[knee, j], s=120, facecolors="none", edgecolors="tab:green",
                    linewidths=2, label=f"knee ({who}): l1 {k1:.4g}, l2 {k2:.3g}, "
                                        f"l3 {k3:.4g}")  # fmt: skip
         ax.set_xlabel(NAMES[i], fontsize=8)
         ax.set_ylabel(NAMES[j], fontsize=8)
-    axes[0].legend(fontsize=8)
+    # one legend under the panels, clear of the points
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=4, fontsize=8)
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.08, 1, 1))
     paths.append(_save(fig, folder / "front.png"))
 
     paths.append(_hypervolume(folder / "hypervolume.png", history, anchored))
@@ -138,8 +149,8 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
     objective, with the warm start on the same episodes as a line. The axes span the knees
     that completed every episode (and the warm start); a knee that lost episode time (a
     collision or leaving the road, its remaining steps counted at the worst values) is a
-    cross at the top edge, a warm start that lost some a dotted line there, neither drawn to
-    scale. None without validation scores."""
+    cross at the worse edge (the top, the bottom for l3), a warm start that lost some a dotted
+    line there, neither drawn to scale. None without validation scores."""
     points = [(h["generation"], h["knee_validation"]) for h in history if "knee_validation" in h]
     if not points:
         return None
@@ -155,7 +166,7 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
                 label="knee of the generation")  # fmt: skip
         # the axes span what completed every episode: a padded score would flatten the rest
         _span(ax, np.append(kept[~lost], [] if warm is None or warm_lost else [warm[key]]))
-        top = ax.get_ylim()[1]
+        top = ax.get_ylim()[0 if key == "l3" else 1]  # the worse edge (l3 is maximised)
         if warm is not None and not warm_lost:
             ax.axhline(warm[key], color="tab:orange", ls="--", label="warm start")
         elif warm_lost:
@@ -167,20 +178,21 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
                        label="the knee lost an episode (not drawn to scale)")  # fmt: skip
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_title(name, fontsize=9)
+        ax.set_title(name, fontsize=9, pad=10)
     axes[0].legend(fontsize=8)
     fig.suptitle("learning curve: on the validation episodes (none trained on)", fontsize=10)
     fig.tight_layout()
     return _save(fig, path)
 
 
-def _span(ax, values: np.ndarray) -> None:
-    """The y axis spans ``values`` (with a margin, more above), if there are any: the scores
-    of what completed every episode, so that a padded score never sets the scale."""
+def _span(ax, values: np.ndarray, axis: str = "y") -> None:
+    """The ``axis`` ("x" or "y") spans ``values`` (with a margin, more above), if there are
+    any: the scores of what completed every episode, so that a padded score never sets the
+    scale."""
     if len(values):
         lo, hi = float(values.min()), float(values.max())
         pad = 0.08 * (hi - lo) or 0.05 * max(abs(hi), 1e-9)
-        ax.set_ylim(lo - pad, hi + 2 * pad)
+        (ax.set_xlim if axis == "x" else ax.set_ylim)(lo - pad, hi + 2 * pad)
 
 
 def _save(fig, path: Path) -> Path:

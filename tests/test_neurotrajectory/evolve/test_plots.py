@@ -55,3 +55,31 @@ def test_the_objectives_plot_is_scaled_to_the_members_that_completed(tmp_path, m
     crosses = [c.get_offsets().tolist() for c in l2.collections
                if len(c.get_offsets()) and c.get_offsets()[0][1] == top]  # fmt: skip
     assert crosses == [[[2.0, top]]]
+    # on l3 (maximised) it is at the bottom edge
+    bottom = l3.get_ylim()[0]
+    assert [c.get_offsets().tolist() for c in l3.collections
+            if len(c.get_offsets()) and c.get_offsets()[0][1] == bottom] == [[[2.0, bottom]]]  # fmt: skip
+
+
+def test_the_front_plot_is_scaled_to_the_members_that_completed(tmp_path, monkeypatch):
+    """Members that lost an episode (padded to l1 ~ 1e5) neither squash the front into a dot
+    nor vanish: they are crosses at the axes' edges."""
+    import numpy as np
+
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig) or path)
+    monkeypatch.setattr(plots, "generation_hypervolume", lambda *args: 1.0)
+    fitness = np.array([[120.0 + 10 * i, 4.3 + 0.02 * i, 680.0 + i] for i in range(6)]
+                       + [[6.7e4, 6.2, 665.0], [1.2e5, 7.7, 660.0]])  # fmt: skip
+    rank, violation = np.array([0] * 6 + [1, 1]), np.array([0.0] * 6 + [0.2, 0.4])
+    history = [{"generation": 0, "fitness": fitness.tolist(), "violation": violation.tolist(),
+                "rank": rank.tolist(), "hypervolume": 1.0}]  # fmt: skip
+    plots.plot_run(tmp_path, history, (fitness, rank, violation), "8 validation episodes")
+    l1_l2 = figures[1].axes[0]
+    assert l1_l2.get_xlim()[1] < 250.0 and l1_l2.get_ylim()[1] < 4.5  # the completed ones
+    x1, y1 = l1_l2.get_xlim()[1], l1_l2.get_ylim()[1]
+    edge = [c.get_offsets().tolist() for c in l1_l2.collections if c.get_offsets().shape[0] == 2]
+    assert edge == [[[x1, y1], [x1, y1]]]  # both failed members, at the worse corner
+    labels = figures[1].legends[0].get_texts()
+    assert any("lost an episode" in t.get_text() and "not to scale" in t.get_text()
+               for t in labels)  # fmt: skip
