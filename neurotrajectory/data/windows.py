@@ -37,7 +37,6 @@ from gridsim.scenario.collection import (
     load_collection,
     report_skipped,
     scenario_files,
-    usable_files,
 )
 from gridsim.scenario.families.recorded import recorded_scene, scene_of
 from gridsim.scenario.family import family_of
@@ -349,15 +348,16 @@ def record_scenario(
 
 def group_scenarios(name: str, source: str | None = None) -> tuple[str, ...]:
     """The scenarios of group ``name``: the usable files of ``source`` (a folder or glob;
-    the others are named in a warning: :func:`gridsim.scenario.collection.usable_files`) if
-    given; else a group of :data:`GROUPS`, the usable files of ``name`` if it is a folder or
-    glob, or the one scenario ``name`` (built-in name, YAML or CommonRoad XML path)."""
+    the others are named in a warning: :func:`gridsim.scenario.collection.usable_files`;
+    they must agree as a collection's do, :func:`~gridsim.scenario.collection.load_collection`)
+    if given; else a group of :data:`GROUPS`, the usable files of ``name`` if it is a folder
+    or glob, or the one scenario ``name`` (built-in name, YAML or CommonRoad XML path)."""
     if source is None and name in GROUPS:
         return GROUPS[name]
     ref = name if source is None else source
     if scenario_files(ref) is None:
         return (ref,)
-    return tuple(sc.source for sc in usable_files(ref)[0])
+    return tuple(sc.source for sc in load_collection(ref))
 
 
 def record_group(

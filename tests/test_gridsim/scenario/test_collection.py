@@ -164,6 +164,19 @@ def test_unusable_files_of_a_collection_are_skipped_and_named(folder):
         assert env.unwrapped.scenario.name in names
 
 
+def test_record_refuses_a_folder_that_run_refuses(folder, tmp_path, capsys):
+    """Files that disagree on what a dataset holds once (the grid, the ego) are not recorded
+    into one dataset: the same refusal, naming the key and both values, as a run's."""
+    from neurotrajectory.cli import main as nt_main
+
+    doc = {"name": "other", "road": {"type": "seamless"}, "sensor": {"rows": 64}}
+    (folder / "other.yaml").write_text(yaml.safe_dump(doc))
+    code = nt_main(["record", "--scenario", str(folder), "--out", str(tmp_path / "ds"),
+                    "--quiet"])  # fmt: skip
+    assert code == 2 and not (tmp_path / "ds").exists()
+    assert "must agree on sensor; " in capsys.readouterr().err
+
+
 def test_a_skipped_file_is_shown_with_every_problem_it_has(folder):
     doc = {"name": "bad", "road": {"type": "seamless"}, "sensor": {"rows": -3, "colour": 1}}
     (folder / "bad.yaml").write_text(yaml.safe_dump(doc))
