@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import re
 import time
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, ClassVar
@@ -30,6 +31,7 @@ import numpy as np
 from pydantic import Field, model_validator
 from tqdm import tqdm
 
+from gridsim.errors import DataWarning
 from gridsim.outputs import new_folder, write_json
 from gridsim.policies import Reference
 from gridsim.scenario.schema import MAX_DURATION
@@ -37,7 +39,7 @@ from gridsim.seeding import Salt, stream
 from neurotrajectory.compare import methods
 from neurotrajectory.compare.baselines.end2end import CommandPolicy, End2End, TrainSettings
 from neurotrajectory.compare.closed_loop import closed_loop
-from neurotrajectory.compare.front import NetPredictor, load_front
+from neurotrajectory.compare.front import NetPredictor, load_front, trained_tracks
 from neurotrajectory.compare.methods import NT_BEST, NT_PICKED
 from neurotrajectory.compare.metrics import Accuracy, accuracy
 from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
@@ -186,6 +188,16 @@ def _evaluate_group(
     group: str, ds: Dataset, front: Front, cfg: EvalConfig, out: Path, log, progress: bool = True
 ) -> GroupResult:
     train, test = split_by_track(ds.windows, cfg.test_fraction, cfg.seed)
+    seen = sorted(set(test.track.tolist()) & trained_tracks(front.run.config))
+    if seen:  # the run drove these as the ego in training: its scores on them are not held out
+        were = "was a training track" if len(seen) == 1 else "were training tracks"
+        message = (f"{group}: {len(seen)} of its {len(set(test.track.tolist()))} test tracks "
+                   f"{were} of {front.run.out} ({', '.join(seen[:3])}"
+                   f"{', ...' if len(seen) > 3 else ''}): NeuroTrajectory's figures on this "
+                   "group are not held-out ones; evaluate it on scenes the run did not train "
+                   "on")  # fmt: skip
+        log(f"warning: {message}")
+        warnings.warn(message, DataWarning, stacklevel=2)
     setting = Setting.from_manifest(ds.manifest)
     log(f"{group}: {len(train)} train / {len(test)} test windows; training End2End")
     e2e = End2End.train(train, setting, cfg.end2end, progress=progress)

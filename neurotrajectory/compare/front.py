@@ -215,6 +215,21 @@ def episode_env(
                       **goal_overrides(cfg.goal_seconds), **kwargs)  # fmt: skip
 
 
+def trained_tracks(config) -> set[str]:
+    """The tracks a run of ``config`` trained on, as ``SCENE/ID`` names (as datasets label
+    their windows; a run on one scene names them by id alone)."""
+    if not config.ego_tracks:
+        return set()
+    refs = _scene_refs(config.scenario)
+    if len(refs) > 1:
+        return set(config.ego_tracks)
+    from gridsim.scenario.families.recorded import scene_of
+    from gridsim.scenario.loader import load_scenario
+
+    scene = scene_of(load_scenario(refs[0]))
+    return {t if "/" in t else track_name(scene, t) for t in config.ego_tracks}
+
+
 def _recorded(scenario: str) -> bool:
     """Whether ``scenario`` (a name, file or collection) is made of recorded scenes."""
     from gridsim.scenario.family import is_recorded

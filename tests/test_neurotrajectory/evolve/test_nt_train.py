@@ -669,7 +669,7 @@ def test_front_plot_marks_the_knee_and_lost_members(tmp_path, monkeypatch):
     assert "episode sum" in objectives.axes[0].get_title()
     labels = front.axes[0].get_legend_handles_labels()[1]
     knee_label = next(x for x in labels if x.startswith("knee (member "))
-    assert "an episode ended in a collision or off-road" in labels
+    assert "lost an episode (a collision or off-road; at the edge, not to scale)" in labels
     assert knee_label == "knee (member 3): l1 1.5, l2 1.5, l3 25"  # the printout's numbers
     knee = front.axes[0].collections[labels.index(knee_label)].get_offsets()
     assert knee.tolist() == [[1.5, 1.5]]  # the member closest to the ideal point
@@ -809,3 +809,18 @@ def test_a_population_too_big_for_memory_is_refused_before_allocating(tmp_path, 
     err = capsys.readouterr().err
     assert "--population 100000 of networks of" in err and "GB for its genomes" in err
     assert not (tmp_path / "run").exists()
+
+
+def test_a_run_s_training_tracks_are_named_as_datasets_name_them():
+    """SCENE/ID, as windows are labelled, whether the run named them by id (one scene) or
+    by SCENE/ID (a collection): evaluate warns when a group's test tracks are among them."""
+    from gridsim.scenario.families.recorded import scene_of
+    from gridsim.scenario.loader import load_scenario
+    from neurotrajectory.compare.front import trained_tracks
+
+    scene = scene_of(load_scenario("us101_4_1"))
+    one = TrainConfig(scenario="us101_4_1", ego_tracks=("381", "384"))
+    assert trained_tracks(one) == {f"{scene}/381", f"{scene}/384"}
+    both = TrainConfig(scenario="us101_4_1,us101_3_3", ego_tracks=(f"{scene}/381",))
+    assert trained_tracks(both) == {f"{scene}/381"}
+    assert trained_tracks(TrainConfig(scenario="seamless")) == set()

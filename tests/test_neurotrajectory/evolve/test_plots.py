@@ -57,8 +57,9 @@ def test_the_objectives_plot_is_scaled_to_the_members_that_completed(tmp_path, m
     assert crosses == [[[2.0, top]]]
     # on l3 (maximised) it is at the bottom edge
     bottom = l3.get_ylim()[0]
-    assert [c.get_offsets().tolist() for c in l3.collections
-            if len(c.get_offsets()) and c.get_offsets()[0][1] == bottom] == [[[2.0, bottom]]]  # fmt: skip
+    low = [c.get_offsets().tolist() for c in l3.collections
+           if len(c.get_offsets()) and c.get_offsets()[0][1] == bottom]  # fmt: skip
+    assert low == [[[2.0, bottom]]]
 
 
 def test_the_front_plot_is_scaled_to_the_members_that_completed(tmp_path, monkeypatch):
