@@ -152,6 +152,13 @@ def load_collection(ref: str | Path, overrides: Mapping[str, Any] | None = None)
     if scenario_files(ref) is None:
         return [load_scenario(ref, overrides)]
     scenarios, _ = usable_files(ref, overrides)
+    check_agreement(ref, scenarios)
+    return scenarios
+
+
+def check_agreement(ref: str | Path, scenarios: list[Scenario]) -> None:
+    """:class:`ScenarioError` naming the first key of :data:`SHARED_KEYS` on which the
+    ``scenarios`` of the collection ``ref`` disagree, and both values."""
     first = scenarios[0].config.model_dump()
     for sc in scenarios[1:]:
         doc = sc.config.model_dump()
@@ -162,7 +169,6 @@ def load_collection(ref: str | Path, overrides: Mapping[str, Any] | None = None)
                     f"{ref}: the scenarios of a collection must agree on {key}; "
                     f"{sc.source} has {where} = {mine!r}, {scenarios[0].source} {theirs!r}"
                 )
-    return scenarios
 
 
 def _difference(a: Any, b: Any, key: str) -> tuple[str, Any, Any]:

@@ -34,9 +34,11 @@ from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write
 from gridsim.policies import Reference
 from gridsim.scenario.checks import flawed_tracks
 from gridsim.scenario.collection import (
+    check_agreement,
     load_collection,
     report_skipped,
     scenario_files,
+    usable_files,
 )
 from gridsim.scenario.families.recorded import recorded_scene, scene_of
 from gridsim.scenario.family import family_of
@@ -352,12 +354,22 @@ def group_scenarios(name: str, source: str | None = None) -> tuple[str, ...]:
     they must agree as a collection's do, :func:`~gridsim.scenario.collection.load_collection`)
     if given; else a group of :data:`GROUPS`, the usable files of ``name`` if it is a folder
     or glob, or the one scenario ``name`` (built-in name, YAML or CommonRoad XML path)."""
+    return group_files(name, source)[0]
+
+
+def group_files(
+    name: str, source: str | None = None
+) -> tuple[tuple[str, ...], list[tuple[Path, str]]]:
+    """:func:`group_scenarios`, and the files of the folder or glob left out because they
+    do not load (``(file, reason)``; named in a warning already)."""
     if source is None and name in GROUPS:
-        return GROUPS[name]
+        return GROUPS[name], []
     ref = name if source is None else source
     if scenario_files(ref) is None:
-        return (ref,)
-    return tuple(sc.source for sc in load_collection(ref))
+        return (ref,), []
+    scenarios, skipped = usable_files(ref)
+    check_agreement(ref, scenarios)
+    return tuple(sc.source for sc in scenarios), skipped
 
 
 def record_group(
@@ -373,9 +385,10 @@ def record_group(
     """Windows of a scenario group (see :func:`group_scenarios`: of :data:`GROUPS`, or the
     usable files of the folder or glob ``source``), or of one scenario. ``stride`` defaults to
     every decision on recorded scenes, every fifth elsewhere. Of a group of several files,
-    a file that gives no window is skipped and named in a warning (and in the manifest's
-    ``skipped``); the group fails only when none gives any."""
-    scenarios = group_scenarios(name, source)
+    a file that gives no window is skipped and named in a warning; it and the files that do
+    not load are listed in the manifest's ``skipped``; the group fails only when none gives
+    any."""
+    scenarios, unloaded = group_files(name, source)
     recorded = {scenario: is_recorded(scenario) for scenario in scenarios}
     parts, metas, skipped = [], [], []
     for scenario in scenarios:
@@ -416,7 +429,11 @@ def record_group(
         },  # fmt: skip
         **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),
         "scenarios": metas,
-        **({"skipped": [{"file": str(f), "reason": r} for f, r in skipped]} if skipped else {}),
+        **(
+            {"skipped": [{"file": str(f), "reason": r} for f, r in unloaded + skipped]}
+            if unloaded or skipped
+            else {}
+        ),  # fmt: skip
         "versions": _versions(),
     }
     return Dataset(Windows.concat(parts), manifest)

@@ -177,6 +177,19 @@ def test_record_refuses_a_folder_that_run_refuses(folder, tmp_path, capsys):
     assert "must agree on sensor; " in capsys.readouterr().err
 
 
+def test_a_dataset_s_manifest_lists_the_files_that_did_not_load(folder, tmp_path, capsys):
+    from neurotrajectory.cli import main as nt_main
+    from neurotrajectory.data.windows import load_dataset
+
+    (folder / "truncated.xml").write_text((folder / "straight_2018b.xml").read_text()[:500])
+    code = nt_main(["record", "--scenario", str(folder), "--out", str(tmp_path / "ds"),
+                    "--stride", "5", "--quiet"])  # fmt: skip
+    assert code == 0 and "truncated.xml" in capsys.readouterr().err  # warned once, too
+    (skipped,) = load_dataset(tmp_path / "ds").manifest["skipped"]
+    assert skipped["file"] == str(folder / "truncated.xml")
+    assert "XML" in skipped["reason"]
+
+
 def test_a_skipped_file_is_shown_with_every_problem_it_has(folder):
     doc = {"name": "bad", "road": {"type": "seamless"}, "sensor": {"rows": -3, "colour": 1}}
     (folder / "bad.yaml").write_text(yaml.safe_dump(doc))
