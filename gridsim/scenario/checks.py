@@ -66,8 +66,9 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
         if not 1.0 / SPEED_RATIO <= ratio <= SPEED_RATIO:
             out.append(
                 f"{where}: positions and time stamps imply {np.median(implied[moving]):.3g} m/s "
-                f"where speed_mps says {np.median(recorded[moving]):.3g} m/s (median, ratio "
-                f"{ratio:.3g}); time stamps must be in seconds (time step {np.median(dt):.3g})"
+                f"where its recorded speeds say {np.median(recorded[moving]):.3g} m/s (median, "
+                f"ratio {ratio:.3g}); time stamps must be in seconds (its time step is "
+                f"{np.median(dt):.3g} s: a CSV's time column, a CommonRoad file's timeStepSize)"
             )
     if np.count_nonzero(moving) >= 2:
         travel = np.arctan2(np.diff(track.y), np.diff(track.x))[moving]

@@ -69,7 +69,8 @@ def test_time_in_steps_instead_of_seconds_is_caught(tmp_path, capsys):
     code, out = validate(capsys, write_scene(tmp_path, [tr]))
     assert code == 2
     assert "track ego of scene crafted: positions and time stamps imply 1 m/s where" in out
-    assert "speed_mps says 10 m/s (median, ratio 0.1)" in out
+    assert "recorded speeds say 10 m/s (median, ratio 0.1)" in out
+    assert "its time step is 1 s: a CSV's time column, a CommonRoad file's timeStepSize" in out
 
 
 def test_implausible_speeds_and_accelerations_are_caught():
