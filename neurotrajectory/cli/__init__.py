@@ -1,6 +1,7 @@
 """The ``neurotrajectory`` command line: one module per subcommand (``train``, ``rollout``,
-``heldout``, ``record``, ``evaluate``), each with ``add_parser(sub)`` and ``execute(args)``;
-the flags they share in :mod:`~neurotrajectory.cli.flags` and :mod:`gridsim.cli.flags`."""
+``heldout``, ``record``, ``evaluate``, ``plots``), each with ``add_parser(sub)`` and
+``execute(args)``; the flags they share in :mod:`~neurotrajectory.cli.flags` and
+:mod:`gridsim.cli.flags`."""
 
 from __future__ import annotations
 
@@ -9,12 +10,12 @@ import sys
 
 from gridsim.cli.command import run_command
 from gridsim.errors import GridSimError
-from neurotrajectory.cli import evaluate, heldout, record, rollout, train
+from neurotrajectory.cli import evaluate, heldout, plots, record, rollout, train
 from neurotrajectory.evolve.backends import BackendError
 from neurotrajectory.evolve.runs import RunError
 
 #: The subcommands, in the order ``neurotrajectory --help`` lists them.
-SUBCOMMANDS = (train, rollout, heldout, record, evaluate)
+SUBCOMMANDS = (train, rollout, heldout, record, evaluate, plots)
 
 
 def build_parser() -> argparse.ArgumentParser:

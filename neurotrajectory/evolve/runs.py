@@ -422,7 +422,8 @@ Made by `{command}` on {date}.
 - `front.npz`, `front.json`: the final Pareto front, weights and scores on the episodes it
   was chosen on
 - `heldout.json`: the knee (its warm start, the destination curve) on held-out episodes
-- `plots/`: objectives, front, hypervolume and learning curve
+- `plots/`: objectives, front, hypervolume and learning curve (drawn again from the saved
+  scores by `neurotrajectory plots --run {out}`)
 - `.lock`: held while a process writes the run
 
 Continue (or extend) it: `neurotrajectory train --resume {out}`.
@@ -884,6 +885,17 @@ class Run:
                 for i in members
             ],  # fmt: skip
             "hypervolume": [h["hypervolume"] for h in self.load_history()],
+            # every member the front was chosen from, so that the plots can be drawn again
+            "candidates": [
+                {
+                    "l1": float(f[0]),
+                    "l2": float(f[1]),
+                    "l3": float(f[2]),
+                    "rank": int(r),
+                    "violation": float(v),
+                }
+                for f, r, v in zip(fitness, rank, violation, strict=True)
+            ],  # fmt: skip
         }
         history = self.load_history()
         if seeds and history and "warm_start_validation" in history[0]:
@@ -894,6 +906,32 @@ class Run:
         plot_run(self.out, history, (fitness, rank, violation), summary["chosen_on"],
                  anchored=self.config.anchored)  # fmt: skip
         return summary
+
+    def plot(self) -> list[Path]:
+        """Draw the run's plots again from ``history.json`` and ``front.json`` (as this
+        version draws them); nothing is evaluated. A front written before ``front.json`` kept
+        every candidate is drawn from its members alone."""
+        from neurotrajectory.evolve.plots import plot_run
+
+        history = self.load_history()
+        if not history:
+            raise RunError(f"{self.out}: no generation yet, nothing to plot")
+        path = self.out / "front.json"
+        final, chosen_on = None, ""
+        if path.exists():
+            try:
+                summary = json.loads(path.read_text())
+                rows = summary.get("candidates") or summary["front"]
+                fitness = np.array([[r["l1"], r["l2"], r["l3"]] for r in rows], dtype=float)
+                rank = np.array([r.get("rank", 0) for r in rows])
+                violation = np.array([r["violation"] for r in rows], dtype=float)
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                raise RunError(f"{path}: unreadable front ({type(exc).__name__}: {exc})") from None
+            chosen_on = summary.get("chosen_on", "")
+            if "candidates" not in summary:
+                chosen_on += " (its members only: the front predates the saved candidates)"
+            final = (fitness, rank, violation)
+        return plot_run(self.out, history, final, chosen_on, anchored=self.config.anchored)
 
 
 @contextmanager

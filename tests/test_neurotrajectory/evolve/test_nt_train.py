@@ -642,6 +642,33 @@ def test_tracks_are_found_by_the_names_reports_configs_and_datasets_give_them():
     assert _track_names([("us101_3_3", "399")], ["us101_3_3"]) == ["399"]
 
 
+def test_plots_are_drawn_again_from_the_saved_scores(finished_run, tmp_path, monkeypatch, capsys):
+    from neurotrajectory.evolve import plots
+
+    run = _copy(finished_run, tmp_path)
+    summary = json.loads((run / "front.json").read_text())
+    assert len(summary["candidates"]) == TINY["population"]  # every member chosen from
+    assert sum(c["rank"] == 0 for c in summary["candidates"]) == len(summary["front"])
+    for png in (run / "plots").iterdir():
+        png.unlink()
+    assert main(["plots", "--run", str(run)]) == 0
+    # (no learning curve: the run has no validation episodes)
+    assert sorted(p.name for p in (run / "plots").iterdir()) == [
+        "front.png", "hypervolume.png", "objectives.png"]  # fmt: skip
+    drawn = []
+    monkeypatch.setattr(plots, "plot_run", lambda out, history, final, *a, **k: drawn.append(
+        (len(final[0]), a[0])) or [])  # fmt: skip
+    assert main(["plots", "--run", str(run)]) == 0
+    assert drawn[-1][0] == TINY["population"]
+    del summary["candidates"]  # a front saved before the candidates were: its members alone
+    (run / "front.json").write_text(json.dumps(summary))
+    assert main(["plots", "--run", str(run)]) == 0
+    assert drawn[-1][0] == len(summary["front"]) and "its members only" in drawn[-1][1]
+    (run / "front.json").write_text("{")
+    assert main(["plots", "--run", str(run)]) == 2
+    assert "front.json: unreadable front (JSONDecodeError" in capsys.readouterr().err
+
+
 def test_rollout_drives_a_held_out_episode_as_heldout_did(finished_run, tmp_path):
     """heldout.json's seed and episode_seconds give rollout the same episode, longer than the
     run's own (4 s)."""
