@@ -95,6 +95,18 @@ def number_in(limits: dict[str, float]):
     return parse
 
 
+def episode_seconds(text: str) -> float:
+    """An argparse type: an episode's length, a finite number of seconds in (0, the longest
+    a scenario may run]."""
+    from gridsim.scenario.schema import MAX_DURATION
+
+    value = positive_seconds(text)
+    if value > MAX_DURATION:
+        raise argparse.ArgumentTypeError(f"an episode lasts at most {MAX_DURATION:g} s, got "
+                                         f"{text}")  # fmt: skip
+    return value
+
+
 def positive_seconds(text: str) -> float:
     """An argparse type: a finite number of seconds > 0."""
     try:

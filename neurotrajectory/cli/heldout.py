@@ -4,13 +4,12 @@ saw."""
 from __future__ import annotations
 
 import argparse
-import math
 from contextlib import nullcontext
 from pathlib import Path
 
 from gridsim.cli.flags import at_least
 from gridsim.outputs import output_problem, write_json
-from neurotrajectory.cli.flags import pick_flag, plan_smoothing_flag, run_flag
+from neurotrajectory.cli.flags import episode_seconds, pick_flag, plan_smoothing_flag, run_flag
 from neurotrajectory.evolve.runs import Run, RunError, run_folder
 
 
@@ -21,7 +20,7 @@ def add_parser(sub) -> None:
     p.add_argument("--episodes", type=at_least(1), default=20, help="held-out episodes")
     p.add_argument(
         "--seconds",
-        type=float,
+        type=episode_seconds,
         default=None,
         help="length of each episode [s] (default: the run's episode length)",
     )
@@ -33,8 +32,6 @@ def add_parser(sub) -> None:
 
 
 def execute(args: argparse.Namespace) -> int:
-    if args.seconds is not None and not (math.isfinite(args.seconds) and args.seconds > 0):
-        raise RunError(f"--seconds must be a finite number > 0, got {args.seconds}")
     problem = output_problem(Path(args.out), directory=False)
     if problem:
         raise RunError(f"--out {args.out}: {problem}")

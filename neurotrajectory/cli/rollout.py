@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from gridsim.cli.flags import at_least, overlay_flag, seed_flag
-from neurotrajectory.cli.flags import check_video, pick_flag, positive_seconds, run_flag
+from neurotrajectory.cli.flags import check_video, episode_seconds, pick_flag, run_flag
 
 
 def add_parser(sub) -> None:
@@ -25,7 +25,7 @@ def add_parser(sub) -> None:
         default=None,
         help="decisions to drive at most (default: the whole episode)",
     )
-    p.add_argument("--seconds", type=positive_seconds, default=None, metavar="S",
+    p.add_argument("--seconds", type=episode_seconds, default=None, metavar="S",
                    help="episode length [s] (default: the run's; heldout drives its own: see "
                    "episode_seconds in heldout.json)")  # fmt: skip
     p.add_argument("--track", default=None, metavar="NAME",
