@@ -57,7 +57,8 @@ class VideoWriter:
                     ffmpeg_log_level="error", pixelformat="yuv420p",
                 )  # fmt: skip
             except Exception as exc:  # no ffmpeg backend: fall back to GIF
-                log.warning("MP4 export unavailable (%s); writing a GIF instead", exc)
+                log.warning("MP4 export unavailable (%s); writing a GIF instead",
+                            str(exc).replace(str(self._partial), str(self.path)))  # fmt: skip
                 self.path = self.path.with_suffix(".gif")
         if self._writer is None:
             self._partial = self._partial_of(self.path)
@@ -79,19 +80,27 @@ class VideoWriter:
         self.frames += 1
 
     def close(self) -> None:
-        """Finish the video and put it at :attr:`path` (replacing any file there)."""
-        if self._writer is not None:
-            self._writer.close()
-            self._writer = None
-            if self._partial.exists():  # (a writer given no frame may write no file)
-                os.replace(self._partial, self.path)
-
-    def abort(self) -> None:
-        """Stop without a video: the frames so far are deleted, :attr:`path` left as it was."""
+        """Finish the video and put it at :attr:`path` (replacing any file there); if the
+        encoder fails to finish, nothing is left and the error is raised."""
         if self._writer is not None:
             writer, self._writer = self._writer, None
             try:
                 writer.close()
+            except BaseException:
+                self._partial.unlink(missing_ok=True)
+                raise
+            if self._partial.exists():  # (a writer given no frame may write no file)
+                os.replace(self._partial, self.path)
+
+    def abort(self) -> None:
+        """Stop without a video: the frames so far are deleted, :attr:`path` left as it was
+        (while another error is on its way: an encoder that fails to stop too is not
+        reported over it)."""
+        if self._writer is not None:
+            writer, self._writer = self._writer, None
+            try:
+                with contextlib.suppress(Exception):
+                    writer.close()
             finally:
                 self._partial.unlink(missing_ok=True)
 

@@ -11,7 +11,7 @@ import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.traffic.track import track_name
-from neurotrajectory.data.windows import goal_overrides
+from neurotrajectory.data.windows import goal_overrides, is_recorded
 from neurotrajectory.evolve.fitness import scenario_net_config
 from neurotrajectory.evolve.genome import genome_mismatch, set_genome
 from neurotrajectory.evolve.pareto import pick_member
@@ -120,8 +120,11 @@ def heldout(
     run, policy, member = load_front_member(run_dir, pick, smoothing)
     cfg = run.config
     seconds = cfg.episode_seconds if seconds is None else float(seconds)
-    tracks = _other_tracks(cfg.scenario, cfg.ego_tracks)[:episodes] if cfg.ego_tracks else None
-    names = _track_names(tracks or [], _scene_refs(cfg.scenario))
+    refs = _scene_refs(cfg.scenario) if cfg.ego_tracks else [cfg.scenario]
+    tracks = (
+        _other_tracks(cfg.scenario, cfg.ego_tracks, refs)[:episodes] if cfg.ego_tracks else None
+    )
+    names = _track_names(tracks or [], refs)
     seeds = list(cfg.heldout_seeds(len(tracks) if tracks else episodes))
 
     def drive(planner) -> list[dict]:
@@ -155,12 +158,15 @@ def heldout(
 
 
 def _scene_refs(scenario: str) -> list[str]:
-    """The scenario files of ``scenario``: its own name for one scene, each file of a
-    collection."""
-    from gridsim.scenario.collection import scenario_files
+    """The scenario files of ``scenario`` that a run drives: its own name for one scene, each
+    usable file of a collection (as a run loads it; the others are named in a warning)."""
+    from gridsim.scenario.collection import scenario_files, usable_files
 
     files = scenario_files(scenario)
-    return [scenario] if files is None else [str(f) for f in files]
+    if files is None:
+        return [scenario]
+    skipped = {str(f) for f, _ in usable_files(scenario)[1]}
+    return [str(f) for f in files if str(f) not in skipped]
 
 
 def _track_names(tracks: list[tuple[str, str]], refs: list[str]) -> list[str]:
@@ -178,7 +184,7 @@ def _resolve_track(scenario: str, name: str) -> tuple[str, str]:
     from gridsim.scenario.loader import load_scenario
 
     refs = _scene_refs(scenario)
-    every = _other_tracks(scenario, ())
+    every = _other_tracks(scenario, (), refs)
     scenes = {ref: scene_of(load_scenario(ref)) for ref in refs}
     names: dict[str, list[tuple[str, str]]] = {}
     for ref, track in every:
@@ -207,7 +213,7 @@ def episode_env(
     duration = {"simulation": {"duration": cfg.episode_seconds if seconds is None else seconds}}
     if track is None:
         return GridSimEnv(cfg.scenario, **(cfg.overrides | duration), **kwargs)
-    if not _recorded(cfg.scenario):
+    if not is_recorded(cfg.scenario):
         raise RunError(f"--track {track}: the run's scenario {cfg.scenario} is generated, it "
                        "has no recorded tracks to drive (drop --track)")  # fmt: skip
     ref, track_id = _resolve_track(cfg.scenario, track)
@@ -217,25 +223,18 @@ def episode_env(
 
 def trained_tracks(config) -> set[str]:
     """The tracks a run of ``config`` trained on, as ``SCENE/ID`` names (as datasets label
-    their windows; a run on one scene names them by id alone)."""
+    their windows), whether the run named them so or by id alone (of every scene it has)."""
     if not config.ego_tracks:
         return set()
-    refs = _scene_refs(config.scenario)
-    if len(refs) > 1:
-        return set(config.ego_tracks)
     from gridsim.scenario.families.recorded import scene_of
     from gridsim.scenario.loader import load_scenario
+    from gridsim.traffic.track import ids_in_scene
 
-    scene = scene_of(load_scenario(refs[0]))
-    return {t if "/" in t else track_name(scene, t) for t in config.ego_tracks}
-
-
-def _recorded(scenario: str) -> bool:
-    """Whether ``scenario`` (a name, file or collection) is made of recorded scenes."""
-    from gridsim.scenario.family import is_recorded
-    from gridsim.scenario.loader import load_scenario
-
-    return all(is_recorded(load_scenario(ref)) for ref in _scene_refs(scenario))
+    out = set()
+    for ref in _scene_refs(config.scenario):
+        scene = scene_of(load_scenario(ref))
+        out |= {track_name(scene, t) for t in ids_in_scene(list(config.ego_tracks), scene)[0]}
+    return out
 
 
 def paired_l1(rows: list[dict], others: list[dict]) -> dict:
@@ -268,16 +267,18 @@ def heldout_problem(config) -> str | None:
     return None
 
 
-def _other_tracks(scenario: str, trained: tuple[str, ...]) -> list[tuple[str, str]]:
+def _other_tracks(
+    scenario: str, trained: tuple[str, ...], refs: list[str] | None = None
+) -> list[tuple[str, str]]:
     """``(scenario file, track id)`` of every track of ``scenario``'s scenes (one, or each of
-    a collection's) that can be the ego and is not in ``trained`` (ids, or ``SCENE/ID``
-    names)."""
+    a collection's usable files; ``refs`` if known, :func:`_scene_refs`) that can be the ego
+    and is not in ``trained`` (ids, or ``SCENE/ID`` names)."""
     from gridsim.scenario.families.recorded import ego_candidates, scene_of
     from gridsim.scenario.loader import load_scenario
     from gridsim.traffic.track import ids_in_scene
 
     others = []
-    for ref in _scene_refs(scenario):
+    for ref in _scene_refs(scenario) if refs is None else refs:
         sc = load_scenario(ref)
         seen = set(ids_in_scene(list(trained), scene_of(sc))[0])
         need = sc.config.env.horizon_time

@@ -88,6 +88,23 @@ def test_a_video_stopped_half_way_leaves_the_earlier_one_and_no_partial_file(tmp
     assert sorted(tmp_path.iterdir()) == [path]
 
 
+def test_an_encoder_that_fails_to_finish_leaves_nothing(tmp_path, monkeypatch):
+    frame = np.full((32, 48, 3), 90, np.uint8)
+    v = VideoWriter(tmp_path / "v.gif", 10)
+    v.write(frame)
+    monkeypatch.setattr(v._writer, "close", lambda: (_ for _ in ()).throw(OSError("disk full")))
+    with pytest.raises(OSError, match="disk full"):
+        v.close()
+    assert list(tmp_path.iterdir()) == []
+    # aborting after an error: the encoder's own failure does not hide the error
+    w = VideoWriter(tmp_path / "w.gif", 10)
+    w.write(frame)
+    monkeypatch.setattr(w._writer, "close", lambda: (_ for _ in ()).throw(OSError("broken")))
+    with pytest.raises(KeyboardInterrupt), w:
+        raise KeyboardInterrupt
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_gymnasium_record_video_wrapper(tmp_path):
     env = gym.make(ENV_ID, render_mode="rgb_array", simulation={"duration": 2.0})
     folder = tmp_path / "videos"

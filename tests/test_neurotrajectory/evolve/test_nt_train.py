@@ -850,4 +850,7 @@ def test_a_run_s_training_tracks_are_named_as_datasets_name_them():
     assert trained_tracks(one) == {f"{scene}/381", f"{scene}/384"}
     both = TrainConfig(scenario="us101_4_1,us101_3_3", ego_tracks=(f"{scene}/381",))
     assert trained_tracks(both) == {f"{scene}/381"}
+    other = scene_of(load_scenario("us101_3_3"))  # a bare id: that track of every scene
+    bare = TrainConfig(scenario="us101_4_1,us101_3_3", ego_tracks=("399",))
+    assert trained_tracks(bare) == {f"{scene}/399", f"{other}/399"}
     assert trained_tracks(TrainConfig(scenario="seamless")) == set()
