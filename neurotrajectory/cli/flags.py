@@ -96,15 +96,12 @@ def number_in(limits: dict[str, float]):
 
 
 def episode_seconds(text: str) -> float:
-    """An argparse type: an episode's length, a finite number of seconds in (0, the longest
-    a scenario may run]."""
-    from gridsim.scenario.schema import MAX_DURATION
+    """An argparse type: an episode's length [s], within the bounds of a training run's
+    ``episode_seconds``."""
+    from neurotrajectory.evolve.runs import TrainConfig
+    from neurotrajectory.settings import bounds
 
-    value = positive_seconds(text)
-    if value > MAX_DURATION:
-        raise argparse.ArgumentTypeError(f"an episode lasts at most {MAX_DURATION:g} s, got "
-                                         f"{text}")  # fmt: skip
-    return value
+    return number_in(bounds(TrainConfig.model_fields["episode_seconds"]))(text)
 
 
 def positive_seconds(text: str) -> float:

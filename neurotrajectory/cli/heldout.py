@@ -4,6 +4,7 @@ saw."""
 from __future__ import annotations
 
 import argparse
+import shlex
 from contextlib import nullcontext
 from pathlib import Path
 
@@ -61,8 +62,11 @@ def report_heldout(
     which = "held-out tracks" if "ego_tracks" in report else "held-out episodes"
     length = f"{report['episode_seconds']:g} s each"
     if "ego_tracks" in report:  # a recorded track's episode ends with its recording
-        driven = report["destination curve"]["seconds"]
-        length = f"up to {report['episode_seconds']:g} s each, {driven:.1f} s on average"
+        # (an episode's length: as long as the member or its warm start drove it)
+        warm = report.get("warm_start_episodes", report["episodes"])
+        rows = zip(report["episodes"], warm, strict=True)
+        driven = sum(max(a["seconds"], b["seconds"]) for a, b in rows) / count
+        length = f"up to {report['episode_seconds']:g} s each, about {driven:.1f} s on average"
     fewer = f"; {episodes} asked, the run holds out {count}" if count < episodes else ""
     print(f"{pick} member on {count} {which} ({length}{fewer}):")
     rows = [(f"{pick} member", report["network"]), ("its warm start", report.get("warm_start")),
@@ -98,8 +102,11 @@ def _print_failures(run: Run, pick: str, report: dict, shown: int = 3) -> None:
 
     more = f" and {len(failed) - shown} more" if len(failed) > shown else ""
     first = failed[0]
-    track = f" --track {first['track']}" if "track" in first else ""
+    argv = ["neurotrajectory", "rollout", "--run", str(run.out), "--pick", pick, "--seed",
+            str(first["seed"]), "--seconds", repr(report["episode_seconds"])]  # fmt: skip
+    argv += ["--track", first["track"]] if "track" in first else []
+    if report["plan_smoothing"] != run.net_config.smoothing:  # heldout --plan-smoothing
+        argv += ["--plan-smoothing", repr(report["plan_smoothing"])]
+    argv += ["--video", "episode.mp4"]
     print(f"  not completed by the {pick} member: {', '.join(map(name, failed[:shown]))}{more}; "
-          f"watch one: neurotrajectory rollout --run {run.out} --pick {pick} --seed "
-          f"{first['seed']} --seconds {report['episode_seconds']:g}{track} --video "
-          "episode.mp4")  # fmt: skip
+          f"watch one: {shlex.join(argv)}")  # fmt: skip

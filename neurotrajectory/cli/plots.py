@@ -14,9 +14,8 @@ def add_parser(sub) -> None:
 
 
 def execute(args: argparse.Namespace) -> int:
-    from neurotrajectory.evolve.runs import Run, run_folder
+    from neurotrajectory.evolve.runs import Run
 
-    with run_folder(args.run, resume=True):
-        paths = Run.open(args.run).plot()
-    print("\n".join(str(p) for p in paths))
+    # (no lock: it reads the run's saved scores and only writes plots/)
+    print("\n".join(str(p) for p in Run.open(args.run).plot()))
     return 0

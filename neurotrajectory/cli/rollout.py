@@ -7,7 +7,13 @@ import sys
 from pathlib import Path
 
 from gridsim.cli.flags import at_least, overlay_flag, seed_flag
-from neurotrajectory.cli.flags import check_video, episode_seconds, pick_flag, run_flag
+from neurotrajectory.cli.flags import (
+    check_video,
+    episode_seconds,
+    pick_flag,
+    plan_smoothing_flag,
+    run_flag,
+)
 
 
 def add_parser(sub) -> None:
@@ -32,13 +38,15 @@ def add_parser(sub) -> None:
                    help="recorded scenes: drive this track as the ego (as heldout.json names "
                    "it: the id, or FILE/ID on a collection of scenes; default: as the run's "
                    "generations, one of its training tracks)")  # fmt: skip
+    plan_smoothing_flag(p, "drive with this plan smoothing instead of the run's (as heldout "
+                        "--plan-smoothing)")  # fmt: skip
     p.set_defaults(func=execute)
 
 
 def execute(args: argparse.Namespace) -> int:
     check_video(args.video)
     rollout(args.run, args.pick, args.video, args.seed, args.steps, args.overlay, args.seconds,
-            args.track)  # fmt: skip
+            args.track, args.plan_smoothing)  # fmt: skip
     return 0
 
 
@@ -51,15 +59,17 @@ def rollout(
     overlay: bool = True,
     seconds: float | None = None,
     track: str | None = None,
+    smoothing: float | None = None,
 ) -> dict:
     """Drive the front member ``pick`` of the run ``run_dir`` for at most ``steps`` decisions
     on the episode ``seed`` (``seconds`` long, default the run's; the ego driving the recorded
     ``track``, default as the run's generations; a held-out episode of ``heldout.json`` is
-    its seed, track and episode_seconds) into ``video``; print and return a summary."""
+    its seed, track, episode_seconds and plan_smoothing) into ``video``, the plans smoothed
+    as the run's (or by ``smoothing``); print and return a summary."""
     from gridsim.video import record_episode
     from neurotrajectory.compare.front import episode_env, load_front_member
 
-    run, policy, member = load_front_member(run_dir, pick)
+    run, policy, member = load_front_member(run_dir, pick, smoothing)
     env = episode_env(run, seconds, track, render_mode="rgb_array")
     episode = env.cfg.episode_decisions
     if steps and steps > episode:

@@ -196,7 +196,6 @@ def _evaluate_group(
                    f"{', ...' if len(seen) > 3 else ''}): NeuroTrajectory's figures on this "
                    "group are not held-out ones; evaluate it on scenes the run did not train "
                    "on")  # fmt: skip
-        log(f"warning: {message}")
         warnings.warn(message, DataWarning, stacklevel=2)
     setting = Setting.from_manifest(ds.manifest)
     log(f"{group}: {len(train)} train / {len(test)} test windows; training End2End")

@@ -910,7 +910,9 @@ class Run:
     def plot(self) -> list[Path]:
         """Draw the run's plots again from ``history.json`` and ``front.json`` (as this
         version draws them); nothing is evaluated. A front written before ``front.json`` kept
-        every candidate is drawn from its members alone."""
+        every candidate is drawn from its members alone; one older than the last generation
+        (a resumed run stopped before its end) is left out: the front plot then shows the
+        last generation on its training episodes."""
         from neurotrajectory.evolve.plots import plot_run
 
         history = self.load_history()
@@ -930,7 +932,8 @@ class Run:
             chosen_on = summary.get("chosen_on", "")
             if "candidates" not in summary:
                 chosen_on += " (its members only: the front predates the saved candidates)"
-            final = (fitness, rank, violation)
+            if summary.get("generation") == history[-1]["generation"]:
+                final = (fitness, rank, violation)
         return plot_run(self.out, history, final, chosen_on, anchored=self.config.anchored)
 
 
