@@ -5,6 +5,8 @@ single-objective libraries such as Stable-Baselines3)."""
 
 from __future__ import annotations
 
+import importlib
+
 import gymnasium
 
 ENV_ID = "GridSim-v0"
@@ -39,3 +41,15 @@ def register_envs() -> None:
             order_enforce=False,  # as GridSim-v0
             disable_env_checker=True,  # checked in the test suite
         )
+
+
+#: Submodules reachable as attributes after ``import gridsim`` (``gridsim.envs.wrappers...``,
+#: as the docs write them), imported on first use so that ``import gridsim`` stays light.
+_SUBMODULES = ("actions", "gridsim_env", "observations", "plan_smoothing", "vector",
+               "vector_guard", "wrappers")  # fmt: skip
+
+
+def __getattr__(name: str):
+    if name in _SUBMODULES:
+        return importlib.import_module(f"{__name__}.{name}")
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

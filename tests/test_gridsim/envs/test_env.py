@@ -579,3 +579,17 @@ def test_the_distribution_has_one_version_and_ships_its_type_marks():
     assert importlib.metadata.version("gridsim") == gridsim.__version__  # pyproject reads it
     for package in (gridsim, neurotrajectory):
         assert (Path(package.__file__).parent / "py.typed").is_file()
+
+
+def test_the_modules_the_docs_name_are_reachable_after_import_gridsim():
+    """``gridsim.envs.wrappers.LinearScalarization`` as environment.md and make_vec's
+    message write it, in a fresh interpreter that imported nothing but ``gridsim``."""
+    code = (
+        "import gridsim; gridsim.envs.wrappers.LinearScalarization; "
+        "gridsim.envs.vector.mo_async_worker; gridsim.envs.observations.ObservationType"
+    )
+    subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, timeout=120)
+    with pytest.raises(AttributeError, match="module 'gridsim.envs' has no attribute 'nope'"):
+        import gridsim.envs
+
+        gridsim.envs.nope  # noqa: B018
