@@ -40,7 +40,7 @@ def _report(path: str):
 
 def execute(args: argparse.Namespace) -> int:
     from gridsim.errors import DataError
-    from gridsim.scenario.collection import scenario_files
+    from gridsim.scenario.collection import check_agreement, scenario_files
 
     files = scenario_files(args.path)
     if args.resolved and files is not None:
@@ -63,10 +63,10 @@ def execute(args: argparse.Namespace) -> int:
         print(yaml.safe_dump(sc.config.model_dump(mode="json"), sort_keys=False, width=100),
               end="")  # fmt: skip
         return 0
-    failed = 0
+    failed, usable = 0, []
     for f in files:  # a collection: one line per file, its problems below it
         try:
-            _, summary, report = _report(str(f))
+            sc, summary, report = _report(str(f))
             problems, notes = report.problems, report.warnings
         except GridSimError as exc:  # one error, its own lines (a count and a list) kept
             failed += 1
@@ -80,8 +80,15 @@ def execute(args: argparse.Namespace) -> int:
             print(f"{f}: {len(problems)} problem(s)")
             print("\n".join(f"  - {p.strip().removeprefix('- ')}" for p in problems))
         else:
+            usable.append(sc)
             print(f"{f}: OK ({summary})" + _warning_lines(notes))
     print(f"{len(files) - failed} of {len(files)} scenario files OK")
+    try:  # and they run together as one collection
+        if usable:
+            check_agreement(args.path, usable)
+    except GridSimError as exc:
+        print(f"{exc} (run them apart, or make them agree)")
+        return 2
     return 2 if failed else 0
 
 

@@ -95,6 +95,17 @@ def test_a_collection_must_share_spaces(folder):
         load_collection(folder)
 
 
+def test_validate_refuses_files_that_cannot_run_together_and_scenarios_lists_them(folder, capsys):
+    doc = {"name": "other", "road": {"type": "seamless"}, "sensor": {"rows": 64}}
+    (folder / "other.yaml").write_text(yaml.safe_dump(doc))
+    assert main(["validate", str(folder)]) == 2
+    out = capsys.readouterr().out.splitlines()
+    assert out[-2] == "3 of 3 scenario files OK"  # each alone
+    assert "must agree on sensor; " in out[-1] and "sensor.rows = 128" in out[-1]
+    assert main(["scenarios", str(folder)]) == 0
+    assert len(capsys.readouterr().out.splitlines()) == 3
+
+
 def test_validate_and_scenarios_print_one_line_per_file(folder, capsys):
     assert main(["scenarios", str(folder)]) == 0
     out = capsys.readouterr().out.splitlines()
