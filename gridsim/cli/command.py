@@ -29,7 +29,8 @@ def run_command(
     exit status 2, as argparse prints a bad flag; a :class:`~gridsim.errors.DataWarning` as
     ``PROG: warning: MESSAGE``. Anything else is a bug: one line says so and where the
     traceback was saved (exit status 3; ``GRIDSIM_DEBUG=1`` raises it instead); Ctrl-C exits
-    with status 130 and no traceback."""
+    with status 130 and no traceback; output piped to a reader that stops early (``| head``)
+    ends it quietly with status 141."""
     args = parser.parse_args(argv)
     #: the command line, as the user gave it (for files that record what made them)
     args.command = " ".join([parser.prog, *map(shlex.quote, sys.argv[1:] if argv is None
@@ -50,6 +51,8 @@ def run_command(
             print(f"{parser.prog}: interrupted", file=sys.stderr)
             return 130
         except Exception as exc:
+            if isinstance(exc, BrokenPipeError) and _stdout_closed():
+                return 141  # the reader went away (`| head`): stop quietly, as a shell tool
             if os.environ.get("GRIDSIM_DEBUG"):
                 raise
             saved = _save_traceback(parser.prog, args.command)
@@ -57,6 +60,17 @@ def run_command(
                   f"This is a bug, not a problem of your input. Please report it to {REPORT_TO} "
                   f"with the traceback saved in {saved}", file=sys.stderr)  # fmt: skip
             return 3
+
+
+def _stdout_closed() -> bool:
+    """Whether standard output's reader has gone; if so it is pointed at the null device, so
+    that Python's own flush at exit does not fail on it again."""
+    try:
+        sys.stdout.flush()
+        return False
+    except BrokenPipeError:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return True
 
 
 def _show_warning(prog, message, category, filename, lineno, file=None, line=None) -> None:

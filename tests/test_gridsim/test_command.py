@@ -1,0 +1,45 @@
+"""How a command ends: a reader that stops early (``| head``) is not a bug."""
+
+import argparse
+import io
+import os
+import sys
+
+from gridsim.cli.command import run_command
+
+
+class ClosedPipe(io.StringIO):
+    """Standard output whose reader has gone."""
+
+    def flush(self):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    def fileno(self):
+        return self._fd
+
+
+def _parser(func) -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="gridsim")
+    p.set_defaults(func=func)
+    return p
+
+
+def _broken(args):
+    raise BrokenPipeError(32, "Broken pipe")
+
+
+def test_a_reader_that_stops_early_ends_the_command_quietly(monkeypatch, tmp_path, capsys):
+    stdout = ClosedPipe()
+    stdout._fd = os.open(tmp_path / "out", os.O_WRONLY | os.O_CREAT)  # pointed at /dev/null
+    monkeypatch.setattr(sys, "stdout", stdout)
+    try:
+        assert run_command(_parser(_broken), []) == 141
+    finally:
+        os.close(stdout._fd)
+    assert capsys.readouterr().err == ""
+
+
+def test_a_broken_pipe_elsewhere_is_still_reported(capsys):
+    """(a worker's pipe, say, while standard output is fine)"""
+    assert run_command(_parser(_broken), []) == 3
+    assert "internal error: BrokenPipeError" in capsys.readouterr().err
