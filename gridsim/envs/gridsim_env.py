@@ -77,6 +77,7 @@ class GridSimEnv(gym.Env):
             raise ScenarioError(f"{', '.join(vector)}: an option of gymnasium's vector env, not "
                                 "a scenario key: give it as gym.make_vec(..., vector_kwargs="
                                 f"{{{vector[0]!r}: ...}})")  # fmt: skip
+        _refuse_unknown_options(overrides)
         if isinstance(scenario, Scenario):
             if overrides:
                 raise ScenarioError("overrides need a scenario name or path, not a Scenario object")
@@ -318,6 +319,31 @@ class GridSimEnv(gym.Env):
         if self._last_plan is not None:
             overlay.append((self._last_plan, PLAN_COLOUR))
         return self.renderer.render(w, self._grids[self._newest], overlay)
+
+
+#: The keywords of ``GridSimEnv`` and of ``gym.make_vec``'s default vector env: a misspelt one
+#: is told apart from a scenario section.
+ENV_OPTIONS = ("scenario", "render_mode", "action_type", "observation_type")
+VECTOR_ENV_OPTIONS = ("num_envs", "asynchronous", "autoreset_mode", "context")
+
+
+def _refuse_unknown_options(overrides: dict) -> None:
+    """A :class:`ScenarioError` for a keyword that is neither a scenario section nor an option
+    of the env, with the closest spelling of either."""
+    import difflib
+
+    from gridsim.scenario.schema import ScenarioConfig
+
+    sections = tuple(ScenarioConfig.model_fields)
+    for key in overrides:
+        if key in sections:
+            continue
+        known = ENV_OPTIONS + VECTOR_ENV_OPTIONS + sections
+        close = difflib.get_close_matches(key, known, n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise ScenarioError(f"GridSim-v0 has no option {key!r}{hint} Its options: "
+                            f"{', '.join(ENV_OPTIONS)} (make_vec: {', '.join(VECTOR_ENV_OPTIONS)});"
+                            f" scenario sections to override: {', '.join(sections)}")  # fmt: skip
 
 
 def make_env(**kwargs: Any) -> GridSimEnv:

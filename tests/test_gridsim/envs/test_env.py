@@ -593,3 +593,19 @@ def test_the_modules_the_docs_name_are_reachable_after_import_gridsim():
         import gridsim.envs
 
         gridsim.envs.nope  # noqa: B018
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "meant"),
+    [
+        ({"obsrvation_type": "grid"}, "observation_type"),
+        ({"trafic": {}}, "traffic"),
+        ({"asynchronus": True}, "asynchronous"),
+    ],  # fmt: skip
+)
+def test_a_misspelt_option_is_named_with_its_closest_spelling(kwargs, meant):
+    from gridsim.errors import ScenarioError
+
+    (key,) = kwargs
+    with pytest.raises(ScenarioError, match=f"no option '{key}'; did you mean '{meant}'"):
+        gym.make("GridSim-v0", **kwargs)
