@@ -29,6 +29,13 @@ def output_problem(path: str | Path, directory: bool) -> str | None:
     made in and removed: permissions alone do not tell a read-only or virtual file system,
     such as /proc, from a writable one)."""
     path = Path(path)
+    try:
+        return _output_problem(path, directory)
+    except PermissionError as exc:  # a folder on the way that may not be searched
+        return f"{exc.filename or path} is not accessible ({exc.strerror})"
+
+
+def _output_problem(path: Path, directory: bool) -> str | None:
     if path.is_dir() and not directory:
         return "is a folder, expected a file"
     if path.exists() and directory and not path.is_dir():

@@ -98,3 +98,16 @@ def test_a_folder_that_refuses_files_is_caught_before_any_work(tmp_path):
     assert output_problem(Path("/proc/run"), directory=True).startswith("/proc is not writable")
     assert output_problem(tmp_path / "x.json", directory=False) is None
     assert list(tmp_path.iterdir()) == []  # the probe leaves nothing
+
+
+def test_a_folder_that_may_not_be_searched_is_named(tmp_path, monkeypatch):
+    """(as a user without x permission on a folder of the path sees it; root is not refused)"""
+    from pathlib import Path
+
+    def refused(self):
+        raise PermissionError(13, "Permission denied", str(tmp_path / "locked"))
+
+    monkeypatch.setattr(Path, "is_dir", refused)
+    assert output_problem(tmp_path / "locked" / "x.json", directory=False) == (
+        f"{tmp_path / 'locked'} is not accessible (Permission denied)"
+    )
