@@ -148,7 +148,7 @@ class GridSimEnv(gym.Env):
         self._last_accel = self._last_rate = 0.0
         self._last_plan = None
         self._travelled = 0.0
-        self._terminated = False
+        self._terminated = self._truncated = False
         if self._sensing:
             self._grids[:] = self.sensor.observe(self.world)[None]
         self._newest = len(self._grids) - 1
@@ -220,6 +220,9 @@ class GridSimEnv(gym.Env):
         if self._terminated:
             raise RuntimeError("the episode has terminated (collision, off-road or destination "
                                "reached): call reset() before step()")  # fmt: skip
+        if self._truncated:
+            raise RuntimeError(f"the episode reached its time limit ({self.time_limit:g} s, "
+                               "simulation.duration): call reset() before step()")  # fmt: skip
         world = self.world
         rotation = grid_rotation(self._orientation, world.ego[PSI])
         control, plan = self.action_kind.controller(world, action, rotation)
@@ -247,6 +250,7 @@ class GridSimEnv(gym.Env):
         terminated = bool(result.collided or result.off_road or reached)
         self._terminated = terminated
         truncated = (not terminated) and world.time >= self.time_limit - 1e-9
+        self._truncated = truncated
         terms = np.array([l1, l2, l3], np.float32)
         info = self._info(terms, reached)
         return self._observation(), terms, terminated, truncated, info

@@ -394,6 +394,19 @@ def test_step_after_termination_is_refused_until_reset():
     env.step(np.zeros(2))
 
 
+def test_a_step_after_the_time_limit_is_refused_until_reset():
+    env = gym.make("GridSim-v0", simulation={"duration": 0.3})
+    _, info = env.reset(seed=0)
+    truncated = False
+    for _ in range(3):
+        _, _, terminated, truncated, info = env.step(info["reference_setpoints"])
+    assert truncated and not terminated
+    with pytest.raises(RuntimeError, match=r"reached its time limit \(0.3 s, simulation.duration"):
+        env.step(info["reference_setpoints"])
+    _, info = env.reset(seed=0)
+    env.step(info["reference_setpoints"])
+
+
 NEXT, SAME, OFF = (gym.vector.AutoresetMode.NEXT_STEP, gym.vector.AutoresetMode.SAME_STEP,
                    gym.vector.AutoresetMode.DISABLED)  # fmt: skip
 
