@@ -24,6 +24,9 @@ class Episode:
 
     start: dict
     infos: list[dict]
+    #: what ended it: "collision", "off road", "destination reached", "time limit" (the
+    #: scenario's duration) or "steps limit" (the steps asked for ran out first)
+    ended_by: str = ""
 
     @property
     def steps(self) -> int:
@@ -62,6 +65,7 @@ class Episode:
             "collision": bool(last.get("collision", False)),
             "off_road": bool(last.get("off_road", False)),
             "destination_reached": bool(last.get("destination_reached", False)),
+            "ended_by": self.ended_by,
             "mean_speed": float(np.mean(poses[1:, V])) if self.infos else 0.0,
             "fitness_sums": {
                 "l1": float(fitness[0]),
@@ -101,4 +105,10 @@ def run_episode(
             on_step(env, info)
         if terminated or truncated:
             break
+    last = episode.last
+    episode.ended_by = (
+        "collision" if last.get("collision") else "off road" if last.get("off_road")
+        else "destination reached" if last.get("destination_reached")
+        else "time limit" if episode.infos and truncated else "steps limit"
+    )  # fmt: skip
     return episode

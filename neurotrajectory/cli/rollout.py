@@ -82,9 +82,9 @@ def rollout(
     s = driven.summary()
     result = {"video": str(path), "member": member, **s}
     f = s["fitness_sums"]
-    ended = ("a collision" if s["collision"] else "leaving the road" if s["off_road"]
-             else "reaching the destination" if s["destination_reached"]
-             else "the time or --steps limit")  # fmt: skip
+    ended = {"collision": "a collision", "off road": "leaving the road",
+             "destination reached": "reaching the destination", "time limit": "its time limit",
+             "steps limit": "the --steps limit"}[s["ended_by"]]  # fmt: skip
     on = f", track {track}" if track else ""
     print(f"{pick} member {member['index']}, seed {seed}{on}: {s['steps']} decisions, "
           f"{s['simulated_s']:.1f} s, {s['distance_m']:.0f} m at {s['mean_speed']:.1f} m/s, "

@@ -129,11 +129,16 @@ def test_run_command(tmp_path, capsys):
     assert code == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["steps"] == 40 and summary["distance_m"] > 10 and not summary["collision"]
+    assert summary["ended_by"] == "steps limit"  # 40 decisions of a 60 s scenario
     assert set(summary["fitness_sums"]) == {"l1", "l2", "l3"}
     assert len(iio.imread(video, index=None)) == 41
     for policy in ("idle", "random", "reference"):
         assert main(["run", "--steps", "5", "--policy", policy, "--quiet"]) == 0
     capsys.readouterr()
+    short = tmp_path / "short.yaml"
+    short.write_text("extends: seamless\nname: short\nsimulation: {duration: 1.0}\n")
+    assert main(["run", "--scenario", str(short), "--steps", "40", "--quiet"]) == 0
+    assert json.loads(capsys.readouterr().out)["ended_by"] == "time limit"
     with pytest.raises(SystemExit) as info:
         main(["run", "--steps", "0", "--quiet"])
     assert info.value.code == 2
