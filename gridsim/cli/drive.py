@@ -33,8 +33,8 @@ def execute(args: argparse.Namespace) -> int:
 
 def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = True) -> dict:
     """Drive ``seconds`` of simulated time; write ``grids.npz`` (uint8 ``(T, H, W)`` grids and
-    their times), a few colour grid PNGs, ``topdown.png`` (last frame) and ``summary.json``
-    into ``out``. Returns the summary."""
+    their times), a few colour grid PNGs (``grid_TICK.png``, named by their tick),
+    ``topdown.png`` (last frame) and ``summary.json`` into ``out``. Returns the summary."""
     from tqdm import tqdm
 
     from gridsim.scenario.build import build_sensor, build_world
@@ -99,7 +99,9 @@ def _write(out, sc, seed, world, grids, times, steps, start, distance, collision
         "ticks_in_collision": int(collisions),
         "ticks_off_road": int(off_road),
         "traffic_active": int(world.traffic.fleet.active.sum()),
-        "outputs": sorted(p.name for p in out.iterdir() if not p.name.startswith(".")),
+        "outputs": sorted(
+            [p.name for p in out.iterdir() if not p.name.startswith(".")] + ["summary.json"]
+        ),  # (this file, written next)
     }
     write_json(out / "summary.json", summary, indent=2)
     return summary

@@ -93,6 +93,7 @@ def test_drive_command_writes_outputs(tmp_path, capsys):
     assert data["grids"].shape == (30, 128, 128) and data["grids"].dtype == np.uint8
     assert (out / "topdown.png").stat().st_size > 1000
     assert json.loads(capsys.readouterr().out)["scenario"] == "inner_city"
+    assert summary["outputs"] == sorted(p.name for p in out.iterdir())  # itself included
 
 
 def test_drive_rejects_bad_arguments(tmp_path, capsys):
