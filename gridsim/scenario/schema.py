@@ -8,7 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any, Literal
+from types import UnionType
+from typing import TYPE_CHECKING, Annotated, Any, Literal, Union, get_args, get_origin
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
@@ -34,8 +35,48 @@ if TYPE_CHECKING:
     RoadConfig = Any
 
 
+def _is_number_type(annotation: Any) -> bool:
+    """Whether a field of ``annotation`` holds a number (``int``, ``float``, or one of them or
+    None)."""
+    if annotation in (int, float):
+        return True
+    args = [a for a in get_args(annotation) if a is not type(None)]
+    return (
+        get_origin(annotation) in (Union, UnionType)
+        and bool(args)
+        and all(a in (int, float) for a in args)
+    )
+
+
+def _numeric(text: str) -> bool:
+    """Whether pydantic would read ``text`` as a number."""
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 class Strict(BaseModel):
+    """A block of a scenario file: unknown keys are errors, and a number key takes numbers
+    only (pydantic would read ``yes`` as 1 and ``"12"`` as 12)."""
+
     model_config = ConfigDict(extra="forbid", frozen=True, validate_default=True)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _numbers_are_numbers(cls, data: Any) -> Any:
+        if not isinstance(data, dict):
+            return data
+        for name, value in data.items():
+            field = cls.model_fields.get(name)
+            # (other text fails pydantic's own check, which names the key)
+            coerced = isinstance(value, bool) or (isinstance(value, str) and _numeric(value))
+            if field is not None and coerced and _is_number_type(field.annotation):
+                what = "a YAML yes/no/true/false is a boolean" if isinstance(value, bool) else (
+                    "text; write the number without quotes")  # fmt: skip
+                raise ValueError(f"{name} expects a number, got {value!r} ({what})")
+        return data
 
 
 #: The most simulation ticks in an episode (``duration / dt``): the world and the reference

@@ -88,6 +88,16 @@ def test_malformed_yaml_names_file_and_line(tmp_path):
             {"road": {"type": "seamless", "lanes": "three"}},
             r"road\.lanes: Input should be a valid integer",
         ),
+        # values pydantic would quietly convert
+        (
+            {"road": {"type": "seamless", "lanes": True}},
+            r"road: lanes expects a number, got True \(a YAML yes/no/true/false is a boolean\)",
+        ),
+        (
+            {"traffic": {"participants": "12"}},
+            r"traffic: participants expects a number, got '12' \(text; write the number",
+        ),
+        ({"simulation": {"duration": "10"}}, r"simulation: duration expects a number, got '10'"),
         (
             {"road": {"type": "seamless", "lanes": 12}},
             r"road\.lanes: Input should be less than or equal to 8 \(got 12\)",
