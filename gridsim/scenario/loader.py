@@ -7,6 +7,7 @@ import difflib
 import os
 import re
 import typing
+import warnings
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
@@ -16,7 +17,7 @@ import numpy as np
 import yaml
 from pydantic import ValidationError
 
-from gridsim.errors import ScenarioError
+from gridsim.errors import DataWarning, ScenarioError
 from gridsim.scenario.family import FAMILIES, family_defaults
 from gridsim.scenario.schema import Scenario, ScenarioConfig, Strict
 
@@ -286,8 +287,44 @@ def parse_scenario(
         doc = deep_merge(doc, overrides)
     road = doc.get("road")
     family = road.get("type") if isinstance(road, Mapping) else None
+    unused = _unused_keys(doc, family)
     doc = deep_merge(family_defaults(family), doc)
-    return Scenario(_validate(doc, source), source, base_dir)
+    scenario = Scenario(_validate(doc, source), source, base_dir)
+    if unused:
+        why = ("recorded scenes take their traffic and lanes from the recording"
+               if FAMILIES[family].recorded else "only recorded scenes have tracks")  # fmt: skip
+        warnings.warn(f"{source}: {', '.join(unused)} not used by road type {family!r} ({why}); "
+                      "ignored", DataWarning, stacklevel=2)  # fmt: skip
+    return scenario
+
+
+#: Keys that only one kind of road uses: generated roads (``recorded=False``) place the ego in
+#: a lane among synthetic traffic; recorded scenes drive one of their tracks.
+ONLY_GENERATED = (("traffic", "participants"), ("traffic", "window"), ("ego", "lane"))
+ONLY_RECORDED = (("ego", "track"),)
+
+
+def _unused_keys(doc: Mapping[str, Any], family: Any) -> list[str]:
+    """The keys the user set (``doc``, before the family's defaults) to other than their
+    default that road type ``family`` does not use (none for an unknown family: the schema
+    names it). A resolved scenario (``validate --resolved``) states every key at its default."""
+    if not isinstance(family, str) or family not in FAMILIES:
+        return []
+    keys = ONLY_GENERATED if FAMILIES[family].recorded else ONLY_RECORDED
+    defaults = ScenarioConfig.model_fields
+    return [f"{a}.{b}" for a, b in keys
+            if isinstance(doc.get(a), Mapping) and b in doc[a]
+            and not _same(doc[a][b], defaults[a].default.model_dump().get(b))]  # fmt: skip
+
+
+def _same(value: Any, default: Any) -> bool:
+    """Whether a YAML ``value`` states ``default`` (a list for a tuple too)."""
+    try:
+        if isinstance(value, list | tuple) and isinstance(default, list | tuple):
+            return list(value) == list(default)
+        return bool(value == default)
+    except Exception:  # a value of another kind entirely: the schema will say
+        return False
 
 
 def _check_mapping(doc: Any, source: str) -> None:

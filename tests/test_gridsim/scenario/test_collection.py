@@ -236,3 +236,20 @@ def test_record_skips_the_unusable_files_and_says_so(folder, tmp_path, capsys):
     assert "warning: " in err and "skipped 3 of 5 scenario files" in err
     assert "glitch.xml" in err and "Traceback" not in err
     assert len(set(load_dataset(out).windows.track.tolist())) == 6
+
+
+def test_keys_that_the_road_type_does_not_use_are_named():
+    """A track on a generated road, synthetic traffic on a recorded scene: said, not run on
+    quietly; a resolved scenario, which states every key at its default, says nothing."""
+    from gridsim.scenario.loader import load_scenario
+
+    with pytest.warns(DataWarning, match=r"ego.track not used by road type 'seamless' \(only "):
+        load_scenario("seamless", {"ego": {"track": "5"}})
+    with pytest.warns(DataWarning, match=r"traffic.participants not used by road type 'recorded'"):
+        load_scenario("us101_4_1", {"traffic": {"participants": 50}})
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)
+        resolved = load_scenario("seamless").config.model_dump(mode="json")
+        load_scenario("seamless", {k: resolved[k] for k in ("ego", "traffic")})
