@@ -127,6 +127,8 @@ class GroupResult:
     best_member: int
     #: the set-points' times after the decision [s]
     setpoint_times: tuple[float, ...] = ()
+    #: test tracks that the run trained on (``SCENE/ID``): its figures there are not held out
+    trained_test_tracks: tuple[str, ...] = ()
 
 
 def _dataset(
@@ -190,13 +192,11 @@ def _evaluate_group(
     train, test = split_by_track(ds.windows, cfg.test_fraction, cfg.seed)
     seen = sorted(set(test.track.tolist()) & trained_tracks(front.run.config))
     if seen:  # the run drove these as the ego in training: its scores on them are not held out
-        were = "was a training track" if len(seen) == 1 else "were training tracks"
-        message = (f"{group}: {len(seen)} of its {len(set(test.track.tolist()))} test tracks "
-                   f"{were} of {front.run.out} ({', '.join(seen[:3])}"
-                   f"{', ...' if len(seen) > 3 else ''}): NeuroTrajectory's figures on this "
-                   "group are not held-out ones; evaluate it on scenes the run did not train "
-                   "on")  # fmt: skip
-        warnings.warn(message, DataWarning, stacklevel=2)
+        from neurotrajectory.compare.report import not_held_out
+
+        said = not_held_out(group, seen, len(set(test.track.tolist())))
+        warnings.warn(f"{said} ({front.run.out}); evaluate it on scenes the run did not train "
+                      "on", DataWarning, stacklevel=2)  # fmt: skip
     setting = Setting.from_manifest(ds.manifest)
     log(f"{group}: {len(train)} train / {len(test)} test windows; training End2End")
     e2e = End2End.train(train, setting, cfg.end2end, progress=progress)
@@ -252,7 +252,7 @@ def _evaluate_group(
                                          for row in p["per_episode"]]  # fmt: skip
     return GroupResult(group, ds.manifest["source"], len(train), len(test),
                        len(np.unique(test.track)), scores, loop, best,
-                       tuple(float(t) for t in setting.times))  # fmt: skip
+                       tuple(float(t) for t in setting.times), tuple(seen))  # fmt: skip
 
 
 def evaluate(

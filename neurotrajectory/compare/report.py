@@ -92,6 +92,8 @@ def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
         f"{r.train_windows} train windows" for r in results) + "."]  # fmt: skip
     lines += ["Simulator groups use human speed and lane-change profiles replayed in GridSim; "
               "real groups are the recorded NGSIM drivers themselves.", ""]  # fmt: skip
+    lines += [f"**Not held out:** {not_held_out(r.group, r.trained_test_tracks, r.test_tracks)}.\n"
+              for r in results if r.trained_test_tracks]  # fmt: skip
     if any(r.closed_loop for r in results):
         lines += ["## Closed loop in GridSim-v0", "",
                   "Rates are shares of episodes; progress: distance driven / the human's in the "
@@ -128,12 +130,23 @@ def _write_csv(results, out: Path) -> Path:
     return path
 
 
+def not_held_out(group: str, seen, tracks: int) -> str:
+    """What it means that ``seen`` of a group's ``tracks`` test tracks were the run's
+    training tracks, in one sentence."""
+    more = ", ..." if len(seen) > 3 else ""
+    was = "was a training track" if len(seen) == 1 else "were training tracks"
+    return (f"{group}: {len(seen)} of its {tracks} test tracks {was} of the NeuroTrajectory "
+            f"run ({', '.join(seen[:3])}{more}): its figures on this group are not held-out "
+            "ones")  # fmt: skip
+
+
 def _write_json(results, out: Path, run_info: dict) -> Path:
     doc = {"neurotrajectory": run_info, "groups": []}
     for r in results:
         doc["groups"].append({
             "group": r.group, "source": r.source, "train_windows": r.train_windows,
             "test_windows": r.test_windows, "test_tracks": r.test_tracks,
+            "trained_test_tracks": list(r.trained_test_tracks),
             "best_member": r.best_member,
             "accuracy": {m: {**a.summary(), "rmse_per_setpoint": a.rmse_per_setpoint,
                              "std_per_setpoint": a.std_per_setpoint}

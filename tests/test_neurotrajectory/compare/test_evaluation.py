@@ -149,6 +149,10 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
     } <= methods
     assert {r["group"] for r in rows} == {"seamless", "urban"}
     assert {r["source"] for r in rows if r["group"] == "urban"} == {"human (NGSIM)"}
+    # a run on the generated road trained on no track of the urban scenes
+    groups = json.loads((out / "results.json").read_text())["groups"]
+    assert [g["trained_test_tracks"] for g in groups] == [[], []]
+    assert "Not held out" not in (out / "table2.md").read_text()
     for r in rows:
         assert float(r["max_ex"]) >= float(r["mean_ex"]) >= 0
         assert float(r["rmse"]) > 0
@@ -257,3 +261,17 @@ def test_a_registered_baseline_is_scored_open_and_closed_loop(tiny_run, data, tm
     assert float(row["rmse"]) == pytest.approx(still.rmse, abs=1e-4) and still.rmse > 1.0
     (loop,) = [r for r in _table(out / "closed_loop.csv") if r["method"] == StandStill.name]
     assert float(loop["progress"]) < 0.5  # it brakes to a stop
+
+
+def test_a_group_whose_test_tracks_were_trained_on_says_so():
+    from neurotrajectory.compare.report import not_held_out
+
+    assert not_held_out("mine", ["S/1"], 4) == (
+        "mine: 1 of its 4 test tracks was a training track of the NeuroTrajectory run (S/1): "
+        "its figures on this group are not held-out ones"
+    )
+    many = not_held_out("mine", [f"S/{k}" for k in range(1, 6)], 9)
+    assert (
+        "5 of its 9 test tracks were training tracks of the NeuroTrajectory run (S/1, S/2, "
+        "S/3, ...)" in many
+    )
