@@ -149,11 +149,22 @@ def load_collection(ref: str | Path, overrides: Mapping[str, Any] | None = None)
     """The usable scenarios of a folder or glob (:func:`usable_files`; or the one scenario
     ``ref`` names), ``overrides`` applied to each; :class:`ScenarioError` if they disagree on
     :data:`SHARED_KEYS`."""
-    if scenario_files(ref) is None:
-        return [load_scenario(ref, overrides)]
-    scenarios, _ = usable_files(ref, overrides)
+    return [sc for _, sc in load_usable(ref, overrides)[0]]
+
+
+def load_usable(
+    ref: str | Path, overrides: Mapping[str, Any] | None = None
+) -> tuple[list[tuple[str, Scenario]], list[tuple[Path, str]]]:
+    """:func:`load_collection` with each scenario's file (as a reference to load it by: a
+    file's path, a built-in name; ``ref`` itself for one scenario) and the files skipped
+    (``(file, reason)``, named in a warning already)."""
+    files = scenario_files(ref)
+    if files is None:
+        return [(str(ref), load_scenario(ref, overrides))], []
+    scenarios, skipped = usable_files(ref, overrides)
     check_agreement(ref, scenarios)
-    return scenarios
+    gone = {f for f, _ in skipped}
+    return list(zip([str(f) for f in files if f not in gone], scenarios, strict=True)), skipped
 
 
 def check_agreement(ref: str | Path, scenarios: list[Scenario]) -> None:

@@ -10,6 +10,7 @@ import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.scenario.schema import Scenario
 from gridsim.traffic.track import track_name
 from neurotrajectory.data.windows import goal_overrides, is_recorded
 from neurotrajectory.evolve.fitness import scenario_net_config
@@ -120,11 +121,11 @@ def heldout(
     run, policy, member = load_front_member(run_dir, pick, smoothing)
     cfg = run.config
     seconds = cfg.episode_seconds if seconds is None else float(seconds)
-    refs = _scene_refs(cfg.scenario) if cfg.ego_tracks else [cfg.scenario]
-    tracks = (
-        _other_tracks(cfg.scenario, cfg.ego_tracks, refs)[:episodes] if cfg.ego_tracks else None
-    )
-    names = _track_names(tracks or [], refs)
+    tracks, names = None, []
+    if cfg.ego_tracks:  # each held-out track of the run's scenes once
+        scenes = _scenes(cfg.scenario)
+        tracks = _other_tracks(cfg.scenario, cfg.ego_tracks, scenes)[:episodes]
+        names = _track_names(tracks, scenes)
     seeds = list(cfg.heldout_seeds(len(tracks) if tracks else episodes))
 
     def drive(planner) -> list[dict]:
@@ -157,22 +158,20 @@ def heldout(
     }
 
 
-def _scene_refs(scenario: str) -> list[str]:
-    """The scenario files of ``scenario`` that a run drives: its own name for one scene, each
-    usable file of a collection (as a run loads it; the others are named in a warning)."""
-    from gridsim.scenario.collection import scenario_files, usable_files
+def _scenes(scenario: str) -> list[tuple[str, Scenario]]:
+    """``(file, scenario)`` of each scene a run of ``scenario`` drives: ``scenario`` itself
+    for one scene, each usable file of a collection (as a run loads it; the others are named
+    in a warning)."""
+    from gridsim.scenario.collection import load_usable
 
-    files = scenario_files(scenario)
-    if files is None:
-        return [scenario]
-    skipped = {str(f) for f, _ in usable_files(scenario)[1]}
-    return [str(f) for f in files if str(f) not in skipped]
+    return load_usable(scenario)[0]
 
 
-def _track_names(tracks: list[tuple[str, str]], refs: list[str]) -> list[str]:
-    """How reports name ``(scenario file, track id)`` pairs of the scenario files ``refs``:
-    the id on one scene, ``FILE/ID`` on a collection (a track id may be on several)."""
-    several = len(refs) > 1
+def _track_names(tracks: list[tuple[str, str]], scenes: list[tuple[str, Scenario]]) -> list[str]:
+    """How reports name ``(scenario file, track id)`` pairs of ``scenes``
+    (:func:`_scenes`): the id on one scene, ``FILE/ID`` on a collection (a track id may be on
+    several)."""
+    several = len(scenes) > 1
     return [track_name(ref, track) if several else track for ref, track in tracks]
 
 
@@ -181,14 +180,13 @@ def _resolve_track(scenario: str, name: str) -> tuple[str, str]:
     ego: named as reports name it (:func:`_track_names`), as ``SCENE/ID`` with the scene's
     id (as ``config.json`` and datasets name it), or by its id alone where one scene has it."""
     from gridsim.scenario.families.recorded import scene_of
-    from gridsim.scenario.loader import load_scenario
 
-    refs = _scene_refs(scenario)
-    every = _other_tracks(scenario, (), refs)
-    scenes = {ref: scene_of(load_scenario(ref)) for ref in refs}
+    scenes = _scenes(scenario)
+    every = _other_tracks(scenario, (), scenes)
+    scene_ids = {ref: scene_of(sc) for ref, sc in scenes}
     names: dict[str, list[tuple[str, str]]] = {}
     for ref, track in every:
-        for alias in {track_name(ref, track), track_name(scenes[ref], track), track}:
+        for alias in {track_name(ref, track), track_name(scene_ids[ref], track), track}:
             names.setdefault(alias, []).append((ref, track))
     found = names.get(name, [])
     if len(found) == 1:
@@ -197,7 +195,7 @@ def _resolve_track(scenario: str, name: str) -> tuple[str, str]:
         named = ", ".join(track_name(r, t) for r, t in found)
         raise RunError(f"--track {name}: a track of {len(found)} scenes of {scenario}; name "
                        f"one as FILE/ID: {named}")  # fmt: skip
-    like = ", ".join(_track_names(every, refs)[:3])
+    like = ", ".join(_track_names(every, scenes)[:3])
     raise RunError(f"--track {name}: not a track of {scenario} that can be the ego ({len(every)} "
                    f"are, named like {like}, as heldout.json names them)")  # fmt: skip
 
@@ -227,12 +225,11 @@ def trained_tracks(config) -> set[str]:
     if not config.ego_tracks:
         return set()
     from gridsim.scenario.families.recorded import scene_of
-    from gridsim.scenario.loader import load_scenario
     from gridsim.traffic.track import ids_in_scene
 
     out = set()
-    for ref in _scene_refs(config.scenario):
-        scene = scene_of(load_scenario(ref))
+    for _, sc in _scenes(config.scenario):
+        scene = scene_of(sc)
         out |= {track_name(scene, t) for t in ids_in_scene(list(config.ego_tracks), scene)[0]}
     return out
 
@@ -268,18 +265,16 @@ def heldout_problem(config) -> str | None:
 
 
 def _other_tracks(
-    scenario: str, trained: tuple[str, ...], refs: list[str] | None = None
+    scenario: str, trained: tuple[str, ...], scenes: list[tuple[str, Scenario]] | None = None
 ) -> list[tuple[str, str]]:
     """``(scenario file, track id)`` of every track of ``scenario``'s scenes (one, or each of
-    a collection's usable files; ``refs`` if known, :func:`_scene_refs`) that can be the ego
-    and is not in ``trained`` (ids, or ``SCENE/ID`` names)."""
+    a collection's usable files; ``scenes`` if loaded already, :func:`_scenes`) that can be
+    the ego and is not in ``trained`` (ids, or ``SCENE/ID`` names)."""
     from gridsim.scenario.families.recorded import ego_candidates, scene_of
-    from gridsim.scenario.loader import load_scenario
     from gridsim.traffic.track import ids_in_scene
 
     others = []
-    for ref in _scene_refs(scenario) if refs is None else refs:
-        sc = load_scenario(ref)
+    for ref, sc in _scenes(scenario) if scenes is None else scenes:
         seen = set(ids_in_scene(list(trained), scene_of(sc))[0])
         need = sc.config.env.horizon_time
         others += [(ref, t.track_id) for t in ego_candidates(sc)

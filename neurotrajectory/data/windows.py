@@ -34,11 +34,10 @@ from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write
 from gridsim.policies import Reference
 from gridsim.scenario.checks import flawed_tracks
 from gridsim.scenario.collection import (
-    check_agreement,
     load_collection,
+    load_usable,
     report_skipped,
     scenario_files,
-    usable_files,
 )
 from gridsim.scenario.families.recorded import recorded_scene, scene_of
 from gridsim.scenario.family import family_of
@@ -350,8 +349,8 @@ def record_scenario(
 
 def group_scenarios(name: str, source: str | None = None) -> tuple[str, ...]:
     """The scenarios of group ``name``: the usable files of ``source`` (a folder or glob;
-    the others are named in a warning: :func:`gridsim.scenario.collection.usable_files`;
-    they must agree as a collection's do, :func:`~gridsim.scenario.collection.load_collection`)
+    the others are named in a warning; they must agree as a collection's do:
+    :func:`gridsim.scenario.collection.load_usable`)
     if given; else a group of :data:`GROUPS`, the usable files of ``name`` if it is a folder
     or glob, or the one scenario ``name`` (built-in name, YAML or CommonRoad XML path)."""
     return group_files(name, source)[0]
@@ -367,9 +366,8 @@ def group_files(
     ref = name if source is None else source
     if scenario_files(ref) is None:
         return (ref,), []
-    scenarios, skipped = usable_files(ref)
-    check_agreement(ref, scenarios)
-    return tuple(sc.source for sc in scenarios), skipped
+    usable, skipped = load_usable(ref)
+    return tuple(sc.source for _, sc in usable), skipped
 
 
 def record_group(

@@ -630,7 +630,7 @@ def test_heldout_names_the_episodes_the_member_failed_and_how_to_watch_one(capsy
 def test_tracks_are_found_by_the_names_reports_configs_and_datasets_give_them():
     from gridsim.scenario.families.recorded import scene_of
     from gridsim.scenario.loader import load_scenario
-    from neurotrajectory.compare.front import _resolve_track, _track_names
+    from neurotrajectory.compare.front import _resolve_track, _scenes, _track_names
 
     both = "us101_4_1,us101_3_3"
     scene = scene_of(load_scenario("us101_4_1"))
@@ -641,8 +641,10 @@ def test_tracks_are_found_by_the_names_reports_configs_and_datasets_give_them():
                        "name one as FILE/ID: us101_4_1/399, us101_3_3/399"):  # fmt: skip
         _resolve_track(both, "399")
     # a collection's tracks are FILE/ID even when the ones reported are of one scene
-    assert _track_names([("us101_3_3", "399")], ["us101_4_1", "us101_3_3"]) == ["us101_3_3/399"]
-    assert _track_names([("us101_3_3", "399")], ["us101_3_3"]) == ["399"]
+    both_scenes = _scenes(both)
+    assert [ref for ref, _ in both_scenes] == ["us101_4_1", "us101_3_3"]
+    assert _track_names([("us101_3_3", "399")], both_scenes) == ["us101_3_3/399"]
+    assert _track_names([("us101_3_3", "399")], both_scenes[1:]) == ["399"]
 
 
 def test_plots_are_drawn_again_from_the_saved_scores(finished_run, tmp_path, monkeypatch, capsys):
