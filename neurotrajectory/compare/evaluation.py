@@ -190,11 +190,12 @@ def _evaluate_group(
     group: str, ds: Dataset, front: Front, cfg: EvalConfig, out: Path, log, progress: bool = True
 ) -> GroupResult:
     train, test = split_by_track(ds.windows, cfg.test_fraction, cfg.seed)
-    seen = sorted(set(test.track.tolist()) & trained_tracks(front.run.config))
+    test_tracks = set(test.track.tolist())
+    seen = sorted(test_tracks & trained_tracks(front.run.config))
     if seen:  # the run drove these as the ego in training: its scores on them are not held out
         from neurotrajectory.compare.report import not_held_out
 
-        said = not_held_out(group, seen, len(set(test.track.tolist())))
+        said = not_held_out(group, seen, len(test_tracks))
         warnings.warn(f"{said} ({front.run.out}); evaluate it on scenes the run did not train "
                       "on", DataWarning, stacklevel=2)  # fmt: skip
     setting = Setting.from_manifest(ds.manifest)
@@ -251,7 +252,7 @@ def _evaluate_group(
                                          for sc, p in zip(scenarios, per, strict=True)
                                          for row in p["per_episode"]]  # fmt: skip
     return GroupResult(group, ds.manifest["source"], len(train), len(test),
-                       len(np.unique(test.track)), scores, loop, best,
+                       len(test_tracks), scores, loop, best,
                        tuple(float(t) for t in setting.times), tuple(seen))  # fmt: skip
 
 
