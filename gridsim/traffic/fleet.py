@@ -198,46 +198,20 @@ class Fleet:
 
     def _cross_path(self, idx, corridor, c, sn):
         """Leaders on another path: pairs from a k-d tree (or all pairs when few), kept if
-        the other vehicle lies on the follower's path as far ahead as it is. Pairs inside
-        one corridor are left to :func:`~gridsim.traffic.fleet_kernels.same_path`."""
-        px, py = self.x[idx], self.y[idx]
-        i, j = self._pairs(px, py)
-        dx, dy = px[j] - px[i], py[j] - py[i]
-        lon_ij = dx * c[i] + dy * sn[i]
-        lon_ji = -(dx * c[j] + dy * sn[j])
-        a = np.concatenate([i[lon_ij > 0], j[lon_ji > 0]])
-        b = np.concatenate([j[lon_ij > 0], i[lon_ji > 0]])
-        lon = np.concatenate([lon_ij[lon_ij > 0], lon_ji[lon_ji > 0]])
-        path = self.path[idx]
-        trusted = self.geometric[idx] & (self.mode[idx] == REPLAY)  # replaying recorded
-        keep = (
-            (c[a] * c[b] + sn[a] * sn[b] > 0.0)
-            & ~(trusted[a] & trusted[b])
-            & (path[a] != path[b])
-            & ((corridor[a] < 0) | (corridor[a] != corridor[b]))
-        )
-        a, b, lon = a[keep], b[keep], lon[keep]
-        ia, ib = idx[a], idx[b]
-        q, _ = self.paths.frenet_to_world(self.path[ia], self.s[ia] + lon, self.d[ia])
-        lat = np.hypot(self.x[ib] - q[:, 0], self.y[ib] - q[:, 1])
-        on = lat < 0.5 * (self.width[ia] + self.width[ib]) + self.p.lateral_margin
-        a, b, lon = a[on], b[on], lon[on]
-        gap = lon - 0.5 * (self.length[idx[a]] + self.length[idx[b]])
-        return a, b, gap, self.v[idx[b]] * (c[a] * c[b] + sn[a] * sn[b])
-
-    def _pairs(self, px: np.ndarray, py: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Unordered pairs ``(i, j)``, ``i < j``, of points closer than the look-ahead.
-
-        A k-d tree keeps this O(N log N); for a handful of points all pairs are cheaper."""
-        m = len(px)
-        if m <= _ALL_PAIRS_MAX:
+        the other vehicle lies on the follower's path as far ahead as it is
+        (:func:`~gridsim.traffic.fleet_kernels.cross_path`). Pairs inside one corridor are
+        left to :func:`~gridsim.traffic.fleet_kernels.same_path`."""
+        m = len(idx)
+        if m <= _ALL_PAIRS_MAX:  # all pairs, tested in the kernel
             i, j = _upper_pairs(m)
-            close = np.hypot(px[i] - px[j], py[i] - py[j]) <= self.p.lookahead
-            return i[close], j[close]
-        pairs = cKDTree(np.stack([px, py], axis=1)).query_pairs(
-            self.p.lookahead, output_type="ndarray"
-        )
-        return pairs[:, 0], pairs[:, 1]
+            test_close = True
+        else:
+            pts = np.stack([self.x[idx], self.y[idx]], axis=1)
+            pairs = cKDTree(pts).query_pairs(self.p.lookahead, output_type="ndarray")
+            i, j, test_close = pairs[:, 0], pairs[:, 1], False
+        return kernels.cross_path(idx, corridor, c, sn, i, j, test_close, self.state,
+                                  self.paths.kernel_data(), self.p.lookahead,
+                                  self.p.lateral_margin)  # fmt: skip
 
     # -- the tick --------------------------------------------------------------------------------
     def tick(

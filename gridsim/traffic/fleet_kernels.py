@@ -127,6 +127,60 @@ def same_path(idx, path, s, length, v, psi, lookahead):
     return a[:n], b[:n], gap[:n], lead_v[:n]
 
 
+@kernel
+def cross_path(idx, corridor, c, sn, pi, pj, test_close, state, paths, lookahead, margin):
+    """Leader candidates ``(a, b, gap, lead_v)`` on other paths (``a``, ``b`` index ``idx``,
+    the active participants): of the pairs ``(pi, pj)`` (``test_close``: only those closer
+    than ``lookahead`` [m]), each way round where the other vehicle is ahead along the
+    follower's heading (``c``, ``sn``: the cosines and sines of ``psi[idx]``) and lies on the
+    follower's path as far ahead as it is (within half the widths and ``margin`` [m]), the
+    two heading the same way, on different paths and not in one corridor (``corridor``: of
+    ``path[idx]``, ``-1`` for none), and not both replaying a recorded track. Candidates
+    come in the order of the NumPy code this replaced (every pair ahead one way, then every
+    pair ahead the other way), with the same bits."""
+    f = FleetState(*state)
+    n = len(pi)
+    a, b, lon = np.empty(2 * n, np.int64), np.empty(2 * n, np.int64), np.empty(2 * n)
+    k = 0
+    for way in range(2):
+        for q in range(n):
+            i, j = pi[q], pj[q]
+            xi, yi, xj, yj = f.x[idx[i]], f.y[idx[i]], f.x[idx[j]], f.y[idx[j]]
+            if test_close and not np.hypot(xi - xj, yi - yj) <= lookahead:
+                continue
+            dx, dy = xj - xi, yj - yi
+            if way == 0:
+                ahead, fa, fb = dx * c[i] + dy * sn[i], i, j
+            else:
+                ahead, fa, fb = -(dx * c[j] + dy * sn[j]), j, i
+            if not ahead > 0:
+                continue
+            ia, ib = idx[fa], idx[fb]
+            trusted_a = f.geometric[ia] and f.mode[ia] == REPLAY
+            trusted_b = f.geometric[ib] and f.mode[ib] == REPLAY
+            if (
+                c[fa] * c[fb] + sn[fa] * sn[fb] > 0.0
+                and not (trusted_a and trusted_b)
+                and f.path[ia] != f.path[ib]
+                and (corridor[fa] < 0 or corridor[fa] != corridor[fb])
+            ):
+                a[k], b[k], lon[k] = fa, fb, ahead
+                k += 1
+    buckets = k > SMALL_QUERY
+    gap, lead_v = np.empty(k), np.empty(k)
+    m = 0
+    for q in range(k):
+        ia, ib = idx[a[q]], idx[b[q]]
+        px, py, _ = frenet_one(paths, f.path[ia], f.s[ia] + lon[q], f.d[ia], buckets)
+        lat = np.hypot(f.x[ib] - px, f.y[ib] - py)
+        if lat < 0.5 * (f.width[ia] + f.width[ib]) + margin:
+            a[m], b[m] = a[q], b[q]
+            gap[m] = lon[q] - 0.5 * (f.length[ia] + f.length[ib])
+            lead_v[m] = f.v[ib] * (c[a[q]] * c[b[q]] + sn[a[q]] * sn[b[q]])
+            m += 1
+    return a[:m], b[:m], gap[:m], lead_v[:m]
+
+
 #: m: spacing of the samples of a participant's path ahead in :func:`swept_conflict`
 SWEEP_STEP = 0.5
 #: s: a participant yields to an ego that reaches the conflict this long after it would

@@ -504,3 +504,97 @@ def test_a_csv_saved_by_excel_or_with_semicolons(tmp_path):
     rows = ["s,1,0,0,0,0,1,4.5,1.8", "s,1,100,0.1,0,0,1,4.5,1.8"]  # 100 s apart: a gap
     with pytest.raises(DataError, match=r"state 1 \(t = 100 s\): 100 s after the previous"):
         read_tracks_csv(write_csv(tmp_path, rows))
+
+
+def _cross_candidates_numpy(f: Fleet):
+    """The NumPy leader candidates on other paths that :meth:`Fleet._cross_candidates`
+    compiles (:func:`~gridsim.traffic.fleet_kernels.cross_path`)."""
+    from scipy.spatial import cKDTree
+
+    idx = np.flatnonzero(f.active)
+    corridor = f.paths.corridors(f.path[idx])
+    c, sn = np.cos(f.psi[idx]), np.sin(f.psi[idx])
+    px, py = f.x[idx], f.y[idx]
+    if len(idx) <= 48:
+        i, j = np.triu_indices(len(idx), k=1)
+        close = np.hypot(px[i] - px[j], py[i] - py[j]) <= f.p.lookahead
+        i, j = i[close], j[close]
+    else:
+        pairs = cKDTree(np.stack([px, py], axis=1)).query_pairs(
+            f.p.lookahead, output_type="ndarray"
+        )
+        i, j = pairs[:, 0], pairs[:, 1]
+    dx, dy = px[j] - px[i], py[j] - py[i]
+    lon_ij = dx * c[i] + dy * sn[i]
+    lon_ji = -(dx * c[j] + dy * sn[j])
+    a = np.concatenate([i[lon_ij > 0], j[lon_ji > 0]])
+    b = np.concatenate([j[lon_ij > 0], i[lon_ji > 0]])
+    lon = np.concatenate([lon_ij[lon_ij > 0], lon_ji[lon_ji > 0]])
+    path = f.path[idx]
+    trusted = f.geometric[idx] & (f.mode[idx] == REPLAY)
+    keep = (
+        (c[a] * c[b] + sn[a] * sn[b] > 0.0)
+        & ~(trusted[a] & trusted[b])
+        & (path[a] != path[b])
+        & ((corridor[a] < 0) | (corridor[a] != corridor[b]))
+    )
+    a, b, lon = a[keep], b[keep], lon[keep]
+    ia, ib = idx[a], idx[b]
+    q, _ = f.paths.frenet_to_world(f.path[ia], f.s[ia] + lon, f.d[ia])
+    lat = np.hypot(f.x[ib] - q[:, 0], f.y[ib] - q[:, 1])
+    on = lat < 0.5 * (f.width[ia] + f.width[ib]) + f.p.lateral_margin
+    a, b, lon = a[on], b[on], lon[on]
+    gap = lon - 0.5 * (f.length[idx[a]] + f.length[idx[b]])
+    return a, b, gap, f.v[idx[b]] * (c[a] * c[b] + sn[a] * sn[b])
+
+
+def _assert_same_candidates(got, want) -> int:
+    for g, w in zip(got, want, strict=True):
+        assert g.dtype == w.dtype and np.array_equal(g, w)  # the same bits, in the same order
+    return len(want[0])
+
+
+@pytest.mark.parametrize("count", [30, 120])  # all pairs and k-d tree pairs
+def test_compiled_cross_path_candidates_equal_the_numpy_ones(count):
+    rng = np.random.default_rng(count)
+    found = 0
+    for _ in range(40):
+        f = Fleet(count)
+        paths = []
+        for p in range(8):  # straight paths through the middle at random angles, some in
+            # a corridor of two parallel lanes, some overlapping each other
+            ang, off = rng.uniform(-np.pi, np.pi), rng.uniform(-4, 4)
+            u, n = np.array([np.cos(ang), np.sin(ang)]), np.array([-np.sin(ang), np.cos(ang)])
+            pts = np.array([-300 * u + off * n, 300 * u + off * n])
+            corridor = p // 2 if p < 4 else -1
+            paths.append(f.paths.add_path(pts, np.array([0.0, 600.0]), corridor=corridor))
+        prof = f.profiles.add(np.array([0.0, 100.0]), np.array([[0, 8, 0, 0], [800, 8, 0, 0]]))
+        for i in range(count):
+            f.place(i, path=paths[rng.integers(8)], s=rng.uniform(300 - count, 300 + count),
+                    profile=prof, tau=0.0, d_bias=rng.uniform(-0.5, 0.5),
+                    geometric=bool(rng.random() < 0.5), length=rng.uniform(3.5, 6),
+                    width=rng.uniform(1.6, 2.2))  # fmt: skip
+        f.mode[:] = np.where(rng.random(count) < 0.3, IDM, REPLAY)
+        f.active[:] = rng.random(count) < 0.9
+        found += _assert_same_candidates(f._cross_candidates(), _cross_candidates_numpy(f))
+    assert found > 100  # the comparison saw candidates
+
+
+@pytest.mark.parametrize("scenario", ["inner_city", "us101_4_1"])
+def test_compiled_cross_path_candidates_equal_the_numpy_ones_in_episodes(scenario):
+    import gymnasium as gym
+
+    from gridsim.policies import Reference
+
+    env = gym.make("GridSim-v0", scenario=scenario)
+    policy, found = Reference(), 0
+    for seed in range(3):
+        obs, info = env.reset(seed=seed)
+        fleet = env.unwrapped.world.traffic.fleet
+        for _ in range(40):
+            found += _assert_same_candidates(fleet._cross_candidates(),
+                                             _cross_candidates_numpy(fleet))  # fmt: skip
+            obs, _, terminated, truncated, info = env.step(policy(env.unwrapped, obs, info))
+            if terminated or truncated:
+                break
+    assert found > 0
