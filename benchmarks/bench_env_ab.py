@@ -8,7 +8,7 @@ step (``time.process_time``). Prints one JSON line: the medians of the block med
 median of the per-pair ratios (old / new) and its quartiles.
 
     python benchmarks/bench_env_ab.py OLD_TREE NEW_TREE [--blocks 40] [--steps 300]
-        [--action trajectory|control]
+        [--action trajectory|control] [--scenario inner_city]
 
 ``OLD_TREE``/``NEW_TREE``: folders holding a ``gridsim`` package (e.g. ``git worktree add``
 or ``git archive <commit> | tar -x -C <dir>``).
@@ -28,7 +28,7 @@ WARMUP_STEPS = 3000  # five seeds of 600 steps: their references are then cached
 SEEDS = 5
 
 
-def worker(action_type: str) -> None:
+def worker(action_type: str, scenario: str) -> None:
     """Step on command: read a block size from stdin, print the block's median and mean CPU
     time per step [us]."""
     os.environ.setdefault("OMP_NUM_THREADS", "1")
@@ -39,7 +39,7 @@ def worker(action_type: str) -> None:
     import gridsim  # noqa: F401  (registers GridSim-v0)
 
     cv2.setNumThreads(1)
-    env = gym.make("GridSim-v0", action_type=action_type)
+    env = gym.make("GridSim-v0", scenario=scenario, action_type=action_type)
     control = np.zeros(2, np.float32)
     _, info = env.reset(seed=0)
     state = {"info": info, "k": 1}
@@ -71,14 +71,25 @@ def main() -> None:
     ap.add_argument("--blocks", type=int, default=40)
     ap.add_argument("--steps", type=int, default=300, help="steps per block")
     ap.add_argument("--action", default="trajectory", choices=["trajectory", "control"])
+    ap.add_argument("--scenario", default="seamless", help="a scenario name or file")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
-        worker(args.action)
+        worker(args.action, args.scenario)
         return
     procs = [
         subprocess.Popen(
-            [sys.executable, __file__, "--worker", "--action", args.action, "_", "_"],
+            [
+                sys.executable,
+                __file__,
+                "--worker",
+                "--action",
+                args.action,
+                "--scenario",
+                args.scenario,
+                "_",
+                "_",
+            ],  # fmt: skip
             env={**os.environ, "PYTHONPATH": os.path.abspath(tree), "OMP_NUM_THREADS": "1"},
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
@@ -102,6 +113,7 @@ def main() -> None:
     old, new = statistics.median(medians[0]), statistics.median(medians[1])
     print(json.dumps({
         "bench": f"env_step_{args.action}_cached_reference_ab",
+        "scenario": args.scenario,
         "old_median_us": round(old, 1),
         "new_median_us": round(new, 1),
         "new_steps_per_s": round(1e6 / new),
