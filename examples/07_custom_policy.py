@@ -13,7 +13,7 @@ import gymnasium as gym
 import numpy as np
 
 import gridsim  # noqa: F401  (registers GridSim-v0)
-from gridsim.video import record_rollout
+from gridsim.video import record_episode
 
 
 class ConstantVelocity:
@@ -38,8 +38,9 @@ args = ap.parse_args()
 env = gym.make("GridSim-v0", scenario="seamless", render_mode="rgb_array")
 with tempfile.TemporaryDirectory() as tmp:
     path = Path(args.video or f"{tmp}/constant_velocity.mp4")
-    video, infos = record_rollout(env, ConstantVelocity(), path, steps=20 if args.quick else 600,
-                                  seed=0, overlay=True)  # fmt: skip
-    fitness = np.sum([i["reward"] for i in infos], axis=0)
-    print(f"{len(infos)} decisions, l1 {fitness[0]:.1f} m^2 from the human; video {video} "
+    episode, video = record_episode(env, ConstantVelocity(), path,
+                                    steps=20 if args.quick else 600, seed=0)  # fmt: skip
+    summary = episode.summary()
+    print(f"{summary['steps']} decisions, ended by {summary['ended_by']}, l1 "
+          f"{summary['fitness_sums']['l1']:.1f} m^2 from the human; video {video} "
           f"({video.stat().st_size // 1024} kB)")  # fmt: skip

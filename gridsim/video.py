@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import functools
 import logging
 import os
 from collections.abc import Callable
@@ -127,10 +128,12 @@ def record_episode(
     """:func:`~gridsim.envs.episode.run_episode`, filmed: with a ``path``, the env must be
     made with ``render_mode="rgb_array"``; one frame per step (plus the first) is written at
     the environment's real rate, with ``overlay`` (the default) annotated
-    (:mod:`gridsim.render.annotations`: ``label`` for the driver, time, speed, the fitness so
-    far, a colour legend, a scale bar); ``on_step(env, info)`` after every step. Returns the
-    episode and the video's path (``None`` without one)."""
+    (:mod:`gridsim.render.annotations`: ``label`` for the driver, by default the policy's
+    name (a named function's or its class's, none for a lambda), time, speed, the fitness so
+    far, how the episode ended, a colour legend, a scale bar); ``on_step(env, info)`` after
+    every step. Returns the episode and the video's path (``None`` without one)."""
     check_steps(steps)
+    label = policy_name(policy) if label is None else label
     if path is not None and getattr(env, "render_mode", None) != "rgb_array":
         raise GridSimError("a video needs an environment made with render_mode='rgb_array'")
     fitness = np.zeros(3)
@@ -174,6 +177,15 @@ def record_rollout(
     observe = None if on_step is None else (lambda env, info: on_step(info))
     episode, video = record_episode(env, policy, path, steps, seed, observe, overlay, label)
     return video, episode.infos
+
+
+def policy_name(policy: Policy) -> str | None:
+    """What a video calls the driver ``policy``: a function's or method's name, else its
+    class's; None for a lambda or a ``functools.partial`` (they name nothing)."""
+    if isinstance(policy, functools.partial):
+        return None
+    name = getattr(policy, "__name__", None) or type(policy).__name__
+    return None if name == "<lambda>" else name
 
 
 def _frame(env, info: dict, overlay: bool, label: str | None, fitness: np.ndarray) -> np.ndarray:

@@ -20,7 +20,7 @@ SAYS = {
     "04_author_scenario.py": "busy_city: 35 participants at 2.77-8.33 m/s, 30 s",
     "05_commonroad_file.py": "the ego replays the human of track",
     "06_train_and_evaluate.py": "warm_start",
-    "07_custom_policy.py": "decisions, l1 ",
+    "07_custom_policy.py": "decisions, ended by ",
 }
 
 

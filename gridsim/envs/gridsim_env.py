@@ -133,7 +133,7 @@ class GridSimEnv(gym.Env):
         # order, oldest first).
         self._grids = np.zeros((e.history, cfg.sensor.rows, cfg.sensor.cols), np.uint8)
         self._newest = len(self._grids) - 1
-        self._last_plan = None
+        self._scored = None  # the last plan and the reference it was scored against
 
     # -- episode ----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -146,7 +146,7 @@ class GridSimEnv(gym.Env):
         self.world = build_world(self.scenario, episode_seed)
         self.reference = self._reference(episode_seed)
         self._last_accel = self._last_rate = 0.0
-        self._last_plan = None
+        self._scored = None
         self._travelled = 0.0
         self._terminated = self._truncated = False
         if self._sensing:
@@ -240,7 +240,7 @@ class GridSimEnv(gym.Env):
             if result.collided or result.off_road:
                 break
         self._last_accel, self._last_rate = result.accel, result.steer_rate
-        self._last_plan = plan
+        self._scored = (plan, self._ref_future)  # (before the look-ahead moves on)
         self._newest = (self._newest + 1) % len(self._grids)
         if self._sensing:
             self.sensor.observe(world, out=self._grids[self._newest])
@@ -318,11 +318,15 @@ class GridSimEnv(gym.Env):
     def render(self):
         if self.render_mode != "rgb_array" or self.world is None:
             return None
-        w = self.world
-        overlay = [(self._ref_future, REFERENCE_COLOUR)]
-        if self._last_plan is not None:
-            overlay.append((self._last_plan, PLAN_COLOUR))
-        return self.renderer.render(w, self._grids[self._newest], overlay)
+        # After a step, the last plan beside the human's set-points it was scored against
+        # (l1 sums their squared distances: a plan that matches them covers them), before
+        # the first step the human's next set-points.
+        if self._scored is None:
+            overlay = [(self._ref_future, REFERENCE_COLOUR)]
+        else:
+            plan, reference = self._scored
+            overlay = [(reference, REFERENCE_COLOUR), (plan, PLAN_COLOUR)]
+        return self.renderer.render(self.world, self._grids[self._newest], overlay)
 
 
 #: The keywords of ``GridSimEnv`` and of ``gym.make_vec``'s default vector env: a misspelt one

@@ -32,7 +32,7 @@ LEGEND: tuple[tuple[str, tuple[int, int, int], str], ...] = (
     ("ego", EGO_COLOUR, "box"),
     ("replayed traffic", TRAFFIC_COLOUR, "box"),
     ("traffic driven by IDM", IDM_COLOUR, "box"),
-    ("human's next set-points", REFERENCE_COLOUR, "dot"),
+    ("human's set-points", REFERENCE_COLOUR, "dot"),
     ("planned set-points", PLAN_COLOUR, "dot"),
 )
 #: The grid inset's colours.
@@ -46,26 +46,35 @@ GRID_LEGEND = (
 @dataclass(frozen=True)
 class Caption:
     """What the top-left band says: ``label`` (the driver: a method or a front member), the
-    simulated time [s], the ego's speed [m/s] and the fitness summed so far ``[l1, l2, l3]``
-    (m^2, rad/s, m/s), or None before the first step."""
+    simulated time [s], the ego's speed [m/s], the fitness terms summed so far ``[l1, l2,
+    l3]`` (m^2, rad/s, m/s each step, summed), or None before the first step, and what ended
+    the episode at this step (``ended``: ``"collision"``, ``"off the road"``, ``"destination
+    reached"``), if anything did."""
 
     label: str | None
     time: float
     speed: float
     fitness: np.ndarray | None = None
+    ended: str | None = None
 
     @classmethod
     def from_info(cls, info: dict, label: str | None, fitness: np.ndarray | None) -> Caption:
-        """The caption of a GridSim-v0 step's ``info`` (its time and pose)."""
-        return cls(label, float(info["time"]), float(info["pose"][3]), fitness)
+        """The caption of a GridSim-v0 step's ``info`` (its time, pose and how it ended)."""
+        ended = next((text for key, text in _ENDINGS if info.get(key)), None)
+        return cls(label, float(info["time"]), float(info["pose"][3]), fitness, ended)
 
     def lines(self) -> list[str]:
         out = [self.label] if self.label else []
         out.append(f"t {self.time:5.1f} s    speed {self.speed:4.1f} m/s")
         if self.fitness is not None:
             l1, l2, l3 = (float(v) for v in self.fitness)
-            out.append(f"so far: l1 {l1:.1f} m^2  l2 {l2:.2f} rad/s  l3 {l3:.0f} m/s")
+            out.append(f"summed so far: l1 {l1:.1f} m^2  l2 {l2:.2f} rad/s  l3 {l3:.0f} m/s")
         return out
+
+
+#: What ends an episode, by its ``info`` key, as a frame says it.
+_ENDINGS = (("collision", "collision"), ("off_road", "off the road"),
+            ("destination_reached", "destination reached"))  # fmt: skip
 
 
 def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
@@ -74,6 +83,8 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
     ``inset_size`` pixels at the top right, if any) and a scale bar on ``img`` (in place);
     returns ``img``."""
     _band(img, 0, 0, [(t, None, "") for t in caption.lines()])
+    if caption.ended:
+        _banner(img, f"episode over: {caption.ended} at {caption.time:.1f} s")
     _band(img, 0, img.shape[0] - _STEP * len(LEGEND) - 8, LEGEND)
     if inset_size:
         grid = [("sensor grid:", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
@@ -100,6 +111,16 @@ def _band(img: np.ndarray, x: int, y: int, lines, width: int | None = None) -> N
             cv2.circle(img, (x + 12, base - 5), 4, colour, -1, cv2.LINE_AA)
         cv2.putText(img, text, (x + 24 if shape else x + 8, base), _FONT, _SCALE, _WHITE, 1,
                     cv2.LINE_AA)  # fmt: skip
+
+
+def _banner(img: np.ndarray, text: str) -> None:
+    """``text`` in large letters on a dark band across the middle of the frame's lower half
+    (where the ego, at the centre, is not)."""
+    scale, thickness = 0.8, 2
+    (w, h), _ = cv2.getTextSize(text, _FONT, scale, thickness)
+    x, y = (img.shape[1] - w) // 2, int(img.shape[0] * 0.7)
+    _darken(img[y - h - 10 : y + 12, max(x - 12, 0) : x + w + 12])
+    cv2.putText(img, text, (x, y), _FONT, scale, _WHITE, thickness, cv2.LINE_AA)
 
 
 def _darken(region: np.ndarray) -> None:

@@ -20,6 +20,52 @@ from gridsim.policies import Reference
 from gridsim.video import VideoWriter, record_rollout
 
 
+def test_a_plan_is_drawn_beside_the_human_set_points_it_was_scored_against():
+    """After a step the frame shows the plan with the reference l1 compared it with (not the
+    human's next set-points, 0.1 s further on): a plan that is the human's covers them."""
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    drawn = []
+    renderer = env.unwrapped.renderer
+    render = renderer.render
+    renderer.render = lambda world, grid, overlay: (
+        drawn.append(overlay) or render(world, grid, overlay)
+    )
+    _, info = env.reset(seed=0)
+    env.render()
+    assert [colour for _, colour in drawn[-1]] == [(255, 255, 255)]  # the human's, no plan
+    for _ in range(3):
+        _, _, _, _, info = env.step(info["reference_setpoints"])
+        env.render()
+        (reference, white), (plan, yellow) = drawn[-1]
+        assert white == (255, 255, 255) and yellow == (255, 220, 0)
+        assert info["l1"] < 1e-6 and np.abs(plan - reference).max() < 1e-3  # one on the other
+        assert np.abs(reference - env.unwrapped._ref_future).max() > 0.3  # not the next ones
+
+
+def test_frames_say_how_the_episode_ended_and_videos_who_drives():
+    from gridsim.render.annotations import Caption, annotate
+    from gridsim.video import policy_name
+
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    _, info = env.reset(seed=0)
+    frame = env.render()
+    assert Caption.from_info(info, None, None).ended is None
+    crash = {**info, "collision": True, "time": 7.25}
+    caption = Caption.from_info(crash, None, None)
+    assert caption.ended == "collision"
+    assert Caption.from_info({**info, "off_road": True}, None, None).ended == "off the road"
+    marked = annotate(frame.copy(), caption, 8.0)
+    unmarked = annotate(frame.copy(), Caption.from_info({**info, "time": 7.25}, None, None), 8.0)
+    rows = np.flatnonzero(np.any(marked != unmarked, axis=(1, 2)))
+    assert rows.min() > 300 and rows.max() < 360  # the banner, across the lower half
+
+    def my_planner(env, obs, info):
+        return info["reference_setpoints"]
+
+    assert policy_name(my_planner) == "my_planner" and policy_name(Reference()) == "Reference"
+    assert policy_name(lambda env, obs, info: None) is None
+
+
 def test_render_returns_frames_with_grid_inset_and_setpoints():
     env = gym.make(ENV_ID, render_mode="rgb_array")
     obs, info = env.reset(seed=0)
@@ -172,7 +218,7 @@ def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     assert not differs[~regions].any()  # the picture itself is untouched
     lines = Caption.from_info(info, "my planner", np.array([1.5, 0.25, 80.0])).lines()
     assert lines == ["my planner", "t   0.0 s    speed  8.0 m/s",
-                     "so far: l1 1.5 m^2  l2 0.25 rad/s  l3 80 m/s"]  # fmt: skip
+                     "summed so far: l1 1.5 m^2  l2 0.25 rad/s  l3 80 m/s"]  # fmt: skip
     path, infos = record_rollout(env, Reference(), tmp_path / "o.gif", 3, seed=0)
     frames = iio.imread(path, index=None)
     bare, _ = record_rollout(env, Reference(), tmp_path / "p.gif", 3, seed=0, overlay=False)
