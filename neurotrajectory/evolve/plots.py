@@ -11,7 +11,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.ticker import MaxNLocator  # noqa: E402
+from matplotlib.ticker import FuncFormatter, MaxNLocator, SymmetricalLogLocator  # noqa: E402
 
 from neurotrajectory.evolve.pareto import (  # noqa: E402
     HV_MARGIN,
@@ -52,8 +52,10 @@ def plot_run(
             ax.scatter(np.full((~gone).sum(), g), f[~gone, k], s=8, alpha=0.4, color="tab:blue",
                        label="a member" if g == gens[0] else None)  # fmt: skip
         ax.plot(gens, [np.median(f[:, k]) for f in fit], color="tab:red", label="median")
-        if k == 0:
+        if k == 0:  # l1 spans decades; ticks at 1, 2 and 5 of each, written out
             ax.set_yscale("symlog")
+            ax.yaxis.set_major_locator(SymmetricalLogLocator(base=10, linthresh=2, subs=(1, 2, 5)))
+            ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
         # the axes span the members that completed every episode: a padded score (the
         # episode's remaining steps at the worst values) would flatten the rest
         if k > 0:
@@ -68,10 +70,11 @@ def plot_run(
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(NAMES[k], fontsize=9, pad=10)
-    axes[0].legend(fontsize=8)
+    # one legend under the panels, clear of the points
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=3, fontsize=8)
     fig.suptitle("every member of every generation, on that generation's training episodes "
                  "(drawn anew each generation)", fontsize=10)  # fmt: skip
-    fig.tight_layout()
+    fig.tight_layout(rect=(0, 0.07, 1, 1))
     paths.append(_save(fig, folder / "objectives.png"))
 
     if final is None:
@@ -185,12 +188,19 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
     return _save(fig, path)
 
 
+#: The least span of an axis, as a share of its values' size (see :func:`_span`).
+MIN_SPAN = 0.05
+
+
 def _span(ax, values: np.ndarray, axis: str = "y") -> None:
     """The ``axis`` ("x" or "y") spans ``values`` (with a margin, more above), if there are
     any: the scores of what completed every episode, so that a padded score never sets the
-    scale."""
+    scale. It spans at least :data:`MIN_SPAN` of their size, so that differences of a few
+    per mille do not fill the panel as if they were large."""
     if len(values):
         lo, hi = float(values.min()), float(values.max())
+        widen = max(MIN_SPAN * max(abs(lo), abs(hi)) - (hi - lo), 0.0) / 2
+        lo, hi = lo - widen, hi + widen
         pad = 0.08 * (hi - lo) or 0.05 * max(abs(hi), 1e-9)
         (ax.set_xlim if axis == "x" else ax.set_ylim)(lo - pad, hi + 2 * pad)
 
