@@ -50,12 +50,14 @@ def run_policy(
     from tqdm import tqdm
 
     from gridsim.envs.gridsim_env import GridSimEnv
-    from gridsim.video import record_episode
+    from gridsim.video import record_episode, video_problem
 
     if policy not in POLICIES:
         raise GridSimError(f"unknown policy {policy!r}; choose from {sorted(POLICIES)}")
     if steps < 1:
         raise GridSimError(f"--steps must be >= 1, got {steps}")
+    if video is not None and (problem := video_problem(video)):
+        raise GridSimError(f"--video {video}: {problem}")  # before any work
     pol = POLICIES[policy]()
     env = GridSimEnv(
         scenario, render_mode="rgb_array" if video else None, action_type=pol.action_type

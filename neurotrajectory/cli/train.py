@@ -97,13 +97,14 @@ def execute(args: argparse.Namespace) -> int:
     if args.video:
         check_video(args.video)
     out = args.resume or args.out or DEFAULT_OUT
+    had_warm_start = (Path(out) / WARM_START_FILE).exists()  # (a run there already)
     try:
         return _train(args, out, started)
     except KeyboardInterrupt:
         print(f"neurotrajectory: interrupted; {kept_note(Path(out))}", file=sys.stderr)
         return 130
     except Exception:  # a new run that failed after its warm start was saved: say it stays
-        if not args.resume and (Path(out) / WARM_START_FILE).exists():
+        if not args.resume and not had_warm_start and (Path(out) / WARM_START_FILE).exists():
             print(f"neurotrajectory: note: {kept_note(Path(out))} once the cause below is "
                   "fixed (or remove it to start again)", file=sys.stderr)  # fmt: skip
         raise
@@ -148,8 +149,11 @@ def _train(args: argparse.Namespace, out: str, started: float) -> int:
         summary = run.train(progress=not args.quiet)
         print(front_table(run.out, summary))
         if heldout:
+            run.say(f"driving the knee, its warm start and the destination curve on {heldout} "
+                    "held-out episodes")  # fmt: skip
             report_heldout(run, heldout)
         if video:  # an episode no generation trained on
+            run.say(f"filming the knee on a held-out episode: {video}")
             rollout(str(run.out), "knee", video, seed=run.config.heldout_seeds(1)[0], steps=None)
     minutes, seconds = divmod(round(time.perf_counter() - started), 60)
     print(f"done in {minutes} min {seconds} s")

@@ -17,6 +17,7 @@ import hashlib
 import json
 import os
 import shutil
+import sys
 import time
 from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
@@ -445,6 +446,7 @@ class Run:
         #: What ``train`` does after the generations: held-out episodes, a video.
         self.after = {**AFTER_DEFAULTS, **(after or {})}
         self._windows = None  # the pre-training windows, once loaded
+        self._progress = False  # say what it does between the progress bars (train)
 
     # -- run directory ------------------------------------------------------------------------
     @classmethod
@@ -590,6 +592,7 @@ class Run:
         """Run (or continue) the generations. ``stop_after`` ends the process after that many
         new generations (for tests of interrupted runs)."""
         cfg = self.config
+        self._progress = progress
         spec = WorkerSpec(cfg.scenario, cfg.overrides, self.net_config, cfg.episode_seeds(0),
                           batch=cfg.batch, evolve=cfg.evolve,
                           validation_overrides=cfg.validation_overrides)  # fmt: skip
@@ -749,8 +752,15 @@ class Run:
         from neurotrajectory.evolve.warm_start import pretrain_genome
 
         cfg = self.config
+        if cfg.pretrain:
+            self.say(f"warm start: reading the windows of {cfg.pretrain}")
+        else:
+            self.say(f"warm start: recording {cfg.pretrain_episodes} episodes of "
+                     f"{PRETRAIN_EPISODE_SECONDS:g} s on {cfg.scenario}")  # fmt: skip
         windows, source, episodes = self._pretrain_windows()
         start = initial_genome(probe, initial_recipes(cfg.ga, cfg.seed)[0].init_seed)
+        self.say(f"warm start: fitting the network to {len(windows)} windows "
+                 f"({cfg.pretrain_epochs} epochs at most)")  # fmt: skip
 
         def fit(visited):
             return pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed,
@@ -772,10 +782,21 @@ class Run:
                               if k in stats}})  # fmt: skip
         if rounds:
             stats |= {"dagger": rounds, "dagger_weight": cfg.dagger_weight}
+        if "validation_mse" in stats:
+            best = stats["best_epoch"]
+            alone = ": the ridge fit of the read-outs alone" if best == 0 else ""
+            self.say(f"warm start: validation MSE {stats['validation_mse'][best]:.4g} m^2 on "
+                     f"{stats['validation_windows']} windows of held-out tracks (epoch {best}"
+                     f"{alone}; pretrain.json)")  # fmt: skip
         write_json(self.out / "pretrain.json", {**source, **stats})
         write_npz(self.out / WARM_START_FILE, genome=base,
                   net=np.array(json.dumps(self.net_config.to_dict())))  # fmt: skip
         return base
+
+    def say(self, message: str) -> None:
+        """Print what the run does now to stderr, between its progress bars (not --quiet)."""
+        if self._progress:
+            tqdm.write(f"neurotrajectory: {message}", file=sys.stderr)
 
     def _saved_warm_start(self, probe: TrajectoryNet) -> np.ndarray | None:
         """The warm start an interrupted first attempt saved (fitting it again gives the same
@@ -858,6 +879,8 @@ class Run:
         else:
             best = None
         if seeds:
+            self.say(f"choosing the final front: {len(population)} members on {len(seeds)} "
+                     "validation episodes")  # fmt: skip
             backend.load(population)
             fitness, stats = backend.evaluate(len(population), seeds, validation=True)
             violation = np.array([s.get("lost", 0.0) for s in stats])

@@ -183,6 +183,11 @@ def test_a_new_run_stopped_after_its_warm_start_keeps_it_and_resumes_as_if_unint
                           "again); go on with: neurotrajectory train --resume ")  # fmt: skip
     assert "internal error: RuntimeError: a bug in generation 0" in err
     assert (again / "warm_start.npz").exists()
+    # a new run given the folder of another: the plain error, no note about that run
+    assert main(["train", *warm, "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"neurotrajectory: error: --out {tmp_path / 'a'}: exists and is not")
+    assert "note" not in err
 
     def fitted_again(self, probe):
         raise AssertionError("the warm start was fitted again")
@@ -200,3 +205,20 @@ def test_a_new_run_stopped_after_its_warm_start_keeps_it_and_resumes_as_if_unint
     monkeypatch.setattr(LocalBackend, "evaluate", interrupted)
     assert main(["train", "--resume", str(out), "--generations", "3", "--quiet"]) == 130
     assert "keeps its 2 finished generations; go on with" in capsys.readouterr().err
+
+
+def test_train_says_what_it_does_between_its_progress_bars(tmp_path, capsys):
+    """The warm start's recording, fit and result, the final choice, the held-out drive and
+    the video are announced on stderr as they start (they take minutes on a recipe); --quiet
+    says none of it."""
+    flags = [*QUICK[:-1], "--generations", "1", "--pretrain-episodes", "2", "--pretrain-epochs",
+             "1", "--validation-episodes", "2", "--heldout", "1"]  # fmt: skip
+    assert main(["train", *flags, "--video", str(tmp_path / "k.gif"), "--out",
+                 str(tmp_path / "a")]) == 0  # fmt: skip
+    said = [line.split(": ", 1)[1].split(":")[0] for line in capsys.readouterr().err.splitlines()
+            if line.startswith("neurotrajectory: ")]  # fmt: skip
+    assert said == ["warm start", "warm start", "warm start", "choosing the final front",
+                    "driving the knee, its warm start and the destination curve on 1 held-out "
+                    "episodes", "filming the knee on a held-out episode"]  # fmt: skip
+    assert main(["train", *flags, "--quiet", "--out", str(tmp_path / "b")]) == 0
+    assert "neurotrajectory: " not in capsys.readouterr().err
