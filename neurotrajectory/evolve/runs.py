@@ -885,7 +885,7 @@ class Run:
             fitness, stats = backend.evaluate(len(population), seeds, validation=True)
             violation = np.array([s.get("lost", 0.0) for s in stats])
         rank = non_dominated_sort(minimised(fitness), self._violation(violation, fitness))
-        members = np.flatnonzero(rank == 0)
+        members = _distinct(population, np.flatnonzero(rank == 0))
         write_npz(
             self.out / "front.npz",
             genomes=population[members],
@@ -958,6 +958,16 @@ class Run:
             if summary.get("generation") == history[-1]["generation"]:
                 final = (fitness, rank, violation)
         return plot_run(self.out, history, final, chosen_on, anchored=self.config.anchored)
+
+
+def _distinct(genomes: np.ndarray, members: np.ndarray) -> np.ndarray:
+    """``members`` (indices into ``genomes``) without the repeats of a genome listed before
+    (an elite carried over twice is one network: the front lists it once)."""
+    kept: list[int] = []
+    for i in members:
+        if not any(np.array_equal(genomes[i], genomes[k]) for k in kept):
+            kept.append(int(i))
+    return np.array(kept, dtype=members.dtype)
 
 
 @contextmanager

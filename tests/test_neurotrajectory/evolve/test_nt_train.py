@@ -51,6 +51,24 @@ def test_tiny_run_end_to_end_improves_the_front(tmp_path):
     assert history(tmp_path / "run")[0]["individual_steps"] > 0
 
 
+def test_the_final_front_lists_a_network_once(tmp_path):
+    """An elite carried over twice is one network: the front lists it once (the default
+    preset's run of 4 members and 2 generations had it twice, with the same scores)."""
+    cfg = TrainConfig(population=4, generations=2, episodes=1, episode_seconds=5.0, seed=0)
+    summary = Run.create(tmp_path / "run", cfg).train(progress=False)
+    with np.load(tmp_path / "run" / "checkpoint.npz") as ckpt:
+        population = ckpt["population"]
+    repeats = [
+        (i, j) for i in range(4) for j in range(i) if np.array_equal(population[i], population[j])
+    ]
+    assert repeats  # the case: a genome twice in the last generation
+    with np.load(tmp_path / "run" / "front.npz") as front:
+        genomes = front["genomes"]
+    assert len(genomes) == len(summary["front"]) >= 1
+    assert not any(np.array_equal(genomes[i], genomes[j]) for i in range(len(genomes))
+                   for j in range(i))  # fmt: skip
+
+
 def test_resume_gives_the_same_result_as_an_uninterrupted_run(tmp_path):
     cfg = TrainConfig(generations=3, **TINY)
     Run.create(tmp_path / "a", cfg).train(progress=False)
