@@ -103,9 +103,20 @@ def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
         lines += ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
         for r in results:
             for m, s in r.closed_loop.items():
-                vals = [f"{s[k]:.3g}" if k != "episodes" else str(int(s[k])) for k in LOOP_KEYS]
+                vals = [_number(s[k]) if k != "episodes" else str(int(s[k])) for k in LOOP_KEYS]
                 lines.append("| " + " | ".join([r.group, m, *vals]) + " |")
     return write_text(out / "table2.md", "\n".join(lines) + "\n")
+
+
+def _number(v: float) -> str:
+    """A closed-loop figure for the Markdown table, in one style: three significant digits,
+    thousands written out with separators (225,894, not 2.26e+05), below a thousandth as
+    0.000 (a human reference's l1 of 1e-11 is rounding)."""
+    if abs(v) >= 1000:
+        return f"{v:,.0f}"
+    if abs(v) < 1e-3:
+        return f"{v:.3f}".replace("-0.000", "0.000")
+    return f"{v:.3g}"
 
 
 def _write_csv(results, out: Path) -> Path:

@@ -275,3 +275,13 @@ def test_a_group_whose_test_tracks_were_trained_on_says_so():
         "5 of its 9 test tracks were training tracks of the NeuroTrajectory run (S/1, S/2, "
         "S/3, ...)" in many
     )
+
+
+def test_closed_loop_figures_read_in_one_style():
+    """Markdown's closed-loop cells: three significant digits, thousands written out, float
+    noise at zero as 0.000 (not 1.04e-10, 2.54e+05, 3e-08 side by side)."""
+    from neurotrajectory.compare.report import _number
+
+    cells = [8.58e-11, -3e-8, 0.0448, 0.9, 1.0, 6.69, 844.4, 1284.6, 225894.2]
+    assert [_number(v) for v in cells] == ["0.000", "0.000", "0.0448", "0.9", "1", "6.69",
+                                           "844", "1,285", "225,894"]  # fmt: skip
