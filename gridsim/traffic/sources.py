@@ -107,6 +107,9 @@ class RecordedSceneTraffic(TrafficSource):
             self.fleet.profiles.add(tr.t - tr.t[0], prof)
         self.time = start_time
         self._done = np.zeros(len(self.tracks), bool)
+        #: each track's first time [s] and duration [s], to find the ones due at once
+        self._t0 = np.array([tr.t[0] for tr in self.tracks], dtype=np.float64)
+        self._duration = np.array([tr.duration for tr in self.tracks], dtype=np.float64)
 
     def reset(self, rng: np.random.Generator, ego: EgoPose) -> None:
         self.fleet.deactivate(np.arange(self.fleet.capacity))
@@ -115,10 +118,13 @@ class RecordedSceneTraffic(TrafficSource):
         self._activate_due()
 
     def _activate_due(self) -> None:
-        for i, tr in enumerate(self.tracks):
-            tau = self.time - tr.t[0]
-            if self.fleet.active[i] or self._done[i] or tau < 0 or tau > tr.duration:
-                continue
+        """Place the tracks whose recording covers now and that are neither active nor done
+        (one vectorised test a tick: a scene may hold thousands of tracks)."""
+        n = len(self.tracks)
+        taus = self.time - self._t0
+        idle = ~(self.fleet.active[:n] | self._done | (taus < 0) | (taus > self._duration))
+        for i in np.flatnonzero(idle):
+            tr, tau = self.tracks[i], taus[i]
             vals = self.fleet.profiles.lookup(np.array([i]), np.array([tau]))
             self.fleet.place(
                 i,

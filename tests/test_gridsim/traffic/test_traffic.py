@@ -598,3 +598,22 @@ def test_compiled_cross_path_candidates_equal_the_numpy_ones_in_episodes(scenari
             if terminated or truncated:
                 break
     assert found > 0
+
+
+def test_recorded_tracks_enter_and_leave_when_their_recording_does():
+    """A track is in the traffic from its first recorded time to its last (tracks of a real
+    recording start and end at any time), however many tracks the scene holds."""
+    starts, durations = [0.0, 0.95, 2.5, 0.0, 4.0], [1.0, 2.0, 1.05, 6.0, 0.3]
+    tracks = []
+    for k, (t0, span) in enumerate(zip(starts, durations, strict=True)):
+        t = t0 + np.arange(0.0, span + 1e-9, 0.05)
+        tracks.append(Track("scene", str(k), t, 10.0 * t, np.full(len(t), 3.5 * k),
+                            np.zeros(len(t)), np.full(len(t), 10.0), 4.5, 1.8))  # fmt: skip
+    src = RecordedSceneTraffic(tracks)
+    src.reset(np.random.default_rng(0), FAR)
+    for step in range(60):
+        now = src.time
+        due = {k for k, (t0, span) in enumerate(zip(starts, durations, strict=True))
+               if t0 <= now + 1e-9 and now - t0 <= span + 1e-9}  # fmt: skip
+        assert set(np.flatnonzero(src.fleet.active)) == due, (step, now)
+        src.tick(0.1, FAR)
