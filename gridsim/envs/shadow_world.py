@@ -72,7 +72,7 @@ class ShadowWorld:
                 if done.status == kernels.DONE or done.status == kernels.CHECK:
                     return k, done.status == kernels.CHECK
                 if done.status == kernels.TRAFFIC:  # the rest of tick k
-                    w.traffic.refill(done.ended, w.ego_pose())
+                    w.traffic.refill(done.ended, w.ego_pose(), w.dt)
                     w.time += w.dt
                     k = self._recorded(k, record)
                     if record:

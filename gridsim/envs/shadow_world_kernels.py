@@ -75,7 +75,7 @@ def ticks(k, end, clock, ego, params, driver, chain, road, traffic, renew, near,
     times, speeds, offsets, ready = chain
     line, ref_s, road_hint, keep_ahead, keep_behind, cut_max = road
     points, seg, seg_len, seg_len_pow2, s_cum, _ = line
-    state, paths, profiles, fleet_settings, decay, window, count = traffic
+    state, paths, profiles, fleet_settings, decay, window, count, _, _ = traffic
     box_length, box_width, radius, check = near
     xy_out, psi_out, v_out = out
     record = len(v_out) > 0

@@ -66,6 +66,8 @@ class Road(ABC):
 
     #: Incremented whenever boundary segments change (collision shapes must be rebuilt).
     version: int = 0
+    #: Whether the road never changes (nothing to track as the ego drives).
+    static: bool = False
 
     @property
     @abstractmethod
@@ -137,6 +139,8 @@ class StaticRoad(Road):
     metres to answer :meth:`is_drivable` in O(1) and to extract the boundary of the union.
     ``open_ends`` are segments where lanes are cut off at the map's border: no boundary there.
     """
+
+    static = True
 
     def __init__(
         self,

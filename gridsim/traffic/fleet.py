@@ -40,6 +40,7 @@ from gridsim.vehicle.idm import IDMParams
 
 _V, _D = 1, 2
 _NO_CANDIDATES = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+_NO_CORRIDORS = np.zeros(0, np.int64)
 _NO_EGO = (False, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
 _EVERYWHERE = (np.inf, np.inf)
 _ALL_PAIRS_MAX = 48  # up to this many vehicles, testing all pairs beats building a tree
@@ -230,6 +231,12 @@ class Fleet:
         ``(state, paths, profiles, settings, decay, (lo, hi))``."""
         return (self.state, self.paths.kernel_data(), self.profiles.kernel_data(),
                 self._settings, _decay(dt), (-window[0], window[1]))  # fmt: skip
+
+    def cross_data(self) -> np.ndarray:
+        """The paths' corridor ids (by path slot, ``-1`` for none), for a compiled leader
+        search on other paths (:meth:`_cross_candidates`); empty when every path keeps to a
+        corridor (no search)."""
+        return _NO_CORRIDORS if self.paths.all_in_corridors else self.paths.corridor_ids
 
     def footprints(self) -> tuple[np.ndarray, ...]:
         """``(x, y, psi, length, width)`` of the active participants (centre poses)."""

@@ -55,6 +55,8 @@ class TrafficTick(NamedTuple):
     decay: float  # the lateral bias' decay over the tick
     window: tuple  # (behind, ahead) [m] of the ego kept populated
     count: int  # participants kept
+    corridors: np.ndarray  # the paths' corridor ids (Fleet.cross_data), empty: none needed
+    refill: bool  # whether refill has work every tick (it places or retires participants)
 
 
 class TrafficSource(ABC):
@@ -77,8 +79,11 @@ class TrafficSource(ABC):
         default), or not now."""
         return None
 
-    def refill(self, ended: np.ndarray, ego: EgoPose) -> None:  # noqa: B027 - optional hook
-        """The rest of a compiled tick (sources that offer :meth:`tick_data`)."""
+    def refill(self, ended: np.ndarray, ego: EgoPose, dt: float) -> bool:
+        """The rest of a compiled tick of ``dt`` seconds (sources that offer
+        :meth:`tick_data`), ``ended``: the participants whose profile ran out; returns whether
+        it placed a participant (a contact test cannot then be skipped)."""
+        return False
 
     def shared_parts(self) -> list:
         """The parts of this source that copies of a world share (never changed, the same
@@ -117,13 +122,15 @@ class RecordedSceneTraffic(TrafficSource):
         self._done[:] = False
         self._activate_due()
 
-    def _activate_due(self) -> None:
+    def _activate_due(self) -> bool:
         """Place the tracks whose recording covers now and that are neither active nor done
-        (one vectorised test a tick: a scene may hold thousands of tracks)."""
+        (one vectorised test a tick: a scene may hold thousands of tracks); whether any."""
         n = len(self.tracks)
         taus = self.time - self._t0
-        idle = ~(self.fleet.active[:n] | self._done | (taus < 0) | (taus > self._duration))
-        for i in np.flatnonzero(idle):
+        due = np.flatnonzero(
+            ~(self.fleet.active[:n] | self._done | (taus < 0) | (taus > self._duration))
+        )
+        for i in due:
             tr, tau = self.tracks[i], taus[i]
             vals = self.fleet.profiles.lookup(np.array([i]), np.array([tau]))
             self.fleet.place(
@@ -136,12 +143,22 @@ class RecordedSceneTraffic(TrafficSource):
                 length=tr.length,
                 width=tr.width,
             )
+        return len(due) > 0
 
     def tick(self, dt: float, ego: EgoPose) -> None:
-        ended = self.fleet.tick(dt, ego)
+        self.refill(self.fleet.tick(dt, ego), ego, dt)
+
+    def tick_data(self, dt: float, road: Road) -> TrafficTick:
+        """:meth:`Fleet.tick_data` for :meth:`tick` (no window: a recording keeps its tracks
+        wherever the ego is); :meth:`refill` has work every tick (the clock)."""
+        return TrafficTick(*self.fleet.tick_data(dt), 0, self.fleet.cross_data(), True)
+
+    def refill(self, ended: np.ndarray, ego: EgoPose, dt: float) -> bool:
+        """The rest of :meth:`tick` after the fleet's: the clock advances by the tick,
+        tracks whose recording ended are done, those whose recording begins are placed."""
         self.time += dt
         self._done[ended] = True
-        self._activate_due()
+        return self._activate_due()
 
 
 @lru_cache(maxsize=16)
@@ -318,7 +335,7 @@ class SeamlessTraffic(SyntheticTraffic):
 
     def tick(self, dt: float, ego: EgoPose) -> None:
         self._sync_lanes()
-        self.refill(self.fleet.tick(dt, ego, (self.behind, self.ahead)), ego)
+        self.refill(self.fleet.tick(dt, ego, (self.behind, self.ahead)), ego, dt)
 
     def tick_data(self, dt: float, road: Road) -> TrafficTick | None:
         """:meth:`Fleet.tick_data` for :meth:`tick`, and the participants kept: for a compiled
@@ -331,16 +348,17 @@ class SeamlessTraffic(SyntheticTraffic):
             or not self.fleet.paths.all_in_corridors
         ):
             return None
-        return TrafficTick(*self.fleet.tick_data(dt, (self.behind, self.ahead)), self.count)
+        return TrafficTick(*self.fleet.tick_data(dt, (self.behind, self.ahead)), self.count,
+                           self.fleet.cross_data(), False)  # fmt: skip
 
-    def refill(self, ended: np.ndarray, ego: EgoPose) -> None:
+    def refill(self, ended: np.ndarray, ego: EgoPose, dt: float) -> bool:
         """The rest of :meth:`tick` after the fleet's: participants whose profile ran out
         (``ended``) continue with a new one; one idle participant may respawn."""
         f = self.fleet
         self._chain_profiles(ended)  # out: recycled
         kept = f.active[: self.count]
         if np.count_nonzero(kept) == len(kept):  # all active (cheaper than .all())
-            return
+            return False
         idle = np.flatnonzero(~f.active[: self.count])
         # One attempt per tick, out of the sensor's sight: ahead if it
         # starts slower than the ego (the ego will catch up), behind if faster. A blocked spot
@@ -354,7 +372,8 @@ class SeamlessTraffic(SyntheticTraffic):
             edge = self.ahead - band if v0 <= ego.v else -self.behind + band
             lane = int(self.rng.integers(n_lanes))
             s = self.road.lane_s_near_ego(lane) + edge
-            self._spawn(int(i), self._lane_slots[lane], s, ego, drawn)
+            return self._spawn(int(i), self._lane_slots[lane], s, ego, drawn)
+        return False
 
 
 class CityTraffic(SyntheticTraffic):
@@ -418,11 +437,27 @@ class CityTraffic(SyntheticTraffic):
         return super()._clear(x, y, heading, length, width, ego)
 
     def tick(self, dt: float, ego: EgoPose) -> None:
+        self.refill(self.fleet.tick(dt, ego), ego, dt)
+
+    def tick_data(self, dt: float, road: Road) -> TrafficTick | None:
+        """:meth:`Fleet.tick_data` for :meth:`tick` (no window: participants leave by
+        distance, in :meth:`refill`, which has work every tick); None on another road than
+        this traffic's."""
+        if road is not self.road:
+            return None
+        return TrafficTick(*self.fleet.tick_data(dt), 0, self.fleet.cross_data(), True)
+
+    def refill(self, ended: np.ndarray, ego: EgoPose, dt: float) -> bool:
+        """The rest of :meth:`tick` after the fleet's: participants whose profile ran out
+        continue with a new one; those far from the ego or near their route's end are
+        respawned near it."""
         f = self.fleet
-        self._chain_profiles(f.tick(dt, ego))
+        self._chain_profiles(ended)
         far = np.hypot(f.x - ego.x, f.y - ego.y) > self.radius * 1.5
         _, ends = f.paths.ranges(f.path)
         near_end = f.s > ends - 30.0
         f.deactivate(np.flatnonzero(f.active & (far | near_end)))
-        for i in np.flatnonzero(~f.active[: self.count]):
+        idle = np.flatnonzero(~f.active[: self.count])
+        for i in idle:
             self._spawn_near(int(i), ego)
+        return len(idle) > 0

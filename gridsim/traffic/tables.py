@@ -181,6 +181,11 @@ class PathBank(TableBank):
         """Corridor id of each path in ``slots`` (``-1`` for none)."""
         return self._corridor_arr[slots]
 
+    @property
+    def corridor_ids(self) -> np.ndarray:
+        """Corridor id of every path slot (``-1`` for none), int64."""
+        return self._corridor_arr
+
     def _on_rebuild(self) -> None:
         self._heading = libm.arctan2(self._slope[:, 1], self._slope[:, 0])
         self._normal = np.stack([-np.sin(self._heading), np.cos(self._heading)], axis=1)

@@ -134,9 +134,9 @@ class World:
         :class:`~gridsim.envs.actions.PathControl` (pure pursuit along a path, or a stop) or
         :class:`~gridsim.envs.actions.HeldInputs`: in one compiled call with the traffic's
         tick (:func:`~gridsim.world.world_kernels.follow_tick`; the same bits) where the road
-        offers its :meth:`~gridsim.road.base.Road.tracking` and the traffic its
-        :meth:`~gridsim.traffic.sources.TrafficSource.tick_data` (today the seamless family's),
-        otherwise, or when the road must grow, in Python."""
+        is static or offers its :meth:`~gridsim.road.base.Road.tracking` and the traffic its
+        :meth:`~gridsim.traffic.sources.TrafficSource.tick_data`; otherwise, or when the road
+        must grow, in Python."""
         args = self._follow_args(follow)
         if args is None:
             return self.tick(*follow(self))
@@ -147,11 +147,13 @@ class World:
             return self.tick(out.accel, out.steer)
         previous, self.ego = self.ego, np.array(out.ego)
         self.road.set_tracked(out.road_s, out.road_hint)
+        placed = False  # whether the refill placed a participant (maybe where the ego is)
         if out.status == world_kernels.TRAFFIC:
-            self.traffic.refill(out.ended, self.ego_pose())
+            placed = self.traffic.refill(out.ended, self.ego_pose(), self.dt)
         self.time += self.dt
         contact = None
-        if out.quiet and self.collision.keeps_boundaries(self.road.version, *out.center):
+        quiet = out.quiet and not placed
+        if quiet and self.collision.keeps_boundaries(self.road.version, *out.center):
             contact = _NO_CONTACT  # what check_contacts finds: nothing near
         return self._checked_tick(previous, out.applied, out.steer_rate, contact)
 
@@ -161,8 +163,10 @@ class World:
         p = self.ego_params
         if not p._scalar:
             return None
-        road, traffic = self.road.tracking(), self.traffic.tick_data(self.dt, self.road)
-        if road is None or traffic is None:  # what the road and the traffic offer
+        static = self.road.static  # nothing to track (None to the kernel)
+        road = None if static else self.road.tracking()
+        traffic = self.traffic.tick_data(self.dt, self.road)
+        if traffic is None or (road is None and not static):  # what they offer the kernel
             return None
         return (tuple(self.ego.tolist()), step_limits(p), self.dt, follow.kernel_data(), road,
                 traffic, (p.length, p.width, p.center_offset),

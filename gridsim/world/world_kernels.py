@@ -1,14 +1,18 @@
-"""A world tick on a seamless road with the ego following a path by pure pursuit, compiled
+"""A world tick with the ego following a path by pure pursuit, compiled
 (:meth:`~gridsim.world.world.World.tick_following`): the controller
 (:func:`~gridsim.vehicle.control.follow_path`, or a stop when there is no path), the ego's
-step, the road's tracking and the fleet's tick in one call, built from the very kernels and
-float functions the Python tick calls (same operations, same order: same bits), as the
-reference's shadow world does (:mod:`gridsim.envs.shadow_world_kernels`).
+step, the road's tracking (a seamless road; a static one needs none) and the fleet's tick
+(with the leader candidates on other paths where paths leave lane corridors: city routes,
+recorded tracks) in one call, built from the very kernels and float functions the Python
+tick calls (same operations, same order: same bits), as the reference's shadow world does
+(:mod:`gridsim.envs.shadow_world_kernels`).
 
-It stops where Python has work: before the tick when the road must grow or be trimmed or an
-input is not finite (nothing done: Python ticks with the inputs computed), and after the
-fleet's tick when a participant's profile ran out or one is idle (the refill draws random
-numbers). The contact tests stay in Python.
+It stops where Python has work: before the tick when the road must grow or be trimmed, when
+more participants are out of corridors than the all-pairs search takes (Python builds a k-d
+tree) or an input is not finite (nothing done: Python ticks with the inputs computed), and
+after the fleet's tick when a participant's profile ran out, one is idle or the traffic
+refills every tick (the refill draws random numbers, or places recorded tracks). The contact
+tests stay in Python.
 """
 
 from __future__ import annotations
@@ -20,7 +24,7 @@ import numpy as np
 
 from gridsim.jit import jitable, kernel
 from gridsim.road.polyline_kernels import ahead_of, track
-from gridsim.traffic.fleet_kernels import FleetState
+from gridsim.traffic.fleet_kernels import FleetState, cross_path
 from gridsim.traffic.fleet_kernels import tick as fleet_tick
 from gridsim.vehicle.control import pursuit_one
 from gridsim.vehicle.kinematics_kernels import step_one
@@ -33,7 +37,10 @@ STOP, PURSUIT, HOLD = 0, 1, 2
 #: that is not finite (Python computes the inputs and ticks).
 DONE, BEFORE, TRAFFIC, NOT_FINITE = 0, 1, 2, 3
 
-_NO_CROSS = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+#: The most active participants whose leader candidates on other paths are searched here (by
+#: all pairs, as :meth:`~gridsim.traffic.fleet.Fleet._cross_path` does up to as many); more
+#: go to Python, which builds a k-d tree.
+ALL_PAIRS_MAX = 48
 
 
 class Follow(NamedTuple):
@@ -75,6 +82,38 @@ def _not_done(status, accel, steer, ego):
                       np.zeros(0, np.int64), (np.nan, np.nan), False)  # fmt: skip
 
 
+@jitable
+def _no_candidates():
+    """No leader candidates ``(a, b, gap, lead_v)`` (new arrays: a global one is read-only, of
+    another type)."""
+    return (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+
+
+@jitable
+def _cross_candidates(state, idx, corridor, paths, leader_settings):
+    """:meth:`~gridsim.traffic.fleet.Fleet._cross_candidates` of the active participants
+    ``idx`` (at most :data:`ALL_PAIRS_MAX`; ``corridor``: their paths' corridors): none when
+    every one is in a corridor, else :func:`~gridsim.traffic.fleet_kernels.cross_path` over
+    all pairs in ``np.triu_indices`` order."""
+    m = len(idx)
+    outside = False
+    for q in range(m):
+        outside = outside or corridor[q] < 0
+    if not outside:
+        return _no_candidates()
+    pi, pj = np.empty(m * (m - 1) // 2, np.int64), np.empty(m * (m - 1) // 2, np.int64)
+    k = 0
+    for a in range(m):
+        for b in range(a + 1, m):
+            pi[k], pj[k] = a, b
+            k += 1
+    f = FleetState(*state)
+    psi = f.psi[idx]
+    lookahead, margin, _ = leader_settings
+    return cross_path(idx, corridor, np.cos(psi), np.sin(psi), pi, pj, True, state, paths,
+                      lookahead, margin)  # fmt: skip
+
+
 @kernel
 def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     """One tick of the ego following a path (or holding its inputs). ``ego``: its state
@@ -82,9 +121,9 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     :func:`~gridsim.vehicle.kinematics_kernels.step_one` takes them; ``follow``: a
     :class:`Follow` (the mode :data:`PURSUIT` follows the path by pure pursuit, :data:`STOP`
     brakes to a stop holding the wheel, :data:`HOLD` holds the inputs); ``road``: a
-    :class:`~gridsim.road.base.RoadTracking`; ``traffic``: a
-    :class:`~gridsim.traffic.sources.TrafficTick`; ``box``: the ego's ``(length, width,
-    center_offset)``; ``broad``: a :class:`~gridsim.world.collision.BroadPhase`.
+    :class:`~gridsim.road.base.RoadTracking`, or None on a static road (nothing to track);
+    ``traffic``: a :class:`~gridsim.traffic.sources.TrafficTick`; ``box``: the ego's
+    ``(length, width, center_offset)``; ``broad``: a :class:`~gridsim.world.collision.BroadPhase`.
 
     Returns a :class:`FollowTick`; ``quiet``: as the reference's shadow world rules near misses
     out (:func:`~gridsim.world.collision_kernels.may_touch`)."""
@@ -104,25 +143,34 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
         accel, steer = -min(b_max, v / dt), 0.0
     if not (math.isfinite(accel) and math.isfinite(steer)):
         return _not_done(NOT_FINITE, accel, steer, ego)
+    state, paths, profiles, fleet_settings, decay, window, count, corridors, refill = traffic
+    cross = _no_candidates()
+    if len(corridors):  # paths outside lane corridors: leader candidates on other paths
+        f = FleetState(*state)
+        idx = np.flatnonzero(f.active)
+        if len(idx) > ALL_PAIRS_MAX:
+            return _not_done(BEFORE, accel, steer, ego)
+        cross = _cross_candidates(state, idx, corridors[f.path[idx]], paths, fleet_settings[0])
     x1, y1, psi1, v1, d1, a1, r1 = step_one(x, y, psi, v, delta, accel, steer, step_limits, dt)
-    line, ref_s, road_hint, keep_ahead, keep_behind, cut_max = road
-    points, seg, seg_len, seg_len_pow2, s_road, _ = line
-    s1, _, j1 = track(points, seg, seg_len, seg_len_pow2, s_road, x1, y1, road_hint)
-    if ref_s[-1] < s1 + keep_ahead or np.searchsorted(ref_s, s1 - keep_behind) > cut_max:
-        return _not_done(BEFORE, accel, steer, ego)
+    s1, j1 = np.nan, -1
+    if road is not None:  # a road that grows and trims: the ego's place on it
+        line, ref_s, road_hint, keep_ahead, keep_behind, cut_max = road
+        points, seg, seg_len, seg_len_pow2, s_road, _ = line
+        s1, _, j1 = track(points, seg, seg_len, seg_len_pow2, s_road, x1, y1, road_hint)
+        if ref_s[-1] < s1 + keep_ahead or np.searchsorted(ref_s, s1 - keep_behind) > cut_max:
+            return _not_done(BEFORE, accel, steer, ego)
     ego1 = (x1, y1, psi1, v1, d1)
     length, width, center_offset = box
     c, s = math.cos(psi1), math.sin(psi1)
     cx, cy = x1 + center_offset * c, y1 + center_offset * s
     pose = (True, cx, cy, v1, length, width, c, s)
-    state, paths, profiles, fleet_settings, decay, window, count = traffic
-    ended = fleet_tick(state, pose, _NO_CROSS, paths, profiles, *fleet_settings, dt, decay,
+    ended = fleet_tick(state, pose, cross, paths, profiles, *fleet_settings, dt, decay,
                        window)  # fmt: skip
     f = FleetState(*state)
     idle = False
     for i in range(count):
         idle = idle or not f.active[i]
-    status = TRAFFIC if idle or len(ended) else DONE
+    status = TRAFFIC if refill or idle or len(ended) else DONE
     edges, ego_length, ego_width, ego_radius, core_reach = broad
     quiet = (  # (a refill that renews profiles moves no one; a respawn may)
         not idle

@@ -138,10 +138,21 @@ def test_a_checked_tick_after_unchecked_ones_tests_the_road_itself():
 
 
 def _world_state(world):
-    f = world.traffic.fleet
-    road = world.road
-    return (world.ego.copy(), world.time, [a.copy() for a in f.state], road.version,
-            road._ego_s, road._hint, world.last, world.traffic.rng.bit_generator.state)  # fmt: skip
+    f, road, traffic = world.traffic.fleet, world.road, world.traffic
+    rng = getattr(traffic, "rng", None)  # synthetic traffic's random stream
+    return (
+        world.ego.copy(),
+        world.time,
+        [a.copy() for a in f.state],
+        road.version,
+        getattr(road, "_ego_s", None),
+        getattr(road, "_hint", None),
+        world.last,
+        rng.bit_generator.state if rng is not None else None,
+        getattr(traffic, "time", None),
+        getattr(traffic, "_done", np.zeros(0)).copy(),
+        f.paths.kernel_data()[1].copy(),
+    )  # (recorded clock and tracks; city routes)
 
 
 def _assert_same_world(a, b):
@@ -220,6 +231,50 @@ def test_compiled_path_following_tick_equals_the_python_tick(seed, participants)
                 _, info = env.reset(seed=seed + i + 1)
     assert stops and statuses >= {world_kernels.DONE, world_kernels.TRAFFIC, world_kernels.BEFORE}
     assert alongside > 0 and (contacts > 0 or not participants)
+
+
+@pytest.mark.parametrize("scenario", ["inner_city", "us101_4_1", "lankershim_1_1"])
+def test_compiled_tick_on_static_roads_equals_the_python_tick(scenario):
+    """On a static road (a city network, a recorded map) ``World.tick_following`` (the
+    controller, the ego's step, the fleet's tick with its leader candidates on other paths in
+    one compiled call; the refill in Python every tick: city respawns, recorded tracks placed
+    and retired) leaves a world in the same state, bit for bit, as the Python tick, with the
+    same contacts: over episodes with noisy set-points, stops, and collisions."""
+    import copy
+
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.frames import grid_rotation
+    from gridsim.vehicle.kinematics import PSI
+    from gridsim.world import world_kernels
+
+    env = GridSimEnv(scenario)
+    _, info = env.reset(seed=1)
+    rng = np.random.default_rng(1)
+    stops = contacts = 0
+    with _follow_tick_statuses() as statuses:
+        for i in range(300):
+            action = info["reference_setpoints"].astype(np.float64)
+            if i % 40 < 6:
+                action = action + rng.normal(0, 4, action.shape)
+            if i % 70 > 55:  # the plan turned 60 degrees: into traffic or off the road
+                turn = np.array([[0.5, -0.866], [0.866, 0.5]])
+                action = action @ turn.T
+            if i % 53 == 0:
+                action = -np.abs(action)  # behind the ego: a stop
+            world = env.unwrapped.world
+            rotation = grid_rotation(env._orientation, world.ego[PSI])
+            control, _ = env.action_kind.controller(world, action, rotation)
+            stops += control.path is None
+            twin = copy.deepcopy(world)
+            r_python = twin.tick(*control(twin))
+            r_compiled = world.tick_following(control)
+            assert r_compiled == r_python
+            contacts += r_python.contact.any or r_python.off_road
+            _assert_same_world(world, twin)
+            _, _, terminated, truncated, info = env.step(action)
+            if terminated or truncated:
+                _, info = env.reset(seed=i + 2)
+    assert stops and world_kernels.TRAFFIC in statuses and contacts > 0
 
 
 @pytest.mark.parametrize("action_type", ["control", "discrete"])
