@@ -21,8 +21,15 @@ from collections.abc import Callable
 
 import numpy as np
 
+_FLOATS = (float, np.float64)
+
 
 def _apply(name: str, scalar: Callable, args: tuple):
+    if all(type(a) in _FLOATS for a in args):  # the common case, without array conversions
+        try:
+            return scalar(*args)
+        except (ValueError, OverflowError):  # math raises where libm gives nan / inf
+            pass
     arrays = [np.asarray(a) for a in args]
     if any(np.iscomplexobj(a) for a in arrays):
         raise TypeError(f"gridsim.libm.{name} takes real numbers, got a complex input")

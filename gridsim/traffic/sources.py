@@ -148,6 +148,12 @@ class RecordedSceneTraffic(TrafficSource):
     def tick(self, dt: float, ego: EgoPose) -> None:
         self.refill(self.fleet.tick(dt, ego), ego, dt)
 
+    def shared_parts(self) -> list:
+        """The tracks, their times and the fleet's paths and profiles: made from the
+        recording, never changed (a scene of thousands of tracks is not copied per episode)."""
+        f = self.fleet
+        return [self.tracks, self._t0, self._duration, f.paths, f.profiles]
+
     def tick_data(self, dt: float, road: Road) -> TrafficTick:
         """:meth:`Fleet.tick_data` for :meth:`tick` (no window: a recording keeps its tracks
         wherever the ego is); :meth:`refill` has work every tick (the clock)."""

@@ -65,6 +65,17 @@ class TableBank:
         self._free.append(slot)
         self._dirty = True
 
+    @property
+    def nbytes(self) -> int:
+        """The memory [bytes] of the tables and of the arrays derived from them."""
+        total = 0
+        for value in vars(self).values():
+            if isinstance(value, np.ndarray):
+                total += value.nbytes
+            elif isinstance(value, list):
+                total += sum(a.nbytes for a in value if isinstance(a, np.ndarray))
+        return total
+
     def x_range(self, slot: int) -> tuple[float, float]:
         x = self._x[slot]
         return float(x[0]), float(x[-1])
@@ -165,25 +176,35 @@ class PathBank(TableBank):
     def __init__(self) -> None:
         super().__init__(width=2)
         self._corridor: list[int] = []
-        #: Whether every path belongs to a corridor (no leaders to search on other paths).
-        self.all_in_corridors = True
+        self._corridor_arr = np.zeros(0, np.int64)
+        self._all_in_corridors = True
+        self._corridors_stale = False  # paths added since the array was made
 
     def add_path(self, points: np.ndarray, s: np.ndarray, corridor: int = -1) -> int:
         slot = self.add(s, points)
         while len(self._corridor) <= slot:
             self._corridor.append(-1)
         self._corridor[slot] = corridor
-        self._corridor_arr = np.array(self._corridor)
-        self.all_in_corridors = min(self._corridor) >= 0
+        self._corridors_stale = True  # (made again when asked: a scene adds thousands)
         return slot
+
+    @property
+    def all_in_corridors(self) -> bool:
+        """Whether every path belongs to a corridor (no leaders to search on other paths)."""
+        self.corridor_ids  # noqa: B018 - brought up to date
+        return self._all_in_corridors
 
     def corridors(self, slots: np.ndarray) -> np.ndarray:
         """Corridor id of each path in ``slots`` (``-1`` for none)."""
-        return self._corridor_arr[slots]
+        return self.corridor_ids[slots]
 
     @property
     def corridor_ids(self) -> np.ndarray:
         """Corridor id of every path slot (``-1`` for none), int64."""
+        if self._corridors_stale:
+            self._corridor_arr = np.array(self._corridor, dtype=np.int64)
+            self._all_in_corridors = bool(self._corridor_arr.min() >= 0)
+            self._corridors_stale = False
         return self._corridor_arr
 
     def _on_rebuild(self) -> None:

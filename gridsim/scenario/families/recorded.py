@@ -109,7 +109,9 @@ def build(scenario: Scenario, seed: int) -> World:
     state = np.array([rear[0], rear[1], ego_track.heading[0], ego_track.speed[0], 0.0])
     state[4] = initial_steering(ego_track, ego)
     route = Polyline(track_path(ego_track)[0])
-    traffic = RecordedSceneTraffic(tracks, exclude=ego_track.track_id)
+    # the traffic replays from the ego's first recorded time: the scene as the ego saw it
+    traffic = RecordedSceneTraffic(tracks, exclude=ego_track.track_id,
+                                   start_time=float(ego_track.t[0]))  # fmt: skip
     return World(
         road,
         traffic,

@@ -62,3 +62,25 @@ def test_a_track_file_edited_on_disk_is_read_again(tmp_path):
     again = gym.make("GridSim-v0", scenario=str(path))
     again.reset(seed=0)
     assert again.unwrapped.world.ego[1] == -1.77
+
+
+@pytest.mark.parametrize("shift", [0.0, 100.0, -5.0])
+def test_the_traffic_replays_from_the_egos_first_recorded_time(tmp_path, shift):
+    """The scene as the ego saw it: traffic at the ego's first time stamp, whatever the
+    recording's clock (times from 100 s or below 0) and however late the ego entered (here
+    3 s after the car ahead of it)."""
+    from dataclasses import replace
+
+    from scenes import track as crafted
+
+    ahead = crafted("ahead", np.linspace(40.0, 100.0, 61), np.full(61, 1.75))  # 10 m/s, 6 s
+    ego = crafted("ego", np.linspace(20.0, 50.0, 31), np.full(31, 1.75))
+    ego = replace(ego, t=ego.t + 3.0)  # enters 3 s after the car ahead
+    tracks = [replace(tr, t=tr.t + shift) for tr in (ahead, ego)]
+    env = GridSimEnv(str(write_scene(tmp_path, tracks)))
+    env.reset(seed=0)
+    fleet = env.unwrapped.world.traffic.fleet
+    assert fleet.active.sum() == 1
+    assert fleet.x[0] == pytest.approx(70.0) and fleet.y[0] == pytest.approx(1.75)  # at 3 s
+    env.step(env.unwrapped.reference_in_grid(np.array([0.5, 1.0, 1.5, 2.0, 2.5])))
+    assert fleet.x[0] == pytest.approx(71.0)  # 0.1 s later

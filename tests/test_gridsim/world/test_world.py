@@ -123,6 +123,29 @@ def test_worlds_copied_from_the_pristine_one_tick_like_a_fresh_build(scenario):
             assert np.array_equal(w.traffic.fleet.x, fresh.traffic.fleet.x)
             assert w.last == fresh.last
     assert copies[0].road is copies[1].road or scenario == "seamless"  # static maps shared
+    if scenario == "us101_3_3":  # a recording's tracks, paths and profiles: shared too
+        a, b = (w.traffic for w in copies)
+        assert a.tracks is b.tracks and a.fleet.paths is b.fleet.paths
+        assert a.fleet.profiles is b.fleet.profiles and a.fleet is not b.fleet
+
+
+def test_the_kept_worlds_stay_within_their_memory(monkeypatch):
+    """The worlds kept for warm resets take at most PRISTINE_BYTES together (a world of a
+    recorded scene of thousands of vehicles takes tens of MB), and at least one is kept."""
+    from gridsim.scenario import build
+
+    sc = load_scenario("inner_city")
+    monkeypatch.setattr(build, "_PRISTINE", type(build._PRISTINE)())
+    size = build.world_bytes(build_world(sc, 0))
+    assert size > 1e6
+    monkeypatch.setattr(build, "PRISTINE_BYTES", int(2.5 * size))
+    for seed in range(1, 6):
+        build_world(sc, seed)
+        kept = [s for _, s in build._PRISTINE.values()]
+        assert len(kept) <= 3 and sum(kept) <= build.PRISTINE_BYTES
+    monkeypatch.setattr(build, "PRISTINE_BYTES", 1)
+    build_world(sc, 9)
+    assert len(build._PRISTINE) == 1
 
 
 def test_a_checked_tick_after_unchecked_ones_tests_the_road_itself():
