@@ -34,6 +34,7 @@ from gridsim.outputs import (
     empty_folder,
     folder_lock,
     new_folder_problem,
+    output_problem,
     read_manifest,
     write_json,
     write_npz,
@@ -982,6 +983,9 @@ def run_folder(out: str | Path, resume: bool) -> Iterator[Path]:
     out = Path(out)
     if resume:  # a run folder, not one the lock would make
         read_manifest(out, "config.json", "run directory", RunError, (1, FORMAT_VERSION))
+        if problem := output_problem(out, directory=True):
+            raise RunError(f"--resume {out}: {problem}: a run goes on in its own folder (copy "
+                           "it somewhere writable and resume the copy)")  # fmt: skip
     else:
         problem = new_folder_problem(out, hint=f"use --resume {out} or another --out")
         if problem:

@@ -43,6 +43,21 @@ def test_a_new_folder_appears_whole_or_not_at_all(tmp_path):
         pass
 
 
+def test_a_run_in_a_folder_that_takes_no_file_is_not_resumed(tmp_path, capsys, monkeypatch):
+    """A read-only run folder (an archive, `chattr +i`): a clear error before any work, the
+    run as it was (it was an internal error on the first temporary file)."""
+    from neurotrajectory.evolve import runs
+
+    run = tmp_path / "run"
+    Run.create(run, TrainConfig(generations=2, **TINY))
+    before = {p.name: p.read_bytes() for p in run.iterdir()}
+    monkeypatch.setattr(runs, "output_problem", lambda out, directory: f"{out} is not writable")
+    assert main(["train", "--resume", str(run), "--quiet"]) == 2
+    assert (f"--resume {run}: {run} is not writable: a run goes on in its own folder"
+            in capsys.readouterr().err)  # fmt: skip
+    assert {p.name: p.read_bytes() for p in run.iterdir()} == before
+
+
 def test_a_second_train_in_the_same_folder_is_refused(tmp_path, capsys):
     run = tmp_path / "run"
     Run.create(run, TrainConfig(generations=2, **TINY))
