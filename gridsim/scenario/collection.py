@@ -15,6 +15,7 @@ file is usable.
 from __future__ import annotations
 
 import glob
+import hashlib
 import os
 import warnings
 from collections.abc import Mapping
@@ -165,6 +166,32 @@ def load_usable(
     check_agreement(ref, scenarios)
     gone = {f for f, _ in skipped}
     return list(zip([str(f) for f in files if f not in gone], scenarios, strict=True)), skipped
+
+
+def input_digest(ref: str | Path, overrides: Mapping[str, Any] | None = None) -> dict[str, str]:
+    """SHA-256 (hex) of every file the scenarios of ``ref`` are read from, by path: the
+    scenario files (all that a folder or glob matches, usable or not) and the map and
+    trajectory files of the usable ones. Built-in scenarios and data (the installed package's)
+    are not listed. Skipped files are not warned about again."""
+    from gridsim.scenario.parts import input_files
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        usable, _ = load_usable(ref, overrides)
+    files = scenario_files(ref) or [Path(str(ref))]
+    for _, scenario in usable:
+        files += input_files(scenario)
+    package = Path(__file__).resolve().parents[1]  # gridsim's own data: installed, not input
+    return {str(f): _sha256(f) for f in sorted(set(files), key=str)
+            if f.is_file() and not f.resolve().is_relative_to(package)}  # fmt: skip
+
+
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with path.open("rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
 
 
 def check_agreement(ref: str | Path, scenarios: list[Scenario]) -> None:

@@ -107,6 +107,12 @@ def _library_files(scenario: Scenario) -> tuple:
     return tuple(files)
 
 
+def input_files(scenario: Scenario) -> list[Path]:
+    """The files a scenario's worlds are read from besides its own (its map and trajectory
+    files; built-in data, part of the installed package, is not listed)."""
+    return [Path(stamp[0]) for stamp in input_stamps(scenario) if stamp != "builtin"]
+
+
 def input_stamps(scenario: Scenario) -> tuple:
     """Stamps (:func:`stamped`) of every file a scenario's worlds are built from (its map
     and trajectory files): a cache of worlds keyed by them never serves an edited file's."""

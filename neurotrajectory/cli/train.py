@@ -131,6 +131,7 @@ def _train(args: argparse.Namespace, out: str, started: float) -> int:
         if args.resume:
             # flags that would change the run's results are refused unless they match it
             run = Run.open(out, **_train_flags(args), **_after_flags(args))
+            run.check_inputs()  # the same data as when it began
         else:
             # the fields' own defaults: None where TrainConfig resolves one from the other
             # fields (the activation from the preset, the selection from the warm start)

@@ -95,6 +95,8 @@ from neurotrajectory.settings import Bool, Integer, OneOf, Real, Seed, Settings
 FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
 PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
 WARM_START_FILE = "warm_start.npz"  # the warm start's genome in a run folder
+#: The SHA-256 of the files the run's scenario is read from when it began (resumes check them).
+INPUTS_FILE = "inputs.json"
 BEST_KNEE_FILE = "best_knee.npz"  # anchored runs: the best validated knee of any generation
 
 
@@ -416,6 +418,8 @@ Made by `{command}` on {date}.
 
 - `config.json`: every setting of the run (`"train"`), what train does after the
   generations (`"after"`) and the settings' digest (`"run"`)
+- `inputs.json`: the SHA-256 of the scenario's files when the run began (a resume on
+  other data is refused)
 - `checkpoint.npz`: the last complete generation, its genomes and fitness
 - `history.json`: every generation's fitness, Pareto ranks, hypervolume, timing, and the
   knee's validation score (the learning curve)
@@ -468,6 +472,10 @@ class Run:
         out.mkdir(parents=True, exist_ok=True)
         run._windows = windows
         run._write_config()
+        from gridsim.scenario.collection import input_digest
+
+        write_json(out / INPUTS_FILE, {"scenario": config.scenario,
+                                       "files": input_digest(config.scenario)})  # fmt: skip
         write_text(out / "README.md", RUN_README.format(
             command=command or "the Python API (neurotrajectory.evolve.runs.Run)",
             date=time.strftime("%Y-%m-%d %H:%M"), out=out))  # fmt: skip
@@ -530,6 +538,35 @@ class Run:
         if allowed or given:
             run._write_config()
         return run
+
+    def check_inputs(self) -> None:
+        """A :class:`RunError` when the files the run's scenario is read from changed since
+        it began (:data:`INPUTS_FILE`): its next generations would train on other data. A run
+        that began before they were kept is not checked."""
+        path = self.out / INPUTS_FILE
+        if not path.exists():
+            return
+        try:
+            kept = json.loads(path.read_text())["files"]
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise RunError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
+        from gridsim.scenario.collection import input_digest
+
+        try:
+            now = input_digest(self.config.scenario)
+        except GridSimError as exc:
+            raise RunError(f"--scenario {self.config.scenario}: {exc}") from None
+        differ = {
+            "changed": sorted(f for f in kept.keys() & now.keys() if kept[f] != now[f]),
+            "removed": sorted(kept.keys() - now.keys()),
+            "added": sorted(now.keys() - kept.keys()),
+        }
+        if any(differ.values()):
+            what = "; ".join(f"{k}: {', '.join(v)}" for k, v in differ.items() if v)
+            raise RunError(f"{self.out}: the files of --scenario {self.config.scenario} are not "
+                           f"those the run began with ({what}): its next generations would "
+                           "train on other data. Restore them, or start a new run with "
+                           "another --out")  # fmt: skip
 
     def completed_generations(self) -> int:
         """How many generations the checkpoint holds (0 without one)."""

@@ -237,3 +237,32 @@ def test_train_says_what_it_does_between_its_progress_bars(tmp_path, capsys):
                     "episodes", "filming the knee on a held-out episode"]  # fmt: skip
     assert main(["train", *flags, "--quiet", "--out", str(tmp_path / "b")]) == 0
     assert "neurotrajectory: " not in capsys.readouterr().err
+
+
+def test_a_run_resumes_only_on_the_files_it_began_with(tmp_path, capsys):
+    """A scenario folder edited, emptied of a file or given another one since the run began:
+    --resume names what changed instead of training on (silently) other data."""
+    from importlib import resources
+
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    for name in ("us101_4_1", "us101_3_3"):
+        source = resources.files("gridsim").joinpath("data", "scenarios", f"{name}.yaml")
+        (scenes / f"{name}.yaml").write_text(source.read_text())
+    run = tmp_path / "run"
+    flags = [*QUICK[:-1], "--scenario", str(scenes), "--heldout", "0", "--quiet"]
+    assert main(["train", *flags, "--out", str(run)]) == 0
+    kept = json.loads((run / "inputs.json").read_text())["files"]
+    assert sorted(kept) == [str(scenes / "us101_3_3.yaml"), str(scenes / "us101_4_1.yaml")]
+    resume = ["train", "--resume", str(run), "--generations", "2", "--quiet"]
+    edited = scenes / "us101_3_3.yaml"
+    edited.write_text(edited.read_text() + "# an edit\n")
+    assert main(resume) == 2
+    err = capsys.readouterr().err
+    assert f"are not those the run began with (changed: {edited})" in err
+    assert "would train on other data" in err
+    (scenes / "us101_4_1.yaml").unlink()
+    assert main(resume) == 2
+    assert f"changed: {edited}; removed: {scenes / 'us101_4_1.yaml'}" in capsys.readouterr().err
+    (run / "inputs.json").unlink()  # a run from before the files were kept: not checked
+    assert main(resume) == 0
