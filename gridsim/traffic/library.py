@@ -10,12 +10,13 @@ counter-clockwise from +x. Tracks are keyed by ``(scenario_id, track_id)``.
 from __future__ import annotations
 
 import csv
+import warnings
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import DataError
+from gridsim.errors import DataError, DataWarning
 from gridsim.outputs import atomic_text, short_repr
 from gridsim.traffic.commonroad import read_tracks_commonroad
 from gridsim.traffic.track import Track
@@ -127,61 +128,150 @@ def read_tracks_csv(path: str | Path) -> list[Track]:
 
 
 def _parse_tracks_csv(path: Path) -> list[Track]:
+    """The tracks of a trajectory CSV, in the order of their first row; each track's rows
+    sorted by time (rows may come in any order). Rows are converted a block at a time (a
+    file of a million rows reads in seconds, in little more memory than its numbers); the
+    first bad value is named by line and column."""
     with path.open(newline="", encoding="utf-8-sig") as fh:  # a BOM (Excel) is skipped
-        reader = csv.DictReader(fh)
-        header = reader.fieldnames or []
+        reader = csv.reader(fh)
+        header = next(reader, None) or []
         missing = [c for c in REQUIRED_COLUMNS if c not in header]
         if missing:
             raise DataError(f"{path}: missing column(s) {missing}; required: "
                             f"{list(REQUIRED_COLUMNS)}{_header_hint(header)}")  # fmt: skip
-        groups: dict[tuple[str, str], list[list[float]]] = {}
-        for lineno, row in enumerate(reader, start=2):
-            vals = []
-            for c in _NUMERIC:
-                raw = row[c]
-                try:
-                    v = float(raw)
-                except (TypeError, ValueError):
-                    raise DataError(
-                        f"{path}:{lineno}: column {c!r} is not a number: {short_repr(raw)}"
-                    ) from None
-                if not np.isfinite(v):
-                    raise DataError(f"{path}:{lineno}: column {c!r} is {short_repr(raw)}; "
-                                    "expected a finite number")  # fmt: skip
-                vals.append(v)
-            speed, length, width = vals[4:7]
-            if speed < 0 or length <= 0 or width <= 0:
-                raise DataError(
-                    f"{path}:{lineno}: speed_mps must be >= 0 and length_m, width_m > 0, got "
-                    f"{speed}, {length}, {width}"
-                )
-            groups.setdefault((row["scenario_id"], row["track_id"]), []).append(vals)
-    if not groups:
+        # a name given twice: its last column (as csv.DictReader reads it)
+        where = [len(header) - 1 - header[::-1].index(c) for c in REQUIRED_COLUMNS]
+        index: dict[tuple[str, str], int] = {}  # track -> its number, in order of first row
+        blocks, groups, rows, lines = [], [], [], []
+
+        def convert() -> None:  # the rows read so far
+            blocks.append(_block(path, header, where, rows, lines))
+            groups.append([index.setdefault((r[where[0]], r[where[1]]), len(index))
+                           for r in rows])  # fmt: skip
+            rows.clear()
+            lines.clear()
+
+        for row in reader:
+            if row:  # (blank lines are skipped)
+                rows.append(row)
+                lines.append(reader.line_num)
+                if len(rows) == _BLOCK:
+                    convert()
+        if rows:
+            convert()
+    if not blocks:
         raise DataError(f"{path}: no data rows")
-    tracks = []
-    for (sid, tid), rows in groups.items():
-        a = np.array(rows)
-        order = np.argsort(a[:, 0], kind="stable")
-        a = a[order]
+    values = np.concatenate(blocks)
+    group = np.concatenate([np.array(g, dtype=np.int64) for g in groups])
+    order = np.lexsort((values[:, 0], group))  # by track, then time (stable: file order)
+    values, group = values[order], group[order]
+    bounds = np.flatnonzero(np.diff(group)) + 1
+    tracks, split, single = [], [], []
+    for (sid, tid), a in zip(index, np.split(values, bounds), strict=True):
         if np.any(np.diff(a[:, 0]) <= 0):
             raise DataError(f"{path}: track ({sid}, {tid}) has repeated time stamps")
-        if len(a) < 2:
-            raise DataError(f"{path}: track ({sid}, {tid}) has a single state; need at least 2")
-        tracks.append(
-            Track(
-                sid,
-                tid,
-                a[:, 0],
-                a[:, 1],
-                a[:, 2],
-                np.unwrap(a[:, 3]),
-                a[:, 4],
-                float(a[0, 5]),
-                float(a[0, 6]),
-                str(path),
-            )
-        )
+        pieces = _pieces(a)
+        if len(pieces) > 1:
+            split.append((tid, [float(p[0, 0]) for p in pieces[1:]]))
+        for k, piece in enumerate(pieces):
+            name = tid if k == 0 else f"{tid}#{k + 1}"
+            if len(piece) < 2:
+                single.append(f"({sid}, {name})")
+                continue
+            tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
+                                np.unwrap(piece[:, 3]), piece[:, 4], float(piece[0, 5]),
+                                float(piece[0, 6]), str(path)))  # fmt: skip
+    _warn_pieces(path, split, single)
+    if not tracks:
+        raise DataError(f"{path}: no track with at least 2 states")
     return tracks
+
+
+#: Rows converted at a time (a block's text is held in memory, not the file's).
+_BLOCK = 1 << 16
+
+
+def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]],
+           lines: list[int]) -> np.ndarray:  # fmt: skip
+    """The numbers ``(rows, 7)`` of a block of CSV ``rows`` (at file ``lines``), or a
+    :class:`DataError` naming the block's first bad row's first problem, as a row by row
+    reading finds it: a row cut short, a cell that is not a finite number, a negative speed
+    or a size not above 0."""
+    need = max(where) + 1
+    short = next((k for k, row in enumerate(rows) if len(row) < need), len(rows))
+    values = np.empty((short, len(_NUMERIC)))
+    first_bad: list[tuple[int, int, str]] = []  # (row, column, message) of each column's
+    if short < len(rows):
+        first_bad.append((short, -1, f"{len(rows[short])} column(s), the header has "
+                                     f"{len(header)} (a line cut short?)"))  # fmt: skip
+    for c, name in enumerate(_NUMERIC):
+        raw = [row[where[c + 2]] for row in rows[:short]]
+        try:
+            values[:, c] = np.array(raw, dtype=np.float64)
+        except ValueError:
+            k = next(k for k, text in enumerate(raw) if not _is_number(text))
+            values[:k, c] = np.array(raw[:k], dtype=np.float64)  # (the rows before it)
+            first_bad.append((k, c, f"column {name!r} is not a number: {short_repr(raw[k])}"))
+            continue
+        bad = np.flatnonzero(~np.isfinite(values[:, c]))
+        if len(bad):
+            k = int(bad[0])
+            first_bad.append((k, c, f"column {name!r} is {short_repr(raw[k])}; expected a "
+                                    "finite number"))  # fmt: skip
+    end = min(first_bad)[0] if first_bad else short
+    speed, length, width = values[:end, 4], values[:end, 5], values[:end, 6]
+    bad = np.flatnonzero((speed < 0) | (length <= 0) | (width <= 0))
+    if len(bad):
+        k = int(bad[0])
+        raise DataError(f"{path}:{lines[k]}: speed_mps must be >= 0 and length_m, width_m > 0, "
+                        f"got {speed[k]}, {length[k]}, {width[k]}")  # fmt: skip
+    if first_bad:
+        k, _, message = min(first_bad)
+        raise DataError(f"{path}:{lines[k]}: {message}")
+    return values
+
+
+#: s: a pause between two states of a track longer than this (and than ten of its usual
+#: steps) ends it: what follows is another vehicle under the same id (NGSIM reuses ids)
+SPLIT_GAP = 2.0
+
+
+def _pieces(a: np.ndarray) -> list[np.ndarray]:
+    """A track's rows (sorted by time) cut where time pauses (:data:`SPLIT_GAP`)."""
+    dt = np.diff(a[:, 0])
+    if not len(dt):
+        return [a]
+    cuts = np.flatnonzero(dt > max(SPLIT_GAP, 10.0 * float(np.median(dt)))) + 1
+    return np.split(a, cuts) if len(cuts) else [a]
+
+
+def _warn_pieces(path: Path, split: list, single: list) -> None:
+    """One :class:`DataWarning` naming the tracks cut at a pause and those left out."""
+    parts = []
+    if split:
+        named = "; ".join(f"{tid} at t = {', '.join(f'{t:g}' for t in times)} s"
+                          for tid, times in split[:5])  # fmt: skip
+        more = f" and {len(split) - 5} more" if len(split) > 5 else ""
+        parts.append(
+            f"{len(split)} track id(s) pause more than {SPLIT_GAP:g} s and go on as "
+            f"another vehicle (a reused id?), split into ID, ID#2, ...: {named}{more}"
+        )
+    if single:
+        more = f" and {len(single) - 5} more" if len(single) > 5 else ""
+        parts.append(
+            f"{len(single)} track(s) with a single state left out (at least 2 are "
+            f"needed): {', '.join(single[:5])}{more}"
+        )
+    if parts:
+        warnings.warn(f"{path}: " + "; ".join(parts), DataWarning, stacklevel=4)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _header_hint(header: list[str]) -> str:

@@ -1,5 +1,7 @@
 """Traffic: the trajectory library, recorded replay, IDM hand-over, synthetic traffic."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -53,7 +55,11 @@ def test_user_csv_loads(tmp_path):
         (["s,1,0,0,zero,0,10,4.5,1.8"], HEADER, "column 'y_m' is not a number"),
         (["s,1,0,0,0,0,-1,4.5,1.8"], HEADER, "speed_mps must be >= 0"),
         (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0,1,0,0,1,4.5,1.8"], HEADER, "repeated time stamps"),
-        (["s,1,0,0,0,0,1,4.5,1.8"], HEADER, "single state"),
+        (["s,1,0,0,0,0,1,4.5,1.8"], HEADER, "no track with at least 2 states"),
+        (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0,0,0,1,4.5"], HEADER,
+         r"tracks.csv:3: 8 column\(s\), the header has 9 \(a line cut short\?\)"),
+        (["s,1,0,0,0,0,-1,4.5,1.8", "s,1,0.1,x,0,0,1,4.5,1.8"], HEADER,
+         r"tracks.csv:2: speed_mps must be >= 0"),  # the first bad row's problem
         ([], HEADER, "no data rows"),
         (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,5e6,0,0,1,4.5,1.8"], HEADER,
          r"tracks.csv: track 1 of scene s: state 1 \(t = 0.1 s\): jumps 5e\+06 m in 0.1 s"),
@@ -617,3 +623,74 @@ def test_recorded_tracks_enter_and_leave_when_their_recording_does():
                if t0 <= now + 1e-9 and now - t0 <= span + 1e-9}  # fmt: skip
         assert set(np.flatnonzero(src.fleet.active)) == due, (step, now)
         src.tick(0.1, FAR)
+
+
+def _reference_tracks_csv(path):
+    """The CSV reading the column-wise parser replaced: row by row, float() per cell."""
+    import csv
+
+    groups = {}
+    with open(path, newline="", encoding="utf-8-sig") as fh:
+        for row in csv.DictReader(fh):
+            vals = [float(row[c]) for c in REQUIRED_COLUMNS[2:]]
+            groups.setdefault((row["scenario_id"], row["track_id"]), []).append(vals)
+    out = []
+    for (sid, tid), rows in groups.items():
+        a = np.array(rows)
+        a = a[np.argsort(a[:, 0], kind="stable")]
+        out.append((sid, tid, a[:, 0], a[:, 1], a[:, 2], np.unwrap(a[:, 3]), a[:, 4],
+                    float(a[0, 5]), float(a[0, 6])))  # fmt: skip
+    return out
+
+
+@pytest.mark.parametrize("block", [1 << 16, 97])  # one block, many
+def test_the_csv_reader_reads_what_a_row_by_row_reading_did(tmp_path, monkeypatch, block):
+    """The same tracks, in the same order, with the same bits, as reading the rows one by
+    one: the built-in recordings, and their rows shuffled (each track's sorted by time);
+    read in blocks of rows, a bad cell is named by its line whatever its block."""
+    from importlib import resources
+
+    from gridsim.traffic import library
+
+    monkeypatch.setattr(library, "_BLOCK", block)
+
+    builtin = resources.files("gridsim").joinpath("data", "ngsim", "ngsim_trajectories.csv")
+    lines = builtin.read_text().splitlines()
+    shuffled = tmp_path / "shuffled.csv"
+    rng = np.random.default_rng(0)
+    shuffled.write_text("\n".join([lines[0], *rng.permutation(lines[1:])]) + "\n")
+    for path in (Path(str(builtin)), shuffled):
+        got = read_tracks_csv(path)
+        want = _reference_tracks_csv(path)
+        assert len(got) == len(want) > 30
+        for tr, (sid, tid, *arrays, length, width) in zip(got, want, strict=True):
+            assert (tr.scenario_id, tr.track_id, tr.length, tr.width) == (sid, tid, length, width)
+            for a, b in zip((tr.t, tr.x, tr.y, tr.heading, tr.speed), arrays, strict=True):
+                assert np.array_equal(a, b)
+    lines[1000] = lines[1000].replace(",car", "").rsplit(",", 1)[0] + ",wide,car"
+    shuffled.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError, match=r"shuffled.csv:1001: column 'width_m' is not a number"):
+        read_tracks_csv(shuffled)
+
+
+def test_a_reused_id_is_split_and_single_states_are_left_out(tmp_path):
+    """NGSIM reuses vehicle ids: a track that pauses 15 s and goes on elsewhere is two
+    vehicles (468, 468#2), not one driving a ghost path through the gap; a track with one
+    state (a time window's edge) is left out, not the whole file; both said in a warning.
+    Time in milliseconds is not split (its steps are all long): it is refused as before."""
+    from gridsim.errors import DataWarning
+
+    rows = [f"s,468,{t:.1f},{10 * t:.1f},0,0,10,4.5,1.8" for t in np.arange(0, 2.05, 0.1)]
+    rows += [f"s,468,{t:.1f},{500 + 10 * t:.1f},3.5,0,10,4.5,1.8" for t in np.arange(17, 19, 0.1)]
+    rows += ["s,389,5.0,0,0,0,10,4.5,1.8"]
+    rows += [f"s,7,{t:.1f},{10 * t:.1f},-3.5,0,10,4.5,1.8" for t in np.arange(0, 2.05, 0.1)]
+    with pytest.warns(DataWarning) as caught:
+        tracks = read_tracks_csv(write_csv(tmp_path, rows))
+    assert [t.track_id for t in tracks] == ["468", "468#2", "7"]
+    assert tracks[1].t[0] == pytest.approx(17.0) and tracks[0].t[-1] == pytest.approx(2.0)
+    message = str(caught[0].message)
+    assert "1 track id(s) pause more than 2 s" in message and "468 at t = 17 s" in message
+    assert "1 track(s) with a single state left out" in message and "(s, 389)" in message
+    ms = [f"s,1,{100 * k},{k},0,0,10,4.5,1.8" for k in range(20)]  # time in ms
+    with pytest.raises(DataError, match="time stamps in seconds"):
+        TrajectoryLibrary(read_tracks_csv(write_csv(tmp_path, ms)))
