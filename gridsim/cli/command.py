@@ -41,7 +41,7 @@ def run_command(
             return 2
     with warnings.catch_warnings():
         warnings.simplefilter("default", DataWarning)
-        warnings.showwarning = partial(_show_warning, parser.prog)
+        warnings.showwarning = partial(_show_warning, parser.prog, set())
         try:
             return args.func(args)
         except errors as exc:
@@ -73,9 +73,14 @@ def _stdout_closed() -> bool:
         return True
 
 
-def _show_warning(prog, message, category, filename, lineno, file=None, line=None) -> None:
+def _show_warning(prog, shown: set, message, category, filename, lineno, file=None,
+                  line=None) -> None:  # fmt: skip
+    """A :class:`DataWarning` as ``PROG: warning: MESSAGE``, once per command (the same data
+    is often loaded twice: to check it, then to use it); anything else as Python shows it."""
     if issubclass(category, DataWarning):
-        print(f"{prog}: warning: {message}", file=sys.stderr)
+        if str(message) not in shown:
+            shown.add(str(message))
+            print(f"{prog}: warning: {message}", file=sys.stderr)
     else:
         print(warnings.formatwarning(message, category, filename, lineno, line), file=sys.stderr,
               end="")  # fmt: skip

@@ -14,11 +14,14 @@ import contextlib
 import multiprocessing as mp
 import signal
 import threading
+import warnings
 from abc import ABC, abstractmethod
+from collections.abc import Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
+from gridsim.errors import DataWarning
 from neurotrajectory.evolve.fitness import Evaluator, scenario_net_config
 from neurotrajectory.evolve.genome import Recipe
 from neurotrajectory.evolve.population import Population
@@ -49,14 +52,24 @@ class WorkerSpec:
 Evaluated = tuple[int, np.ndarray, dict]
 
 
+@contextlib.contextmanager
+def _data_checked() -> Iterator[None]:
+    """Where a worker loads the scenario: its data warnings (skipped files, flawed tracks)
+    were the trainer's to give when it checked the run, once, not again in every worker."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        yield
+
+
 class Worker:
     """Holds the population and evaluates individuals."""
 
     def __init__(self, spec: WorkerSpec) -> None:
         self.spec = spec
-        self.evaluator = Evaluator(
-            spec.scenario, spec.overrides, spec.net, list(spec.seeds), batch=spec.batch
-        )
+        with _data_checked():
+            self.evaluator = Evaluator(
+                spec.scenario, spec.overrides, spec.net, list(spec.seeds), batch=spec.batch
+            )
         self._validator: Evaluator | None = None
         self.population = Population(self.evaluator.net, spec.evolve)
 
@@ -67,8 +80,9 @@ class Worker:
         if not validation or spec.validation_overrides is None:
             return self.evaluator
         if self._validator is None:
-            self._validator = Evaluator(spec.scenario, spec.validation_overrides, spec.net,
-                                        list(spec.seeds), batch=spec.batch)  # fmt: skip
+            with _data_checked():
+                self._validator = Evaluator(spec.scenario, spec.validation_overrides, spec.net,
+                                            list(spec.seeds), batch=spec.batch)  # fmt: skip
         return self._validator
 
     @property
@@ -189,6 +203,7 @@ def _serve(conn, spec: WorkerSpec) -> None:
     """Worker process loop: commands arrive as (name, argument) pairs. Ctrl-C is the
     trainer's to handle (it stops the workers): a worker ignores it."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    warnings.simplefilter("ignore", DataWarning)  # the trainer's to give (see _data_checked)
     worker = Worker(spec)
     reply = ("ready", worker.genome_size)
     while True:

@@ -266,3 +266,21 @@ def test_a_run_resumes_only_on_the_files_it_began_with(tmp_path, capsys):
     assert f"changed: {edited}; removed: {scenes / 'us101_4_1.yaml'}" in capsys.readouterr().err
     (run / "inputs.json").unlink()  # a run from before the files were kept: not checked
     assert main(resume) == 0
+
+
+def test_a_skipped_file_is_named_once_by_train_and_its_workers(tmp_path, capfd):
+    """train checks the data, then loads it again to use it, in each worker process too:
+    the skipped file is named in one warning, not one per load (nor raw in the workers')."""
+    from importlib import resources
+
+    scenes = tmp_path / "scenes"
+    scenes.mkdir()
+    source = resources.files("gridsim").joinpath("data", "scenarios", "us101_4_1.yaml")
+    (scenes / "us101_4_1.yaml").write_text(source.read_text())
+    (scenes / "bad.yaml").write_text("name: [broken\n")
+    flags = [*QUICK[:-1], "--scenario", str(scenes), "--heldout", "0", "--quiet",
+             "--backend", "processes", "--workers", "2"]  # fmt: skip
+    assert main(["train", *flags, "--out", str(tmp_path / "run")]) == 0
+    err = capfd.readouterr().err
+    assert err.count("bad.yaml: malformed YAML") == 1
+    assert err.startswith("neurotrajectory: warning: ") and "DataWarning" not in err
