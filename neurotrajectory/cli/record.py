@@ -69,9 +69,14 @@ def execute(args: argparse.Namespace) -> int:
     name, source = (args.name, args.scenario) if args.name else (args.scenario, None)
     with new_folder(args.out) as partial:  # held before recording; --out appears when done
         with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:
+
+            def planned(count: int) -> None:  # a file's episodes: the bar's total grows
+                bar.total = (bar.total or 0) + count
+                bar.refresh()
+
             ds = record_group(name, args.episodes, args.seed, args.stride, args.episode_seconds,
                               progress=bar.update, source=source,
-                              goal_seconds=args.goal_seconds)  # fmt: skip
+                              goal_seconds=args.goal_seconds, planned=planned)  # fmt: skip
         if args.split:  # the side evaluate --seed S --test-fraction F uses
             halves = split_by_track(ds.windows, args.test_fraction, args.seed)
             sides = dict(zip(("train", "test"), halves, strict=True))

@@ -327,11 +327,15 @@ def record_scenario(
     progress: Callable[[int], None] | None = None,
     seeds: list[int] | None = None,
     goal_seconds: float | None = None,
+    planned: Callable[[int], None] | None = None,
 ) -> tuple[Windows, dict]:
     """Windows of one scenario (the ego drives the reference; see :func:`scenario_episodes`
-    for the episodes, ``goal_seconds`` for the destination) and their provenance."""
+    for the episodes, ``goal_seconds`` for the destination) and their provenance;
+    ``planned(n)`` is told how many episodes it will drive, ``progress(1)`` after each."""
     plan, source = scenario_episodes(scenario, episodes, seed, duration, seeds,
                                      goal_seconds=goal_seconds)  # fmt: skip
+    if planned is not None:
+        planned(len(plan))
     windows = drive_windows(scenario, plan, stride, progress=progress)
     if windows is None:
         raise DatasetError("no windows were recorded")
@@ -379,6 +383,7 @@ def record_group(
     progress: Callable[[int], None] | None = None,
     source: str | None = None,
     goal_seconds: float | None = None,
+    planned: Callable[[int], None] | None = None,
 ) -> Dataset:
     """Windows of a scenario group (see :func:`group_scenarios`: of :data:`GROUPS`, or the
     usable files of the folder or glob ``source``), or of one scenario. ``stride`` defaults to
@@ -393,7 +398,7 @@ def record_group(
         s = stride or (RECORDED_STRIDE if recorded[scenario] else GENERATED_STRIDE)
         try:
             w, meta = record_scenario(scenario, episodes, seed, s, duration, progress,
-                                      goal_seconds=goal_seconds)  # fmt: skip
+                                      goal_seconds=goal_seconds, planned=planned)  # fmt: skip
         except GridSimError as exc:
             if len(scenarios) == 1:
                 raise
