@@ -123,15 +123,16 @@ def record_episode(
     seed: int | None = None,
     on_step: Callable[[object, dict], None] | None = None,
     overlay: bool = True,
-    label: str | None = None,
+    label: str | Callable[[object], str] | None = None,
 ) -> tuple[Episode, Path | None]:
     """:func:`~gridsim.envs.episode.run_episode`, filmed: with a ``path``, the env must be
     made with ``render_mode="rgb_array"``; one frame per step (plus the first) is written at
     the environment's real rate, with ``overlay`` (the default) annotated
     (:mod:`gridsim.render.annotations`: ``label`` for the driver, by default the policy's
-    name (a named function's or its class's, none for a lambda), time, speed, the fitness so
-    far, how the episode ended, a colour legend, a scale bar); ``on_step(env, info)`` after
-    every step. Returns the episode and the video's path (``None`` without one)."""
+    name (a named function's or its class's, none for a lambda), or ``label(env)`` (e.g. to
+    name the scene a collection drew), time, speed, the fitness so far, how the episode
+    ended, a colour legend, a scale bar); ``on_step(env, info)`` after every step. Returns
+    the episode and the video's path (``None`` without one)."""
     check_steps(steps)
     label = policy_name(policy) if label is None else label
     if path is not None and getattr(env, "render_mode", None) != "rgb_array":
@@ -144,7 +145,8 @@ def record_episode(
 
         def film(env, info: dict) -> None:
             if video is not None:
-                video.write(_frame(env, info, overlay, label, fitness.copy()))
+                name = label(env) if callable(label) else label
+                video.write(_frame(env, info, overlay, name, fitness.copy()))
 
         def start(env, info: dict) -> None:
             fitness[:] = 0.0

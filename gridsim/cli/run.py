@@ -63,12 +63,17 @@ def run_policy(
         scenario, render_mode="rgb_array" if video else None, action_type=pol.action_type
     )
     env.action_space.seed(seed)
-    bar = tqdm(
-        total=steps, desc=f"{policy} on {env.scenario.name}", unit="step", disable=not progress
-    )
-    episode, path = record_episode(env, pol, video, steps, seed,
-                                   on_step=lambda *_: bar.update(), overlay=overlay,
-                                   label=f"{policy} policy, {env.scenario.name}")  # fmt: skip
+    bar = tqdm(total=steps, desc=f"{policy} on {scenario}", unit="step", disable=not progress)
+
+    def stepped(env, info) -> None:  # (a collection's scene is drawn at the reset)
+        bar.set_description(f"{policy} on {env.scenario.name}", refresh=False)
+        bar.update()
+
+    def label(env) -> str:
+        return f"{policy} policy, {env.unwrapped.scenario.name}"
+
+    episode, path = record_episode(env, pol, video, steps, seed, on_step=stepped,
+                                   overlay=overlay, label=label)  # fmt: skip
     bar.close()
     s = episode.summary()
     summary = {"scenario": env.scenario.name, "policy": policy, "seed": seed, **s,
