@@ -4,6 +4,7 @@ seed into independent streams, and the human profiles of generated traffic."""
 
 from __future__ import annotations
 
+import glob
 import hashlib
 import time
 from functools import lru_cache
@@ -103,8 +104,28 @@ def _library_files(scenario: Scenario) -> tuple:
                 )
             files.append(stamped(map_path(scenario)))
         else:
-            files.append(stamped(resolve(scenario, ref, ("data", "ngsim"), ".csv")))
+            files += [stamped(path) for path in _library_paths(scenario, ref)]
     return tuple(files)
+
+
+#: What a folder or glob of trajectory files in ``traffic.library`` takes.
+TRAJECTORY_SUFFIXES = (".csv", ".xml")
+
+
+def _library_paths(scenario: Scenario, ref: str) -> list[Path]:
+    """The trajectory files a ``traffic.library`` entry names: a file, or every ``.csv`` and
+    ``.xml`` file of a folder or a glob pattern (sorted; relative to the scenario's folder)."""
+    path = Path(ref)
+    if not ref.startswith("builtin:") and not path.is_absolute() and scenario.base_dir:
+        path = scenario.base_dir / path
+    if path.is_dir() or any(c in ref for c in "*?["):
+        found = path.iterdir() if path.is_dir() else map(Path, glob.glob(str(path)))
+        files = sorted(f for f in found if f.is_file() and f.suffix.lower() in TRAJECTORY_SUFFIXES)
+        if not files:
+            raise ScenarioError(f"{scenario.source}: traffic.library {ref!r}: no trajectory "
+                                f"files ({', '.join(TRAJECTORY_SUFFIXES)}) in {path}")  # fmt: skip
+        return files
+    return [resolve(scenario, ref, ("data", "ngsim"), ".csv")]
 
 
 def input_files(scenario: Scenario) -> list[Path]:

@@ -84,3 +84,31 @@ def test_the_traffic_replays_from_the_egos_first_recorded_time(tmp_path, shift):
     assert fleet.x[0] == pytest.approx(70.0) and fleet.y[0] == pytest.approx(1.75)  # at 3 s
     env.step(env.unwrapped.reference_in_grid(np.array([0.5, 1.0, 1.5, 2.0, 2.5])))
     assert fleet.x[0] == pytest.approx(71.0)  # 0.1 s later
+
+
+@pytest.mark.parametrize("library", ["parts", "parts/*.csv"])
+def test_a_library_may_be_a_folder_or_a_glob_of_trajectory_files(tmp_path, library):
+    """A recording split into files (one per vehicle, per time window): ``traffic.library``
+    takes their folder or a glob, as every other place that takes files does."""
+    import yaml
+    from scenes import track as crafted
+
+    ahead = crafted("ahead", np.linspace(40.0, 100.0, 61), np.full(61, 1.75))
+    ego = crafted("ego", np.linspace(20.0, 50.0, 31), np.full(31, 1.75))
+    path = write_scene(tmp_path, [ahead, ego])
+    rows = (tmp_path / "tracks.csv").read_text().splitlines()
+    (tmp_path / "parts").mkdir()
+    for name in ("ahead", "ego"):
+        mine = [r for r in rows[1:] if r.split(",")[1] == name]
+        (tmp_path / "parts" / f"{name}.csv").write_text("\n".join([rows[0], *mine]) + "\n")
+    (tmp_path / "tracks.csv").unlink()
+    doc = yaml.safe_load(path.read_text())
+    doc["traffic"]["library"] = [library]
+    path.write_text(yaml.safe_dump(doc))
+    env = GridSimEnv(str(path))
+    env.reset(seed=0)
+    assert env.unwrapped.world.traffic.fleet.active.sum() == 1
+    doc["traffic"]["library"] = ["nothing/*.csv"]
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.raises(Exception, match=r"traffic.library 'nothing/\*.csv': no trajectory files"):
+        GridSimEnv(str(path)).reset(seed=0)
