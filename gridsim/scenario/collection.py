@@ -44,6 +44,16 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     path = Path(text)
     if path.is_dir():
         files = [f for f in path.iterdir() if f.is_file() and f.suffix.lower() in SUFFIXES]
+        nested = sorted(d.name for d in path.iterdir() if d.is_dir() and any(
+            f.suffix.lower() in SUFFIXES for f in d.rglob("*") if f.is_file()))  # fmt: skip
+        if nested:
+            warnings.warn(
+                f"{text}: its subfolders {', '.join(nested)} hold scenario files that "
+                f"are not read (a folder is read without its subfolders; for all, "
+                f"give the glob '{path / '**' / '*.yaml'}')",
+                DataWarning,
+                stacklevel=2,
+            )
     elif "," in text and not path.exists():
         return _listed_files(text)
     elif any(c in text for c in "*?["):

@@ -135,6 +135,9 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
     with path.open(newline="", encoding="utf-8-sig") as fh:  # a BOM (Excel) is skipped
         reader = csv.reader(fh)
         header = next(reader, None) or []
+        if not header:
+            raise DataError(f"{path}: the file is empty; a trajectory CSV starts with the header "
+                            f"{','.join(REQUIRED_COLUMNS)}")  # fmt: skip
         missing = [c for c in REQUIRED_COLUMNS if c not in header]
         if missing:
             raise DataError(f"{path}: missing column(s) {missing}; required: "

@@ -253,3 +253,29 @@ def test_keys_that_the_road_type_does_not_use_are_named():
         warnings.simplefilter("error", DataWarning)
         resolved = load_scenario("seamless").config.model_dump(mode="json")
         load_scenario("seamless", {k: resolved[k] for k in ("ego", "traffic")})
+
+
+def test_a_folder_says_its_subfolders_are_not_read(tmp_path):
+    """Scenario files in a subfolder are not read: a warning says so and gives the glob
+    that reads them all (they were left out silently)."""
+    from importlib import resources
+
+    from gridsim.errors import DataWarning
+    from gridsim.scenario.collection import scenario_files
+
+    (tmp_path / "sub").mkdir()
+    for name, where in (("us101_4_1", tmp_path), ("us101_3_3", tmp_path / "sub")):
+        text = resources.files("gridsim").joinpath("data", "scenarios", f"{name}.yaml")
+        (where / f"{name}.yaml").write_text(text.read_text())
+    with pytest.warns(DataWarning, match=r"its subfolders sub hold scenario files that are not"):
+        assert scenario_files(tmp_path) == [tmp_path / "us101_4_1.yaml"]
+    assert len(scenario_files(str(tmp_path / "**" / "*.yaml"))) == 2
+
+
+def test_an_empty_trajectory_file_is_called_empty(tmp_path):
+    from gridsim.errors import DataError
+    from gridsim.traffic.library import read_tracks_csv
+
+    (tmp_path / "t.csv").write_text("")
+    with pytest.raises(DataError, match=r"t.csv: the file is empty; a trajectory CSV starts"):
+        read_tracks_csv(tmp_path / "t.csv")
