@@ -70,6 +70,15 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
                 f"ratio {ratio:.3g}); time stamps must be in seconds (its time step is "
                 f"{np.median(dt):.3g} s: a CSV's time column, a CommonRoad file's timeStepSize)"
             )
+    by_position = implied > MOVING  # (a speed column of zeros, or left empty as 0)
+    if np.count_nonzero(by_position) >= 5 and float(np.median(recorded[by_position])) < 0.5 * (
+        float(np.median(implied[by_position]))
+    ):
+        out.append(
+            f"{where}: its positions move at {np.median(implied[by_position]):.3g} m/s (median) "
+            f"where its recorded speeds say {np.median(recorded[by_position]):.3g} m/s; is its "
+            "speed column in m/s, and filled in?"
+        )
     if np.count_nonzero(moving) >= 2:
         travel = np.arctan2(np.diff(track.y), np.diff(track.x))[moving]
         heading = 0.5 * (track.heading[1:] + track.heading[:-1])[moving]

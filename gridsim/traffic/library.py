@@ -169,10 +169,13 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
     order = np.lexsort((values[:, 0], group))  # by track, then time (stable: file order)
     values, group = values[order], group[order]
     bounds = np.flatnonzero(np.diff(group)) + 1
-    tracks, split, single = [], [], []
+    tracks, split, single, resized = [], [], [], []
     for (sid, tid), a in zip(index, np.split(values, bounds), strict=True):
         if np.any(np.diff(a[:, 0]) <= 0):
             raise DataError(f"{path}: track ({sid}, {tid}) has repeated time stamps")
+        if np.any(np.ptp(a[:, 5:7], axis=0) > 0.1 * a[0, 5:7]):  # a size is the first row's
+            resized.append(f"{tid} ({a[:, 5].min():g}-{a[:, 5].max():g} x "
+                           f"{a[:, 6].min():g}-{a[:, 6].max():g} m)")  # fmt: skip
         pieces = _pieces(a)
         if len(pieces) > 1:
             split.append((tid, [float(p[0, 0]) for p in pieces[1:]]))
@@ -184,7 +187,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
                                 np.unwrap(piece[:, 3]), piece[:, 4], float(piece[0, 5]),
                                 float(piece[0, 6]), str(path)))  # fmt: skip
-    _warn_pieces(path, split, single)
+    _warn_pieces(path, split, single, resized)
     if not tracks:
         raise DataError(f"{path}: no track with at least 2 states")
     return tracks
@@ -248,9 +251,15 @@ def _pieces(a: np.ndarray) -> list[np.ndarray]:
     return np.split(a, cuts) if len(cuts) else [a]
 
 
-def _warn_pieces(path: Path, split: list, single: list) -> None:
-    """One :class:`DataWarning` naming the tracks cut at a pause and those left out."""
+def _warn_pieces(path: Path, split: list, single: list, resized: list) -> None:
+    """One :class:`DataWarning` naming the tracks cut at a pause, those left out and those
+    whose size varies."""
     parts = []
+    if resized:
+        more = f" and {len(resized) - 5} more" if len(resized) > 5 else ""
+        parts.append(f"{len(resized)} track(s) change size by more than 10 % from row to row "
+                     f"(a vehicle has one size: its first row's is used): "
+                     f"{', '.join(resized[:5])}{more}")  # fmt: skip
     if split:
         named = "; ".join(f"{tid} at t = {', '.join(f'{t:g}' for t in times)} s"
                           for tid, times in split[:5])  # fmt: skip

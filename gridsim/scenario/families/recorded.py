@@ -3,6 +3,7 @@ recorded vehicles replayed, one of them the ego (its track is the human referenc
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from functools import lru_cache, partial
 from typing import Annotated, Literal
@@ -69,7 +70,7 @@ def recorded_scene(scenario: Scenario, check: bool = True) -> tuple[StaticRoad, 
     :mod:`gridsim.scenario.checks`."""
     road, tracks = _scene(scenario)
     if check:
-        report = scene_report(scenario, road, tracks)
+        report = _scene_report(scenario, road, tracks)
         if report.problems:
             raise DataError(report.refusal(scenario.source))
         if report.warnings:  # shown once per message and place (Python's default filter)
@@ -81,7 +82,28 @@ def data_report(scenario: Scenario):
     """The plausibility report of the scene's map and tracks
     (:func:`~gridsim.scenario.checks.scene_report`), without refusing anything."""
     road, tracks = recorded_scene(scenario, check=False)
-    return scene_report(scenario, road, tracks)
+    return _scene_report(scenario, road, tracks)
+
+
+def _scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]):
+    """:func:`~gridsim.scenario.checks.scene_report`, and a warning when the track named as
+    ``ego.track`` is one a random ego is not drawn from (it overlaps another, grazes a road
+    edge, is a long vehicle: its episodes may end at once)."""
+    report = scene_report(scenario, road, tracks)
+    wanted = scenario.config.ego.track
+    if not isinstance(wanted, str) or wanted == "random" or report.problems:
+        return report
+    named = ego_track_ids(scenario, scene_of(scenario))
+    track = next((t for t in tracks if t.track_id == named), None)
+    if track is None:
+        return report
+    unfit = [why for why, test in _unfit_tests(scenario, tracks, road).items() if test(track)]
+    unfit = [why for why in unfit if not why.startswith("implausible")]  # (a problem already)
+    if not unfit:
+        return report
+    note = (f"{scenario.source}: ego.track {named} is {'; '.join(unfit)}: not a track a random "
+            "ego is drawn from (its episodes may end at once)")  # fmt: skip
+    return dataclasses.replace(report, warnings=(*report.warnings, note))
 
 
 def _scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:

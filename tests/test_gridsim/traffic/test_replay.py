@@ -112,3 +112,35 @@ def test_a_library_may_be_a_folder_or_a_glob_of_trajectory_files(tmp_path, libra
     path.write_text(yaml.safe_dump(doc))
     with pytest.raises(Exception, match=r"traffic.library 'nothing/\*.csv': no trajectory files"):
         GridSimEnv(str(path)).reset(seed=0)
+
+
+def test_plausible_but_wrong_recordings_are_named(tmp_path):
+    """A speed column of zeros (positions moving at 10 m/s), a size that changes from row to
+    row, and a named ego track that grazes a road edge: each said, not silently used."""
+    from dataclasses import replace
+
+    import yaml
+    from scenes import track as crafted
+
+    from gridsim.errors import DataWarning
+    from gridsim.scenario.checks import track_problems
+
+    ahead = crafted("ahead", np.linspace(40.0, 100.0, 61), np.full(61, 1.75))
+    still = replace(ahead, speed=np.zeros(61))
+    assert any("its positions move at 10 m/s" in p and "recorded speeds say 0 m/s" in p
+               for p in track_problems(still))  # fmt: skip
+    assert track_problems(ahead) == []
+    edge = crafted("edge", np.linspace(20.0, 50.0, 31), np.full(31, 3.2))  # 1.8 m wide
+    path = write_scene(tmp_path, [ahead, edge])
+    doc = yaml.safe_load(path.read_text())
+    doc["ego"]["track"] = "edge"
+    path.write_text(yaml.safe_dump(doc))
+    with pytest.warns(DataWarning, match="ego.track edge is overlapping another or grazing a"):
+        GridSimEnv(str(path)).reset(seed=0)
+    rows = (tmp_path / "tracks.csv").read_text().splitlines()
+    rows[5] = rows[5].replace(",4.5,", ",12.0,")  # one row of "ahead" says 12 m long
+    (tmp_path / "tracks.csv").write_text("\n".join(rows) + "\n")
+    from gridsim.traffic.library import read_tracks_csv
+
+    with pytest.warns(DataWarning, match=r"1 track\(s\) change size .*: ahead \(4.5-12 x"):
+        read_tracks_csv(tmp_path / "tracks.csv")
