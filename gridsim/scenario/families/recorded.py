@@ -227,7 +227,12 @@ def _why_unfit(scenario: Scenario, tracks, road: StaticRoad, listed: set[str]) -
     counts = {
         why: sum(map(test, mine)) for why, test in _unfit_tests(scenario, tracks, road).items()
     }
-    return f"of {len(mine)}: " + ", ".join(f"{n} {why}" for why, n in counts.items() if n)
+    said = f"of {len(mine)}: " + ", ".join(f"{n} {why}" for why, n in counts.items() if n)
+    lengths = np.array([t.length for t in mine])
+    if np.median(lengths) > scenario.config.traffic.max_vehicle_length:  # most: another unit
+        said += (f"; their median length is {np.median(lengths):.3g} m: are sizes in metres "
+                 "(not feet)?")  # fmt: skip
+    return said
 
 
 def initial_steering(track: Track, params: BicycleParams) -> float:

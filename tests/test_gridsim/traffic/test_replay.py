@@ -144,3 +144,17 @@ def test_plausible_but_wrong_recordings_are_named(tmp_path):
 
     with pytest.warns(DataWarning, match=r"1 track\(s\) change size .*: ahead \(4.5-12 x"):
         read_tracks_csv(tmp_path / "tracks.csv")
+
+
+def test_vehicles_sized_in_feet_get_a_hint(tmp_path):
+    from dataclasses import replace
+
+    from scenes import track as crafted
+
+    from gridsim.errors import GridSimError
+
+    tracks = [replace(crafted(name, np.linspace(x, x + 30.0, 31), np.full(31, 1.75)),
+                      length=14.8, width=5.9)  # 4.5 x 1.8 m in feet
+              for name, x in (("ego", 20.0), ("other", 80.0))]  # fmt: skip
+    with pytest.raises(GridSimError, match=r"median length is 14.8 m: are sizes in metres"):
+        GridSimEnv(str(write_scene(tmp_path, tracks, ego={"track": "random"}))).reset(seed=0)
