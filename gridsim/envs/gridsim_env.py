@@ -326,7 +326,9 @@ class GridSimEnv(gym.Env):
         else:
             plan, reference = self._scored
             overlay = [(reference, REFERENCE_COLOUR), (plan, PLAN_COLOUR)]
-        return self.renderer.render(self.world, self._grids[self._newest], overlay)
+        sensor = self.cfg.sensor
+        return self.renderer.render(self.world, self._grids[self._newest], overlay,
+                                    grid_frame=(sensor.cell_size, sensor.orientation))  # fmt: skip
 
 
 #: The keywords of ``GridSimEnv`` and of ``gym.make_vec``'s default vector env: a misspelt one

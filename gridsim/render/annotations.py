@@ -18,6 +18,7 @@ from gridsim.render.grids import colourise
 from gridsim.render.topdown import (
     EGO_COLOUR,
     IDM_COLOUR,
+    INSET_EGO_COLOUR,
     PLAN_COLOUR,
     REFERENCE_COLOUR,
     TRAFFIC_COLOUR,
@@ -40,6 +41,7 @@ GRID_LEGEND = (
     ("free", tuple(int(c) for c in colourise(np.uint8(FREE)))),
     ("occupied", tuple(int(c) for c in colourise(np.uint8(OCCUPIED)))),
     ("unknown", tuple(int(c) for c in colourise(np.uint8(UNKNOWN)))),
+    ("the ego (outline)", INSET_EGO_COLOUR),
 )
 
 

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from gridsim.frames import world_to_pixel
 from gridsim.render.grids import colourise
 from gridsim.vehicle.kinematics import box_corners
 
@@ -24,6 +25,8 @@ IDM_COLOUR = (250, 160, 40)
 #: Set-points: the human reference's next ones, the last commanded (planned) ones.
 REFERENCE_COLOUR = (255, 255, 255)
 PLAN_COLOUR = (255, 220, 0)
+#: The ego's outline in the grid inset (the grid's own colours are green, red and black).
+INSET_EGO_COLOUR = (255, 255, 255)
 
 
 @dataclass(frozen=True)
@@ -59,11 +62,13 @@ class TopDownRenderer:
         grid: np.ndarray | None = None,
         overlay: list[tuple[np.ndarray, tuple[int, int, int]]] | None = None,
         rays: np.ndarray | None = None,
+        grid_frame: tuple[float, str] | None = None,
     ) -> np.ndarray:
-        """One frame. ``grid`` adds an occupancy-grid inset (top right); ``overlay`` is a list
-        of ``(points (K, 2) [m, world], RGB colour)`` drawn as dots joined by a line (e.g.
-        set-points);
-        ``rays`` ``(R, 2)`` world end points are drawn as lines from the ego."""
+        """One frame. ``grid`` adds an occupancy-grid inset (top right), with the ego's
+        outline in it if ``grid_frame`` = ``(cell size [m], orientation)`` says where it is;
+        ``overlay`` is a list of ``(points (K, 2) [m, world], RGB colour)`` drawn as dots
+        joined by a line (e.g. set-points); ``rays`` ``(R, 2)`` world end points are drawn as
+        lines from the ego."""
         v = self.view
         ego_xy = world.ego[:2]
         a = self._affine(ego_xy)
@@ -94,10 +99,10 @@ class TopDownRenderer:
             for q in px:
                 cv2.circle(img, tuple(q), 3 * 16, colour, -1, cv2.LINE_AA, shift=4)
         if grid is not None:
-            self._inset(img, grid)
+            self._inset(img, grid, (world, ego_box) if grid_frame else None, grid_frame)
         return img
 
-    def _inset(self, img: np.ndarray, grid: np.ndarray) -> None:
+    def _inset(self, img: np.ndarray, grid: np.ndarray, ego=None, grid_frame=None) -> None:
         s = self.view.inset_size
         h, w = grid.shape
         scale = s / max(h, w)
@@ -106,6 +111,12 @@ class TopDownRenderer:
             (max(1, int(w * scale)), max(1, int(h * scale))),
             interpolation=cv2.INTER_NEAREST,
         )
+        if ego is not None:  # the ego's outline where the grid has it
+            world, box = ego
+            to_px = world_to_pixel(world.ego[:2], world.ego[2], h, w, *grid_frame)
+            corners = (box @ to_px[:, :2].T + to_px[:, 2] + 0.5) * scale
+            cv2.polylines(tile, [np.rint(corners * 16).astype(np.int32)], True, INSET_EGO_COLOUR,
+                          1, cv2.LINE_AA, shift=4)  # fmt: skip
         th, tw = tile.shape[:2]
         x0 = img.shape[1] - tw - 8
         img[8 : 8 + th, x0 : x0 + tw] = tile

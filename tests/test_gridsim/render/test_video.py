@@ -27,8 +27,8 @@ def test_a_plan_is_drawn_beside_the_human_set_points_it_was_scored_against():
     drawn = []
     renderer = env.unwrapped.renderer
     render = renderer.render
-    renderer.render = lambda world, grid, overlay: (
-        drawn.append(overlay) or render(world, grid, overlay)
+    renderer.render = lambda world, grid, overlay, **kw: (
+        drawn.append(overlay) or render(world, grid, overlay, **kw)
     )
     _, info = env.reset(seed=0)
     env.render()
@@ -64,6 +64,20 @@ def test_frames_say_how_the_episode_ended_and_videos_who_drives():
 
     assert policy_name(my_planner) == "my_planner" and policy_name(Reference()) == "Reference"
     assert policy_name(lambda env, obs, info: None) is None
+
+
+def test_the_grid_inset_outlines_the_ego_where_the_grid_has_it():
+    """The inset's white outline is the ego's footprint in the grid: at its centre (the rear
+    axle, with the footprint ahead of it), turned with the ego on a north-up grid."""
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    _, info = env.reset(seed=0)
+    frame = env.render()
+    inset = frame[8:168, 472:632]
+    white = np.argwhere(inset.min(axis=-1) > 120)  # (anti-aliased: whitish, not white)
+    assert len(white) > 10
+    rows, cols = white[:, 0], white[:, 1]
+    assert 70 < rows.mean() < 90 and 75 < cols.mean() < 95  # at the centre, ahead of the axle
+    assert np.ptp(cols) > np.ptp(rows)  # the seamless ego starts heading east: lying flat
 
 
 def test_render_returns_frames_with_grid_inset_and_setpoints():
