@@ -225,7 +225,7 @@ def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     regions = np.zeros_like(differs)
     regions[:70, :330] = True  # caption
     regions[h - 100 :, :200] = True  # colour legend
-    regions[160:260, w - 110 :] = True  # the grid's legend, under the inset
+    regions[160:280, w - 130 :] = True  # the grid's legend, under the inset
     regions[h - 45 :, w - 130 :] = True  # scale bar
     assert differs[:60, :250].mean() > 0.05 and differs[h - 90 :, :150].mean() > 0.05
     assert differs[h - 30 :, w - 100 :].any()
