@@ -18,7 +18,7 @@ def add_parser(sub) -> None:
         "drive", help="drive the lane-following ego; write grids and a top-down frame"
     )
     scenario_flag(p, default="seamless")
-    p.add_argument("--seconds", type=float, default=20.0, help="simulated time [s]")
+    p.add_argument("--seconds", type=float, default=20.0, help="simulated time [s] (default 20)")
     seed_flag(p)
     p.add_argument("--out", default="out/drive", help="output folder")
     quiet_flag(p)
@@ -81,13 +81,18 @@ def _write(out, sc, seed, world, grids, times, steps, start, distance, collision
     """Write the drive's files into ``out``; the summary."""
     import cv2
 
+    from gridsim.render.annotations import Caption, annotate
     from gridsim.render.grids import colourise
     from gridsim.render.topdown import TopDownRenderer
 
     write_npz(out / "grids.npz", compressed=True, grids=grids, times=times)
     for k in np.linspace(0, steps - 1, min(steps, 5)).astype(int):
         cv2.imwrite(str(out / f"grid_{k:05d}.png"), colourise(grids[k])[:, :, ::-1])
-    frame = TopDownRenderer().render(world, grids[-1])
+    view = TopDownRenderer()
+    spec = sc.config.sensor
+    frame = view.render(world, grids[-1], grid_frame=(spec.cell_size, spec.orientation))
+    caption = Caption(f"lane follower, {sc.name} (seed {seed})", world.time, float(world.ego[3]))
+    annotate(frame, caption, view.view.pixels_per_metre, view.view.inset_size)
     cv2.imwrite(str(out / "topdown.png"), frame[:, :, ::-1])
     summary = {
         "scenario": sc.name,
