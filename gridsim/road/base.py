@@ -78,9 +78,9 @@ class Road(ABC):
         """Let a generated road extend ahead of / trim behind the ego. Static roads do nothing."""
 
     def tracking(self) -> RoadTracking | None:
-        """What a compiled world tick needs to follow the ego on this road
-        (:func:`~gridsim.world.world_kernels.follow_tick`'s ``road``), or None: this road
-        ticks in Python only (the default)."""
+        """What a compiled world tick needs to follow the ego on a road that changes as it
+        drives (:func:`~gridsim.world.world_kernels.follow_tick`'s ``road``), or None: not
+        now, or never (the default; a :attr:`static` road needs none)."""
         return None
 
     def shared_parts(self) -> list:
