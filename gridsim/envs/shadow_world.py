@@ -101,6 +101,8 @@ class ShadowWorld:
         driver = offer(w) if offer is not None else None
         if road is None or traffic is None or driver is None:  # what they offer the kernel
             return None
+        if traffic.refill or len(traffic.corridors):  # work the batch kernel does not do
+            return None
         c = d.chain
         c.extend(end + _CHAIN_AHEAD)  # what ProfileChain.at would compute on the way
         # profiles run out on about one tick in seven: no draws ahead for a tick or two

@@ -33,6 +33,9 @@ SUFFIXES = (".yaml", ".yml", ".xml")
 SHARED_KEYS = ("sensor", "env", "ego.vehicle", "simulation.dt")
 
 
+_YAML = (".yaml", ".yml")
+
+
 def scenario_files(ref: str | Path) -> list[Path] | None:
     """The scenario files of a folder (sorted by name), of a glob pattern (sorted) or of a
     comma-separated list (in its order; a built-in name is given as ``Path(name)``);
@@ -44,16 +47,19 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     path = Path(text)
     if path.is_dir():
         files = [f for f in path.iterdir() if f.is_file() and f.suffix.lower() in SUFFIXES]
-        nested = sorted(d.name for d in path.iterdir() if d.is_dir() and any(
-            f.suffix.lower() in SUFFIXES for f in d.rglob("*") if f.is_file()))  # fmt: skip
+        # YAML scenario files one level down (XML there is more often a map: `gridsim import`
+        # puts them in maps/)
+        nested = {d.name: sorted({f.suffix.lower() for f in d.iterdir() if f.is_file()
+                                  and f.suffix.lower() in _YAML}) for d in path.iterdir()
+                  if d.is_dir()}  # fmt: skip
+        nested = {name: suffixes for name, suffixes in nested.items() if suffixes}
         if nested:
-            warnings.warn(
-                f"{text}: its subfolders {', '.join(nested)} hold scenario files that "
-                f"are not read (a folder is read without its subfolders; for all, "
-                f"give the glob '{path / '**' / '*.yaml'}')",
-                DataWarning,
-                stacklevel=2,
-            )
+            suffixes = sorted({s for found in nested.values() for s in found})
+            globs = " or ".join(f"'{path / '**' / ('*' + s)}'" for s in suffixes)
+            warnings.warn(f"{text}: its subfolders {', '.join(sorted(nested))} hold scenario "
+                          "files that are not read (a folder is read without its subfolders; "
+                          f"for all, give the glob {globs})", DataWarning,
+                          stacklevel=2)  # fmt: skip
     elif "," in text and not path.exists():
         return _listed_files(text)
     elif any(c in text for c in "*?["):
@@ -181,18 +187,20 @@ def load_usable(
 def input_digest(ref: str | Path, overrides: Mapping[str, Any] | None = None) -> dict[str, str]:
     """SHA-256 (hex) of every file the scenarios of ``ref`` are read from, by path: the
     scenario files (all that a folder or glob matches, usable or not) and the map and
-    trajectory files of the usable ones. Built-in scenarios and data (the installed package's)
-    are not listed. Skipped files are not warned about again."""
+    trajectory files they name. Built-in scenarios and data (the installed package's) are
+    not listed. Nothing is built: the files are found from the scenarios' keys."""
     from gridsim.scenario.parts import input_files
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", DataWarning)
-        usable, _ = load_usable(ref, overrides)
-    files = scenario_files(ref) or [Path(str(ref))]
-    for _, scenario in usable:
-        files += input_files(scenario)
+    files = scenario_files(ref)
+    refs = files if files is not None else [Path(str(ref))]
+    found = list(refs)
+    for one in refs:
+        try:
+            found += input_files(load_scenario(one, overrides))
+        except GridSimError:  # (a file that does not load is hashed as it is)
+            continue
     package = Path(__file__).resolve().parents[1]  # gridsim's own data: installed, not input
-    return {str(f): _sha256(f) for f in sorted(set(files), key=str)
+    return {str(f): _sha256(f) for f in sorted(set(found), key=str)
             if f.is_file() and not f.resolve().is_relative_to(package)}  # fmt: skip
 
 

@@ -116,10 +116,12 @@ def _library_paths(scenario: Scenario, ref: str) -> list[Path]:
     """The trajectory files a ``traffic.library`` entry names: a file, or every ``.csv`` and
     ``.xml`` file of a folder or a glob pattern (sorted; relative to the scenario's folder)."""
     path = Path(ref)
+    pattern = ref  # (the scenario's folder escaped: its name may hold * ? [)
     if not ref.startswith("builtin:") and not path.is_absolute() and scenario.base_dir:
         path = scenario.base_dir / path
+        pattern = str(Path(glob.escape(str(scenario.base_dir))) / ref)
     if path.is_dir() or any(c in ref for c in "*?["):
-        found = path.iterdir() if path.is_dir() else map(Path, glob.glob(str(path)))
+        found = path.iterdir() if path.is_dir() else map(Path, glob.glob(pattern, recursive=True))
         files = sorted(f for f in found if f.is_file() and f.suffix.lower() in TRAJECTORY_SUFFIXES)
         if not files:
             raise ScenarioError(f"{scenario.source}: traffic.library {ref!r}: no trajectory "

@@ -43,7 +43,6 @@ _NO_CANDIDATES = (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.
 _NO_CORRIDORS = np.zeros(0, np.int64)
 _NO_EGO = (False, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
 _EVERYWHERE = (np.inf, np.inf)
-_ALL_PAIRS_MAX = 48  # up to this many vehicles, testing all pairs beats building a tree
 
 
 @lru_cache(maxsize=64)
@@ -203,7 +202,7 @@ class Fleet:
         (:func:`~gridsim.traffic.fleet_kernels.cross_path`). Pairs inside one corridor are
         left to :func:`~gridsim.traffic.fleet_kernels.same_path`."""
         m = len(idx)
-        if m <= _ALL_PAIRS_MAX:  # all pairs, tested in the kernel
+        if m <= kernels.ALL_PAIRS_MAX:  # all pairs, tested in the kernel
             i, j = _upper_pairs(m)
             test_close = True
         else:

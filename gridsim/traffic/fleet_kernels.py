@@ -22,6 +22,9 @@ from gridsim.traffic.table_kernels import SMALL_QUERY, frenet_one, lookup
 from gridsim.vehicle.idm import idm_accel, idm_gap
 
 REPLAY, IDM = 0, 1
+#: Up to this many active participants, the leader candidates on other paths come from all
+#: pairs (cheaper than a k-d tree); the compiled world tick searches only up to as many.
+ALL_PAIRS_MAX = 48
 _S, _V, _D, _H = 0, 1, 2, 3
 
 

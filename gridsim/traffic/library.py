@@ -181,6 +181,8 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             split.append((tid, [float(p[0, 0]) for p in pieces[1:]]))
         for k, piece in enumerate(pieces):
             name = tid if k == 0 else f"{tid}#{k + 1}"
+            while k and (sid, name) in index:  # an id the file has already: another suffix
+                name += "#"
             if len(piece) < 2:
                 single.append(f"({sid}, {name})")
                 continue
@@ -218,8 +220,8 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
             k = next(k for k, text in enumerate(raw) if not _is_number(text))
             values[:k, c] = np.array(raw[:k], dtype=np.float64)  # (the rows before it)
             first_bad.append((k, c, f"column {name!r} is not a number: {short_repr(raw[k])}"))
-            continue
-        bad = np.flatnonzero(~np.isfinite(values[:, c]))
+        end = first_bad[-1][0] if first_bad and first_bad[-1][1] == c else len(raw)
+        bad = np.flatnonzero(~np.isfinite(values[:end, c]))
         if len(bad):
             k = int(bad[0])
             first_bad.append((k, c, f"column {name!r} is {short_repr(raw[k])}; expected a "

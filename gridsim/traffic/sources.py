@@ -347,7 +347,8 @@ class SeamlessTraffic(SyntheticTraffic):
         """:meth:`Fleet.tick_data` for :meth:`tick`, and the participants kept: for a compiled
         tick that leaves :meth:`refill` to Python whenever it has work. None on another road
         than this traffic's, and while the fleet's lanes are not the road's or some path has
-        no lane corridor (then only :meth:`tick` ticks it right)."""
+        no lane corridor (then :meth:`tick` ticks it: the reference's shadow world does not
+        search leaders on other paths)."""
         if (
             road is not self.road
             or self.road.version != self._version

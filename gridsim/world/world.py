@@ -147,9 +147,9 @@ class World:
             return self.tick(out.accel, out.steer)
         previous, self.ego = self.ego, np.array(out.ego)
         self.road.set_tracked(out.road_s, out.road_hint)
-        placed = False  # whether the refill placed a participant (maybe where the ego is)
+        placed = False  # whether the refill may have placed someone (None: it did not say)
         if out.status == world_kernels.TRAFFIC:
-            placed = self.traffic.refill(out.ended, self.ego_pose(), self.dt)
+            placed = self.traffic.refill(out.ended, self.ego_pose(), self.dt) is not False
         self.time += self.dt
         contact = None
         quiet = out.quiet and not placed

@@ -24,7 +24,7 @@ import numpy as np
 
 from gridsim.jit import jitable, kernel
 from gridsim.road.polyline_kernels import ahead_of, track
-from gridsim.traffic.fleet_kernels import FleetState, cross_path
+from gridsim.traffic.fleet_kernels import ALL_PAIRS_MAX, FleetState, cross_path
 from gridsim.traffic.fleet_kernels import tick as fleet_tick
 from gridsim.vehicle.control import pursuit_one
 from gridsim.vehicle.kinematics_kernels import step_one
@@ -36,11 +36,6 @@ STOP, PURSUIT, HOLD = 0, 1, 2
 #: after the fleet's tick (Python refills the traffic); before it, with a state or an input
 #: that is not finite (Python computes the inputs and ticks).
 DONE, BEFORE, TRAFFIC, NOT_FINITE = 0, 1, 2, 3
-
-#: The most active participants whose leader candidates on other paths are searched here (by
-#: all pairs, as :meth:`~gridsim.traffic.fleet.Fleet._cross_path` does up to as many); more
-#: go to Python, which builds a k-d tree.
-ALL_PAIRS_MAX = 48
 
 
 class Follow(NamedTuple):

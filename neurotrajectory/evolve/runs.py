@@ -548,6 +548,8 @@ class Run:
             return
         try:
             kept = json.loads(path.read_text())["files"]
+            if not isinstance(kept, dict):
+                raise TypeError(f"'files' is a {type(kept).__name__}, not a mapping")
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise RunError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
         from gridsim.scenario.collection import input_digest

@@ -60,6 +60,8 @@ def test_user_csv_loads(tmp_path):
          r"tracks.csv:3: 8 column\(s\), the header has 9 \(a line cut short\?\)"),
         (["s,1,0,0,0,0,-1,4.5,1.8", "s,1,0.1,x,0,0,1,4.5,1.8"], HEADER,
          r"tracks.csv:2: speed_mps must be >= 0"),  # the first bad row's problem
+        (["s,1,0,inf,0,0,1,4.5,1.8", "s,1,0.1,abc,0,0,1,4.5,1.8"], HEADER,
+         r"tracks.csv:2: column 'x_m' is 'inf'"),  # before a later non-number
         ([], HEADER, "no data rows"),
         (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,5e6,0,0,1,4.5,1.8"], HEADER,
          r"tracks.csv: track 1 of scene s: state 1 \(t = 0.1 s\): jumps 5e\+06 m in 0.1 s"),
@@ -691,6 +693,10 @@ def test_a_reused_id_is_split_and_single_states_are_left_out(tmp_path):
     message = str(caught[0].message)
     assert "1 track id(s) pause more than 2 s" in message and "468 at t = 17 s" in message
     assert "1 track(s) with a single state left out" in message and "(s, 389)" in message
+    taken = rows + [f"s,468#2,{t:.1f},{10 * t:.1f},7,0,10,4.5,1.8" for t in np.arange(0, 2.05, 0.1)]
+    with pytest.warns(DataWarning):
+        ids = [t.track_id for t in read_tracks_csv(write_csv(tmp_path, taken))]
+    assert ids == ["468", "468#2#", "7", "468#2"]  # the file's own 468#2 is not clashed with
     ms = [f"s,1,{100 * k},{k},0,0,10,4.5,1.8" for k in range(20)]  # time in ms
     with pytest.raises(DataError, match="time stamps in seconds"):
         TrajectoryLibrary(read_tracks_csv(write_csv(tmp_path, ms)))

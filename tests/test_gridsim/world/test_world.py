@@ -300,6 +300,75 @@ def test_compiled_tick_on_static_roads_equals_the_python_tick(scenario):
     assert stops and world_kernels.TRAFFIC in statuses and contacts > 0
 
 
+def _crafted_scene(tmp_path, case):
+    """Crafted recorded scenes for the compiled tick's edge cases (see the test below)."""
+    from dataclasses import replace
+
+    from scenes import track, write_scene
+
+    def car(name, x0, y, start=0.0, n=41):
+        return replace(track(name, np.linspace(x0, x0 + 0.5 * (n - 1), n), np.full(n, y)),
+                       t=start + 0.1 * np.arange(n))  # 5 m/s  # fmt: skip
+
+    ego = car("ego", 60.0, 1.75, n=61)
+    if case == "a car appears on the ego":  # 2.05 s in, where the ego is then (the test
+        # below compares every other tick: this one is compared)
+        others = [car("late", 70.25, 1.75, start=2.05, n=21)]
+    elif case == "more than 48 cars":  # the candidates on other paths: Python's k-d tree
+        others = [car(f"c{k}", 20.0 + 3.0 * k, -1.75 if k % 2 else 1.75 - 3.5 * (k % 3 == 0))
+                  for k in range(60)]  # fmt: skip
+        others = [o for o in others if abs(o.x[0] - 60.0) > 6.0 or o.y[0] < 0]
+    else:  # a clock from 100 s
+        others = [car("ahead", 75.0, 1.75), car("beside", 55.0, -1.75)]
+        ego = replace(ego, t=ego.t + 100.0)
+        others = [replace(o, t=o.t + 100.0) for o in others]
+    return write_scene(tmp_path, [ego, *others])
+
+
+@pytest.mark.parametrize("case", ["a car appears on the ego", "more than 48 cars",
+                                  "a clock from 100 s"])  # fmt: skip
+def test_compiled_tick_edge_cases_equal_the_python_tick(tmp_path, case, monkeypatch):
+    """The compiled tick on a recorded scene where the refill places a car on the ego (its
+    contact must be tested even when the broad phase saw nothing near: here no road edge is
+    handed to it), with more active cars than the compiled leader search takes (it hands the
+    tick to Python), and on a clock that does not start at 0: the same world as the Python
+    tick, bit for bit."""
+    import copy
+
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.world import world_kernels
+    from gridsim.world.collision import BroadPhase, CollisionChecker
+
+    if case == "a car appears on the ego":
+        broad = CollisionChecker.broad_phase_data
+        monkeypatch.setattr(CollisionChecker, "broad_phase_data", lambda self: BroadPhase(
+            np.zeros((0, 4)), *broad(self)[1:]))  # fmt: skip
+    env = GridSimEnv(str(_crafted_scene(tmp_path, case)))
+    _, info = env.reset(seed=0)
+    at_start = int(env.unwrapped.world.traffic.fleet.active.sum())
+    contacts = 0
+    with _follow_tick_statuses() as statuses:
+        for _ in range(40):
+            world = env.unwrapped.world
+            control, _ = env.action_kind.controller(world, info["reference_setpoints"], 0.0)
+            twin = copy.deepcopy(world)
+            r_python = twin.tick(*control(twin))
+            assert world.tick_following(control) == r_python
+            _assert_same_world(world, twin)
+            contacts += r_python.collided
+            if r_python.collided:
+                break
+            _, _, terminated, truncated, info = env.step(info["reference_setpoints"])
+            if terminated or truncated:
+                break
+    if case == "a car appears on the ego":
+        assert contacts > 0
+    elif case == "more than 48 cars":
+        assert world_kernels.BEFORE in statuses
+    else:
+        assert at_start == 2  # the traffic of the ego's first time stamp, 100 s
+
+
 @pytest.mark.parametrize("action_type", ["control", "discrete"])
 def test_compiled_held_inputs_tick_equals_the_python_tick(action_type):
     """The control and discrete actions' compiled ticks (inputs held) leave a world in the

@@ -240,31 +240,32 @@ def test_train_says_what_it_does_between_its_progress_bars(tmp_path, capsys):
 
 
 def test_a_run_resumes_only_on_the_files_it_began_with(tmp_path, capsys):
-    """A scenario folder edited, emptied of a file or given another one since the run began:
-    --resume names what changed instead of training on (silently) other data."""
-    from importlib import resources
+    """A scenario folder whose trajectory file was edited, or that was given another scenario
+    file since the run began: --resume names what changed instead of training on (silently)
+    other data."""
+    from scenes import MAP, track, write_scene
 
     scenes = tmp_path / "scenes"
     scenes.mkdir()
-    for name in ("us101_4_1", "us101_3_3"):
-        source = resources.files("gridsim").joinpath("data", "scenarios", f"{name}.yaml")
-        (scenes / f"{name}.yaml").write_text(source.read_text())
+    tracks = [track(name, np.linspace(x, x + 40.0, 41), np.full(41, 1.75))
+              for name, x in (("ego", 20.0), ("ahead", 60.0), ("third", 100.0))]  # fmt: skip
+    scenario = write_scene(scenes, tracks, ego={"track": "random"})
     run = tmp_path / "run"
     flags = [*QUICK[:-1], "--scenario", str(scenes), "--heldout", "0", "--quiet"]
     assert main(["train", *flags, "--out", str(run)]) == 0
     kept = json.loads((run / "inputs.json").read_text())["files"]
-    assert sorted(kept) == [str(scenes / "us101_3_3.yaml"), str(scenes / "us101_4_1.yaml")]
+    csv = scenes / "tracks.csv"
+    assert sorted(kept) == sorted([str(scenario), str(csv), str(MAP)])
     resume = ["train", "--resume", str(run), "--generations", "2", "--quiet"]
-    edited = scenes / "us101_3_3.yaml"
-    edited.write_text(edited.read_text() + "# an edit\n")
+    csv.write_text(csv.read_text().replace(",4.5,", ",4.6,", 1))  # one row's length
+    shutil.copy(scenario, scenes / "another.yaml")
     assert main(resume) == 2
     err = capsys.readouterr().err
-    assert f"are not those the run began with (changed: {edited})" in err
+    assert (f"are not those the run began with (changed: {csv}; added: "
+            f"{scenes / 'another.yaml'})" in err)  # fmt: skip
     assert "would train on other data" in err
-    (scenes / "us101_4_1.yaml").unlink()
-    assert main(resume) == 2
-    assert f"changed: {edited}; removed: {scenes / 'us101_4_1.yaml'}" in capsys.readouterr().err
     (run / "inputs.json").unlink()  # a run from before the files were kept: not checked
+    (scenes / "another.yaml").unlink()
     assert main(resume) == 0
 
 
