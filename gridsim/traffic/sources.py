@@ -91,6 +91,11 @@ class TrafficSource(ABC):
         return []
 
 
+#: s: a clock that adds its ticks up from a start time far from 0 (a recording timed from
+#: 100 s: 102.99999999999983 after 30 ticks) still places a track at the tick it starts.
+TIME_TOLERANCE = 1e-9
+
+
 class RecordedSceneTraffic(TrafficSource):
     """Replays the tracks of a recorded scene in their own geometry (exact poses, 10 Hz data
     interpolated at the simulation rate). ``exclude`` removes one track (the expert ego)."""
@@ -127,9 +132,8 @@ class RecordedSceneTraffic(TrafficSource):
         (one vectorised test a tick: a scene may hold thousands of tracks); whether any."""
         n = len(self.tracks)
         taus = self.time - self._t0
-        due = np.flatnonzero(
-            ~(self.fleet.active[:n] | self._done | (taus < 0) | (taus > self._duration))
-        )
+        early, late = taus < -TIME_TOLERANCE, taus > self._duration + TIME_TOLERANCE
+        due = np.flatnonzero(~(self.fleet.active[:n] | self._done | early | late))
         for i in due:
             tr, tau = self.tracks[i], taus[i]
             vals = self.fleet.profiles.lookup(np.array([i]), np.array([tau]))

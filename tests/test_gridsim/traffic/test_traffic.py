@@ -700,3 +700,22 @@ def test_a_reused_id_is_split_and_single_states_are_left_out(tmp_path):
     ms = [f"s,1,{100 * k},{k},0,0,10,4.5,1.8" for k in range(20)]  # time in ms
     with pytest.raises(DataError, match="time stamps in seconds"):
         TrajectoryLibrary(read_tracks_csv(write_csv(tmp_path, ms)))
+
+
+def test_a_recording_timed_from_far_from_zero_places_tracks_at_their_tick():
+    """The traffic's clock adds ticks up from the ego's first time (102.99999999999983 after
+    30 ticks from 100 s): a track that starts at 103 s is placed at that tick, not one late."""
+    far = EgoPose(1e6, 1e6, 0.0, 0.0, 4.5, 1.8)
+
+    def car(name, t0, n, y):
+        t = t0 + 0.1 * np.arange(n)
+        return Track("s", name, t, 10 * t, np.full(n, y), np.zeros(n), np.full(n, 10.0), 4.5, 1.8)
+
+    src = RecordedSceneTraffic([car("early", 100.0, 60, 3.5), car("late", 103.0, 20, 0.0)],
+                               start_time=100.0)  # fmt: skip
+    src.reset(np.random.default_rng(0), far)
+    for _ in range(29):
+        src.tick(0.1, far)
+    assert not src.fleet.active[1]
+    src.tick(0.1, far)
+    assert src.time != 103.0 and src.fleet.active[1]
