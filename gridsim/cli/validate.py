@@ -40,7 +40,7 @@ def _report(path: str):
 
 def execute(args: argparse.Namespace) -> int:
     from gridsim.errors import DataError
-    from gridsim.scenario.collection import check_agreement, scenario_files
+    from gridsim.scenario.collection import check_agreement, repeated_recordings, scenario_files
 
     files = scenario_files(args.path)
     if args.resolved and files is not None:
@@ -80,12 +80,15 @@ def execute(args: argparse.Namespace) -> int:
             print(f"{f}: {len(problems)} problem(s)")
             print("\n".join(f"  - {p.strip().removeprefix('- ')}" for p in problems))
         else:
-            usable.append(sc)
+            usable.append((f, sc))
             print(f"{f}: OK ({summary})" + _warning_lines(notes))
     print(f"{len(files) - failed} of {len(files)} scenario files OK")
+    for first, again, scene in repeated_recordings(usable):
+        print(f"warning: {again} replays the same recording as {first} (scene {scene}): its "
+              "episodes and windows would count twice")  # fmt: skip
     try:  # and they run together as one collection
         if usable:
-            check_agreement(args.path, usable)
+            check_agreement(args.path, [sc for _, sc in usable])
     except GridSimError as exc:
         print(f"{exc} (run them apart, or make them agree)")
         return 2

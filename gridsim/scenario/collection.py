@@ -122,7 +122,37 @@ def usable_files(
             continue
         scenarios.append(sc)
     report_skipped(str(ref), skipped, len(files), bool(scenarios))
+    used = [f for f in files if f not in {g for g, _ in skipped}]
+    for first, again, scene in repeated_recordings(list(zip(used, scenarios, strict=True))):
+        warnings.warn(f"{ref}: {again} replays the same recording as {first} (scene {scene}, "
+                      "the same tracks and ego tracks): its episodes and windows count twice",
+                      DataWarning, stacklevel=2)  # fmt: skip
     return scenarios, skipped
+
+
+def repeated_recordings(pairs: list[tuple[Path, Scenario]]) -> list[tuple[Path, Path, str]]:
+    """``(first file, repeating file, scene)`` for each recorded scenario of ``pairs`` (file,
+    scenario) that replays the same tracks (ids, first states, lengths) with the same
+    ``ego.track`` as an earlier one: copies of a recording under other names (a CSV saved
+    again with a BOM or other line ends)."""
+    from gridsim.scenario.families.recorded import recorded_scene, scene_of
+    from gridsim.scenario.family import is_recorded
+
+    seen: dict[tuple, Path] = {}
+    out = []
+    for path, scenario in pairs:
+        if not is_recorded(scenario):
+            continue
+        _, tracks = recorded_scene(scenario, check=False)
+        ego = scenario.config.ego.track
+        key = (scene_of(scenario), ego if isinstance(ego, str) else tuple(ego),
+               tuple(sorted((t.track_id, len(t.t), float(t.t[0]), float(t.x[0]), float(t.y[0]))
+                            for t in tracks)))  # fmt: skip
+        if key in seen:
+            out.append((seen[key], path, key[0]))
+        else:
+            seen[key] = path
+    return out
 
 
 def report_skipped(

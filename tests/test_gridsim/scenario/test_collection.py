@@ -1,6 +1,7 @@
 """Folders and globs of scenario files are scenario collections."""
 
 import shutil
+import warnings
 from pathlib import Path
 
 import gymnasium as gym
@@ -282,3 +283,25 @@ def test_an_empty_trajectory_file_is_called_empty(tmp_path):
     (tmp_path / "t.csv").write_text("")
     with pytest.raises(DataError, match=r"t.csv: the file is empty; a trajectory CSV starts"):
         read_tracks_csv(tmp_path / "t.csv")
+
+
+def test_a_recording_copied_under_another_name_is_named(tmp_path, capsys):
+    """Two files of a folder replaying the same recording (a CSV saved again with a BOM)
+    would count its episodes and windows twice: loading the folder warns, validate says so;
+    the same scene with other ego tracks is not a copy."""
+    from importlib import resources
+
+    from gridsim.scenario.collection import usable_files
+
+    (tmp_path / "a").mkdir()
+    text = resources.files("gridsim").joinpath("data", "scenarios", "us101_3_3.yaml").read_text()
+    (tmp_path / "a" / "one.yaml").write_text(text)
+    (tmp_path / "a" / "two.yaml").write_text(text.replace("name: us101_3_3", "name: again"))
+    with pytest.warns(DataWarning, match=r"two.yaml replays the same recording as .*one.yaml"):
+        usable_files(tmp_path / "a")
+    assert main(["validate", str(tmp_path / "a")]) == 0
+    assert "two.yaml replays the same recording as" in capsys.readouterr().out
+    (tmp_path / "a" / "two.yaml").write_text(text + "ego:\n  track: ['363', '376']\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)
+        usable_files(tmp_path / "a")
