@@ -327,8 +327,10 @@ class GridSimEnv(gym.Env):
             plan, reference = self._scored
             overlay = [(reference, REFERENCE_COLOUR), (plan, PLAN_COLOUR)]
         sensor = self.cfg.sensor
+        human = self.reference.positions(np.array([self.world.time]))[0]  # where it is now
         return self.renderer.render(self.world, self._grids[self._newest], overlay,
-                                    grid_frame=(sensor.cell_size, sensor.orientation))  # fmt: skip
+                                    grid_frame=(sensor.cell_size, sensor.orientation),
+                                    human=human)  # fmt: skip
 
 
 #: The keywords of ``GridSimEnv`` and of ``gym.make_vec``'s default vector env: a misspelt one

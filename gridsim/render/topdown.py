@@ -25,6 +25,8 @@ IDM_COLOUR = (250, 160, 40)
 #: Set-points: the human reference's next ones, the last commanded (planned) ones.
 REFERENCE_COLOUR = (255, 255, 255)
 PLAN_COLOUR = (255, 220, 0)
+#: The view leads the ego by what it drives in this long [s], at most LEAD_MAX [m].
+LEAD_SECONDS, LEAD_MAX = 0.8, 12.0
 #: The ego's outline in the grid inset (the grid's own colours are green, red and black).
 INSET_EGO_COLOUR = (255, 255, 255)
 
@@ -63,15 +65,17 @@ class TopDownRenderer:
         overlay: list[tuple[np.ndarray, tuple[int, int, int]]] | None = None,
         rays: np.ndarray | None = None,
         grid_frame: tuple[float, str] | None = None,
+        human: np.ndarray | None = None,
     ) -> np.ndarray:
-        """One frame. ``grid`` adds an occupancy-grid inset (top right), with the ego's
-        outline in it if ``grid_frame`` = ``(cell size [m], orientation)`` says where it is;
-        ``overlay`` is a list of ``(points (K, 2) [m, world], RGB colour)`` drawn as dots
-        joined by a line (e.g. set-points); ``rays`` ``(R, 2)`` world end points are drawn as
-        lines from the ego."""
+        """One frame, centred ahead of the ego (:meth:`centre`). ``grid`` adds an
+        occupancy-grid inset (top right), with the ego's outline in it if ``grid_frame`` =
+        ``(cell size [m], orientation)`` says where it is; ``overlay`` is a list of ``(points
+        (K, 2) [m, world], RGB colour)`` drawn as dots joined by a line (e.g. set-points);
+        ``rays`` ``(R, 2)`` world end points are drawn as lines from the ego; ``human`` [m,
+        world], where the human is now, gets an arrow at the frame's edge when out of view."""
         v = self.view
         ego_xy = world.ego[:2]
-        a = self._affine(ego_xy)
+        a = self._affine(self.centre(world))
         img = np.empty((v.height, v.width, 3), np.uint8)
         img[:] = _BG
         radius = 0.5 * np.hypot(v.width, v.height) / v.pixels_per_metre
@@ -98,9 +102,44 @@ class TopDownRenderer:
             cv2.polylines(img, [px], False, colour, 1, cv2.LINE_AA, shift=4)
             for q in px:
                 cv2.circle(img, tuple(q), 3 * 16, colour, -1, cv2.LINE_AA, shift=4)
+        if human is not None:
+            self._pointer(img, a, np.asarray(human, float))
         if grid is not None:
             self._inset(img, grid, (world, ego_box) if grid_frame else None, grid_frame)
         return img
+
+    def centre(self, world) -> np.ndarray:
+        """The view's centre [m, world]: ahead of the ego by what it drives in
+        :data:`LEAD_SECONDS` (at most :data:`LEAD_MAX`), so that a plan of 2.5 s at highway
+        speed stays in the picture."""
+        x, y, psi, speed = world.ego[:4]
+        lead = min(max(float(speed), 0.0) * LEAD_SECONDS, LEAD_MAX)
+        return np.array([x + lead * np.cos(psi), y + lead * np.sin(psi)])
+
+    def _pointer(self, img: np.ndarray, a: np.ndarray, human: np.ndarray) -> None:
+        """An arrow at the frame's edge towards ``human`` [m, world] if it is out of view."""
+        h, w = img.shape[:2]
+        u, v = human @ a[:, :2].T + a[:, 2]
+        if 0 <= u < w and 0 <= v < h:
+            return
+        # inside the frame's middle, clear of the caption, the legends, the inset and the bar
+        left, right, top, bottom = 40, w - 200, 80, h - 120
+        cx, cy = (left + right) / 2, (top + bottom) / 2
+        du, dv = u - cx, v - cy
+        scale = min((right - cx) / max(abs(du), 1e-9), (bottom - cy) / max(abs(dv), 1e-9))
+        tip = (int(cx + du * scale), int(cy + dv * scale))
+        tail = (int(cx + du * scale * 0.85), int(cy + dv * scale * 0.85))
+        cv2.arrowedLine(img, tail, tip, REFERENCE_COLOUR, 2, cv2.LINE_AA, tipLength=0.5)
+        cv2.putText(
+            img,
+            "human",
+            (tail[0] - 20, tail[1] + (14 if dv < 0 else -8)),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.4,
+            REFERENCE_COLOUR,
+            1,
+            cv2.LINE_AA,
+        )
 
     def _inset(self, img: np.ndarray, grid: np.ndarray, ego=None, grid_frame=None) -> None:
         s = self.view.inset_size

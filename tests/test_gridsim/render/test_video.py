@@ -282,3 +282,23 @@ def test_fuzzed_run_arguments_run_or_exit_2_with_a_message(choice):
         assert Path("afile").read_text() == "keep"
         if code == 2:
             assert "error: " in err.getvalue()
+
+
+def test_the_view_leads_the_ego_and_points_to_a_human_out_of_it():
+    """The picture is centred ahead of the ego (what it drives in 0.8 s, at most 12 m: a
+    2.5 s plan at 14 m/s stays in view); a human out of the picture gets an arrow."""
+    from gridsim.render.topdown import TopDownRenderer
+
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    env.reset(seed=0)
+    world = env.unwrapped.world
+    view = TopDownRenderer()
+    x, y, psi, speed = world.ego[:4]
+    lead = min(0.8 * speed, 12.0)
+    np.testing.assert_allclose(view.centre(world), [x + lead * np.cos(psi),
+                                                    y + lead * np.sin(psi)])  # fmt: skip
+    here = view.render(world, human=world.ego[:2])
+    far = view.render(world, human=world.ego[:2] + np.array([0.0, 500.0]))
+    changed = np.argwhere(np.any(here != far, axis=-1))
+    assert len(changed) > 30  # the arrow and its label
+    assert changed[:, 0].max() < 240  # in the upper half: the human is north
