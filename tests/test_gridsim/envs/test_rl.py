@@ -56,3 +56,20 @@ def test_sb3_make_vec_env_trains_on_the_registered_scalar_variant(tmp_path):
     model.learn(total_timesteps=64)
     with pytest.raises(ValueError, match="weights must be 3 finite numbers"):
         gym.make(SCALAR_ENV_ID, weights=(1.0, 2.0))
+
+
+def test_a_vector_env_without_autoreset_goes_on_after_resetting_what_ended():
+    """``autoreset_mode=DISABLED``: the user resets the environments that ended, with a reset
+    mask, as the docs say; the rewards stay vectors."""
+    venv = gym.make_vec("GridSim-v0", num_envs=2, simulation={"duration": 1.0},
+                        autoreset_mode=gym.vector.AutoresetMode.DISABLED)  # fmt: skip
+    _, info = venv.reset(seed=0)
+    ends = 0
+    for _ in range(25):
+        actions = np.stack([info["reference_setpoints"][i] for i in range(2)])
+        _, rewards, terminated, truncated, info = venv.step(actions)
+        assert rewards.shape == (2, 3)
+        if (done := terminated | truncated).any():
+            ends += int(done.sum())
+            _, info = venv.reset(options={"reset_mask": done})
+    assert ends >= 4
