@@ -16,6 +16,7 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from gridsim.frames import setpoint_times
 from gridsim.sensors.occupancy import GridSpec
+from gridsim.traffic.library import is_number
 from gridsim.vehicle.kinematics import BicycleParams
 
 #: The most road [m] kept populated behind and ahead of the ego (``traffic.window``).
@@ -48,15 +49,6 @@ def _is_number_type(annotation: Any) -> bool:
     )
 
 
-def _numeric(text: str) -> bool:
-    """Whether pydantic would read ``text`` as a number."""
-    try:
-        float(text)
-    except ValueError:
-        return False
-    return True
-
-
 class Strict(BaseModel):
     """A block of a scenario file: unknown keys are errors, and a number key takes numbers
     only (pydantic would read ``yes`` as 1 and ``"12"`` as 12)."""
@@ -71,7 +63,7 @@ class Strict(BaseModel):
         for name, value in data.items():
             field = cls.model_fields.get(name)
             # (other text fails pydantic's own check, which names the key)
-            coerced = isinstance(value, bool) or (isinstance(value, str) and _numeric(value))
+            coerced = isinstance(value, bool) or (isinstance(value, str) and is_number(value))
             if field is not None and coerced and _is_number_type(field.annotation):
                 what = "a YAML yes/no/true/false is a boolean" if isinstance(value, bool) else (
                     "text; write the number without quotes")  # fmt: skip

@@ -217,7 +217,7 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
         try:
             values[:, c] = np.array(raw, dtype=np.float64)
         except ValueError:
-            k = next(k for k, text in enumerate(raw) if not _is_number(text))
+            k = next(k for k, text in enumerate(raw) if not is_number(text))
             values[:k, c] = np.array(raw[:k], dtype=np.float64)  # (the rows before it)
             first_bad.append((k, c, f"column {name!r} is not a number: {short_repr(raw[k])}"))
         end = first_bad[-1][0] if first_bad and first_bad[-1][1] == c else len(raw)
@@ -280,7 +280,9 @@ def _warn_pieces(path: Path, split: list, single: list, resized: list) -> None:
         warnings.warn(f"{path}: " + "; ".join(parts), DataWarning, stacklevel=4)
 
 
-def _is_number(text: str) -> bool:
+def is_number(text: str) -> bool:
+    """Whether ``text`` reads as a number (``float(text)``: what a CSV cell and a scenario
+    key given as text take)."""
     try:
         float(text)
     except ValueError:
