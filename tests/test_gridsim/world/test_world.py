@@ -208,6 +208,26 @@ def _follow_tick_statuses():
         world_kernels.follow_tick = original
 
 
+def _compiled_tick(env, action):
+    """One tick of ``env``'s world following ``action`` (through its action type's
+    controller), compiled (``World.tick_following``) and in Python on a copy: the same
+    result and the same world, bit for bit. Returns the result and the controller."""
+    import copy
+
+    from gridsim.frames import grid_rotation
+    from gridsim.vehicle.kinematics import PSI
+
+    env = env.unwrapped
+    world = env.world
+    rotation = grid_rotation(env._orientation, world.ego[PSI])
+    control, _ = env.action_kind.controller(world, action, rotation)
+    twin = copy.deepcopy(world)
+    result = twin.tick(*control(twin))
+    assert world.tick_following(control) == result
+    _assert_same_world(world, twin)
+    return result, control
+
+
 @pytest.mark.parametrize("seed, participants", [(0, None), (3, None), (26, 45)])
 def test_compiled_path_following_tick_equals_the_python_tick(seed, participants):
     """``World.tick_following`` (the trajectory action's controller, the ego's step, the road's
@@ -215,11 +235,8 @@ def test_compiled_path_following_tick_equals_the_python_tick(seed, participants)
     leaves a world in the same state, bit for bit, as ``world.tick(*control(world))``, with
     the same contacts: over episodes with noisy set-points, stops (no path), road growth,
     profile renewals, vehicles alongside and collisions."""
-    import copy
 
     from gridsim.envs.gridsim_env import GridSimEnv
-    from gridsim.frames import grid_rotation
-    from gridsim.vehicle.kinematics import PSI
     from gridsim.world import world_kernels
     from gridsim.world.collision_kernels import within_reach
 
@@ -236,19 +253,13 @@ def test_compiled_path_following_tick_equals_the_python_tick(seed, participants)
                 action = action * np.array([2.0, 1.0]) + np.array([0.0, 3.5])
             if i % 97 == 0:
                 action = -np.abs(action)  # behind the ego: a stop
-            world = env.unwrapped.world
-            rotation = grid_rotation(env._orientation, world.ego[PSI])
-            control, _ = env.action_kind.controller(world, action, rotation)
+            result, control = _compiled_tick(env, action)
             stops += control.path is None
-            twin = copy.deepcopy(world)
-            r_python = twin.tick(*control(twin))
-            r_compiled = world.tick_following(control)
-            assert r_compiled == r_python
-            contacts += r_python.contact.any
-            f, (_, _, radius) = twin.traffic.fleet, twin.collision.ego_box
-            cx, cy = twin.ego_center()
+            contacts += result.contact.any
+            world = env.unwrapped.world
+            f, (_, _, radius) = world.traffic.fleet, world.collision.ego_box
+            cx, cy = world.ego_center()
             alongside += len(within_reach(f.active, f.x, f.y, f.length, f.width, cx, cy, radius))
-            _assert_same_world(world, twin)
             _, _, terminated, truncated, info = env.step(info["reference_setpoints"])
             if terminated or truncated:
                 _, info = env.reset(seed=seed + i + 1)
@@ -263,11 +274,8 @@ def test_compiled_tick_on_static_roads_equals_the_python_tick(scenario):
     one compiled call; the refill in Python every tick: city respawns, recorded tracks placed
     and retired) leaves a world in the same state, bit for bit, as the Python tick, with the
     same contacts: over episodes with noisy set-points, stops, and collisions."""
-    import copy
 
     from gridsim.envs.gridsim_env import GridSimEnv
-    from gridsim.frames import grid_rotation
-    from gridsim.vehicle.kinematics import PSI
     from gridsim.world import world_kernels
 
     env = GridSimEnv(scenario)
@@ -284,16 +292,9 @@ def test_compiled_tick_on_static_roads_equals_the_python_tick(scenario):
                 action = action @ turn.T
             if i % 53 == 0:
                 action = -np.abs(action)  # behind the ego: a stop
-            world = env.unwrapped.world
-            rotation = grid_rotation(env._orientation, world.ego[PSI])
-            control, _ = env.action_kind.controller(world, action, rotation)
+            result, control = _compiled_tick(env, action)
             stops += control.path is None
-            twin = copy.deepcopy(world)
-            r_python = twin.tick(*control(twin))
-            r_compiled = world.tick_following(control)
-            assert r_compiled == r_python
-            contacts += r_python.contact.any or r_python.off_road
-            _assert_same_world(world, twin)
+            contacts += result.contact.any or result.off_road
             _, _, terminated, truncated, info = env.step(action)
             if terminated or truncated:
                 _, info = env.reset(seed=i + 2)
@@ -333,7 +334,6 @@ def test_compiled_tick_edge_cases_equal_the_python_tick(tmp_path, case, monkeypa
     handed to it), with more active cars than the compiled leader search takes (it hands the
     tick to Python), and on a clock that does not start at 0: the same world as the Python
     tick, bit for bit."""
-    import copy
 
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.world import world_kernels
@@ -349,14 +349,9 @@ def test_compiled_tick_edge_cases_equal_the_python_tick(tmp_path, case, monkeypa
     contacts = 0
     with _follow_tick_statuses() as statuses:
         for _ in range(40):
-            world = env.unwrapped.world
-            control, _ = env.action_kind.controller(world, info["reference_setpoints"], 0.0)
-            twin = copy.deepcopy(world)
-            r_python = twin.tick(*control(twin))
-            assert world.tick_following(control) == r_python
-            _assert_same_world(world, twin)
-            contacts += r_python.collided
-            if r_python.collided:
+            result, _ = _compiled_tick(env, info["reference_setpoints"])
+            contacts += result.collided
+            if result.collided:
                 break
             _, _, terminated, truncated, info = env.step(info["reference_setpoints"])
             if terminated or truncated:
@@ -373,7 +368,6 @@ def test_compiled_tick_edge_cases_equal_the_python_tick(tmp_path, case, monkeypa
 def test_compiled_held_inputs_tick_equals_the_python_tick(action_type):
     """The control and discrete actions' compiled ticks (inputs held) leave a world in the
     same state, bit for bit, as ``world.tick(*control(world))``."""
-    import copy
 
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.world import world_kernels
@@ -386,11 +380,7 @@ def test_compiled_held_inputs_tick_equals_the_python_tick(action_type):
             action = env.action_space.sample()
             if action_type == "control" and i % 3:
                 action = np.array([0.5, 0.0], np.float32)  # mostly straight on
-            world = env.unwrapped.world
-            control, _ = env.action_kind.controller(world, action, 0.0)
-            twin = copy.deepcopy(world)
-            assert world.tick_following(control) == twin.tick(*control(twin))
-            _assert_same_world(world, twin)
+            _compiled_tick(env, action)
             _, _, terminated, truncated, _ = env.step(action)
             if terminated or truncated:
                 env.reset(seed=100 + i)
