@@ -45,11 +45,6 @@ _NO_EGO = (False, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0)
 _EVERYWHERE = (np.inf, np.inf)
 
 
-@lru_cache(maxsize=64)
-def _upper_pairs(m: int) -> tuple[np.ndarray, np.ndarray]:
-    return np.triu_indices(m, k=1)
-
-
 @dataclass(frozen=True)
 class FleetParams:
     """Car-following and look-up settings."""
@@ -187,30 +182,27 @@ class Fleet:
 
     def _cross_candidates(self) -> tuple[np.ndarray, ...]:
         """Leader candidates ``(a, b, gap, lead_v)`` on other paths for the vehicles outside
-        lane corridors (see :meth:`_cross_path`); none when all are in one."""
+        lane corridors, kept if the other vehicle lies on the follower's path as far ahead as
+        it is (:func:`~gridsim.traffic.fleet_kernels.cross_path`); none when all are in one.
+        Pairs come from all pairs when few vehicles are active (as the compiled world tick
+        finds them: :func:`~gridsim.traffic.fleet_kernels.all_pairs_candidates`), else from
+        a k-d tree. Pairs inside one corridor are left to
+        :func:`~gridsim.traffic.fleet_kernels.same_path`."""
         if self.paths.all_in_corridors:
             return _NO_CANDIDATES
         idx = np.flatnonzero(self.active)
+        paths = self.paths.kernel_data()
+        if len(idx) <= kernels.ALL_PAIRS_MAX:
+            return kernels.all_pairs_candidates(self.state, idx, self.paths.corridor_ids, paths,
+                                                self._settings[0])  # fmt: skip
         corridor = self.paths.corridors(self.path[idx])
         if np.all(corridor >= 0):
             return _NO_CANDIDATES
-        return self._cross_path(idx, corridor, np.cos(self.psi[idx]), np.sin(self.psi[idx]))
-
-    def _cross_path(self, idx, corridor, c, sn):
-        """Leaders on another path: pairs from a k-d tree (or all pairs when few), kept if
-        the other vehicle lies on the follower's path as far ahead as it is
-        (:func:`~gridsim.traffic.fleet_kernels.cross_path`). Pairs inside one corridor are
-        left to :func:`~gridsim.traffic.fleet_kernels.same_path`."""
-        m = len(idx)
-        if m <= kernels.ALL_PAIRS_MAX:  # all pairs, tested in the kernel
-            i, j = _upper_pairs(m)
-            test_close = True
-        else:
-            pts = np.stack([self.x[idx], self.y[idx]], axis=1)
-            pairs = cKDTree(pts).query_pairs(self.p.lookahead, output_type="ndarray")
-            i, j, test_close = pairs[:, 0], pairs[:, 1], False
-        return kernels.cross_path(idx, corridor, c, sn, i, j, test_close, self.state,
-                                  self.paths.kernel_data(), self.p.lookahead,
+        pts = np.stack([self.x[idx], self.y[idx]], axis=1)
+        pairs = cKDTree(pts).query_pairs(self.p.lookahead, output_type="ndarray")
+        c, sn = np.cos(self.psi[idx]), np.sin(self.psi[idx])
+        return kernels.cross_path(idx, corridor, c, sn, pairs[:, 0], pairs[:, 1], False,
+                                  self.state, paths, self.p.lookahead,
                                   self.p.lateral_margin)  # fmt: skip
 
     # -- the tick --------------------------------------------------------------------------------

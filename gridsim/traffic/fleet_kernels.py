@@ -184,6 +184,41 @@ def cross_path(idx, corridor, c, sn, pi, pj, test_close, state, paths, lookahead
     return a[:m], b[:m], gap[:m], lead_v[:m]
 
 
+@kernel
+def no_candidates():
+    """No leader candidates ``(a, b, gap, lead_v)`` (new arrays: a global one is read-only, of
+    another type)."""
+    return (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
+
+
+@kernel
+def all_pairs_candidates(state, idx, corridors, paths, leader_settings):
+    """The leader candidates on other paths (:func:`cross_path`) of the active participants
+    ``idx`` (at most :data:`ALL_PAIRS_MAX`), over all their pairs in ``np.triu_indices``
+    order; none when each is on a path in a lane corridor (``corridors``: every path slot's
+    corridor, ``-1`` for none; ``leader_settings``: ``(lookahead, lateral_margin, _)``).
+    Python's tick (:meth:`~gridsim.traffic.fleet.Fleet.find_leaders`) and the compiled world
+    tick both call it."""
+    f = FleetState(*state)
+    corridor = corridors[f.path[idx]]
+    m = len(idx)
+    outside = False
+    for q in range(m):
+        outside = outside or corridor[q] < 0
+    if not outside:
+        return no_candidates()
+    pi, pj = np.empty(m * (m - 1) // 2, np.int64), np.empty(m * (m - 1) // 2, np.int64)
+    k = 0
+    for a in range(m):
+        for b in range(a + 1, m):
+            pi[k], pj[k] = a, b
+            k += 1
+    psi = f.psi[idx]
+    lookahead, margin, _ = leader_settings
+    return cross_path(idx, corridor, np.cos(psi), np.sin(psi), pi, pj, True, state, paths,
+                      lookahead, margin)  # fmt: skip
+
+
 #: m: spacing of the samples of a participant's path ahead in :func:`swept_conflict`
 SWEEP_STEP = 0.5
 #: s: a participant yields to an ego that reaches the conflict this long after it would

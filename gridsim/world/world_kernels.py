@@ -24,7 +24,12 @@ import numpy as np
 
 from gridsim.jit import jitable, kernel
 from gridsim.road.polyline_kernels import ahead_of, track
-from gridsim.traffic.fleet_kernels import ALL_PAIRS_MAX, FleetState, cross_path
+from gridsim.traffic.fleet_kernels import (
+    ALL_PAIRS_MAX,
+    FleetState,
+    all_pairs_candidates,
+    no_candidates,
+)
 from gridsim.traffic.fleet_kernels import tick as fleet_tick
 from gridsim.vehicle.control import pursuit_one
 from gridsim.vehicle.kinematics_kernels import step_one
@@ -77,38 +82,6 @@ def _not_done(status, accel, steer, ego):
                       np.zeros(0, np.int64), (np.nan, np.nan), False)  # fmt: skip
 
 
-@jitable
-def _no_candidates():
-    """No leader candidates ``(a, b, gap, lead_v)`` (new arrays: a global one is read-only, of
-    another type)."""
-    return (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0), np.zeros(0))
-
-
-@jitable
-def _cross_candidates(state, idx, corridor, paths, leader_settings):
-    """:meth:`~gridsim.traffic.fleet.Fleet._cross_candidates` of the active participants
-    ``idx`` (at most :data:`ALL_PAIRS_MAX`; ``corridor``: their paths' corridors): none when
-    every one is in a corridor, else :func:`~gridsim.traffic.fleet_kernels.cross_path` over
-    all pairs in ``np.triu_indices`` order."""
-    m = len(idx)
-    outside = False
-    for q in range(m):
-        outside = outside or corridor[q] < 0
-    if not outside:
-        return _no_candidates()
-    pi, pj = np.empty(m * (m - 1) // 2, np.int64), np.empty(m * (m - 1) // 2, np.int64)
-    k = 0
-    for a in range(m):
-        for b in range(a + 1, m):
-            pi[k], pj[k] = a, b
-            k += 1
-    f = FleetState(*state)
-    psi = f.psi[idx]
-    lookahead, margin, _ = leader_settings
-    return cross_path(idx, corridor, np.cos(psi), np.sin(psi), pi, pj, True, state, paths,
-                      lookahead, margin)  # fmt: skip
-
-
 @kernel
 def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     """One tick of the ego following a path (or holding its inputs). ``ego``: its state
@@ -139,13 +112,12 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
     if not (math.isfinite(accel) and math.isfinite(steer)):
         return _not_done(NOT_FINITE, accel, steer, ego)
     state, paths, profiles, fleet_settings, decay, window, count, corridors, refill = traffic
-    cross = _no_candidates()
+    cross = no_candidates()
     if len(corridors):  # paths outside lane corridors: leader candidates on other paths
-        f = FleetState(*state)
-        idx = np.flatnonzero(f.active)
+        idx = np.flatnonzero(FleetState(*state).active)
         if len(idx) > ALL_PAIRS_MAX:
             return _not_done(BEFORE, accel, steer, ego)
-        cross = _cross_candidates(state, idx, corridors[f.path[idx]], paths, fleet_settings[0])
+        cross = all_pairs_candidates(state, idx, corridors, paths, fleet_settings[0])
     x1, y1, psi1, v1, d1, a1, r1 = step_one(x, y, psi, v, delta, accel, steer, step_limits, dt)
     s1, j1 = np.nan, -1
     if road is not None:  # a road that grows and trims: the ego's place on it
