@@ -14,7 +14,6 @@ file is usable.
 
 from __future__ import annotations
 
-import glob
 import hashlib
 import os
 import warnings
@@ -25,6 +24,7 @@ from typing import Any
 from gridsim.errors import DataWarning, GridSimError, ScenarioError
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import load_scenario
+from gridsim.scenario.parts import matching_files
 from gridsim.scenario.schema import Scenario
 from gridsim.seeding import Salt, stream
 
@@ -46,12 +46,11 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     text = str(ref)
     path = Path(text)
     if path.is_dir():
-        files = [f for f in path.iterdir() if f.is_file() and f.suffix.lower() in SUFFIXES]
+        files = matching_files(path, SUFFIXES)
         # YAML scenario files one level down (XML there is more often a map: `gridsim import`
         # puts them in maps/)
-        nested = {d.name: sorted({f.suffix.lower() for f in d.iterdir() if f.is_file()
-                                  and f.suffix.lower() in _YAML}) for d in path.iterdir()
-                  if d.is_dir()}  # fmt: skip
+        nested = {d.name: sorted({f.suffix.lower() for f in matching_files(d, _YAML)})
+                  for d in path.iterdir() if d.is_dir()}  # fmt: skip
         nested = {name: suffixes for name, suffixes in nested.items() if suffixes}
         if nested:
             suffixes = sorted({s for found in nested.values() for s in found})
@@ -63,8 +62,7 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     elif "," in text and not path.exists():
         return _listed_files(text)
     elif any(c in text for c in "*?["):
-        files = [Path(f) for f in glob.glob(text, recursive=True)]
-        files = [f for f in files if f.is_file() and f.suffix.lower() in SUFFIXES]
+        files = matching_files(text, SUFFIXES)
     else:
         return None
     if not files:

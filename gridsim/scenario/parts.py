@@ -92,7 +92,12 @@ def library_for(scenario: Scenario) -> TrajectoryLibrary:
 
 def _library_files(scenario: Scenario) -> tuple:
     """``traffic.library`` as ``"builtin"`` or file stamps (:func:`stamped`)."""
-    files = []
+    return tuple(f if f == "builtin" else stamped(f) for f in _library_refs(scenario))
+
+
+def _library_refs(scenario: Scenario) -> list:
+    """``traffic.library`` as ``"builtin"`` or the paths of its files."""
+    files: list = []
     for ref in scenario.config.traffic.library:
         if ref == "builtin":
             files.append("builtin")
@@ -102,10 +107,21 @@ def _library_files(scenario: Scenario) -> tuple:
                     f"{scenario.source}: traffic.library 'scene' needs road.type recorded (the "
                     "tracks of its CommonRoad map file)"
                 )
-            files.append(stamped(map_path(scenario)))
+            files.append(map_path(scenario))
         else:
-            files += [stamped(path) for path in _library_paths(scenario, ref)]
-    return tuple(files)
+            files += _library_paths(scenario, ref)
+    return files
+
+
+def matching_files(folder_or_pattern: Path | str, suffixes: tuple[str, ...]) -> list[Path]:
+    """The files whose suffix (in any case) is one of ``suffixes`` in a folder, or matching a
+    glob pattern (``**`` recursive), sorted."""
+    path = Path(folder_or_pattern)
+    if path.is_dir():
+        found = path.iterdir()
+    else:
+        found = map(Path, glob.glob(str(folder_or_pattern), recursive=True))
+    return sorted(f for f in found if f.is_file() and f.suffix.lower() in suffixes)
 
 
 #: What a folder or glob of trajectory files in ``traffic.library`` takes.
@@ -121,8 +137,7 @@ def _library_paths(scenario: Scenario, ref: str) -> list[Path]:
         path = scenario.base_dir / path
         pattern = str(Path(glob.escape(str(scenario.base_dir))) / ref)
     if path.is_dir() or any(c in ref for c in "*?["):
-        found = path.iterdir() if path.is_dir() else map(Path, glob.glob(pattern, recursive=True))
-        files = sorted(f for f in found if f.is_file() and f.suffix.lower() in TRAJECTORY_SUFFIXES)
+        files = matching_files(path if path.is_dir() else pattern, TRAJECTORY_SUFFIXES)
         if not files:
             raise ScenarioError(f"{scenario.source}: traffic.library {ref!r}: no trajectory "
                                 f"files ({', '.join(TRAJECTORY_SUFFIXES)}) in {path}")  # fmt: skip
@@ -133,7 +148,8 @@ def _library_paths(scenario: Scenario, ref: str) -> list[Path]:
 def input_files(scenario: Scenario) -> list[Path]:
     """The files a scenario's worlds are read from besides its own (its map and trajectory
     files; built-in data, part of the installed package, is not listed)."""
-    return [Path(stamp[0]) for stamp in input_stamps(scenario) if stamp != "builtin"]
+    files = [f for f in _library_refs(scenario) if f != "builtin"]
+    return (files + [map_path(scenario)]) if is_recorded(scenario) else files
 
 
 def input_stamps(scenario: Scenario) -> tuple:
