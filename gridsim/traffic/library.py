@@ -189,7 +189,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
                                 np.unwrap(piece[:, 3]), piece[:, 4], float(piece[0, 5]),
                                 float(piece[0, 6]), str(path)))  # fmt: skip
-    _warn_pieces(path, split, single, resized)
+    _warn_tracks(path, split, single, resized)
     if not tracks:
         raise DataError(f"{path}: no track with at least 2 states")
     return tracks
@@ -253,7 +253,7 @@ def _pieces(a: np.ndarray) -> list[np.ndarray]:
     return np.split(a, cuts) if len(cuts) else [a]
 
 
-def _warn_pieces(path: Path, split: list, single: list, resized: list) -> None:
+def _warn_tracks(path: Path, split: list, single: list, resized: list) -> None:
     """One :class:`DataWarning` naming the tracks cut at a pause, those left out and those
     whose size varies."""
     parts = []
