@@ -237,7 +237,10 @@ def swept_conflict(paths, path_id, s, d, length, width, v, ego, margin, horizon,
     footprint ``length`` x ``width`` [m] and speed ``v`` [m/s] (at least 1 m/s is assumed);
     ``ego``: ``(x, y, v, length, width, cos psi, sin psi)``. A participant whose front is
     already inside the swept footprint is committed: it gets inf (it clears the way rather
-    than stopping in it)."""
+    than stopping in it), and so is one whose front is in the ego's lane further ahead (in
+    the ego's box swept forward without end): a car turning across the ego's lane beyond
+    the sweep would otherwise stop in that lane, blocking it, for a conflict further on its
+    path."""
     ex, ey, ev, e_len, e_wid, e_c, e_s = ego
     ev = max(ev, 0.0)
     half_along = 0.5 * e_len + 0.5 * width + margin  # ego box + participant, along the ego
@@ -253,10 +256,10 @@ def swept_conflict(paths, path_id, s, d, length, width, v, ego, margin, horizon,
         a = (px - ex) * e_c + (py - ey) * e_s
         b = (py - ey) * e_c - (px - ex) * e_s
         inside = -half_along < a < ahead and abs(b) < half_across
+        if u == u_front and -half_along < a and abs(b) < half_across:
+            return np.inf  # committed: its front is in the ego's lane ahead
         if u_in < 0:
             if inside:
-                if u == u_front:
-                    return np.inf  # committed
                 u_in, a_in = u, a
             elif u > u_last:
                 return np.inf  # no conflict within the horizon

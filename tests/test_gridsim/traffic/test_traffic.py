@@ -231,6 +231,42 @@ def test_a_turning_car_does_not_wait_for_an_ego_far_away():
     assert f.v[0] == pytest.approx(7.0) and f.s[0] == pytest.approx(10.0 + 7.0 * 12.0)
 
 
+def _shallow_crossing(ego_start: float, ego_speed: float = 4.4, car_speed: float = 5.0):
+    """A generated car at ``car_speed`` on a straight path that crosses the ego's lane (y = 0)
+    at x = 20 m heading 145 degrees (towards the ego, at a shallow angle: the path stays in
+    the lane for 7 m), and an ego driving along y = 0 at ``ego_speed`` without braking from
+    x = ``ego_start``. Returns whether the footprints ever overlapped and for how many ticks
+    the car stood (< 0.1 m/s) with its footprint in the ego's lane ahead of the ego."""
+    f = Fleet(1)
+    h = np.radians(145.0)
+    ends = np.array([-40.0, 40.0])[:, None] * [np.cos(h), np.sin(h)]
+    points = ends + [20.0, 0.0]
+    path = f.paths.add_path(points, np.array([0.0, 80.0]))
+    rows = np.array([[0, car_speed, 0, 0], [100 * car_speed, car_speed, 0, 0]])
+    prof = f.profiles.add(np.array([0.0, 100.0]), rows)
+    f.place(0, path=path, s=10.0, profile=prof, tau=0.0, geometric=False)
+    x, hit, stood = ego_start, False, 0
+    for _ in range(100):
+        f.tick(0.1, EgoPose(x, 0.0, 0.0, ego_speed, 4.5, 1.8))
+        x += 0.1 * ego_speed
+        car = box_corners(f.x[0], f.y[0], f.psi[0], f.length[0], f.width[0])
+        hit |= overlap(car, box_corners(x, 0.0, 0.0, 4.5, 1.8))
+        in_lane = car[:, 1].min() < 0.9 and car[:, 1].max() > -0.9 and car[:, 0].max() > x
+        stood += bool(f.v[0] < 0.1 and in_lane)
+    return hit, stood
+
+
+@pytest.mark.parametrize("ego_start", [-19.0, -18.0, -17.0, -16.0])
+def test_a_car_already_in_the_egos_lane_clears_it_rather_than_stopping_in_it(ego_start):
+    """The car's front is in the ego's lane, further ahead than the ego's 2 s sweep, when the
+    sweep first reaches the rest of its path in the lane. It used to stop there, in the
+    ego's lane, and the ego drove into it (inner-city held-out episode 909333431 of the
+    recipe's seed-0 run); it is committed and clears the lane. (An ego arriving 1.5-3 m
+    later still meets the car entering its lane: it has to brake.)"""
+    hit, stood = _shallow_crossing(ego_start)
+    assert not hit and stood == 0
+
+
 def brute_force_leaders(f: Fleet, ego: EgoPose):
     """O(N^2) reference for Fleet.find_leaders on straight parallel lanes."""
     idx = np.flatnonzero(f.active)
