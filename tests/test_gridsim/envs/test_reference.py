@@ -88,7 +88,7 @@ def test_profile_chain_at_interpolates_as_numpy():
         assert offset == np.interp(t, chain.times[:n], chain.offsets[:n])
 
 
-@pytest.mark.parametrize("seed", [14, 35, 54, 56])
+@pytest.mark.parametrize("seed", [14, 35, 51, 56])
 def test_following_a_revised_reference_does_not_collide(seed):
     """Inner-city seeds whose reference would drive into crossing traffic without revisions."""
     env = GridSimEnv("inner_city", simulation={"duration": 30.0})
