@@ -300,7 +300,9 @@ class GridSimEnv(gym.Env):
         w = self.world
         contact = w.last.contact
         return {
-            "time": w.time,
+            # s; the world's clock is a sum of ticks (7.39999999999999 after 74): shown to
+            # the nanosecond, as a user compares it (7.4)
+            "time": round(w.time, 9),
             "pose": w.ego.copy(),  # [x, y, psi, v, delta] world frame, rear axle
             "collision": bool(contact.vehicles),
             "collided_with": list(contact.vehicles),

@@ -167,6 +167,7 @@ def test_reference_policy_completes_a_seamless_episode_with_zero_l1():
     env = gym.make(ENV_ID)  # full 60 s episode
     total, term, trunc, info = run_episode(env, lambda e, o, i: i["reference_setpoints"], seed=0)
     assert trunc and not term
+    assert info["time"] == 60.0  # the clock as a user compares it (the sum of ticks drifts)
     assert not info["collision"] and not info["off_road"]
     assert total[0] < 1e-6
     assert total[2] > 0
