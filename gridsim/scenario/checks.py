@@ -42,11 +42,17 @@ MAX_SPEED = 70.0
 #: Implied accelerations above this [m/s^2] (median; the shipped tracks' is at most 4.5,
 #: from noisy positions) are implausible.
 MAX_ACCEL = 15.0
+#: A position is a glitch when the velocity turns by more than this [m/s^2] at it (the
+#: shipped tracks' largest, from position noise, is 48) ...
+GLITCH_ACCEL = 100.0
+#: ... and it lies more than this [m] off the line between its neighbours (shipped: 0.24).
+GLITCH_OFFSET = 0.5
 
 
 def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
-    """Flaws of one track: positions off ``road`` (if given) and time stamps that imply
-    implausible speeds or accelerations, or speeds other than the recorded ones."""
+    """Flaws of one track: positions off ``road`` (if given), time stamps that imply
+    implausible speeds or accelerations, or speeds other than the recorded ones, and
+    positions that leap off their neighbours (glitches)."""
     where = track.where
     out = []
     n = len(track.t)
@@ -103,7 +109,30 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
                 f"{where}: positions and time stamps imply accelerations of {typical:.3g} m/s^2 "
                 f"(median; at most {MAX_ACCEL:g}); are time stamps in seconds?"
             )
+        else:
+            out += _glitches(track)
     return out
+
+
+def _glitches(track: Track) -> list[str]:
+    """A flaw naming the positions that leap off their neighbours and back (or jump and stay:
+    both ends are found): a turn of the velocity faster than :data:`GLITCH_ACCEL`, at a
+    position more than :data:`GLITCH_OFFSET` off the line between its neighbours."""
+    t, x, y = track.t, track.x, track.y
+    dt = np.diff(t)
+    vx, vy = np.diff(x) / dt, np.diff(y) / dt
+    turn = np.hypot(np.diff(vx), np.diff(vy)) / (0.5 * (dt[1:] + dt[:-1]))
+    w = dt[:-1] / (dt[:-1] + dt[1:])  # where each inner sample falls between its neighbours
+    off = np.hypot(x[1:-1] - (x[:-2] + w * (x[2:] - x[:-2])),
+                   y[1:-1] - (y[:-2] + w * (y[2:] - y[:-2])))  # fmt: skip
+    bad = np.flatnonzero((turn > GLITCH_ACCEL) & (off > GLITCH_OFFSET)) + 1
+    if not len(bad):
+        return []
+    k = int(bad[np.argmax(off[bad - 1])])
+    more = f", and {len(bad) - 1} other position(s) beside it or elsewhere" if len(bad) > 1 else ""
+    return [f"{track.where}: its position at t = {t[k]:.6g} s leaps {off[k - 1]:.3g} m off the "
+            f"line between its neighbours (the velocity turns at {turn[k - 1]:.3g} m/s^2 there; "
+            f"at most {GLITCH_ACCEL:g}){more}: a glitch in the recording?"]  # fmt: skip
 
 
 @lru_cache(maxsize=16)

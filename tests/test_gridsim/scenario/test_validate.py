@@ -95,3 +95,21 @@ def test_a_heading_against_the_motion_is_a_flaw():
     (problem,) = track_problems(backwards)
     assert "it drives 180 degrees off its recorded heading (median; at most 45)" in problem
     assert track_problems(track("fine", X, np.full(41, -1.75))) == []
+
+
+def test_a_position_that_leaps_off_its_neighbours_is_a_flaw(tmp_path, capsys):
+    """A one-sample glitch at a plausible speed (20 m/s into it, back out of it) is named; the
+    shipped tracks' noise is not (test_shipped_scenes_are_plausible)."""
+    y = np.full(41, -1.75)
+    y[20] += 2.0
+    (problem,) = track_problems(track("spike", X, y))
+    assert ("its position at t = 2 s leaps 2 m off the line between its neighbours (the "
+            "velocity turns at 400 m/s^2 there; at most 100)") in problem  # fmt: skip
+    jumped = X + np.where(np.arange(41) >= 25, 3.0, 0.0)  # a 3 m jump that stays
+    (problem,) = track_problems(track("jump", jumped, np.full(41, -1.75)))
+    assert "its position at t = 2.4 s leaps 1.5 m" in problem
+    path = write_scene(tmp_path, [track("ego", X, np.full(41, -1.75)), track("spike", X + 10, y)],
+                       ego={"track": "random"})  # fmt: skip
+    code, out = validate(capsys, path)
+    assert code == 0 and "track spike of scene crafted: its position at t = 2 s leaps" in out
+    assert "kept as traffic, not offered as the ego" in out
