@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import sys
 
 
 def add_parser(sub) -> None:
@@ -21,10 +22,12 @@ def execute(args: argparse.Namespace) -> int:
         for name, desc in builtin_scenarios().items():
             print(f"{name:16s} {desc}")
         return 0
-    # every usable file, whether or not they agree enough to run as one collection
-    # (gridsim validate says)
+    # every file that loads, whether or not its data is sound and they agree enough to run
+    # as one collection (gridsim validate says: it reads every map and recording)
     scenarios = ([load_scenario(args.path)] if scenario_files(args.path) is None
-                 else usable_files(args.path)[0])  # fmt: skip
+                 else usable_files(args.path, read_data=False)[0])  # fmt: skip
     for sc in scenarios:
         print(f"{sc.source}: {sc.name} ({sc.config.road.type}) {sc.config.description}")
+    print(f"gridsim: {len(scenarios)} scenario(s) listed; `gridsim validate {args.path}` reads "
+          "their maps and recordings and checks them", file=sys.stderr)  # fmt: skip
     return 0

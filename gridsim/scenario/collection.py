@@ -101,12 +101,13 @@ def _get(doc: dict, key: str) -> Any:
 
 
 def usable_files(
-    ref: str | Path, overrides: Mapping[str, Any] | None = None
+    ref: str | Path, overrides: Mapping[str, Any] | None = None, read_data: bool = True
 ) -> tuple[list[Scenario], list[tuple[Path, str]]]:
     """``(scenarios, skipped)``: the files of the folder or glob ``ref`` that load and build
     a world (with ``overrides``), and ``(file, reason)`` for every other one. A
     :class:`~gridsim.errors.DataWarning` names the skipped files; a :class:`ScenarioError`
-    names them all if none is usable."""
+    names them all if none is usable. Without ``read_data`` only the scenario files are
+    checked: their maps and recordings are not read (a listing of a folder of large CSVs)."""
     files = scenario_files(ref)
     if files is None:
         raise ScenarioError(f"{ref}: not a folder or a glob pattern of scenario files")
@@ -114,12 +115,15 @@ def usable_files(
     for f in files:
         try:
             sc = load_scenario(f, overrides)
-            build_world(sc, seed=0)  # resolves maps and libraries, checks the recorded data
+            if read_data:
+                build_world(sc, seed=0)  # resolves maps and libraries, checks the recorded data
         except GridSimError as exc:
             skipped.append((f, str(exc)))
             continue
         scenarios.append(sc)
     report_skipped(str(ref), skipped, len(files), bool(scenarios))
+    if not read_data:
+        return scenarios, skipped
     used = [f for f in files if f not in {g for g, _ in skipped}]
     for first, again, scene in repeated_recordings(list(zip(used, scenarios, strict=True))):
         warnings.warn(f"{ref}: {again} replays the same recording as {first} (scene {scene}, "

@@ -160,6 +160,20 @@ def add_unusable_files(folder: Path) -> dict[str, str]:
             "no_tracks.xml": "no vehicle tracks"}  # fmt: skip
 
 
+def test_scenarios_lists_a_folder_without_reading_its_recordings(folder, capsys):
+    """A listing reads the scenario files, not their maps and recordings (a folder of large
+    CSVs took a minute): a file whose data is unsound is listed, and validate names it."""
+    add_unusable_files(folder)
+    assert main(["scenarios", str(folder)]) == 0
+    out = capsys.readouterr()
+    assert [line.split(":")[0] for line in out.out.splitlines()] == [
+        str(folder / name) for name in ("glitch.xml", "no_tracks.xml", "straight_2018b.xml",
+                                        "straight_2020a.xml", "truncated.xml")]  # fmt: skip
+    assert f"`gridsim validate {folder}` reads their maps and recordings" in out.err
+    assert main(["validate", str(folder)]) == 2
+    assert "jumps 3e+06 m in 0.1 s" in capsys.readouterr().out
+
+
 def test_unusable_files_of_a_collection_are_skipped_and_named(folder):
     reasons = add_unusable_files(folder)
     with pytest.warns(DataWarning) as caught:
