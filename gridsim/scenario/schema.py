@@ -161,6 +161,12 @@ class TrafficConfig(Strict):
         ),
     ] = (80.0, 160.0)
 
+    @field_validator("library", mode="before")
+    @classmethod
+    def _one_file(cls, value: Any) -> Any:
+        """One file, folder or glob may be given alone (``library: tracks.csv``)."""
+        return [value] if isinstance(value, str) else value
+
     @model_validator(mode="after")
     def _order(self) -> TrafficConfig:
         if self.v_max < self.v_min:

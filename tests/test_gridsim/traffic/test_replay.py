@@ -86,10 +86,11 @@ def test_the_traffic_replays_from_the_egos_first_recorded_time(tmp_path, shift):
     assert fleet.x[0] == pytest.approx(71.0)  # 0.1 s later
 
 
-@pytest.mark.parametrize("library", ["parts", "parts/*.csv"])
+@pytest.mark.parametrize("library", [["parts"], ["parts/*.csv"], "parts"])
 def test_a_library_may_be_a_folder_or_a_glob_of_trajectory_files(tmp_path, library):
     """A recording split into files (one per vehicle, per time window): ``traffic.library``
-    takes their folder or a glob, as every other place that takes files does."""
+    takes their folder or a glob, as every other place that takes files does (in a list, or
+    one alone)."""
     import yaml
     from scenes import track as crafted
 
@@ -103,7 +104,7 @@ def test_a_library_may_be_a_folder_or_a_glob_of_trajectory_files(tmp_path, libra
         (tmp_path / "parts" / f"{name}.csv").write_text("\n".join([rows[0], *mine]) + "\n")
     (tmp_path / "tracks.csv").unlink()
     doc = yaml.safe_load(path.read_text())
-    doc["traffic"]["library"] = [library]
+    doc["traffic"]["library"] = library
     path.write_text(yaml.safe_dump(doc))
     env = GridSimEnv(str(path))
     env.reset(seed=0)
