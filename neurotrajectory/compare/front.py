@@ -267,14 +267,17 @@ def heldout_problem(config) -> str | None:
 def _other_tracks(
     scenario: str, trained: tuple[str, ...], scenes: list[tuple[str, Scenario]] | None = None
 ) -> list[tuple[str, str]]:
-    """``(scenario file, track id)`` of every track of ``scenario``'s scenes (one, or each of
-    a collection's usable files; ``scenes`` if loaded already, :func:`_scenes`) that can be
-    the ego and is not in ``trained`` (ids, or ``SCENE/ID`` names)."""
+    """``(scenario file, track id)`` of every track of ``scenario``'s recorded scenes (one, or
+    each of a collection's usable files; ``scenes`` if loaded already, :func:`_scenes`) that
+    can be the ego and is not in ``trained`` (ids, or ``SCENE/ID`` names)."""
     from gridsim.scenario.families.recorded import ego_candidates, scene_of
+    from gridsim.scenario.family import family_of
     from gridsim.traffic.track import ids_in_scene
 
     others = []
     for ref, sc in _scenes(scenario) if scenes is None else scenes:
+        if not family_of(sc).recorded:  # a generated scene beside them: no tracks
+            continue
         seen = set(ids_in_scene(list(trained), scene_of(sc))[0])
         need = sc.config.env.horizon_time
         others += [(ref, t.track_id) for t in ego_candidates(sc)

@@ -1165,20 +1165,24 @@ def _check_pretrain_episodes(config: TrainConfig) -> None:
 
 
 def _with_training_tracks(config: TrainConfig, windows) -> TrainConfig:
-    """On a recorded scene (or a collection of them) with pre-training data (``windows``) and
-    no ``ego_tracks``: the data's tracks of that scene (of a collection: of each of its
-    scenes, as ``SCENE/ID`` names), so that the tracks held out of the data are never driven
-    in training."""
+    """On a recorded scene (or a collection with recorded scenes, generated ones beside them
+    or not) with pre-training data (``windows``) and no ``ego_tracks``: the data's tracks of
+    that scene (of a collection: of each of its recorded scenes, as ``SCENE/ID`` names), so
+    that the tracks held out of the data are never driven in training."""
 
-    if config.ego_tracks or windows is None or not is_recorded(config.scenario):
+    if config.ego_tracks or windows is None:
         return config
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.scenario.collection import is_collection
     from gridsim.scenario.families.recorded import scene_of
+    from gridsim.scenario.family import family_of
     from gridsim.traffic.track import scene_ids, track_name
 
+    recorded = [sc for sc in GridSimEnv(config.scenario).scenarios if family_of(sc).recorded]
+    if not recorded:
+        return config
     names = sorted(np.unique(windows.track).tolist())
-    scenes = [scene_of(sc) for sc in GridSimEnv(config.scenario).scenarios]
+    scenes = [scene_of(sc) for sc in recorded]
     per_scene = {scene: scene_ids(names, scene) for scene in scenes}
     missing = [scene for scene, ids in per_scene.items() if not ids]
     if missing:

@@ -857,6 +857,41 @@ def test_a_run_on_a_collection_of_recorded_scenes_holds_out_the_tracks_of_every_
     assert driven["fitness_sums"]["l1"] == pytest.approx(row["l1"], rel=1e-12)
 
 
+def test_a_collection_with_a_generated_scene_still_holds_out_the_recorded_tracks(tmp_path):
+    """A recorded scene trained beside a generated one (the same ego and scoring): the run's
+    training tracks are the data's tracks of the recorded scene (the generated scene has
+    none; its episodes were driving every recorded track, the held-out ones too), and the
+    held-out report drives the recorded scene's other tracks only."""
+    from types import SimpleNamespace
+
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.scenario.families.recorded import ego_candidates, scene_of
+    from gridsim.scenario.loader import load_scenario
+    from neurotrajectory.compare.front import heldout
+    from neurotrajectory.evolve.runs import _with_training_tracks
+
+    generated = tmp_path / "seamless_fast.yaml"
+    generated.write_text("name: seamless_fast\nroad: {type: seamless}\n"
+                         "ego: {vehicle: {v_max: 25.0, a_max: 3.0}}\n"
+                         "env: {speed_range: [0.0, 30.0]}\n")  # fmt: skip
+    scene = scene_of(load_scenario("us101_4_1"))
+    usable = sorted(t.track_id for t in ego_candidates(load_scenario("us101_4_1")))
+    trained = [f"{scene}/{t}" for t in usable[2:]]
+    base = TrainConfig(scenario=f"us101_4_1,{generated}", preset="tiny", population=2,
+                       generations=1, episodes=1, episode_seconds=2.0,
+                       validation_episodes=0)  # fmt: skip
+    cfg = _with_training_tracks(base, SimpleNamespace(track=np.array(trained)))
+    assert cfg.ego_tracks == tuple(trained)
+    env = GridSimEnv(cfg.scenario, **cfg.overrides)
+    for seed in range(8):
+        env.reset(seed=seed)
+        if env.scenario.name == "us101_4_1":
+            assert f"{scene}/{env.world.ego_track.track_id}" in trained
+    Run.create(tmp_path / "run", cfg).train(progress=False)
+    report = heldout(tmp_path / "run", 20)
+    assert report["ego_tracks"] == [f"us101_4_1/{t}" for t in usable[:2]]
+
+
 def test_a_population_too_big_for_memory_is_refused_before_allocating(tmp_path, capsys):
     argv = ["train", "--preset", "default", "--population", "100000", "--out",
             str(tmp_path / "run"), "--quiet"]  # fmt: skip
