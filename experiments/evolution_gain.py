@@ -44,6 +44,9 @@ GROUPS = {
 #: evolved on the first alone).
 SCENES = {"highway": "us101_4_1,us101_3_3", "urban": "lankershim_1_1,peachtree_4_8"}
 
+#: The seamless road with the recorded highway scenes' ego and scoring (``with-seamless``).
+SEAMLESS_HIGHWAY = Path(__file__).resolve().parent / "scenarios" / "seamless_highway.yaml"
+
 #: Flags added to the recipe (``{scenes}``: the group's :data:`SCENES`; a variant's
 #: ``--selection`` replaces the recipe's).
 VARIANTS = {
@@ -82,6 +85,10 @@ VARIANTS = {
         "--validation-episodes",
         "24",
     ],
+    # the recipe's recorded scenes and the generated seamless road beside them (the same ego
+    # and scoring): generations and validation also drive generated episodes; held out:
+    # the recorded scenes' tracks, as the recipe's
+    "with-seamless": ["--scenario", "{scenes},{seamless_highway}"],
     "es-both-scenes-4-episodes-validation-24": [
         "--selection",
         "es",
@@ -137,7 +144,8 @@ def main() -> None:
             for variant in args.variants:
                 run = root / f"{group}-s{seed}-{variant}{suffix}"
                 train_s = None
-                extra = [f.format(scenes=SCENES.get(group, "")) for f in VARIANTS[variant]]
+                extra = [f.format(scenes=SCENES.get(group, ""), seamless_highway=SEAMLESS_HIGHWAY)
+                         for f in VARIANTS[variant]]  # fmt: skip
                 if not (run / "front.json").exists():
                     train_s = _nt("train", *flags, *COMMON, *extra, "--seed",
                                   str(seed), "--out", str(run))  # fmt: skip
