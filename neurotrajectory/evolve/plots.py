@@ -70,11 +70,9 @@ def plot_run(
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(NAMES[k], fontsize=9, pad=10)
-    # one legend under the panels, clear of the points
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=3, fontsize=8)
     fig.suptitle("every member of every generation, on that generation's training episodes "
                  "(drawn anew each generation)", fontsize=10)  # fmt: skip
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    _legend_below(fig, axes[0], 3, 0.07)
     paths.append(_save(fig, folder / "objectives.png"))
 
     if final is None:
@@ -114,10 +112,8 @@ def plot_run(
                                        f"l3 {k3:.4g}")  # fmt: skip
         ax.set_xlabel(NAMES[i], fontsize=8)
         ax.set_ylabel(NAMES[j], fontsize=8)
-    # one legend under the panels, clear of the points
-    fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=4, fontsize=8)
     fig.suptitle(title, fontsize=10)
-    fig.tight_layout(rect=(0, 0.08, 1, 1))
+    _legend_below(fig, axes[0], 4, 0.08)
     paths.append(_save(fig, folder / "front.png"))
 
     paths.append(_hypervolume(folder / "hypervolume.png", history, anchored))
@@ -182,10 +178,16 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(name, fontsize=9, pad=10)
-    axes[0].legend(fontsize=8)
     fig.suptitle("learning curve: on the validation episodes (none trained on)", fontsize=10)
-    fig.tight_layout()
+    _legend_below(fig, axes[0], 3, 0.08)
     return _save(fig, path)
+
+
+def _legend_below(fig, ax, columns: int, height: float) -> None:
+    """One legend (of ``ax``'s labels) under the panels, clear of the points, in the bottom
+    ``height`` of the figure (a share of it)."""
+    fig.legend(*ax.get_legend_handles_labels(), loc="lower center", ncol=columns, fontsize=8)
+    fig.tight_layout(rect=(0, height, 1, 1))
 
 
 #: The least span of an axis, as a share of its values' size (see :func:`_span`).
