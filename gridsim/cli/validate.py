@@ -58,10 +58,13 @@ def execute(args: argparse.Namespace) -> int:
         # (the verdict as comments, so that the output can be saved as a file)
         import yaml
 
+        from gridsim.scenario.loader import absolute_paths
+
         print("\n".join(f"# {line}" for line in said.splitlines()))
-        print(f"# {args.path} as it is run (every key; the family's defaults filled in)")
-        print(yaml.safe_dump(sc.config.model_dump(mode="json"), sort_keys=False, width=100),
-              end="")  # fmt: skip
+        print(f"# {args.path} as it is run (every key; the family's defaults filled in; its "
+              "files by absolute paths, so that it loads from any folder)")  # fmt: skip
+        doc = absolute_paths(sc.config.model_dump(mode="json"), sc.base_dir)
+        print(yaml.safe_dump(doc, sort_keys=False, width=100), end="")
         return 0
     failed, usable = 0, []
     for f in files:  # a collection: one line per file, its problems below it

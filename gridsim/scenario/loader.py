@@ -370,10 +370,10 @@ def _extended(doc: Mapping[str, Any], source: str, base_dir: Path | None,
     _check_mapping(parent, parent_source)
     parent = _extended(parent, parent_source, parent_dir, (*chain, source))
     own = {k: v for k, v in doc.items() if k != "extends"}
-    return deep_merge(_absolute_paths(parent, parent_dir), own)
+    return deep_merge(absolute_paths(parent, parent_dir), own)
 
 
-def _absolute_paths(doc: dict[str, Any], base_dir: Path | None) -> dict[str, Any]:
+def absolute_paths(doc: dict[str, Any], base_dir: Path | None) -> dict[str, Any]:
     """``doc`` with its relative file paths (``road.map``, ``traffic.library`` files) made
     absolute against ``base_dir``, so that they name the same files from another folder."""
     if base_dir is None:
@@ -387,9 +387,11 @@ def _absolute_paths(doc: dict[str, Any], base_dir: Path | None) -> dict[str, Any
     out = dict(doc)
     if isinstance(out.get("road"), Mapping) and "map" in out["road"]:
         out["road"] = {**out["road"], "map": absolute(out["road"]["map"])}
-    if isinstance(out.get("traffic"), Mapping) and isinstance(out["traffic"].get("library"), list):
-        out["traffic"] = {**out["traffic"],
-                          "library": [absolute(r) for r in out["traffic"]["library"]]}  # fmt: skip
+    library = out["traffic"].get("library") if isinstance(out.get("traffic"), Mapping) else None
+    if isinstance(library, str):  # one alone
+        library = [library]
+    if isinstance(library, list):
+        out["traffic"] = {**out["traffic"], "library": [absolute(r) for r in library]}
     return out
 
 

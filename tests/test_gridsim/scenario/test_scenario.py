@@ -3,6 +3,7 @@
 import string
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
@@ -13,7 +14,12 @@ from gridsim.errors import ScenarioError
 from gridsim.scenario.build import build_world
 from gridsim.scenario.families.inner_city import CityRoadConfig
 from gridsim.scenario.families.seamless import SeamlessRoadConfig
-from gridsim.scenario.loader import builtin_scenarios, load_scenario, parse_scenario
+from gridsim.scenario.loader import (
+    absolute_paths,
+    builtin_scenarios,
+    load_scenario,
+    parse_scenario,
+)
 
 
 def test_builtins_are_listed_with_descriptions():
@@ -193,6 +199,28 @@ def test_builtin_files_state_only_what_differs_from_their_family(name, tmp_path,
     resolved = yaml.safe_load(out)  # the whole output: saved as a file, it loads
     assert set(resolved) >= {"simulation", "road", "traffic", "ego", "sensor", "env"}
     assert parse_scenario(resolved, path, base_dir=tmp_path).config == config
+
+
+def test_a_resolved_scenario_saved_elsewhere_names_the_same_files(tmp_path, capsys):
+    """`validate --resolved` names a scenario's files by absolute paths: saved in another
+    folder, the output loads as the same scenario (a relative library had named a file
+    beside the saved copy)."""
+    from scenes import track, write_scene
+
+    x = np.linspace(20.0, 60.0, 41)
+    path = write_scene(tmp_path, [track("ego", x, np.full(41, -1.75))],
+                       traffic={"library": "tracks.csv"})  # fmt: skip
+    assert main(["validate", "--resolved", str(path)]) == 0
+    (tmp_path / "other").mkdir()
+    saved = tmp_path / "other" / "resolved.yaml"
+    saved.write_text(capsys.readouterr().out)
+    config = load_scenario(saved).config
+    assert config.traffic.library == [str(tmp_path / "tracks.csv")]
+    original = load_scenario(path)
+    assert config.model_dump(mode="json") == absolute_paths(
+        original.config.model_dump(mode="json"), original.base_dir
+    )
+    assert main(["validate", str(saved)]) == 0
 
 
 def test_validate_resolved_takes_one_file(capsys):
@@ -422,11 +450,12 @@ def test_a_file_written_from_scratch_gets_its_familys_defaults():
     assert recorded.ego.vehicle.v_max == 25.0 and recorded.env.speed_range == (0.0, 30.0)
 
 
-def test_a_scenario_extends_a_built_in_or_another_file(tmp_path):
+@pytest.mark.parametrize("library", ["[tracks.csv]", "tracks.csv"])  # a list, or one alone
+def test_a_scenario_extends_a_built_in_or_another_file(tmp_path, library):
     (tmp_path / "sub").mkdir()
     (tmp_path / "sub" / "busy.yaml").write_text(
         "extends: inner_city\nname: busy\ntraffic:\n  participants: 40\n"
-        "  library: [tracks.csv]\n")  # fmt: skip
+        f"  library: {library}\n")  # fmt: skip
     (tmp_path / "busier.yaml").write_text(
         "extends: sub/busy.yaml\nname: busier\nsimulation:\n  duration: 20\n"
     )
