@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import select
 import shlex
 import sys
 import tempfile
@@ -63,14 +64,28 @@ def run_command(
 
 
 def _stdout_closed() -> bool:
-    """Whether standard output's reader has gone; if so it is pointed at the null device, so
-    that Python's own flush at exit does not fail on it again."""
+    """Whether standard output's reader has gone (a flush fails, or the pipe reports an
+    error: the failed write may have emptied the buffer); if so it is pointed at the null
+    device, so that Python's own flush at exit does not fail on it again."""
     try:
         sys.stdout.flush()
-        return False
+        gone = _pipe_error(sys.stdout)
     except BrokenPipeError:
+        gone = True
+    if gone:
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return True
+    return gone
+
+
+def _pipe_error(stream) -> bool:
+    """Whether ``stream``'s file descriptor reports an error without blocking (the write end
+    of a pipe whose reader has closed it)."""
+    try:
+        poll = select.poll()
+        poll.register(stream.fileno(), select.POLLOUT)
+        return any(events & select.POLLERR for _, events in poll.poll(0))
+    except (OSError, ValueError, AttributeError):  # not a pollable descriptor, no poll
+        return False
 
 
 def _show_warning(prog, shown: set, message, category, filename, lineno, file=None,

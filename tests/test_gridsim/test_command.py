@@ -43,3 +43,21 @@ def test_a_broken_pipe_elsewhere_is_still_reported(capsys):
     """(a worker's pipe, say, while standard output is fine)"""
     assert run_command(_parser(_broken), []) == 3
     assert "internal error: BrokenPipeError" in capsys.readouterr().err
+
+
+def test_a_real_pipe_closed_before_the_output_ends_the_command_quietly():
+    """The failed write empties Python's buffer, so a flush afterwards succeeds: the closed
+    pipe is seen by polling it (`gridsim validate --resolved X | head -1` said "internal
+    error")."""
+    import subprocess
+
+    read, write = os.pipe()
+    os.close(read)  # the reader has gone before the command writes anything
+    try:
+        done = subprocess.run([sys.executable, "-m", "gridsim", "validate", "--resolved",
+                               "inner_city"], stdout=write, stderr=subprocess.PIPE, text=True,
+                              timeout=120)  # fmt: skip
+    finally:
+        os.close(write)
+    assert done.returncode == 141, done.stderr
+    assert "internal error" not in done.stderr
