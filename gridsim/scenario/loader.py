@@ -231,7 +231,7 @@ def _validate(doc: dict[str, Any], source: str) -> ScenarioConfig:
                 return cfg
             break
         new = [line for _, line in found if line not in problems
-               and not any(path in line for path in removed)]  # fmt: skip
+               and not any(_about(line, path) for path in removed)]  # fmt: skip
         problems += new
         paths = [parts for parts, _ in found if parts]
         if not new or not paths:
@@ -240,6 +240,15 @@ def _validate(doc: dict[str, Any], source: str) -> ScenarioConfig:
             doc = _without(doc, parts)
             removed.append(".".join(map(str, parts)))
     raise ScenarioError(_format_validation(source, problems))
+
+
+def _about(line: str, path: str) -> bool:
+    """Whether the problem ``line`` is about the key ``path`` (dotted), which was left to its
+    default: it names the key, or it is a check of the key's section that names its leaf
+    (``road: jitter (20.0) must be < block_size / 4 (11.25)`` ran on the default block
+    size)."""
+    section, _, leaf = path.rpartition(".")
+    return path in line or bool(section) and line.startswith(f"{section}:") and leaf in line
 
 
 def _without(doc: Mapping[str, Any], parts: tuple) -> dict[str, Any]:

@@ -139,6 +139,12 @@ class SensorConfig(Strict):
     mounts: Annotated[list[MountConfig], Field(min_length=1, max_length=8)] = [MountConfig()]
 
 
+#: m/s: the fastest generated traffic (as fast as recorded tracks may imply:
+#: :data:`gridsim.scenario.checks.MAX_SPEED`).
+MAX_TRAFFIC_SPEED = 70.0
+_IN_MPS = "speeds are in m/s (km/h / 3.6)"
+
+
 class TrafficConfig(Strict):
     participants: Annotated[int, Field(ge=0, le=5000)] = 10
     v_min: NonNegFloat = 4.16
@@ -272,6 +278,17 @@ class ScenarioConfig(Strict):
                             "the destination lies at or beyond the last set-point")  # fmt: skip
         if self.env.speed_range is not None and self.env.speed_range[0] > self.env.speed_range[1]:
             problems.append(f"env.speed_range {list(self.env.speed_range)} must be [min, max]")
+        elif self.speed_range[0] > self.ego.vehicle.v_max:
+            where = ("env.speed_range" if self.env.speed_range is not None else
+                     "traffic.v_min and v_max (env.speed_range's default)")  # fmt: skip
+            lo, hi = self.speed_range
+            problems.append(f"{where} [{lo:g}, {hi:g}] m/s lie above ego.vehicle.v_max "
+                            f"({self.ego.vehicle.v_max:g} m/s): l3 would never count the ego's "
+                            f"speed; {_IN_MPS}")  # fmt: skip
+        if self.traffic.v_max > MAX_TRAFFIC_SPEED:
+            problems.append(f"traffic.v_max ({self.traffic.v_max:g} m/s) is faster than road "
+                            f"traffic drives (at most {MAX_TRAFFIC_SPEED:g} m/s, "
+                            f"{MAX_TRAFFIC_SPEED * 3.6:g} km/h); {_IN_MPS}")  # fmt: skip
         if problems:
             raise ValueError("\n".join(problems))
         return self

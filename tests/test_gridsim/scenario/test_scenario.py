@@ -352,12 +352,36 @@ def test_duplicate_keys_are_refused_with_both_lines(tmp_path):
                                        "to 0.001"),
         ({"simulation": {"dt": 0.002, "duration": 600}},
          "duration / dt = 600 / 0.002 = 300000 ticks, more than 100000"),
+        # km/h for m/s: traffic faster than any, and an l3 that would never count
+        ({"traffic": {"v_min": 60, "v_max": 100}},
+         "traffic.v_max (100 m/s) is faster than road traffic drives (at most 70 m/s, 252 "
+         "km/h); speeds are in m/s (km/h / 3.6)"),
+        ({"traffic": {"v_min": 60, "v_max": 100}},
+         "traffic.v_min and v_max (env.speed_range's default) [60, 100] m/s lie above "
+         "ego.vehicle.v_max (13.88 m/s): l3 would never count the ego's speed"),
+        ({"env": {"speed_range": [30, 50]}},
+         "env.speed_range [30, 50] m/s lie above ego.vehicle.v_max (13.88 m/s)"),
     ],
 )  # fmt: skip
 def test_nonsense_speeds_and_time_steps_are_refused(patch, message):
     with pytest.raises(ScenarioError) as info:
         load_scenario("seamless", patch)
     assert message in str(info.value)
+
+
+def test_a_check_across_keys_is_not_run_on_a_default_that_replaced_a_bad_value():
+    """block_size 10 is refused; jitter's check against block_size / 4 then ran on the default
+    block size and named its 11.25 as if it were the user's."""
+    with pytest.raises(ScenarioError) as info:
+        parse_scenario({"name": "x", "road": {"type": "inner_city", "block_size": 10,
+                                              "jitter": 20}})  # fmt: skip
+    assert "road.block_size: Input should be greater than or equal to 20 (got 10)" in str(
+        info.value
+    )
+    assert "jitter" not in str(info.value)
+    with pytest.raises(ScenarioError, match=r"jitter \(20.0\) must be < block_size / 4 \(12.5\)"):
+        parse_scenario({"name": "x", "road": {"type": "inner_city", "block_size": 50,
+                                              "jitter": 20}})  # fmt: skip
 
 
 def test_more_participants_than_fit_are_refused():
