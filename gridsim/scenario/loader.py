@@ -158,13 +158,23 @@ def _known_paths() -> list[str]:
     return sorted(out)
 
 
-def _did_you_mean(parts: list) -> str:
-    """A hint for the unknown key at ``parts``: the closest spelling among its siblings, else
-    the full path of a key of that name elsewhere (a key at the wrong level), else the
-    closest spelling anywhere."""
+def _did_you_mean(parts: list, family: str | None = None) -> str:
+    """A hint for the unknown key at ``parts``: a ``road`` key of another ``family`` than the
+    file's is named so, with the closest key of the file's family; else the closest spelling
+    among its siblings, else the full path of a key of that name elsewhere (a key at the
+    wrong level), else the closest spelling anywhere."""
     if not parts:
         return ""
     key, given = str(parts[-1]), ".".join(map(str, parts))
+    if family is not None and len(parts) == 2 and parts[0] == "road":
+        owners = [tag for tag, f in FAMILIES.items() if key in f.config.model_fields]
+        if owners:
+            mine = [k for k in FAMILIES[family].config.model_fields if k != "type"]
+            close = [k for k in mine if key in k or k in key]  # lanes, lanes_per_direction
+            close = close or difflib.get_close_matches(key, mine, n=1, cutoff=0.6)
+            instead = f"; did you mean 'road.{close[0]}'?" if close else ""
+            return (f" for road type {family!r} (a key of {', '.join(map(repr, owners))})"
+                    f"{instead}")  # fmt: skip
     parent = given.rpartition(".")[0]
     paths = _known_paths()
     siblings = [p for p in paths if p.rpartition(".")[0] == parent]
@@ -188,12 +198,13 @@ def _problems(err: ValidationError) -> list[tuple[tuple, str]]:
     out = []
     for e in err.errors():
         parts = list(e["loc"])
+        family = None
         if len(parts) > 1 and parts[0] == "road" and parts[1] in FAMILIES:
-            del parts[1]  # pydantic's union tag is not part of the user's key path
+            family = parts.pop(1)  # pydantic's union tag is not part of the user's key path
         loc = ".".join(str(p) for p in parts) or "(top level)"
         msg = e["msg"]
         if e["type"] == "extra_forbidden":
-            msg = "unknown key" + _did_you_mean(parts)
+            msg = "unknown key" + _did_you_mean(parts, family)
         got = e.get("input")
         if e["type"] in ("union_tag_invalid", "union_tag_not_found") and parts == ["road"]:
             tag = got.get("type") if isinstance(got, Mapping) else None

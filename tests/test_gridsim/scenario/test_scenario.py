@@ -406,6 +406,11 @@ def test_validate_suggests_the_key_meant(tmp_path, capsys):
     with pytest.raises(ScenarioError, match=r"participants: unknown key \(did you mean "
                                             r"'traffic.participants'\?\)"):  # fmt: skip
         load_scenario("seamless", {"participants": 5})
+    # a key of another road type (it suggested itself: did you mean 'road.lanes'?)
+    with pytest.raises(ScenarioError) as info:
+        load_scenario("inner_city", {"road": {"lanes": 2}})
+    assert ("road.lanes: unknown key for road type 'inner_city' (a key of 'seamless'); did "
+            "you mean 'road.lanes_per_direction'? (got 2)") in str(info.value)  # fmt: skip
 
 
 BOMB = "a: &a [x, x, x, x, x, x, x, x, x]\n" + "".join(
