@@ -70,11 +70,16 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
     if np.count_nonzero(moving) >= 2:
         ratio = float(np.median(implied[moving] / recorded[moving]))
         if not 1.0 / SPEED_RATIO <= ratio <= SPEED_RATIO:
+            why = (
+                "its speeds must be in m/s (km/h / 3.6)"
+                if abs(ratio * 3.6 - 1.0) < 0.1  # recorded in km/h
+                else f"time stamps must be in seconds (its time step is {np.median(dt):.3g} s: "
+                "a CSV's time column, a CommonRoad file's timeStepSize)"
+            )
             out.append(
                 f"{where}: positions and time stamps imply {np.median(implied[moving]):.3g} m/s "
                 f"where its recorded speeds say {np.median(recorded[moving]):.3g} m/s (median, "
-                f"ratio {ratio:.3g}); time stamps must be in seconds (its time step is "
-                f"{np.median(dt):.3g} s: a CSV's time column, a CommonRoad file's timeStepSize)"
+                f"ratio {ratio:.3g}); {why}"
             )
     by_position = implied > MOVING  # (a speed column of zeros, or left empty as 0)
     if np.count_nonzero(by_position) >= 5 and float(np.median(recorded[by_position])) < 0.5 * (
@@ -88,12 +93,17 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
     if np.count_nonzero(moving) >= 2:
         travel = np.arctan2(np.diff(track.y), np.diff(track.x))[moving]
         heading = 0.5 * (track.heading[1:] + track.heading[:-1])[moving]
-        error = float(np.degrees(np.median(np.abs(np.angle(np.exp(1j * (travel - heading)))))))
+        error = _degrees_off(travel, heading)
         if error > MAX_HEADING_ERROR:
+            # the direction of the same motion with x and y swapped
+            error_swapped = _degrees_off(np.pi / 2 - travel, heading)
+            hint = (" (or are its x and y swapped? with them swapped it drives "
+                    f"{error_swapped:.0f} degrees off)" if error_swapped < MAX_HEADING_ERROR
+                    else "")  # fmt: skip
             out.append(
                 f"{where}: it drives {error:.0f} degrees off its recorded heading (median; at "
                 f"most {MAX_HEADING_ERROR:g}); headings must be in radians, counter-clockwise "
-                "from +x"
+                f"from +x{hint}"
             )
     fast = float(np.percentile(implied, 95))
     if fast > MAX_SPEED:
@@ -112,6 +122,11 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
         else:
             out += _glitches(track)
     return out
+
+
+def _degrees_off(direction: np.ndarray, heading: np.ndarray) -> float:
+    """The median angle [deg] between two arrays of directions [rad], wrapped to [0, 180]."""
+    return float(np.degrees(np.median(np.abs(np.angle(np.exp(1j * (direction - heading)))))))
 
 
 def _glitches(track: Track) -> list[str]:

@@ -113,3 +113,15 @@ def test_a_position_that_leaps_off_its_neighbours_is_a_flaw(tmp_path, capsys):
     code, out = validate(capsys, path)
     assert code == 0 and "track spike of scene crafted: its position at t = 2 s leaps" in out
     assert "kept as traffic, not offered as the ego" in out
+
+
+def test_speeds_in_km_h_and_swapped_coordinates_get_their_own_hint():
+    kmh = track("kmh", X, np.full(41, -1.75))
+    kmh.speed[:] = 36.0  # 10 m/s recorded in km/h
+    (problem,) = track_problems(kmh)
+    assert "recorded speeds say 36 m/s (median, ratio 0.278); its speeds must be in m/s" in problem
+    assert "time stamps" not in problem
+    swapped = track("swapped", np.full(41, 5.0), X)  # drives +y, its heading says +x
+    (problem,) = track_problems(swapped)
+    assert "it drives 90 degrees off its recorded heading" in problem
+    assert "(or are its x and y swapped? with them swapped it drives 0 degrees off)" in problem
