@@ -120,7 +120,7 @@ def test_speeds_in_km_h_and_swapped_coordinates_get_their_own_hint():
     kmh.speed[:] = 36.0  # 10 m/s recorded in km/h
     (problem,) = track_problems(kmh)
     assert "recorded speeds say 36 m/s (median, ratio 0.278); its speeds must be in m/s" in problem
-    assert "time stamps" not in problem
+    assert "must be in seconds" not in problem
     swapped = track("swapped", np.full(41, 5.0), X)  # drives +y, its heading says +x
     (problem,) = track_problems(swapped)
     assert "it drives 90 degrees off its recorded heading" in problem
