@@ -390,6 +390,10 @@ def _extended(doc: Mapping[str, Any], source: str, base_dir: Path | None,
     _check_mapping(parent, parent_source)
     parent = _extended(parent, parent_source, parent_dir, (*chain, source))
     own = {k: v for k, v in doc.items() if k != "extends"}
+    if "name" not in own:
+        raise ScenarioError(f"{source}: a scenario that extends {ref!r} needs a name of its own "
+                            f"(name: ...); it would be listed, recorded and reported as "
+                            f"{parent.get('name')!r}")  # fmt: skip
     return deep_merge(absolute_paths(parent, parent_dir), own)
 
 

@@ -519,6 +519,10 @@ def test_a_scenario_extends_a_built_in_or_another_file(tmp_path, library):
             "b.yaml: a scenario must be a mapping of keys",
         ),
         ({"a.yaml": "extends: seamless\nname: a\nroad:\n  lanes: 0\n"}, "road.lanes"),
+        (
+            {"a.yaml": "extends: seamless\nroad:\n  lanes: 2\n"},
+            "a.yaml: a scenario that extends 'seamless' needs a name of its own .* as 'seamless'",
+        ),
     ],
 )
 def test_bad_extends_are_named(tmp_path, files, message):
