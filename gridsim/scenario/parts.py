@@ -15,7 +15,7 @@ import numpy as np
 from gridsim.errors import ScenarioError
 from gridsim.road.polyline import Polyline
 from gridsim.scenario.family import is_recorded
-from gridsim.scenario.schema import Scenario, VehicleConfig
+from gridsim.scenario.schema import MAX_WHEELBASE_SHARE, Scenario, VehicleConfig
 from gridsim.traffic.library import TrajectoryLibrary
 from gridsim.traffic.sources import SpeedBounds
 from gridsim.traffic.track import Track
@@ -31,7 +31,7 @@ def vehicle_params(
     """Bicycle parameters from the YAML vehicle block (angles converted to radians)."""
     length = cfg.length if length is None else length
     width = cfg.width if width is None else width
-    wheelbase = min(cfg.wheelbase, 0.7 * length)
+    wheelbase = min(cfg.wheelbase, MAX_WHEELBASE_SHARE * length)  # (a recorded ego's length)
     return BicycleParams(
         wheelbase=wheelbase,
         length=length,

@@ -93,6 +93,10 @@ class SimulationConfig(Strict):
         return self
 
 
+#: A vehicle's wheelbase is at most this share of its length (cars: 0.55-0.65).
+MAX_WHEELBASE_SHARE = 0.7
+
+
 class VehicleConfig(Strict):
     """The ego vehicle's geometry and limits: :class:`BicycleParams`' defaults, but a scenario
     ego's top speed (20 m/s) and its steering limits in degrees (35 deg, 45 deg/s)."""
@@ -111,8 +115,10 @@ class VehicleConfig(Strict):
     def _order(self) -> VehicleConfig:
         if self.v_max < self.v_min:
             raise ValueError(f"v_max ({self.v_max}) must be >= v_min ({self.v_min})")
-        if self.wheelbase > self.length:
-            raise ValueError(f"wheelbase ({self.wheelbase}) must not exceed length ({self.length})")
+        if self.wheelbase > MAX_WHEELBASE_SHARE * self.length:
+            raise ValueError(f"wheelbase ({self.wheelbase}) must be at most {MAX_WHEELBASE_SHARE} "
+                             f"x length ({MAX_WHEELBASE_SHARE * self.length:.4g}): the axles sit "
+                             "inside the body")  # fmt: skip
         return self
 
 

@@ -361,6 +361,9 @@ def test_duplicate_keys_are_refused_with_both_lines(tmp_path):
          "ego.vehicle.v_max (13.88 m/s): l3 would never count the ego's speed"),
         ({"env": {"speed_range": [30, 50]}},
          "env.speed_range [30, 50] m/s lie above ego.vehicle.v_max (13.88 m/s)"),
+        # it was clamped to 0.7 x length silently, while --resolved printed 2.7
+        ({"ego": {"vehicle": {"length": 3.0, "wheelbase": 2.7}}},
+         "wheelbase (2.7) must be at most 0.7 x length (2.1): the axles sit inside the body"),
     ],
 )  # fmt: skip
 def test_nonsense_speeds_and_time_steps_are_refused(patch, message):
