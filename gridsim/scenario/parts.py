@@ -46,20 +46,33 @@ def vehicle_params(
     )
 
 
-def resolve(scenario: Scenario, ref: str, builtin_dir: tuple[str, ...], suffix: str) -> Path:
+def resolve(
+    scenario: Scenario, ref: str, builtin_dir: tuple[str, ...], suffix: str, key: str
+) -> Path:
+    """The file ``ref`` of the scenario's key ``key`` names: ``builtin:NAME`` (the shipped
+    ``NAME + suffix`` in ``builtin_dir``), or a path relative to the scenario's folder; else a
+    :class:`ScenarioError` naming the key, and the built-in files when one was meant."""
     from importlib import resources
 
+    shipped = resources.files("gridsim").joinpath(*builtin_dir)
+    names = sorted(f.name.removesuffix(suffix) for f in shipped.iterdir()
+                   if f.name.endswith(suffix))  # fmt: skip
     if ref.startswith("builtin:"):
         name = ref.split(":", 1)[1]
-        entry = resources.files("gridsim").joinpath(*builtin_dir, name + suffix)
+        entry = shipped.joinpath(name + suffix)
         if not entry.is_file():
-            raise ScenarioError(f"{scenario.source}: no built-in file {ref!r}")
+            listed = ", ".join(f"builtin:{n}" for n in names)
+            raise ScenarioError(f"{scenario.source}: {key} {ref!r}: no such built-in file (they "
+                                f"are named without {suffix}): {listed}")  # fmt: skip
         return Path(str(entry))
     path = Path(ref)
     if not path.is_absolute() and scenario.base_dir is not None:
         path = scenario.base_dir / path
     if not path.is_file():
-        raise ScenarioError(f"{scenario.source}: file not found: {ref!r} (resolved to {path})")
+        meant = Path(ref).name.removesuffix(suffix)
+        hint = f"; did you mean 'builtin:{meant}'?" if meant in names else ""
+        raise ScenarioError(f"{scenario.source}: {key}: file not found: {ref!r} (resolved to "
+                            f"{path}){hint}")  # fmt: skip
     return path
 
 
@@ -81,7 +94,8 @@ def stamped(path: Path) -> tuple:
 
 def map_path(scenario: Scenario) -> Path:
     """The CommonRoad file of a recorded scenario's ``road.map``."""
-    return resolve(scenario, scenario.config.road.map, ("data", "ngsim", "commonroad-xml"), ".xml")
+    return resolve(scenario, scenario.config.road.map, ("data", "ngsim", "commonroad-xml"), ".xml",
+                   "road.map")  # fmt: skip
 
 
 def library_for(scenario: Scenario) -> TrajectoryLibrary:
@@ -142,7 +156,7 @@ def _library_paths(scenario: Scenario, ref: str) -> list[Path]:
             raise ScenarioError(f"{scenario.source}: traffic.library {ref!r}: no trajectory "
                                 f"files ({', '.join(TRAJECTORY_SUFFIXES)}) in {path}")  # fmt: skip
         return files
-    return [resolve(scenario, ref, ("data", "ngsim"), ".csv")]
+    return [resolve(scenario, ref, ("data", "ngsim"), ".csv", "traffic.library")]
 
 
 def input_files(scenario: Scenario) -> list[Path]:

@@ -141,7 +141,9 @@ def test_overrides_are_merged_and_validated():
 def test_bad_references_are_reported(tmp_path):
     doc = yaml.safe_load(open_builtin("us101_3_3"))
     doc["road"]["map"] = "builtin:USA_nowhere"
-    with pytest.raises(ScenarioError, match="no built-in file 'builtin:USA_nowhere'"):
+    with pytest.raises(ScenarioError, match=r"road.map 'builtin:USA_nowhere': no such built-in "
+                                            r"file \(they are named without .xml\): "
+                                            r"builtin:USA_Lanker-1_1_T-1, "):  # fmt: skip
         build_world(parse_scenario(doc, "x.yaml"), 0)
     doc = yaml.safe_load(open_builtin("us101_3_3"))
     doc["ego"] = {"track": "999999"}
@@ -149,7 +151,12 @@ def test_bad_references_are_reported(tmp_path):
         build_world(parse_scenario(doc, "x.yaml"), 0)
     doc = yaml.safe_load(open_builtin("seamless"))
     doc["traffic"] = {"library": ["missing.csv"]}
-    with pytest.raises(ScenarioError, match="file not found: 'missing.csv'"):
+    with pytest.raises(ScenarioError, match="traffic.library: file not found: 'missing.csv'"):
+        build_world(parse_scenario(doc, "x.yaml", base_dir=tmp_path), 0)
+    doc = yaml.safe_load(open_builtin("us101_3_3"))
+    doc["road"]["map"] = "USA_US101-3_3_T-1"  # a built-in's name without its prefix
+    with pytest.raises(ScenarioError, match=r"road.map: file not found: .* did you mean "
+                                            r"'builtin:USA_US101-3_3_T-1'\?"):  # fmt: skip
         build_world(parse_scenario(doc, "x.yaml", base_dir=tmp_path), 0)
 
 
