@@ -349,6 +349,9 @@ def _same(value: Any, default: Any) -> bool:
 
 def _check_mapping(doc: Any, source: str) -> None:
     """A :class:`ScenarioError` unless ``doc`` is a mapping with text keys."""
+    if doc is None:
+        raise ScenarioError(f"{source}: the file is empty (or holds only comments); a scenario "
+                            "needs at least name: and road: {type: ...}")  # fmt: skip
     if not isinstance(doc, Mapping):
         raise ScenarioError(
             f"{source}: a scenario must be a mapping of keys, got {type(doc).__name__}"

@@ -470,6 +470,12 @@ def test_what_is_not_a_scenario_is_named(tmp_path):
         load_scenario(csv)
     with pytest.raises(ScenarioError, match="overrides must be a mapping of keys .*got list"):
         load_scenario("seamless", [1, 2])
+    empty = tmp_path / "empty.yaml"
+    for text in ("", "# a comment only\n"):
+        empty.write_text(text)
+        with pytest.raises(ScenarioError, match=r"empty.yaml: the file is empty \(or holds "
+                                                r"only comments\); a scenario needs"):  # fmt: skip
+            load_scenario(empty)
 
 
 def test_a_file_written_from_scratch_gets_its_familys_defaults():
