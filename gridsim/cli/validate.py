@@ -15,7 +15,8 @@ def add_parser(sub) -> None:
         help="check a scenario file (YAML or CommonRoad XML; and a recorded scene's data), or "
         "each file of a folder or glob, and print precise errors",
     )
-    p.add_argument("path", help="a scenario file, a folder or a glob of them")
+    p.add_argument("path", nargs="+", help="a scenario file, a folder or a glob of them (or "
+                   "several files: a glob the shell expanded)")  # fmt: skip
     p.add_argument("--resolved", action="store_true",
                    help="also print the scenario as it is run: every key, the family's "
                    "defaults and extends: filled in (one file)")  # fmt: skip
@@ -42,6 +43,7 @@ def execute(args: argparse.Namespace) -> int:
     from gridsim.errors import DataError
     from gridsim.scenario.collection import check_agreement, repeated_recordings, scenario_files
 
+    args.path = ",".join(args.path)  # several (a glob the shell expanded): a list of them
     files = scenario_files(args.path)
     if args.resolved and files is not None:
         raise GridSimError(f"--resolved prints one scenario; {args.path} is a folder or glob "

@@ -160,6 +160,17 @@ def add_unusable_files(folder: Path) -> dict[str, str]:
             "no_tracks.xml": "no vehicle tracks"}  # fmt: skip
 
 
+def test_validate_and_scenarios_take_the_files_of_a_glob_the_shell_expanded(folder, capsys):
+    """`gridsim validate col/*.xml` unquoted gives several paths (it was refused as
+    'unrecognized arguments'): they are checked as a list of scenario files."""
+    files = [str(f) for f in sorted(folder.glob("*.xml"))]
+    assert main(["validate", *files]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert out[-1] == "2 of 2 scenario files OK"
+    assert main(["scenarios", *files]) == 0
+    assert [line.split(":")[0] for line in capsys.readouterr().out.splitlines()] == files
+
+
 def test_scenarios_lists_a_folder_without_reading_its_recordings(folder, capsys):
     """A listing reads the scenario files, not their maps and recordings (a folder of large
     CSVs took a minute): a file whose data is unsound is listed, and validate names it."""
