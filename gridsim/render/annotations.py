@@ -1,6 +1,6 @@
 """What a video frame says besides the picture, so that a person understands it without the
 code: who drives, the time, the speed, the fitness so far (top left); what each colour is
-(bottom left, and the grid inset's under it, top right); a scale bar (bottom right).
+(bottom left, and the grid inset's beside it, top right); a scale bar (bottom right).
 
 Frames come from :class:`~gridsim.render.topdown.TopDownRenderer`; :func:`annotate` writes on
 them in place. Used by every video export (:func:`gridsim.video.record_episode`) and by
@@ -81,17 +81,24 @@ _ENDINGS = (("collision", "collision"), ("off_road", "off the road"),
 
 def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
              inset_size: int | None = None) -> np.ndarray:  # fmt: skip
-    """Write ``caption``, the colour legend, the grid inset's legend (under an inset of
-    ``inset_size`` pixels at the top right, if any) and a scale bar on ``img`` (in place);
-    returns ``img``."""
-    _band(img, 0, 0, [(t, None, "") for t in caption.lines()])
+    """Write ``caption``, the colour legend, the grid inset's legend (beside an inset of
+    ``inset_size`` pixels at the top right, if any; under it when the caption is too wide)
+    and a scale bar on ``img`` (in place); returns ``img``."""
+    text = [(t, None, "") for t in caption.lines()]
+    _band(img, 0, 0, text)
     if caption.ended:
         _banner(img, f"episode over: {caption.ended} at {caption.time:.1f} s")
     _band(img, 0, img.shape[0] - _STEP * len(LEGEND) - 8, LEGEND)
     if inset_size:
         grid = [("sensor grid:", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
         width = _width(grid)
-        _band(img, img.shape[1] - width - 8, inset_size + 12, grid, width)
+        # beside the inset, in the top band, where the caption leaves room; else under it
+        # (over the picture's right edge, where the road ahead often runs)
+        beside = img.shape[1] - inset_size - 16 - width
+        if beside >= _width(text) + 8:
+            _band(img, beside, 8, grid, width)
+        else:
+            _band(img, img.shape[1] - width - 8, inset_size + 12, grid, width)
     _scale_bar(img, pixels_per_metre)
     return img
 

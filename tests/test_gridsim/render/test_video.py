@@ -210,8 +210,9 @@ def test_run_command(tmp_path, capsys):
 
 def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     """Exported frames say who drives, the time, speed and fitness so far (top left), what the
-    colours are (bottom left, and the grid's under its inset), and carry a scale bar (bottom
-    right); nothing else of the picture changes. --no-overlay leaves them plain."""
+    colours are (bottom left, and the grid's beside its inset, in the top band: under the
+    inset it hid the road ahead), and carry a scale bar (bottom right); nothing else of the
+    picture changes. --no-overlay leaves them plain."""
     from gridsim.envs.wrappers import CaptionedRender
     from gridsim.render.annotations import Caption
     from gridsim.video import _frame
@@ -225,9 +226,10 @@ def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     regions = np.zeros_like(differs)
     regions[:70, :330] = True  # caption
     regions[h - 100 :, :200] = True  # colour legend
-    regions[160:280, w - 130 :] = True  # the grid's legend, under the inset
+    regions[:110, w - 310 : w - 170] = True  # the grid's legend, beside the inset
     regions[h - 45 :, w - 130 :] = True  # scale bar
     assert differs[:60, :250].mean() > 0.05 and differs[h - 90 :, :150].mean() > 0.05
+    assert differs[10:100, w - 300 : w - 180].mean() > 0.05  # the grid's legend is there
     assert differs[h - 30 :, w - 100 :].any()
     assert not differs[~regions].any()  # the picture itself is untouched
     lines = Caption.from_info(info, "my planner", np.array([1.5, 0.25, 80.0])).lines()
