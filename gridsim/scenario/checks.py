@@ -176,6 +176,24 @@ class SceneReport:
         return f"{source}: implausible recorded scene ({len(self.problems)} problem(s)):\n{lines}"
 
 
+def _alone_in_time(tracks: list[Track], source: str) -> list[str]:
+    """A warning when most tracks of a scene of several share no moment with any other (as
+    the ego, such a track meets no traffic: recordings with different time origins put in
+    one scene?)."""
+    if len(tracks) < 2:
+        return []
+    start = np.array([t.t[0] for t in tracks])
+    end = np.array([t.t[-1] for t in tracks])
+    meets = (start[:, None] <= end[None, :]) & (start[None, :] <= end[:, None])
+    alone = np.flatnonzero(meets.sum(axis=1) == 1)  # (each meets itself)
+    if len(alone) <= MAX_FLAWED_SHARE * len(tracks):
+        return []
+    named = ", ".join(tracks[k].track_id for k in alone[:5]) + (", ..." if len(alone) > 5 else "")
+    return [f"{source}: {len(alone)} of the {len(tracks)} tracks of scene "
+            f"{tracks[0].scenario_id} share no moment with any other ({named}): as the ego they "
+            "meet no traffic; are their time stamps from one clock?"]  # fmt: skip
+
+
 def scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> SceneReport:
     """Checks of a recorded scene: its tracks' flaws (a problem when most tracks have one,
     else warnings), a scene (or the one track named as ``ego.track``) shorter than the
@@ -201,6 +219,7 @@ def scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> S
             f"{longest.duration:.3g} s (its longest track, {longest.track_id}); the horizon "
             f"needs {need:.3g} s (env.horizon x env.setpoint_period)"
         )
+    warnings += _alone_in_time(tracks, source)
     wanted = scenario.config.ego.track  # one named track must be usable (a list is filtered)
     if isinstance(wanted, str):  # its id in this scene (SCENE/ID names another's: no check)
         wanted = next(iter(ids_in_scene([wanted], longest.scenario_id)[0]), None)

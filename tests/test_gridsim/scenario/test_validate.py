@@ -125,3 +125,23 @@ def test_speeds_in_km_h_and_swapped_coordinates_get_their_own_hint():
     (problem,) = track_problems(swapped)
     assert "it drives 90 degrees off its recorded heading" in problem
     assert "(or are its x and y swapped? with them swapped it drives 0 degrees off)" in problem
+
+
+def test_tracks_that_share_no_moment_are_named(tmp_path, capsys):
+    """Every track but one shifted by 100 s (recordings of other clocks in one scene): as the
+    ego, such a track meets no traffic."""
+    tracks = [track(f"c{k}", X, np.full(41, -1.75 if k % 2 else 1.75)) for k in range(4)]
+    for k, tr in enumerate(tracks[1:], 1):
+        tr.t[:] += 100.0 * k
+    path = write_scene(tmp_path, tracks, ego={"track": "random"})
+    code, out = validate(capsys, path)
+    assert code == 0
+    said = (
+        "4 of the 4 tracks of scene crafted share no moment with any other (c0, c1, c2, "
+        "c3): as the ego they meet no traffic; are their time stamps from one clock?"
+    )
+    assert said in out
+    together = write_scene(tmp_path, [track(f"c{k}", X, np.full(41, 1.75 - 3.5 * (k % 2)))
+                                      for k in range(2)], ego={"track": "random"})  # fmt: skip
+    code, out = validate(capsys, together)
+    assert code == 0 and "share no moment" not in out
