@@ -202,7 +202,7 @@ def _problems(err: ValidationError) -> list[tuple[tuple, str]]:
         if len(parts) > 1 and parts[0] == "road" and parts[1] in FAMILIES:
             family = parts.pop(1)  # pydantic's union tag is not part of the user's key path
         loc = ".".join(str(p) for p in parts) or "(top level)"
-        msg = e["msg"]
+        msg = e["msg"].removeprefix("Value error, ")  # (a validator's own words)
         if e["type"] == "extra_forbidden":
             msg = "unknown key" + _did_you_mean(parts, family)
         got = e.get("input")
@@ -215,7 +215,7 @@ def _problems(err: ValidationError) -> list[tuple[tuple, str]]:
                                            f"{', '.join(FAMILIES)}"))  # fmt: skip
             continue
         if e["type"] == "value_error" and isinstance(got, Mapping):  # across keys: no input
-            for line in msg.removeprefix("Value error, ").splitlines():
+            for line in msg.splitlines():
                 out.append((tuple(parts), f"{loc}: {line}" if parts else line))
             continue
         shown = repr(got) if not isinstance(got, Mapping) else "{...}"

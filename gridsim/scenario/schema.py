@@ -115,6 +115,8 @@ class VehicleConfig(Strict):
     def _order(self) -> VehicleConfig:
         if self.v_max < self.v_min:
             raise ValueError(f"v_max ({self.v_max}) must be >= v_min ({self.v_min})")
+        _not_radians("max_steer_deg", self.max_steer_deg, 5.0)  # cars: 25-45 deg
+        _not_radians("max_steer_rate_deg", self.max_steer_rate_deg, 5.0)
         if self.wheelbase > MAX_WHEELBASE_SHARE * self.length:
             raise ValueError(f"wheelbase ({self.wheelbase}) must be at most {MAX_WHEELBASE_SHARE} "
                              f"x length ({MAX_WHEELBASE_SHARE * self.length:.4g}): the axles sit "
@@ -122,11 +124,24 @@ class VehicleConfig(Strict):
         return self
 
 
+def _not_radians(name: str, value: float, least: float) -> None:
+    """A ``ValueError`` when an angle in degrees ``value`` is below ``least`` and reads as
+    radians (at most 2 pi)."""
+    if 0 < value < least and value <= 2 * np.pi + 1e-6:
+        raise ValueError(f"{name} {value:g} is in degrees (at least {least:g}); radians? "
+                         f"({value:g} rad = {np.degrees(value):.4g} deg)")  # fmt: skip
+
+
 class MountConfig(Strict):
     x: Annotated[float, Field(ge=-20, le=20, allow_inf_nan=False)] = 0.0
     y: Annotated[float, Field(ge=-10, le=10, allow_inf_nan=False)] = 0.0
     yaw_deg: Annotated[float, Field(ge=-180, le=180)] = 0.0
     fov_deg: Annotated[float, Field(gt=0, le=360)] = 360.0
+
+    @model_validator(mode="after")
+    def _degrees(self) -> MountConfig:
+        _not_radians("fov_deg", self.fov_deg, 10.0)  # (a grid seen through a 6 deg slit)
+        return self
 
 
 class SensorConfig(Strict):
@@ -253,6 +268,15 @@ class ScenarioConfig(Strict):
 
     name: Annotated[str, Field(min_length=1, max_length=80)]
     description: str = ""
+
+    @field_validator("name", mode="before")
+    @classmethod
+    def _name_as_written(cls, value: Any) -> Any:
+        """A name YAML reads as a number or a truth value (``name: 101``, ``name: no``)."""
+        if isinstance(value, bool | int | float):
+            raise ValueError(f"YAML reads this name as {value!r}, not text: quote it "
+                             "(name: \"...\")")  # fmt: skip
+        return value
     simulation: SimulationConfig = SimulationConfig()
     #: the road family's block, told apart by ``type``: the union of the registered families'
     #: configs (:mod:`gridsim.scenario.family` builds it when a family registers)

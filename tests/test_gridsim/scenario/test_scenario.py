@@ -368,6 +368,14 @@ def test_duplicate_keys_are_refused_with_both_lines(tmp_path):
          "ego.vehicle.v_max (13.88 m/s): l3 would never count the ego's speed"),
         ({"env": {"speed_range": [30, 50]}},
          "env.speed_range [30, 50] m/s lie above ego.vehicle.v_max (13.88 m/s)"),
+        # radians where degrees are asked for
+        ({"ego": {"vehicle": {"max_steer_deg": 0.6}}},
+         "max_steer_deg 0.6 is in degrees (at least 5); radians? (0.6 rad = 34.38 deg)"),
+        ({"sensor": {"mounts": [{"fov_deg": 6.28}]}},
+         "sensor.mounts.0: fov_deg 6.28 is in degrees (at least 10); radians?"),
+        # YAML's reading of a bare name
+        ({"name": 101}, 'name: YAML reads this name as 101, not text: quote it (name: "...")'),
+        ({"name": False}, "name: YAML reads this name as False, not text"),
         # it was clamped to 0.7 x length silently, while --resolved printed 2.7
         ({"ego": {"vehicle": {"length": 3.0, "wheelbase": 2.7}}},
          "wheelbase (2.7) must be at most 0.7 x length (2.1): the axles sit inside the body"),
