@@ -42,7 +42,9 @@ class Family:
     - ``recorded``: its scenes replay recorded tracks, one of them the ego's (the human
       reference is that track's future; ``traffic.library: [scene]`` reads the map's);
     - ``data_report``: ``scenario -> SceneReport``, the plausibility of its recorded data
-      (:mod:`gridsim.scenario.checks`), or None for a family without data.
+      (:mod:`gridsim.scenario.checks`), or None for a family without data;
+    - ``ignores``: the keys (``section.key``) of the other sections its worlds never read,
+      and why (a file that sets one is warned about: the key has no effect).
     """
 
     config: type[Strict]
@@ -50,6 +52,7 @@ class Family:
     defaults: Mapping[str, Any] = field(default_factory=dict)
     recorded: bool = False
     data_report: Callable[[Scenario], SceneReport] | None = None
+    ignores: tuple[tuple[str, ...], str] = ((), "")
 
     @property
     def tag(self) -> str:

@@ -311,8 +311,7 @@ def parse_scenario(
     doc = deep_merge(family_defaults(family), doc)
     scenario = Scenario(_validate(doc, source), source, base_dir)
     if unused:
-        why = ("recorded scenes take their traffic and lanes from the recording"
-               if FAMILIES[family].recorded else "only recorded scenes have tracks")  # fmt: skip
+        why = FAMILIES[family].ignores[1]
         warnings.warn(f"{source}: {', '.join(unused)} not used by road type {family!r} ({why}); "
                       "ignored", DataWarning, stacklevel=2)  # fmt: skip
     return scenario
@@ -320,17 +319,13 @@ def parse_scenario(
 
 #: Keys that only one kind of road uses: generated roads (``recorded=False``) place the ego in
 #: a lane among synthetic traffic; recorded scenes drive one of their tracks.
-ONLY_GENERATED = (("traffic", "participants"), ("traffic", "window"), ("ego", "lane"))
-ONLY_RECORDED = (("ego", "track"),)
-
-
 def _unused_keys(doc: Mapping[str, Any], family: Any) -> list[str]:
     """The keys the user set (``doc``, before the family's defaults) to other than their
     default that road type ``family`` does not use (none for an unknown family: the schema
     names it). A resolved scenario (``validate --resolved``) states every key at its default."""
     if not isinstance(family, str) or family not in FAMILIES:
         return []
-    keys = ONLY_GENERATED if FAMILIES[family].recorded else ONLY_RECORDED
+    keys = [key.split(".") for key in FAMILIES[family].ignores[0]]
     defaults = ScenarioConfig.model_fields
     return [f"{a}.{b}" for a, b in keys
             if isinstance(doc.get(a), Mapping) and b in doc[a]

@@ -88,4 +88,8 @@ def _lane_centre(road: SeamlessRoad, lane: int) -> Polyline:
     return road.lanes[lane].centre
 
 
-FAMILY = register_family(Family(SeamlessRoadConfig, build))
+FAMILY = register_family(Family(
+    SeamlessRoadConfig,
+    build,
+    ignores=(("ego.track",), "only recorded scenes have tracks"),
+))  # fmt: skip

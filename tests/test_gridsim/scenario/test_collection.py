@@ -273,12 +273,22 @@ def test_keys_that_the_road_type_does_not_use_are_named():
         load_scenario("seamless", {"ego": {"track": "5"}})
     with pytest.warns(DataWarning, match=r"traffic.participants not used by road type 'recorded'"):
         load_scenario("us101_4_1", {"traffic": {"participants": 50}})
+    # each family's own: the recorded ego starts as its track, the city ego on a route
+    said = (
+        r"traffic.v_max, ego.speed not used by road type 'recorded' \(recorded scenes "
+        r"take their traffic, lanes and the ego's start from the recording\)"
+    )
+    with pytest.warns(DataWarning, match=said):
+        load_scenario("us101_4_1", {"ego": {"speed": 20}, "traffic": {"v_max": 30}})
+    with pytest.warns(DataWarning, match=r"ego.lane not used by road type 'inner_city'"):
+        load_scenario("inner_city", {"ego": {"lane": 0}})
     import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("error", DataWarning)
-        resolved = load_scenario("seamless").config.model_dump(mode="json")
-        load_scenario("seamless", {k: resolved[k] for k in ("ego", "traffic")})
+        for name in ("seamless", "inner_city", "us101_4_1"):
+            resolved = load_scenario(name).config.model_dump(mode="json")
+            load_scenario(name, {k: resolved[k] for k in ("ego", "traffic")})
 
 
 def test_a_folder_says_its_subfolders_are_not_read(tmp_path):
