@@ -301,6 +301,10 @@ class ScenarioConfig(Strict):
         if abs(ticks - round(ticks)) > 1e-6 or round(ticks) < 1:
             problems.append(f"env.decision_period ({self.env.decision_period}) must be a whole "
                             f"multiple of simulation.dt ({dt})")  # fmt: skip
+        if self.simulation.duration < self.env.decision_period - 1e-9:
+            problems.append(f"simulation.duration ({self.simulation.duration:g} s) is shorter "
+                            f"than one decision (env.decision_period, "
+                            f"{self.env.decision_period:g} s)")  # fmt: skip
         goal = self.env.goal_seconds
         if goal is not None and goal < self.env.horizon_time - 1e-9:
             problems.append(f"env.goal_seconds ({goal:g}) must be >= the horizon's "

@@ -368,6 +368,9 @@ def test_duplicate_keys_are_refused_with_both_lines(tmp_path):
          "ego.vehicle.v_max (13.88 m/s): l3 would never count the ego's speed"),
         ({"env": {"speed_range": [30, 50]}},
          "env.speed_range [30, 50] m/s lie above ego.vehicle.v_max (13.88 m/s)"),
+        ({"simulation": {"duration": 0.05}},
+         "simulation.duration (0.05 s) is shorter than one decision (env.decision_period, "
+         "0.1 s)"),
         # radians where degrees are asked for
         ({"ego": {"vehicle": {"max_steer_deg": 0.6}}},
          "max_steer_deg 0.6 is in degrees (at least 5); radians? (0.6 rad = 34.38 deg)"),
