@@ -165,7 +165,7 @@ def _unfit_tests(scenario: Scenario, tracks, road: StaticRoad) -> dict:
     longest = scenario.config.traffic.max_vehicle_length
     return {
         f"shorter than {MIN_TRACK_SECONDS:g} s": lambda t: t.duration < MIN_TRACK_SECONDS,
-        f"longer vehicles than {longest:g} m": lambda t: t.length > longest,
+        f"of a vehicle longer than {longest:g} m": lambda t: t.length > longest,
         "implausible (see the warning)": lambda t: t.track_id in flawed,
         "overlapping another or grazing a road edge": lambda t: t.track_id in quirks,
     }
