@@ -232,7 +232,9 @@ def run_digests(out: Path) -> dict[str, str]:
     for name in ("front.npz", "checkpoint.npz"):
         with np.load(out / name) as arrays:
             for key in sorted(arrays.files):
-                if key != "run":  # the settings' digest (config.json), not a result
+                # the settings' digest (config.json), not a result; the history (with its
+                # timings) is digested above
+                if key not in ("run", "history"):
                     d.add(f"{name}_{key}", arrays[key])
     if (out / "pretrain.json").exists():
         pretrain = json.loads((out / "pretrain.json").read_text())

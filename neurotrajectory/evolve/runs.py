@@ -603,6 +603,27 @@ class Run:
                            f"({self.config.population})")  # fmt: skip
         return gen, pop, fit, violation
 
+    def _history_of_checkpoint(self, found: int, kept: int) -> list[dict]:
+        """The history the checkpoint of ``kept`` generations holds, written again as
+        ``history.json`` (which has ``found``: the run stopped between the two writes); a
+        :class:`RunError` when it holds none (a checkpoint from before it did) or another
+        count."""
+        path = self.out / "checkpoint.npz"
+        try:
+            with np.load(path) as data:
+                doc = json.loads(str(data["history"])) if "history" in data else None
+        except Exception as exc:
+            raise RunError(f"{path}: corrupt checkpoint ({exc})") from None
+        if doc is None or len(doc.get("generations", ())) != kept:
+            raise RunError(f"{self.out}: history.json has {found} generations, checkpoint.npz "
+                           f"{kept}: they disagree; restore both or start a new run with "
+                           "another --out")  # fmt: skip
+        write_json(self.out / "history.json", doc)
+        self.say(f"{self.out}: history.json had {found} generations and the checkpoint "
+                  f"{kept}: the run stopped between their writes; the checkpoint's history is "
+                  "kept")  # fmt: skip
+        return doc["generations"]
+
     def _violation(self, violation: np.ndarray, fitness: np.ndarray) -> np.ndarray | None:
         """What selection sees of the constraint: the share of episode time lost (nothing for
         unconstrained runs); anchored, with l1 worse than the anchor's below that
@@ -655,9 +676,7 @@ class Run:
         if problem:
             raise RunError(f"{self.out / 'checkpoint.npz'}: {problem}")
         if ckpt is not None and len(history) != ckpt[0] + 1:
-            raise RunError(f"{self.out}: history.json has {len(history)} generations, "
-                           f"checkpoint.npz {ckpt[0] + 1}: they disagree; restore both or "
-                           "start a new run with another --out")  # fmt: skip
+            history = self._history_of_checkpoint(len(history), ckpt[0] + 1)
         if ckpt is not None:
             source = Source.CHECKPOINT
         elif cfg.pretrain or cfg.pretrain_episodes:
@@ -684,6 +703,7 @@ class Run:
             if cfg.anchored and "knee_validation" in record:
                 self._keep_best_knee(population, gen, record["knee_validation"], history)
             history.append(record)
+            doc = {"run": self.fingerprint, "generations": history}
             write_npz(
                 self.out / "checkpoint.npz",
                 generation=np.array(gen),
@@ -691,8 +711,11 @@ class Run:
                 fitness=fitness,
                 violation=violation,
                 run=np.array(self.fingerprint),
+                # the history too: the two files are written one after the other, and a run
+                # stopped between them resumes from the checkpoint's
+                history=np.array(json.dumps(doc)),
             )
-            write_json(self.out / "history.json", {"run": self.fingerprint, "generations": history})
+            write_json(self.out / "history.json", doc)
             # the hypervolume plot's figure: what the generation dominates beyond its reference
             hv = generation_hypervolume(history[-1], history[0], cfg.anchored)
             bar.set_postfix(hv=f"{hv:.2f}", front=int(np.sum(rank == 0)))

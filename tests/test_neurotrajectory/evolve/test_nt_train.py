@@ -85,6 +85,28 @@ def test_resume_gives_the_same_result_as_an_uninterrupted_run(tmp_path):
         np.testing.assert_array_equal(a["population"], b["population"])
 
 
+def test_a_run_stopped_between_its_checkpoint_and_history_resumes(tmp_path):
+    """The checkpoint is written, then history.json: a run stopped between the two had a
+    history one generation short, and every resume was refused ("they disagree"). The
+    checkpoint holds the history too; the resume keeps it and ends as an uninterrupted run."""
+    cfg = TrainConfig(generations=3, **TINY)
+    Run.create(tmp_path / "a", cfg).train(progress=False)
+    b = tmp_path / "b"
+    Run.create(b, cfg).train(progress=False, stop_after=2)
+    doc = json.loads((b / "history.json").read_text())
+    (b / "history.json").write_text(json.dumps({**doc, "generations": doc["generations"][:1]}))
+    Run.open(b).train(progress=False)
+    assert len(history(b)) == 3
+    assert [h["fitness"] for h in history(b)] == [h["fitness"] for h in history(tmp_path / "a")]
+    with np.load(b / "checkpoint.npz") as data:  # a checkpoint without one is still refused
+        kept = {k: data[k] for k in data.files if k != "history"}
+    np.savez(b / "checkpoint.npz", **kept)
+    (b / "history.json").write_text(json.dumps({**doc, "generations": doc["generations"][:1]}))
+    with pytest.raises(RunError, match="history.json has 1 generations, checkpoint.npz 3: they "
+                                       "disagree"):  # fmt: skip
+        Run.open(b).train(progress=False)
+
+
 def test_a_run_killed_mid_generation_resumes_to_the_same_result(tmp_path):
     args = ["--preset", "tiny", "--population", "6", "--episodes", "1", "--episode-seconds", "4",
             "--seed", "1", "--generations", "3", "--heldout", "0", "--quiet"]  # fmt: skip
@@ -439,8 +461,8 @@ def test_resume_refuses_a_checkpoint_and_history_that_disagree(finished_run, tmp
     (run / "checkpoint.npz").write_bytes(kept)
     doc = json.loads((run / "history.json").read_text())
     (run / "history.json").write_text(json.dumps({"generations": doc["generations"][:1]}))
-    with pytest.raises(RunError, match="history.json has 1 generations, checkpoint.npz 2"):
-        Run.open(run).train(progress=False)
+    Run.open(run).train(progress=False)  # the checkpoint's own history is kept (see below)
+    assert history(run) == doc["generations"]
 
 
 def test_resume_refuses_a_checkpoint_of_another_network(finished_run, tmp_path):
