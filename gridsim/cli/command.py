@@ -14,6 +14,7 @@ import warnings
 from functools import partial
 from pathlib import Path
 
+from gridsim import interrupts
 from gridsim.errors import DataWarning, GridSimError
 
 #: Where unexpected errors are to be reported.
@@ -44,7 +45,8 @@ def run_command(
         warnings.simplefilter("default", DataWarning)
         warnings.showwarning = partial(_show_warning, parser.prog, set())
         try:
-            return args.func(args)
+            with interrupts.deferred():  # Ctrl-C at the end of a simulator step
+                return args.func(args)
         except errors as exc:
             print(f"{parser.prog}: error: {exc}", file=sys.stderr)
             return 2

@@ -28,6 +28,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from gridsim import interrupts
 from gridsim.envs.actions import ACTION_TYPES
 from gridsim.envs.human_reference import ReferenceTrajectory, human_reference, reference_from_track
 from gridsim.envs.observations import OBSERVATION_TYPES
@@ -137,6 +138,13 @@ class GridSimEnv(gym.Env):
 
     # -- episode ----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        interrupts.enter()  # a Ctrl-C waits for the reset's end (gridsim.interrupts)
+        try:
+            return self._reset(seed, options)
+        finally:
+            interrupts.leave()
+
+    def _reset(self, seed: int | None, options: dict | None):
         super().reset(seed=seed)
         episode_seed = int(self.np_random.integers(2**31 - 1))
         self.episode_seed = episode_seed
@@ -215,6 +223,14 @@ class GridSimEnv(gym.Env):
         - ``l3`` [m/s] (maximise): sum over the step's ticks of the speed, counting a tick only
           if the speed lies in ``[v_min, v_max]`` (``env.speed_range``).
         """
+        interrupts.enter()  # a Ctrl-C waits for the step's end (gridsim.interrupts)
+        try:
+            return self._step(action)
+        finally:
+            interrupts.leave()
+
+    def _step(self, action):
+        """The body of :meth:`step`."""
         if self.world is None:
             raise RuntimeError("call reset() before step()")
         if self._terminated:

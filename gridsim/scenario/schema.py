@@ -277,6 +277,7 @@ class ScenarioConfig(Strict):
             raise ValueError(f"YAML reads this name as {value!r}, not text: quote it "
                              "(name: \"...\")")  # fmt: skip
         return value
+
     simulation: SimulationConfig = SimulationConfig()
     #: the road family's block, told apart by ``type``: the union of the registered families'
     #: configs (:mod:`gridsim.scenario.family` builds it when a family registers)

@@ -61,3 +61,39 @@ def test_a_real_pipe_closed_before_the_output_ends_the_command_quietly():
         os.close(write)
     assert done.returncode == 141, done.stderr
     assert "internal error" not in done.stderr
+
+
+def test_a_ctrl_c_inside_a_simulator_step_waits_for_its_end():
+    """Python raises Ctrl-C between bytecodes, also as a compiled call returns, which could
+    crash the interpreter (interrupted record and train --backend local ended in segfaults):
+    in commands it is raised at the end of the step it arrives in."""
+    import signal
+
+    import gymnasium as gym
+    import pytest
+
+    from gridsim import interrupts
+
+    env = gym.make("GridSim-v0", simulation={"duration": 5.0})
+    _, info = env.reset(seed=0)
+    reached = []
+    inner = env.unwrapped._step
+
+    def step_that_is_interrupted(action):
+        os.kill(os.getpid(), signal.SIGINT)  # arrives in the middle of the step
+        result = inner(action)
+        reached.append("the step's end")
+        return result
+
+    env.unwrapped._step = step_that_is_interrupted
+    with interrupts.deferred(), pytest.raises(KeyboardInterrupt):
+        env.step(info["reference_setpoints"])
+    assert reached == ["the step's end"]
+    with interrupts.deferred(), pytest.raises(KeyboardInterrupt):  # outside a step: at once
+        os.kill(os.getpid(), signal.SIGINT)
+        reached.append("after the signal")
+    assert reached == ["the step's end"]
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # put back
+    with pytest.raises(KeyboardInterrupt):  # a library user's program: Python's own
+        env.step(info["reference_setpoints"])
+    assert reached == ["the step's end"]
