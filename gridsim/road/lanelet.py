@@ -69,7 +69,8 @@ def commonroad_root(path: str | Path) -> dict[str, str]:
     if not path.is_file():
         raise DataError(f"CommonRoad file not found: {path}")
     try:
-        _, root = next(ET.iterparse(path, events=("start",)))
+        with open(path, "rb") as fh:  # (iterparse closes a file it opened only at its end)
+            _, root = next(ET.iterparse(fh, events=("start",)))
     except (ET.ParseError, StopIteration) as exc:
         raise DataError(f"{path}: not well-formed XML ({exc})") from None
     if root.tag != "commonRoad":
@@ -86,11 +87,12 @@ def iter_commonroad(path: str | Path, tags: tuple[str, ...]) -> Iterator[ET.Elem
     :class:`DataError` if the file is missing, malformed or not a CommonRoad file."""
     commonroad_root(path)
     try:
-        for _, el in ET.iterparse(path, events=("end",)):
-            if el.tag in _TOP_LEVEL:
-                if el.tag in tags and "id" in el.attrib:
-                    yield el
-                el.clear()
+        with open(path, "rb") as fh:  # closed also when the caller stops early
+            for _, el in ET.iterparse(fh, events=("end",)):
+                if el.tag in _TOP_LEVEL:
+                    if el.tag in tags and "id" in el.attrib:
+                        yield el
+                    el.clear()
     except ET.ParseError as exc:
         raise DataError(f"{path}: not well-formed XML ({exc})") from None
 

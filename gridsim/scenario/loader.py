@@ -317,19 +317,24 @@ def parse_scenario(
     return scenario
 
 
-#: Keys that only one kind of road uses: generated roads (``recorded=False``) place the ego in
-#: a lane among synthetic traffic; recorded scenes drive one of their tracks.
 def _unused_keys(doc: Mapping[str, Any], family: Any) -> list[str]:
     """The keys the user set (``doc``, before the family's defaults) to other than their
-    default that road type ``family`` does not use (none for an unknown family: the schema
-    names it). A resolved scenario (``validate --resolved``) states every key at its default."""
+    default (the family's, else the schema's) that road type ``family`` does not use (none
+    for an unknown family: the schema names it). A resolved scenario (``validate
+    --resolved``) states every key at its default."""
     if not isinstance(family, str) or family not in FAMILIES:
         return []
     keys = [key.split(".") for key in FAMILIES[family].ignores[0]]
-    defaults = ScenarioConfig.model_fields
+    fields, own = ScenarioConfig.model_fields, family_defaults(family)
+
+    def default(a: str, b: str) -> Any:  # the family's, else the schema's
+        mine = own.get(a)
+        return mine[b] if isinstance(mine, Mapping) and b in mine else (
+            fields[a].default.model_dump().get(b))  # fmt: skip
+
     return [f"{a}.{b}" for a, b in keys
             if isinstance(doc.get(a), Mapping) and b in doc[a]
-            and not _same(doc[a][b], defaults[a].default.model_dump().get(b))]  # fmt: skip
+            and not _same(doc[a][b], default(a, b))]  # fmt: skip
 
 
 def _same(value: Any, default: Any) -> bool:

@@ -31,7 +31,7 @@ def vehicle_params(
     """Bicycle parameters from the YAML vehicle block (angles converted to radians)."""
     length = cfg.length if length is None else length
     width = cfg.width if width is None else width
-    wheelbase = min(cfg.wheelbase, MAX_WHEELBASE_SHARE * length)  # (a recorded ego's length)
+    wheelbase = min(cfg.wheelbase, MAX_WHEELBASE_SHARE * length)  # (docs/scenarios.md)
     return BicycleParams(
         wheelbase=wheelbase,
         length=length,

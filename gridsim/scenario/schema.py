@@ -117,10 +117,8 @@ class VehicleConfig(Strict):
             raise ValueError(f"v_max ({self.v_max}) must be >= v_min ({self.v_min})")
         _not_radians("max_steer_deg", self.max_steer_deg, 5.0)  # cars: 25-45 deg
         _not_radians("max_steer_rate_deg", self.max_steer_rate_deg, 5.0)
-        if self.wheelbase > MAX_WHEELBASE_SHARE * self.length:
-            raise ValueError(f"wheelbase ({self.wheelbase}) must be at most {MAX_WHEELBASE_SHARE} "
-                             f"x length ({MAX_WHEELBASE_SHARE * self.length:.4g}): the axles sit "
-                             "inside the body")  # fmt: skip
+        if self.wheelbase > self.length:
+            raise ValueError(f"wheelbase ({self.wheelbase}) must not exceed length ({self.length})")
         return self
 
 
@@ -128,8 +126,8 @@ def _not_radians(name: str, value: float, least: float) -> None:
     """A ``ValueError`` when an angle in degrees ``value`` is below ``least`` and reads as
     radians (at most 2 pi)."""
     if 0 < value < least and value <= 2 * np.pi + 1e-6:
-        raise ValueError(f"{name} {value:g} is in degrees (at least {least:g}); radians? "
-                         f"({value:g} rad = {np.degrees(value):.4g} deg)")  # fmt: skip
+        raise ValueError(f"{name} {value:g} looks like radians ({value:g} rad = "
+                         f"{np.degrees(value):.4g} deg); it is in degrees")  # fmt: skip
 
 
 class MountConfig(Strict):
@@ -317,9 +315,11 @@ class ScenarioConfig(Strict):
             where = ("env.speed_range" if self.env.speed_range is not None else
                      "traffic.v_min and v_max (env.speed_range's default)")  # fmt: skip
             lo, hi = self.speed_range
-            problems.append(f"{where} [{lo:g}, {hi:g}] m/s lie above ego.vehicle.v_max "
-                            f"({self.ego.vehicle.v_max:g} m/s): l3 would never count the ego's "
-                            f"speed; {_IN_MPS}")  # fmt: skip
+            problems.append(
+                f"{where} [{lo:g}, {hi:g}] m/s begin above ego.vehicle.v_max "
+                f"({self.ego.vehicle.v_max:g} m/s): l3 would never count the ego's "
+                "speed; give env.speed_range the speeds that count, in m/s"
+            )
         if self.traffic.v_max > MAX_TRAFFIC_SPEED:
             problems.append(f"traffic.v_max ({self.traffic.v_max:g} m/s) is faster than road "
                             f"traffic drives (at most {MAX_TRAFFIC_SPEED:g} m/s, "

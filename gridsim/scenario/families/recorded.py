@@ -294,7 +294,8 @@ FAMILY = register_family(Family(
     build,
     # the recorded traffic's speeds (NGSIM: up to about 25 m/s)
     defaults={
-        "ego": {"vehicle": {"v_max": 25.0, "a_max": 3.0}},
+        # (ego.speed: the track's; 0 here, so that a slow ego.vehicle.v_max is not refused)
+        "ego": {"speed": 0.0, "vehicle": {"v_max": 25.0, "a_max": 3.0}},
         "env": {"speed_range": [0.0, 30.0]},
     },
     recorded=True,
