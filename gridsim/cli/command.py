@@ -85,7 +85,8 @@ def _pipe_error(stream) -> bool:
     try:
         poll = select.poll()
         poll.register(stream.fileno(), select.POLLOUT)
-        return any(events & select.POLLERR for _, events in poll.poll(0))
+        # (Linux reports a pipe whose reader has gone as POLLERR, macOS and BSD as POLLHUP)
+        return any(events & (select.POLLERR | select.POLLHUP) for _, events in poll.poll(0))
     except (OSError, ValueError, AttributeError):  # not a pollable descriptor, no poll
         return False
 

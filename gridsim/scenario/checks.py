@@ -182,10 +182,14 @@ def _alone_in_time(tracks: list[Track], source: str) -> list[str]:
     one scene?)."""
     if len(tracks) < 2:
         return []
-    start = np.array([t.t[0] for t in tracks])
-    end = np.array([t.t[-1] for t in tracks])
-    meets = (start[:, None] <= end[None, :]) & (start[None, :] <= end[:, None])
-    alone = np.flatnonzero(meets.sum(axis=1) == 1)  # (each meets itself)
+    order = np.argsort([t.t[0] for t in tracks], kind="stable")
+    start = np.array([tracks[k].t[0] for k in order])
+    end = np.array([tracks[k].t[-1] for k in order])
+    # by start time, a track meets an earlier one iff the latest end before it reaches its
+    # start, and a later one iff the next start comes before its end (n log n, not n^2)
+    before = np.concatenate(([-np.inf], np.maximum.accumulate(end)[:-1]))
+    after = np.concatenate((start[1:], [np.inf]))
+    alone = np.sort(order[(before < start) & (after > end)])
     if len(alone) <= MAX_FLAWED_SHARE * len(tracks):
         return []
     named = ", ".join(tracks[k].track_id for k in alone[:5]) + (", ..." if len(alone) > 5 else "")

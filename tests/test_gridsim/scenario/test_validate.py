@@ -145,3 +145,26 @@ def test_tracks_that_share_no_moment_are_named(tmp_path, capsys):
                                       for k in range(2)], ego={"track": "random"})  # fmt: skip
     code, out = validate(capsys, together)
     assert code == 0 and "share no moment" not in out
+
+
+def test_tracks_alone_in_time_are_found_as_by_comparing_every_pair():
+    """The n log n search (22,000 tracks took 1 GB by pairs) against all pairs, ties included."""
+    from gridsim.scenario.checks import _alone_in_time
+
+    rng = np.random.default_rng(0)
+    for _ in range(200):
+        n = int(rng.integers(2, 30))
+        tracks = []
+        for k in range(n):
+            samples = int(rng.integers(2, 8))
+            tr = track(f"c{k}", np.linspace(0.0, 10.0, samples), np.zeros(samples))
+            tr.t[:] = float(rng.integers(0, 50)) + np.arange(samples)
+            tracks.append(tr)
+        start, end = np.array([t.t[0] for t in tracks]), np.array([t.t[-1] for t in tracks])
+        meets = (start[:, None] <= end[None, :]) & (start[None, :] <= end[:, None])
+        alone = np.flatnonzero(meets.sum(axis=1) == 1)
+        found = _alone_in_time(tracks, "s")
+        assert bool(found) == (len(alone) > 0.5 * n)
+        if found:
+            assert f"{len(alone)} of the {n} tracks" in found[0]
+            assert ", ".join(tracks[k].track_id for k in alone[:5]) in found[0]
