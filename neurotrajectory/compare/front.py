@@ -12,7 +12,7 @@ import torch
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.scenario.schema import Scenario
 from gridsim.traffic.track import track_name
-from neurotrajectory.data.windows import goal_overrides, is_recorded
+from neurotrajectory.data.windows import goal_overrides, has_recorded
 from neurotrajectory.evolve.fitness import scenario_net_config
 from neurotrajectory.evolve.genome import genome_mismatch, set_genome
 from neurotrajectory.evolve.pareto import pick_member
@@ -167,6 +167,13 @@ def _scenes(scenario: str) -> list[tuple[str, Scenario]]:
     return load_usable(scenario)[0]
 
 
+def _recorded_scenes(scenario: str) -> list[tuple[str, Scenario]]:
+    """:func:`_scenes` that replay recorded tracks (a collection may have generated ones)."""
+    from gridsim.scenario.family import family_of
+
+    return [(ref, sc) for ref, sc in _scenes(scenario) if family_of(sc).recorded]
+
+
 def _track_names(tracks: list[tuple[str, str]], scenes: list[tuple[str, Scenario]]) -> list[str]:
     """How reports name ``(scenario file, track id)`` pairs of ``scenes``
     (:func:`_scenes`): the id on one scene, ``FILE/ID`` on a collection (a track id may be on
@@ -181,7 +188,7 @@ def _resolve_track(scenario: str, name: str) -> tuple[str, str]:
     id (as ``config.json`` and datasets name it), or by its id alone where one scene has it."""
     from gridsim.scenario.families.recorded import scene_of
 
-    scenes = _scenes(scenario)
+    scenes = _recorded_scenes(scenario)
     every = _other_tracks(scenario, (), scenes)
     scene_ids = {ref: scene_of(sc) for ref, sc in scenes}
     names: dict[str, list[tuple[str, str]]] = {}
@@ -211,7 +218,7 @@ def episode_env(
     duration = {"simulation": {"duration": cfg.episode_seconds if seconds is None else seconds}}
     if track is None:
         return GridSimEnv(cfg.scenario, **(cfg.overrides | duration), **kwargs)
-    if not is_recorded(cfg.scenario):
+    if not has_recorded(cfg.scenario):
         raise RunError(f"--track {track}: the run's scenario {cfg.scenario} is generated, it "
                        "has no recorded tracks to drive (drop --track)")  # fmt: skip
     ref, track_id = _resolve_track(cfg.scenario, track)
@@ -228,7 +235,7 @@ def trained_tracks(config) -> set[str]:
     from gridsim.traffic.track import ids_in_scene
 
     out = set()
-    for _, sc in _scenes(config.scenario):
+    for _, sc in _recorded_scenes(config.scenario):
         scene = scene_of(sc)
         out |= {track_name(scene, t) for t in ids_in_scene(list(config.ego_tracks), scene)[0]}
     return out

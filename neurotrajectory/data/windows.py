@@ -318,6 +318,12 @@ def is_recorded(name: str) -> bool:
     return all(family_of(sc).recorded for sc in load_collection(name))
 
 
+def has_recorded(name: str) -> bool:
+    """Whether scenario ``name`` (one, or a collection: any of its files) replays a recorded
+    scene (a collection may mix recorded and generated scenes)."""
+    return any(family_of(sc).recorded for sc in load_collection(name))
+
+
 def record_scenario(
     scenario: str,
     episodes: int,

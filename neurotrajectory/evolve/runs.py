@@ -51,6 +51,7 @@ from neurotrajectory.data.windows import (
     drive_windows,
     episodes_of,
     goal_overrides,
+    has_recorded,
     is_recorded,
     load_dataset,
     scenario_episodes,
@@ -1181,7 +1182,7 @@ def _dagger_episodes(config: TrainConfig, windows) -> list:
 
 def _check_pretrain_episodes(config: TrainConfig) -> None:
 
-    if is_recorded(config.scenario):
+    if has_recorded(config.scenario):  # (its tracks would all be driven: none held out)
         raise RunError(f"--pretrain-episodes: {config.scenario!r} replays a recorded scene; "
                        "record windows of its training tracks and pass them as "
                        "--pretrain DATA")  # fmt: skip

@@ -912,6 +912,17 @@ def test_a_collection_with_a_generated_scene_still_holds_out_the_recorded_tracks
     Run.create(tmp_path / "run", cfg).train(progress=False)
     report = heldout(tmp_path / "run", 20)
     assert report["ego_tracks"] == [f"us101_4_1/{t}" for t in usable[:2]]
+    # the evaluation's and rollout's look-ups skip the generated scene too
+    from neurotrajectory.cli.rollout import rollout
+    from neurotrajectory.compare.front import trained_tracks
+
+    assert trained_tracks(cfg) == set(trained)
+    row = report["episodes"][-1]
+    driven = rollout(str(tmp_path / "run"), "knee", str(tmp_path / "v.gif"), row["seed"], None,
+                     overlay=False, seconds=2.0, track=row["track"])  # fmt: skip
+    assert driven["fitness_sums"]["l1"] == pytest.approx(row["l1"], rel=1e-12)
+    with pytest.raises(RunError, match="--pretrain-episodes: .* replays a recorded scene"):
+        Run.create(tmp_path / "other", TrainConfig(**{**base.model_dump(), "pretrain_episodes": 2}))
 
 
 def test_a_population_too_big_for_memory_is_refused_before_allocating(tmp_path, capsys):
