@@ -170,8 +170,9 @@ def _did_you_mean(parts: list, family: str | None = None) -> str:
         owners = [tag for tag, f in FAMILIES.items() if key in f.config.model_fields]
         if owners:
             mine = [k for k in FAMILIES[family].config.model_fields if k != "type"]
-            close = [k for k in mine if key in k or k in key]  # lanes, lanes_per_direction
-            close = close or difflib.get_close_matches(key, mine, n=1, cutoff=0.6)
+            # a key that contains the other (lanes, lanes_per_direction); not a spelling
+            # match: road.seed is no misspelt road.scene
+            close = [k for k in mine if key in k or k in key]
             instead = f"; did you mean 'road.{close[0]}'?" if close else ""
             return (f" for road type {family!r} (a key of {', '.join(map(repr, owners))})"
                     f"{instead}")  # fmt: skip
