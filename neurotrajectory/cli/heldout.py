@@ -36,7 +36,9 @@ def execute(args: argparse.Namespace) -> int:
     problem = output_problem(Path(args.out), directory=False)
     if problem:
         raise RunError(f"--out {args.out}: {problem}")
-    with run_folder(args.run, resume=True) if args.out is None else nullcontext():
+    inside = Path(args.out).resolve().is_relative_to(Path(args.run).resolve())
+    # a report written into the run folder holds it, as train does (one writer at a time)
+    with run_folder(args.run, resume=True) if inside else nullcontext():
         report_heldout(Run.open(args.run), args.episodes, args.seconds, args.pick, args.out,
                  args.plan_smoothing)  # fmt: skip
     return 0

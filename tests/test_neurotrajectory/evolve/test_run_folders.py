@@ -66,6 +66,19 @@ def test_a_second_train_in_the_same_folder_is_refused(tmp_path, capsys):
     assert f"--resume {run}: in use by another process (pid " in capsys.readouterr().err
 
 
+def test_heldout_into_a_run_being_trained_is_refused(tmp_path, capsys):
+    """heldout --out RUN/heldout.json wrote while a train held the run (and the train then
+    overwrote it: the lock was taken only without --out, which is required); a report
+    written elsewhere still only reads the run."""
+    run = tmp_path / "run"
+    Run.create(run, TrainConfig(generations=1, **TINY)).train(progress=False)
+    with folder_lock(run):  # another process training it
+        args = ["heldout", "--run", str(run), "--episodes", "1"]
+        assert main([*args, "--out", str(run / "heldout.json")]) == 2
+        assert f"{run}: in use by another process (pid " in capsys.readouterr().err
+        assert main([*args, "--out", str(tmp_path / "elsewhere.json")]) == 0
+
+
 def test_a_train_that_fails_before_a_generation_leaves_out_as_it_was(tmp_path, monkeypatch,
                                                                       capsys):  # fmt: skip
     def broken(self, progress=True, stop_after=None):
