@@ -4,6 +4,7 @@ errors into one line each (bad input: status 2; a bug: status 3, the traceback s
 from __future__ import annotations
 
 import argparse
+import errno
 import os
 import select
 import shlex
@@ -56,6 +57,11 @@ def run_command(
         except Exception as exc:
             if isinstance(exc, BrokenPipeError) and _stdout_closed():
                 return 141  # the reader went away (`| head`): stop quietly, as a shell tool
+            if isinstance(exc, OSError) and exc.errno in _DISK_FULL:  # not a bug: the disk
+                where = f"{exc.filename}: " if exc.filename else ""
+                print(f"{parser.prog}: error: {where}{exc.strerror}; free some space (or write "
+                      "elsewhere) and run it again", file=sys.stderr)  # fmt: skip
+                return 2
             if os.environ.get("GRIDSIM_DEBUG"):
                 raise
             saved = _save_traceback(parser.prog, args.command)
@@ -63,6 +69,10 @@ def run_command(
                   f"This is a bug, not a problem of your input. Please report it to {REPORT_TO} "
                   f"with the traceback saved in {saved}", file=sys.stderr)  # fmt: skip
             return 3
+
+
+#: Errors of a full disk or quota, not of the program.
+_DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 
 
 def _stdout_closed() -> bool:

@@ -97,3 +97,15 @@ def test_a_ctrl_c_inside_a_simulator_step_waits_for_its_end():
     with pytest.raises(KeyboardInterrupt):  # a library user's program: Python's own
         env.step(info["reference_setpoints"])
     assert reached == ["the step's end"]
+
+
+def test_a_full_disk_is_named_not_called_a_bug(capsys):
+    import errno
+
+    def full(args):
+        raise OSError(errno.ENOSPC, "No space left on device", "/runs/x/checkpoint.npz")
+
+    assert run_command(_parser(full), []) == 2
+    err = capsys.readouterr().err
+    assert "gridsim: error: /runs/x/checkpoint.npz: No space left on device; free some" in err
+    assert "internal error" not in err
