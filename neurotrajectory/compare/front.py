@@ -56,8 +56,10 @@ def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[T
         with np.load(path) as data:
             genomes, fitness = data["genomes"], data["fitness"]
             base = NetConfig.from_dict(json.loads(str(data["net"])))
-    except (OSError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as exc:
-        raise RunError(f"{path}: unreadable front ({type(exc).__name__}: {exc})") from None
+    except (OSError, EOFError, KeyError, ValueError, TypeError, zipfile.BadZipFile) as exc:
+        raise RunError(f"{path}: unreadable front ({type(exc).__name__}: {exc}); "
+                       f"`neurotrajectory train --resume {run.out}` chooses it again from the "
+                       "last generation") from None  # fmt: skip
     cfg = scenario_net_config(run.config.scenario, run.config.overrides, base)
     return run, fitness, genomes, [_net(cfg, genome, path) for genome in genomes]
 

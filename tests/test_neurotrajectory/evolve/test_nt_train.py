@@ -542,6 +542,12 @@ def test_broken_run_files_give_clear_errors(finished_run, tmp_path, capsys):
     (run / "front.npz").write_bytes(good[: len(good) // 2])
     assert main(["rollout", "--run", str(run), "--video", str(tmp_path / "v.gif")]) == 2
     assert f"{run / 'front.npz'}: unreadable front (BadZipFile" in capsys.readouterr().err
+    (run / "front.npz").write_bytes(b"")  # empty: it was an internal error (EOFError)
+    assert main(["rollout", "--run", str(run), "--video", str(tmp_path / "v.gif")]) == 2
+    err = capsys.readouterr().err
+    assert f"{run / 'front.npz'}: unreadable front (EOFError" in err
+    assert f"`neurotrajectory train --resume {run}` chooses it again" in err
+    (run / "front.npz").write_bytes(good[: len(good) // 2])
     with np.load(io.BytesIO(good)) as data:
         arrays = dict(data)
     arrays["genomes"] = np.zeros((1, 10), np.float32)  # as if saved with another preset
