@@ -440,6 +440,9 @@ Compare it: `neurotrajectory evaluate --run {out} --out eval/NAME`.
 
 #: What ``train`` does after the generations, by default (``config.json`` ``"after"``).
 AFTER_DEFAULTS = {"heldout": 20, "video": None}
+#: How ``config.json`` names a ``--video`` inside the run folder: relative to it, wherever
+#: the folder is moved or copied.
+IN_RUN = "{run}/"
 
 
 class Run:
@@ -483,8 +486,15 @@ class Run:
         return run
 
     def _write_config(self) -> None:
+        after = dict(self.after)
+        video = after.get("video")
+        if video and Path(video).resolve().is_relative_to(self.out.resolve()):
+            # a video inside the run stays with it when the run is moved or copied
+            after["video"] = (
+                IN_RUN + Path(video).resolve().relative_to(self.out.resolve()).as_posix()
+            )
         doc = {"format": FORMAT_VERSION, "run": self.fingerprint, "train": self.config.as_dict(),
-               "after": self.after}  # fmt: skip
+               "after": after}  # fmt: skip
         write_json(self.out / "config.json", doc)
 
     @property
@@ -529,6 +539,8 @@ class Run:
         allowed = {k: v for k, v in changes.items() if v is not None and k in TrainConfig.RESUMABLE}
         config = stored.replace(**allowed)
         kept = doc.get("after") if isinstance(doc.get("after"), dict) else {}
+        if isinstance(kept.get("video"), str) and kept["video"].startswith(IN_RUN):
+            kept = {**kept, "video": str(out / kept["video"].removeprefix(IN_RUN))}
         given = {k: v for k, v in after.items() if v is not None}
         run = cls(out, config, {k: kept[k] for k in AFTER_DEFAULTS if k in kept} | given)
         done = run.completed_generations() if "generations" in allowed else 0

@@ -66,6 +66,20 @@ def test_a_second_train_in_the_same_folder_is_refused(tmp_path, capsys):
     assert f"--resume {run}: in use by another process (pid " in capsys.readouterr().err
 
 
+def test_a_video_inside_the_run_moves_with_it(tmp_path):
+    """--video RUN/knee.mp4 was kept as given: a resumed copy overwrote the original's video,
+    a moved run wrote into its old place (and a read-only original failed at the end)."""
+    run = tmp_path / "run"
+    Run.create(run, TrainConfig(generations=1, **TINY), video=str(run / "knee.mp4"))
+    assert json.loads((run / "config.json").read_text())["after"]["video"] == "{run}/knee.mp4"
+    assert Run.open(run).after["video"] == str(run / "knee.mp4")
+    shutil.copytree(run, tmp_path / "copy")
+    assert Run.open(tmp_path / "copy").after["video"] == str(tmp_path / "copy" / "knee.mp4")
+    elsewhere = str(tmp_path / "videos" / "knee.mp4")  # outside the run: as given
+    Run.open(run, video=elsewhere)
+    assert Run.open(run).after["video"] == elsewhere
+
+
 def test_heldout_into_a_run_being_trained_is_refused(tmp_path, capsys):
     """heldout --out RUN/heldout.json wrote while a train held the run (and the train then
     overwrote it: the lock was taken only without --out, which is required); a report
