@@ -1067,6 +1067,9 @@ def run_folder(out: str | Path, resume: bool) -> Iterator[Path]:
             raise RunError(f"--out {out}: {problem}")
     existed = out.exists()
     with folder_lock(out, "--resume" if resume else "--out"):
+        if resume:  # a write a killed process left half done (a checkpoint's can take GBs)
+            for stale in out.glob(".*.tmp"):
+                stale.unlink(missing_ok=True)
         try:
             yield out
         except BaseException:

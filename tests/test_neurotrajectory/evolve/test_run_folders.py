@@ -75,6 +75,12 @@ def test_a_video_inside_the_run_moves_with_it(tmp_path):
     assert Run.open(run).after["video"] == str(run / "knee.mp4")
     shutil.copytree(run, tmp_path / "copy")
     assert Run.open(tmp_path / "copy").after["video"] == str(tmp_path / "copy" / "knee.mp4")
+    stale = run / ".checkpoint.npz.k3j2.tmp"  # what a killed write leaves: gone on resume
+    stale.write_bytes(b"half a checkpoint")
+    from neurotrajectory.evolve.runs import run_folder
+
+    with run_folder(run, resume=True):
+        assert not stale.exists() and (run / "config.json").exists()
     elsewhere = str(tmp_path / "videos" / "knee.mp4")  # outside the run: as given
     Run.open(run, video=elsewhere)
     assert Run.open(run).after["video"] == elsewhere
