@@ -30,6 +30,14 @@ from neurotrajectory.model import NetConfig, TrajectoryNet
 BACKENDS = ("local", "processes", "ray")
 
 
+#: What a worker that ended without answering (killed: by the out-of-memory killer?) says.
+WORKER_DIED = (
+    "a worker process died (killed, by the system's out-of-memory killer perhaps: "
+    "fewer --workers or a smaller --batch need less memory); the run goes on with "
+    "train --resume"
+)
+
+
 class BackendError(RuntimeError):
     """A backend could not be started or lost its workers."""
 
@@ -299,8 +307,8 @@ class ProcessBackend(RemoteBackend):
     def _reply(self, conn):
         try:
             status, value = conn.recv()
-        except EOFError:
-            raise BackendError("a worker process died") from None
+        except (EOFError, ConnectionResetError):
+            raise BackendError(WORKER_DIED) from None
         if status == "error":
             raise BackendError(f"worker failed: {value}")
         return value
@@ -308,7 +316,10 @@ class ProcessBackend(RemoteBackend):
     def _all(self, name, args):
         self._waiting = True
         for conn, arg in zip(self.conns, args, strict=True):
-            conn.send((name, arg))
+            try:
+                conn.send((name, arg))
+            except (BrokenPipeError, ConnectionResetError):  # (it died between commands)
+                raise BackendError(WORKER_DIED) from None
         replies = [self._reply(conn) for conn in self.conns]
         self._waiting = False
         return replies

@@ -127,6 +127,25 @@ def test_a_run_killed_mid_generation_resumes_to_the_same_result(tmp_path):
     ]
 
 
+def test_a_killed_worker_is_named_with_a_way_on():
+    """A worker killed between commands (the out-of-memory killer) gave a BrokenPipeError,
+    called a bug; killed while it works, 'a worker process died' and nothing more."""
+    from neurotrajectory.evolve.backends import WORKER_DIED, BackendError
+
+    spec = WorkerSpec("seamless", {"simulation": {"duration": 2.0}}, PRESETS["tiny"], (5,))
+    backend = make_backend("processes", spec, workers=2)
+    try:
+        backend.advance([Recipe(init_seed=i) for i in range(2)])
+        backend.procs[1].kill()
+        backend.procs[1].join()
+        with pytest.raises(BackendError) as err:
+            backend.evaluate(2, (5,))
+        assert str(err.value) == WORKER_DIED
+        assert "out-of-memory killer" in WORKER_DIED and "train --resume" in WORKER_DIED
+    finally:
+        backend.close()
+
+
 def test_backends_give_identical_results(tmp_path):
     spec = WorkerSpec("seamless", {"simulation": {"duration": 3.0}}, PRESETS["tiny"], (5, 6))
     recipes = [Recipe(init_seed=i) for i in range(4)]
