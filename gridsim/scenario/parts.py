@@ -55,13 +55,16 @@ def resolve(
     from importlib import resources
 
     shipped = resources.files("gridsim").joinpath(*builtin_dir)
-    names = sorted(f.name.removesuffix(suffix) for f in shipped.iterdir()
-                   if f.name.endswith(suffix))  # fmt: skip
+
+    def names() -> list[str]:  # (listed only for a message: resolve runs on every reset)
+        return sorted(f.name.removesuffix(suffix) for f in shipped.iterdir()
+                      if f.name.endswith(suffix))  # fmt: skip
+
     if ref.startswith("builtin:"):
         name = ref.split(":", 1)[1]
         entry = shipped.joinpath(name + suffix)
         if not entry.is_file():
-            listed = ", ".join(f"builtin:{n}" for n in names)
+            listed = ", ".join(f"builtin:{n}" for n in names())
             raise ScenarioError(f"{scenario.source}: {key} {ref!r}: no such built-in file (they "
                                 f"are named without {suffix}): {listed}")  # fmt: skip
         return Path(str(entry))
@@ -70,7 +73,7 @@ def resolve(
         path = scenario.base_dir / path
     if not path.is_file():
         meant = Path(ref).name.removesuffix(suffix)
-        hint = f"; did you mean 'builtin:{meant}'?" if meant in names else ""
+        hint = f"; did you mean 'builtin:{meant}'?" if meant in names() else ""
         raise ScenarioError(f"{scenario.source}: {key}: file not found: {ref!r} (resolved to "
                             f"{path}){hint}")  # fmt: skip
     return path
