@@ -169,11 +169,12 @@ def _scenes(scenario: str) -> list[tuple[str, Scenario]]:
     return load_usable(scenario)[0]
 
 
-def _recorded_scenes(scenario: str) -> list[tuple[str, Scenario]]:
-    """:func:`_scenes` that replay recorded tracks (a collection may have generated ones)."""
+def _recorded(scenes: list[tuple[str, Scenario]]) -> list[tuple[str, Scenario]]:
+    """The ``(file, scenario)`` of ``scenes`` that replay recorded tracks (a collection may
+    have generated ones beside them)."""
     from gridsim.scenario.family import family_of
 
-    return [(ref, sc) for ref, sc in _scenes(scenario) if family_of(sc).recorded]
+    return [(ref, sc) for ref, sc in scenes if family_of(sc).recorded]
 
 
 def _track_names(tracks: list[tuple[str, str]], scenes: list[tuple[str, Scenario]]) -> list[str]:
@@ -190,7 +191,7 @@ def _resolve_track(scenario: str, name: str) -> tuple[str, str]:
     id (as ``config.json`` and datasets name it), or by its id alone where one scene has it."""
     from gridsim.scenario.families.recorded import scene_of
 
-    scenes = _recorded_scenes(scenario)
+    scenes = _recorded(_scenes(scenario))
     every = _other_tracks(scenario, (), scenes)
     scene_ids = {ref: scene_of(sc) for ref, sc in scenes}
     names: dict[str, list[tuple[str, str]]] = {}
@@ -237,7 +238,7 @@ def trained_tracks(config) -> set[str]:
     from gridsim.traffic.track import ids_in_scene
 
     out = set()
-    for _, sc in _recorded_scenes(config.scenario):
+    for _, sc in _recorded(_scenes(config.scenario)):
         scene = scene_of(sc)
         out |= {track_name(scene, t) for t in ids_in_scene(list(config.ego_tracks), scene)[0]}
     return out
@@ -280,13 +281,10 @@ def _other_tracks(
     each of a collection's usable files; ``scenes`` if loaded already, :func:`_scenes`) that
     can be the ego and is not in ``trained`` (ids, or ``SCENE/ID`` names)."""
     from gridsim.scenario.families.recorded import ego_candidates, scene_of
-    from gridsim.scenario.family import family_of
     from gridsim.traffic.track import ids_in_scene
 
     others = []
-    for ref, sc in _scenes(scenario) if scenes is None else scenes:
-        if not family_of(sc).recorded:  # a generated scene beside them: no tracks
-            continue
+    for ref, sc in _recorded(_scenes(scenario) if scenes is None else scenes):
         seen = set(ids_in_scene(list(trained), scene_of(sc))[0])
         need = sc.config.env.horizon_time
         others += [(ref, t.track_id) for t in ego_candidates(sc)
