@@ -5,9 +5,9 @@ call returns, it can leave the interpreter in a bad state: the command ends in a
 segmentation fault or a ``SystemError`` instead of its "interrupted" message (seen when
 interrupting ``record`` and ``train --backend local``). Commands install
 :func:`deferred` around their work; every :meth:`GridSimEnv.step
-<gridsim.envs.gridsim_env.GridSimEnv.step>` and ``reset`` is a :func:`critical` section, at
-whose end a Ctrl-C that arrived inside it is raised. Outside such sections, and in programs
-that do not install it, Ctrl-C is Python's own.
+<gridsim.envs.gridsim_env.GridSimEnv.step>` and ``reset`` is a critical section
+(:func:`enter` ... :func:`leave`), at whose end a Ctrl-C that arrived inside it is raised.
+Outside such sections, and in programs that do not install it, Ctrl-C is Python's own.
 """
 
 from __future__ import annotations

@@ -161,7 +161,6 @@ class SensorConfig(Strict):
 #: m/s: the fastest generated traffic (as fast as recorded tracks may imply:
 #: :data:`gridsim.scenario.checks.MAX_SPEED`).
 MAX_TRAFFIC_SPEED = 70.0
-_IN_MPS = "speeds are in m/s (km/h / 3.6)"
 
 
 class TrafficConfig(Strict):
@@ -323,7 +322,8 @@ class ScenarioConfig(Strict):
         if self.traffic.v_max > MAX_TRAFFIC_SPEED:
             problems.append(f"traffic.v_max ({self.traffic.v_max:g} m/s) is faster than road "
                             f"traffic drives (at most {MAX_TRAFFIC_SPEED:g} m/s, "
-                            f"{MAX_TRAFFIC_SPEED * 3.6:g} km/h); {_IN_MPS}")  # fmt: skip
+                            f"{MAX_TRAFFIC_SPEED * 3.6:g} km/h); speeds are in m/s (km/h / "
+                            "3.6)")  # fmt: skip
         if problems:
             raise ValueError("\n".join(problems))
         return self

@@ -487,12 +487,10 @@ class Run:
 
     def _write_config(self) -> None:
         after = dict(self.after)
-        video = after.get("video")
-        if video and Path(video).resolve().is_relative_to(self.out.resolve()):
+        video, here = after.get("video"), self.out.resolve()
+        if video and Path(video).resolve().is_relative_to(here):
             # a video inside the run stays with it when the run is moved or copied
-            after["video"] = (
-                IN_RUN + Path(video).resolve().relative_to(self.out.resolve()).as_posix()
-            )
+            after["video"] = IN_RUN + Path(video).resolve().relative_to(here).as_posix()
         doc = {"format": FORMAT_VERSION, "run": self.fingerprint, "train": self.config.as_dict(),
                "after": after}  # fmt: skip
         write_json(self.out / "config.json", doc)
