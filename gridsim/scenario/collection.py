@@ -114,7 +114,7 @@ def usable_files(
     scenarios, skipped = [], []
     for f in files:
         try:
-            sc = load_scenario(f, overrides)
+            sc = load_scenario(f, overrides, shared=True)  # (an override read by some only)
             if read_data:
                 build_world(sc, seed=0)  # resolves maps and libraries, checks the recorded data
         except GridSimError as exc:

@@ -294,21 +294,24 @@ def parse_scenario(
     source: str = "<scenario>",
     base_dir: Path | None = None,
     overrides: Mapping[str, Any] | None = None,
+    shared: bool = False,
 ) -> Scenario:
     """Validate a parsed YAML document (plus ``overrides``) into a :class:`Scenario`: the
     scenario it ``extends:`` first, if any (:func:`_extended`), then its road family's
     defaults (:attr:`~gridsim.scenario.family.Family.defaults`), then the document, then
-    ``overrides``."""
+    ``overrides``. Keys the road family does not read are warned about; with ``shared``
+    (``overrides`` given to every scenario of a collection, whose other members read them)
+    only those the document sets."""
     _check_mapping(doc, source)
     if overrides is not None and not isinstance(overrides, Mapping):
         raise ScenarioError(f"{source}: overrides must be a mapping of keys (like the YAML), "
                             f"got {type(overrides).__name__}")  # fmt: skip
-    doc = _extended(doc, source, base_dir)
+    doc = own = _extended(doc, source, base_dir)
     if overrides:
         doc = deep_merge(doc, overrides)
     road = doc.get("road")
     family = road.get("type") if isinstance(road, Mapping) else None
-    unused = _unused_keys(doc, family)
+    unused = _unused_keys(own if shared else doc, family)
     doc = deep_merge(family_defaults(family), doc)
     scenario = Scenario(_validate(doc, source), source, base_dir)
     if unused:
@@ -434,7 +437,9 @@ def commonroad_defaults() -> dict[str, Any]:
     })  # fmt: skip
 
 
-def commonroad_scenario(path: Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+def commonroad_scenario(
+    path: Path, overrides: Mapping[str, Any] | None = None, shared: bool = False
+) -> Scenario:
     """A CommonRoad scenario file as it is: its lanelet map and its dynamic obstacles, one
     of them the ego (drawn from the seed), with :func:`commonroad_defaults` and ``overrides``."""
     if not path.is_file():
@@ -447,16 +452,19 @@ def commonroad_scenario(path: Path, overrides: Mapping[str, Any] | None = None) 
             "road": {"type": "recorded", "map": str(path.resolve())},
         },
     )
-    return parse_scenario(doc, str(path), path.resolve().parent, overrides)
+    return parse_scenario(doc, str(path), path.resolve().parent, overrides, shared)
 
 
-def load_scenario(name_or_path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenario:
+def load_scenario(
+    name_or_path: str | Path, overrides: Mapping[str, Any] | None = None, shared: bool = False
+) -> Scenario:
     """Load a built-in scenario by name (``"seamless"``), a YAML file by path, or a
-    CommonRoad XML file (``.xml``, see :func:`commonroad_scenario`)."""
+    CommonRoad XML file (``.xml``, see :func:`commonroad_scenario`); ``shared``: see
+    :func:`parse_scenario`."""
     if isinstance(name_or_path, str | os.PathLike) and Path(name_or_path).suffix.lower() == ".xml":
-        return commonroad_scenario(Path(name_or_path), overrides)
+        return commonroad_scenario(Path(name_or_path), overrides, shared)
     text, source, base = _read(name_or_path)
-    return parse_scenario(_parse_yaml(text, source), source, base, overrides)
+    return parse_scenario(_parse_yaml(text, source), source, base, overrides, shared)
 
 
 def _parse_yaml(text: str, source: str) -> Any:

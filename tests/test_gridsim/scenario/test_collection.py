@@ -299,6 +299,30 @@ def test_keys_that_the_road_type_does_not_use_are_named():
             load_scenario(name, {k: resolved[k] for k in ("ego", "traffic")})
 
 
+def test_a_collection_override_read_by_some_members_only_is_not_warned_about(tmp_path):
+    """``train`` hands a collection's training tracks (``ego.track``) to every member: its
+    generated scene does not read them, and says nothing; the same key in that scene's own
+    file is still named."""
+    import warnings
+
+    from gridsim.scenario.collection import load_collection
+
+    shared = "ego: {vehicle: {v_max: 25.0, a_max: 3.0}}\nenv: {speed_range: [0.0, 30.0]}\n"
+    seamless = tmp_path / "seamless_highway.yaml"
+    seamless.write_text("name: seamless_highway\nroad: {type: seamless}\n" + shared)
+    mixed = f"us101_4_1,{seamless}"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)
+        scenarios = load_collection(mixed, {"ego": {"track": ["USA_US101-4_1_T-1/399"]}})
+    assert [sc.config.road.type for sc in scenarios] == ["recorded", "seamless"]
+    seamless.write_text(
+        "name: seamless_highway\nroad: {type: seamless}\n"
+        + shared.replace("{vehicle", "{track: '5', vehicle")
+    )
+    with pytest.warns(DataWarning, match=r"seamless_highway.yaml: ego.track not used by road"):
+        load_collection(mixed, {"ego": {"track": ["USA_US101-4_1_T-1/399"]}})
+
+
 def test_a_folder_says_its_subfolders_are_not_read(tmp_path):
     """Scenario files in a subfolder are not read: a warning says so and gives the glob
     that reads them all (they were left out silently)."""
