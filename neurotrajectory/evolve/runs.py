@@ -98,7 +98,9 @@ PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm st
 WARM_START_FILE = "warm_start.npz"  # the warm start's genome in a run folder
 #: The SHA-256 of the files the run's scenario is read from when it began (resumes check them).
 INPUTS_FILE = "inputs.json"
-BEST_KNEE_FILE = "best_knee.npz"  # anchored runs: the best validated knee of any generation
+BEST_KNEE_FILE = (
+    "best_knee.npz"  # runs with a warm start: the best validated knee of any generation
+)
 
 
 class RunError(RuntimeError):
@@ -425,7 +427,7 @@ Made by `{command}` on {date}.
 - `history.json`: every generation's fitness, Pareto ranks, hypervolume, timing, and the
   knee's validation score (the learning curve)
 - `warm_start.npz`: the warm start's genome (runs with a warm start)
-- `best_knee.npz`: the best validated knee of any generation (anchored runs)
+- `best_knee.npz`: the best validated knee of any generation (runs with a warm start)
 - `front.npz`, `front.json`: the final Pareto front, weights and scores on the episodes it
   was chosen on
 - `heldout.json`: the knee (its warm start, the destination curve) on held-out episodes
@@ -643,6 +645,12 @@ class Run:
             lost = violation if self.config.constrained else np.zeros(len(fitness))
             return anchored_violation(fitness, lost)
         return violation if self.config.constrained else None
+
+    def _hypervolumes(self) -> list[float]:
+        """Each generation's :func:`~neurotrajectory.evolve.pareto.generation_hypervolume`
+        (the hypervolume plot's and the progress bar's figure)."""
+        history = self.load_history()
+        return [generation_hypervolume(h, history[0], self.config.anchored) for h in history]
 
     def load_history(self) -> list[dict]:
         path = self.out / "history.json"
@@ -981,7 +989,8 @@ class Run:
                 }
                 for i in members
             ],  # fmt: skip
-            "hypervolume": [h["hypervolume"] for h in self.load_history()],
+            # per generation, the hypervolume plot's and the progress bar's figure
+            "hypervolume": self._hypervolumes(),
             # every member the front was chosen from, so that the plots can be drawn again
             "candidates": [
                 {
