@@ -506,9 +506,11 @@ def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
             raise ScenarioError(f"{p}: cannot read scenario file ({exc})") from None
     entry = resources.files("gridsim").joinpath(*_BUILTIN_DIR, f"{name_or_path}.yaml")
     if not entry.is_file():
-        known = ", ".join(builtin_scenarios())
+        names = builtin_scenarios()
+        close = difflib.get_close_matches(str(name_or_path), names, n=1, cutoff=0.6)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise ScenarioError(
-            f"unknown scenario {str(name_or_path)!r}; built-in scenarios: {known} "
-            "(or give a path to a .yaml or a CommonRoad .xml file)"
+            f"unknown scenario {str(name_or_path)!r}{hint}; built-in scenarios: "
+            f"{', '.join(names)} (or give a path to a .yaml or a CommonRoad .xml file)"
         )
     return entry.read_text(encoding="utf-8"), f"builtin:{name_or_path}", None

@@ -54,7 +54,13 @@ def add_parser(sub) -> None:
 def execute(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from neurotrajectory.data.windows import Dataset, record_group, save_dataset, split_by_track
+    from neurotrajectory.data.windows import (
+        Dataset,
+        check_group,
+        record_group,
+        save_dataset,
+        split_by_track,
+    )
 
     if args.group is not None:
         raise RunError(f"record --group {args.group}: the dataset's group name is --name now "
@@ -67,6 +73,7 @@ def execute(args: argparse.Namespace) -> int:
     if args.episodes is None:
         args.episodes = EVAL["episodes"]
     name, source = (args.name, args.scenario) if args.name else (args.scenario, None)
+    check_group(args.scenario)
     with new_folder(args.out) as partial:  # held before recording; --out appears when done
         with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:
 

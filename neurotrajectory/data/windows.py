@@ -17,6 +17,7 @@ NGSIM track of the shipped scenes in turn as the ego, removed from the replayed 
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import platform
@@ -28,7 +29,7 @@ import numpy as np
 
 from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.errors import GridSimError
+from gridsim.errors import GridSimError, ScenarioError
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write_json, write_npz
 from gridsim.policies import Reference
@@ -364,6 +365,21 @@ def group_scenarios(name: str, source: str | None = None) -> tuple[str, ...]:
     if given; else a group of :data:`GROUPS`, the usable files of ``name`` if it is a folder
     or glob, or the one scenario ``name`` (built-in name, YAML or CommonRoad XML path)."""
     return group_files(name, source)[0]
+
+
+def check_group(name: str) -> None:
+    """A :class:`~gridsim.errors.ScenarioError` naming the groups too, before anything is
+    recorded or written, when ``name`` is no group of :data:`GROUPS`, folder, glob or list of
+    scenarios, nor one scenario (the loader's message, and the group it may be a misspelling
+    of)."""
+    if name in GROUPS or scenario_files(name) is not None:
+        return
+    try:
+        load_scenario(name)
+    except ScenarioError as exc:
+        close = difflib.get_close_matches(name, list(GROUPS), n=1, cutoff=0.6)
+        hint = f" (did you mean the group {close[0]!r}?)" if close else ""
+        raise ScenarioError(f"{exc}; or a group: {', '.join(GROUPS)}{hint}") from None
 
 
 def group_files(

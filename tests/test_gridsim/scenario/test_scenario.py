@@ -72,6 +72,9 @@ def open_builtin(name):
 def test_unknown_name_lists_the_builtins():
     with pytest.raises(ScenarioError, match=r"unknown scenario 'sea'.*seamless"):
         load_scenario("sea")
+    with pytest.raises(ScenarioError, match=r"unknown scenario 'seamles' \(did you mean "
+                       r"'seamless'\?\); built-in scenarios: inner_city, "):  # fmt: skip
+        load_scenario("seamles")
 
 
 def test_missing_file():

@@ -63,6 +63,17 @@ def test_evaluate_flags_default_to_the_eval_config(monkeypatch, tmp_path):
     assert built["cfg"] == EvalConfig(seed=4, episodes=3, end2end={"epochs": 2, "seed": 4})
 
 
+def test_record_of_a_misspelt_group_names_the_groups_and_writes_nothing(tmp_path, capsys):
+    """``--scenario highwy``: refused before the progress bar and the output folder, with
+    the groups listed beside the built-in scenarios and the group it resembles."""
+    out = tmp_path / "data" / "x"
+    assert main(["record", "--scenario", "highwy", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "unknown scenario 'highwy'" in err and "or a group: seamless, inner_city" in err
+    assert "did you mean the group 'highway'?" in err and "episode" not in err
+    assert not (tmp_path / "data").exists()
+
+
 def test_record_group_is_now_name_and_says_so(tmp_path, capsys):
     """The dataset's group name moved from ``record --group`` to ``record --name`` (``--group``
     is evaluate's NAME=FOLDER); the old spelling is refused naming the new one, and nothing
