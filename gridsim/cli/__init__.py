@@ -8,7 +8,7 @@ import argparse
 import sys
 
 from gridsim.cli import compile, drive, import_, run, scenarios, validate
-from gridsim.cli.command import run_command
+from gridsim.cli.command import add_subcommands, run_command
 
 #: The subcommands, in the order ``gridsim --help`` lists them.
 SUBCOMMANDS = (scenarios, validate, import_, run, drive, compile)
@@ -16,9 +16,7 @@ SUBCOMMANDS = (scenarios, validate, import_, run, drive, compile)
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="gridsim", description="Headless GridSim driving simulator.")
-    sub = p.add_subparsers(dest="command", required=True)
-    for module in SUBCOMMANDS:
-        module.add_parser(sub)
+    add_subcommands(p, SUBCOMMANDS)
     return p
 
 

@@ -22,6 +22,40 @@ from gridsim.errors import DataWarning, GridSimError
 REPORT_TO = "the GridSim issue tracker"
 
 
+class HelpWithDefaults(argparse.HelpFormatter):
+    """Help that states an option's default where its text does not already say it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        text = action.help or ""
+        if (
+            not action.option_strings
+            or text == argparse.SUPPRESS
+            or "default" in text
+            or action.default is None
+            or isinstance(action.default, bool)
+            or action.default == argparse.SUPPRESS
+        ):
+            return action.help
+        return f"{text} (default %(default)s)"
+
+
+class Subcommand(argparse.ArgumentParser):
+    """A subcommand's parser: its help states the defaults, and :func:`run_command` reports
+    an unknown flag with this subcommand's usage (not the top-level one)."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("formatter_class", HelpWithDefaults)
+        super().__init__(*args, **kwargs)
+        self.set_defaults(_subcommand=self)
+
+
+def add_subcommands(parser: argparse.ArgumentParser, modules) -> None:
+    """The subcommands of ``parser``: each module's ``add_parser(sub)``, in order."""
+    sub = parser.add_subparsers(dest="command", required=True, parser_class=Subcommand)
+    for module in modules:
+        module.add_parser(sub)
+
+
 def run_command(
     parser: argparse.ArgumentParser,
     argv: list[str] | None,
@@ -34,7 +68,10 @@ def run_command(
     traceback was saved (exit status 3; ``GRIDSIM_DEBUG=1`` raises it instead); Ctrl-C exits
     with status 130 and no traceback; output piped to a reader that stops early (``| head``)
     ends it quietly with status 141."""
-    args = parser.parse_args(argv)
+    args, unknown = parser.parse_known_args(argv)
+    subcommand = vars(args).pop("_subcommand", parser)
+    if unknown:  # with the usage of the subcommand they were given to
+        subcommand.error(f"unrecognized arguments: {' '.join(unknown)}")
     #: the command line, as the user gave it (for files that record what made them)
     args.command = " ".join([parser.prog, *map(shlex.quote, sys.argv[1:] if argv is None
                                                else argv)])  # fmt: skip

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from gridsim.cli.command import run_command
+from gridsim.cli.command import add_subcommands, run_command
 from gridsim.errors import GridSimError
 from neurotrajectory.cli import evaluate, heldout, plots, record, rollout, train
 from neurotrajectory.evolve.backends import BackendError
@@ -22,9 +22,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="neurotrajectory", description="NeuroTrajectory: neuroevolution of local trajectories."
     )
-    sub = p.add_subparsers(dest="command", required=True)
-    for module in SUBCOMMANDS:
-        module.add_parser(sub)
+    add_subcommands(p, SUBCOMMANDS)
     return p
 
 

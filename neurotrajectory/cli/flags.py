@@ -36,7 +36,9 @@ def settings_flag(
     what = kwargs.pop("help", field.description)
     default = field.get_default(call_default_factory=True)
     if default is not None and not isinstance(default, bool | tuple | dict):
-        what += f" (default {default:g})" if isinstance(default, float) else f" (default {default})"
+        shown = f"{default:g}" if isinstance(default, float) else (
+            repr(default) if isinstance(default, str) else str(default))  # fmt: skip
+        what += f" (default {shown})"
     parser.add_argument(flag, dest=name, default=None, help=what, **kwargs)
 
 

@@ -40,7 +40,7 @@ def config_flag(parser: argparse.ArgumentParser, flag: str, **kwargs) -> None:
 def add_parser(sub) -> None:
     t = sub.add_parser("train", help="evolve a population in GridSim-v0")
     scenario_flag(t, default=None, help=TrainConfig.model_fields["scenario"].description
-                  + f" (default {TrainConfig.defaults()['scenario']})")  # fmt: skip
+                  + f" (default {TrainConfig.defaults()['scenario']!r})")  # fmt: skip
     for flag in ("--preset", "--population", "--generations", "--episodes",
                  "--episode-seconds", "--sigma", "--seed", "--backend", "--workers",
                  "--ray-address", "--batch"):  # fmt: skip

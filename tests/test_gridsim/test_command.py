@@ -109,3 +109,47 @@ def test_a_full_disk_is_named_not_called_a_bug(capsys):
     err = capsys.readouterr().err
     assert "gridsim: error: /runs/x/checkpoint.npz: No space left on device; free some" in err
     assert "internal error" not in err
+
+
+def test_an_unknown_flag_is_refused_with_its_subcommands_usage(capsys):
+    """``gridsim run --polcy``: the usage shown is ``gridsim run``'s, whose flags the user
+    was after (it was the top-level usage, which lists only the subcommands)."""
+    import pytest
+
+    from gridsim.cli import main as gridsim_main
+    from neurotrajectory.cli import main as nt_main
+
+    for main, argv, usage in ((gridsim_main, ["run", "--polcy", "x"], "usage: gridsim run "),
+                              (nt_main, ["heldout", "--run", "r", "--out", "o", "--bogus"],
+                               "usage: neurotrajectory heldout ")):  # fmt: skip
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        assert exc.value.code == 2
+        err = capsys.readouterr().err
+        assert err.startswith(usage) and "unrecognized arguments: --" in err
+
+
+def test_subcommand_help_states_the_defaults():
+    """Every option with a default says it in its help entry: by its own text or the
+    formatter's."""
+    from gridsim.cli import build_parser as gridsim_parser
+    from neurotrajectory.cli import build_parser as nt_parser
+
+    for build in (gridsim_parser, nt_parser):
+        sub = next(a for a in build()._actions if isinstance(a, argparse._SubParsersAction))
+        for name, parser in sub.choices.items():
+            for action in parser._actions:
+                shown = action.option_strings and action.help != argparse.SUPPRESS
+                if shown and action.default not in (None, False, True, argparse.SUPPRESS):
+                    entry = parser._get_formatter()._format_action(action)
+                    assert "default" in entry, f"{name}: {entry}"
+    run = sub_parser(gridsim_parser(), "run")._get_formatter()
+    seed = next(
+        a for a in sub_parser(gridsim_parser(), "run")._actions if "--seed" in a.option_strings
+    )
+    assert " ".join(run._format_action(seed).split()) == "--seed SEED episode seed (default 0)"
+
+
+def sub_parser(parser: argparse.ArgumentParser, name: str) -> argparse.ArgumentParser:
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices[name]

@@ -24,7 +24,8 @@ def test_train_flags_show_the_config_defaults_and_leave_them_to_it():
         value = defaults[action.dest]
         if value is None or isinstance(value, bool) or action.dest == "ego_tracks":
             continue
-        shown = f"{value:g}" if isinstance(value, float) else str(value)
+        shown = f"{value:g}" if isinstance(value, float) else (
+            repr(value) if isinstance(value, str) else str(value))  # fmt: skip
         assert f"default {shown}" in action.help, (action.option_strings, action.help)
         assert action.help.startswith(TrainConfig.model_fields[action.dest].description)
         checked += 1
