@@ -27,3 +27,9 @@ class OutputError(GridSimError):
 class DataWarning(UserWarning):
     """Data that is used, but not all of it: a flawed track kept as traffic only, a file of
     a collection that is skipped. The message names the file and the reason."""
+
+
+class UnfitEgoWarning(DataWarning):
+    """A track named as the ego (``ego.track``) that a random ego is not drawn from: it
+    overlaps another, grazes a road edge or is a long vehicle (its episodes may end at
+    once). A caller that drives such tracks on purpose (``record``) says so once."""

@@ -21,6 +21,7 @@ import difflib
 import hashlib
 import json
 import platform
+import warnings
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, fields
 from pathlib import Path
@@ -29,7 +30,7 @@ import numpy as np
 
 from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.errors import GridSimError, ScenarioError
+from gridsim.errors import DataWarning, GridSimError, ScenarioError, UnfitEgoWarning
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write_json, write_npz
 from gridsim.policies import Reference
@@ -40,7 +41,7 @@ from gridsim.scenario.collection import (
     report_skipped,
     scenario_files,
 )
-from gridsim.scenario.families.recorded import recorded_scene, scene_of
+from gridsim.scenario.families.recorded import ego_candidates, recorded_scene, scene_of
 from gridsim.scenario.family import family_of
 from gridsim.scenario.loader import load_scenario
 from gridsim.seeding import Salt, stream
@@ -170,6 +171,7 @@ def scenario_episodes(
         need = base.config.env.horizon_time
         chosen = [t for t in scene_tracks if (wanted is None or t.track_id in wanted)
                   and t.duration >= need and t.track_id not in flawed]  # fmt: skip
+        _say_unfit_egos(base, chosen, scene_tracks, road)
         out = [PlannedEpisode(track_name(scene, t.track_id), 0,
                        {"ego": {"track": t.track_id},
                         "simulation": {"duration": max(float(t.duration), 0.1)}, **goal})
@@ -183,6 +185,22 @@ def scenario_episodes(
     overrides = ({"simulation": {"duration": duration}} if duration else {}) | goal
     out = [PlannedEpisode(f"{scenario}/seed{s}", int(s), overrides) for s in seeds]
     return out, {"episodes": len(out), "episode_seeds": [int(s) for s in seeds]}
+
+
+def _say_unfit_egos(scenario, chosen: list, tracks: list, road) -> None:
+    """One :class:`~gridsim.errors.DataWarning` naming the ``chosen`` ego tracks that a random
+    ego is not drawn from (:func:`~gridsim.scenario.families.recorded.ego_candidates`): they
+    are driven as the human drove them all the same (each environment's own warning, one per
+    track, is not shown: :func:`drive_windows`)."""
+    fit = {t.track_id for t in ego_candidates(scenario, tracks, road)}
+    unfit = [t.track_id for t in chosen if t.track_id not in fit]
+    if unfit:
+        shown = ", ".join(unfit[:8]) + (f" and {len(unfit) - 8} more" if len(unfit) > 8 else "")
+        warnings.warn(f"{scenario.source}: {len(unfit)} of the {len(chosen)} tracks driven as "
+                      f"the ego are not ones a random ego is drawn from (a long vehicle, one "
+                      f"overlapping another or grazing a road edge: `gridsim validate` names "
+                      f"why): {shown}; they are driven as recorded all the same", DataWarning,
+                      stacklevel=3)  # fmt: skip
 
 
 def episodes_of(
@@ -248,16 +266,22 @@ def drive_windows(
     if policy is not None and getattr(policy, "action_type", "trajectory") != "trajectory":
         raise DatasetError(f"windows are driven with trajectory actions, got a policy with "
                            f"action_type {policy.action_type!r}")  # fmt: skip
-    envs: dict[str, GridSimEnv] = {}
+    # one environment while the overrides stay the same (a generated scenario's episodes);
+    # a recorded scene's differ per ego track: each environment holds the whole scene's
+    # traffic, so it is let go before the next (keeping them all grew with the tracks squared)
+    env, key = None, None
     parts = []
-    for episode in episodes:
-        key = json.dumps(episode.overrides, sort_keys=True)
-        if key not in envs:
-            envs[key] = GridSimEnv(scenario, **episode.overrides)
-        parts.append(_episode_windows(envs[key], episode.seed, stride, episode.track, policy,
-                                      labels))  # fmt: skip
-        if progress:
-            progress(1)
+    with warnings.catch_warnings():  # an unfit ego track: said once (_say_unfit_egos)
+        warnings.simplefilter("ignore", UnfitEgoWarning)
+        for episode in episodes:
+            wanted = json.dumps(episode.overrides, sort_keys=True)
+            if wanted != key:
+                env = key = None  # (released before the next is built)
+                env, key = GridSimEnv(scenario, **episode.overrides), wanted
+            parts.append(_episode_windows(env, episode.seed, stride, episode.track, policy,
+                                          labels))  # fmt: skip
+            if progress:
+                progress(1)
     parts = [p for p in parts if p is not None]
     return Windows.concat(parts) if parts else None
 

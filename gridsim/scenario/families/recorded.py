@@ -12,7 +12,7 @@ import numpy as np
 from pydantic import Field
 
 from gridsim import libm
-from gridsim.errors import DataError, DataWarning, ScenarioError
+from gridsim.errors import DataError, DataWarning, ScenarioError, UnfitEgoWarning
 from gridsim.road.base import StaticRoad
 from gridsim.road.lanelet import load_lanelet_road
 from gridsim.road.polyline import Polyline
@@ -70,11 +70,14 @@ def recorded_scene(scenario: Scenario, check: bool = True) -> tuple[StaticRoad, 
     :mod:`gridsim.scenario.checks`."""
     road, tracks = _scene(scenario)
     if check:
-        report = _scene_report(scenario, road, tracks)
+        report = scene_report(scenario, road, tracks)
         if report.problems:
             raise DataError(report.refusal(scenario.source))
         if report.warnings:  # shown once per message and place (Python's default filter)
             warnings.warn("\n".join(report.warnings), DataWarning, stacklevel=2)
+        note = _unfit_ego_note(scenario, road, tracks)
+        if note:
+            warnings.warn(note, UnfitEgoWarning, stacklevel=2)
     return road, tracks
 
 
@@ -86,24 +89,30 @@ def data_report(scenario: Scenario):
 
 
 def _scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]):
-    """:func:`~gridsim.scenario.checks.scene_report`, and a warning when the track named as
-    ``ego.track`` is one a random ego is not drawn from (it overlaps another, grazes a road
-    edge, is a long vehicle: its episodes may end at once)."""
+    """:func:`~gridsim.scenario.checks.scene_report`, and :func:`_unfit_ego_note` among its
+    warnings."""
     report = scene_report(scenario, road, tracks)
+    note = None if report.problems else _unfit_ego_note(scenario, road, tracks)
+    return dataclasses.replace(report, warnings=(*report.warnings, note)) if note else report
+
+
+def _unfit_ego_note(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> str | None:
+    """Why the track named as ``ego.track`` is one a random ego is not drawn from (it
+    overlaps another, grazes a road edge, is a long vehicle: its episodes may end at once),
+    or None."""
     wanted = scenario.config.ego.track
-    if not isinstance(wanted, str) or wanted == "random" or report.problems:
-        return report
+    if not isinstance(wanted, str) or wanted == "random":
+        return None
     named = ego_track_ids(scenario, scene_of(scenario))
     track = next((t for t in tracks if t.track_id == named), None)
     if track is None:
-        return report
+        return None
     unfit = [why for why, test in _unfit_tests(scenario, tracks, road).items() if test(track)]
     unfit = [why for why in unfit if not why.startswith("implausible")]  # (a problem already)
     if not unfit:
-        return report
-    note = (f"{scenario.source}: ego.track {named} is {'; '.join(unfit)}: not a track a random "
+        return None
+    return (f"{scenario.source}: ego.track {named} is {'; '.join(unfit)}: not a track a random "
             "ego is drawn from (its episodes may end at once)")  # fmt: skip
-    return dataclasses.replace(report, warnings=(*report.warnings, note))
 
 
 def _scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
