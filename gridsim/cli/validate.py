@@ -41,7 +41,13 @@ def _report(path: str):
 
 def execute(args: argparse.Namespace) -> int:
     from gridsim.errors import DataError
-    from gridsim.scenario.collection import check_agreement, repeated_recordings, scenario_files
+    from gridsim.scenario.collection import (
+        check_agreement,
+        repeated_recordings,
+        scenario_files,
+        shared_names_message,
+        shared_track_names,
+    )
 
     args.path = ",".join(args.path)  # several (a glob the shell expanded): a list of them
     files = scenario_files(args.path)
@@ -91,6 +97,8 @@ def execute(args: argparse.Namespace) -> int:
     for first, again, scene in repeated_recordings(usable):
         print(f"warning: {again} replays the same recording as {first} (scene {scene}): its "
               "episodes and windows would count twice")  # fmt: skip
+    for shared in shared_track_names(usable):
+        print(f"warning: {shared_names_message(*shared)}")
     try:  # and they run together as one collection
         if usable:
             check_agreement(args.path, [sc for _, sc in usable])

@@ -125,11 +125,51 @@ def usable_files(
     if not read_data:
         return scenarios, skipped
     used = [f for f in files if f not in {g for g, _ in skipped}]
-    for first, again, scene in repeated_recordings(list(zip(used, scenarios, strict=True))):
+    pairs = list(zip(used, scenarios, strict=True))
+    for first, again, scene in repeated_recordings(pairs):
         warnings.warn(f"{ref}: {again} replays the same recording as {first} (scene {scene}, "
                       "the same tracks and ego tracks): its episodes and windows count twice",
                       DataWarning, stacklevel=2)  # fmt: skip
+    for shared in shared_track_names(pairs):
+        warnings.warn(f"{ref}: {shared_names_message(*shared)}", DataWarning, stacklevel=2)
     return scenarios, skipped
+
+
+def shared_names_message(first: Path, other: Path, scene: str, ids: list[str]) -> str:
+    """What :func:`shared_track_names` found, and what to do."""
+    shown = ", ".join(ids[:5]) + (f" and {len(ids) - 5} more" if len(ids) > 5 else "")
+    return (
+        f"{other} and {first} are other recordings of scene {scene} with {len(ids)} track "
+        f"id(s) in common ({shown}): windows, the train/test split by track and --track "
+        "name a track SCENE/ID, so they would be taken for the same vehicles; give each "
+        "recording its own scene (its CSV's scenario_id and the scenario's road.scene)"
+    )
+
+
+def shared_track_names(pairs: list[tuple[Path, Scenario]]) -> list[tuple[Path, Path, str, list]]:
+    """``(first file, other file, scene, ids)`` for each recorded scenario of ``pairs``
+    (file, scenario) whose scene has track ``ids`` in common with an earlier file's while
+    their tracks differ (another recording whose ids restart; a copy is
+    :func:`repeated_recordings`'s)."""
+    from gridsim.scenario.families.recorded import recorded_scene, scene_of
+    from gridsim.scenario.family import is_recorded
+
+    seen: dict[str, list[tuple[Path, dict]]] = {}
+    out = []
+    for path, scenario in pairs:
+        if not is_recorded(scenario):
+            continue
+        _, tracks = recorded_scene(scenario, check=False)
+        mine = {t.track_id: (len(t.t), float(t.t[0]), float(t.x[0]), float(t.y[0]))
+                for t in tracks}  # fmt: skip
+        scene = scene_of(scenario)
+        for first, theirs in seen.get(scene, []):
+            common = sorted(k for k in mine.keys() & theirs.keys() if mine[k] != theirs[k])
+            if common:
+                out.append((first, path, scene, common))
+                break
+        seen.setdefault(scene, []).append((path, mine))
+    return out
 
 
 def repeated_recordings(pairs: list[tuple[Path, Scenario]]) -> list[tuple[Path, Path, str]]:

@@ -372,3 +372,33 @@ def test_a_recording_copied_under_another_name_is_named(tmp_path, capsys):
     with warnings.catch_warnings():
         warnings.simplefilter("error", DataWarning)
         usable_files(tmp_path / "a")
+
+
+def test_other_recordings_of_a_scene_with_the_same_track_ids_are_named(tmp_path, capsys):
+    """Two days recorded on one map whose vehicle ids restart: the same SCENE/ID names for
+    other vehicles (windows, splits and --track would mix them up). A copy of one recording
+    is the other warning's (it replays the same recording)."""
+    import csv
+    from importlib import resources
+
+    from gridsim.cli import main as gridsim_main
+    from gridsim.scenario.collection import load_collection
+
+    source = resources.files("gridsim").joinpath("data", "ngsim", "ngsim_trajectories.csv")
+    rows = [r for r in csv.DictReader(source.read_text().splitlines())
+            if r["scenario_id"] == "USA_US101-3_3_T-1"]  # fmt: skip
+    for day, shift in (("day1", 0.0), ("day2", 0.4)):
+        with (tmp_path / f"{day}.csv").open("w", newline="") as fh:
+            out = csv.DictWriter(fh, fieldnames=list(rows[0]))
+            out.writeheader()
+            out.writerows({**r, "x_m": f"{float(r['x_m']) + shift:.4f}"} for r in rows)
+        (tmp_path / f"{day}.yaml").write_text(
+            f"name: {day}\nroad: {{type: recorded, map: 'builtin:USA_US101-3_3_T-1'}}\n"
+            f"traffic: {{library: [{day}.csv]}}\n")  # fmt: skip
+    said = r"day2.yaml and .*day1.yaml are other recordings of scene USA_US101-3_3_T-1 with 12 "
+    with pytest.warns(
+        DataWarning, match=said + r"track id\(s\) in common \(363, 376, 387, 388, 394 "
+    ):
+        load_collection(tmp_path)
+    assert gridsim_main(["validate", str(tmp_path)]) == 0
+    assert "track id(s) in common" in capsys.readouterr().out
