@@ -29,6 +29,7 @@ def add_parser(sub) -> None:
         p, "drive with this plan smoothing instead of the run's (see train --plan-smoothing)"
     )
     p.add_argument("--out", required=True, help="JSON report to write")
+    p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
     p.set_defaults(func=execute)
 
 
@@ -36,6 +37,12 @@ def execute(args: argparse.Namespace) -> int:
     problem = output_problem(Path(args.out), directory=False)
     if problem:
         raise RunError(f"--out {args.out}: {problem}")
+    if Path(args.out).exists() and not args.overwrite:
+        whose = (" (the run's own report, which train writes)"
+                 if Path(args.out).resolve() == (Path(args.run) / "heldout.json").resolve()
+                 else "")  # fmt: skip
+        raise RunError(f"--out {args.out} exists{whose}: give another file, or --overwrite "
+                       "to replace it")  # fmt: skip
     inside = Path(args.out).resolve().is_relative_to(Path(args.run).resolve())
     # a report written into the run folder holds it, as train does (one writer at a time)
     with run_folder(args.run, resume=True) if inside else nullcontext():

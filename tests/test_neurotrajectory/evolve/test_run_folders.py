@@ -94,9 +94,18 @@ def test_heldout_into_a_run_being_trained_is_refused(tmp_path, capsys):
     Run.create(run, TrainConfig(generations=1, **TINY)).train(progress=False)
     with folder_lock(run):  # another process training it
         args = ["heldout", "--run", str(run), "--episodes", "1"]
-        assert main([*args, "--out", str(run / "heldout.json")]) == 2
+        assert main([*args, "--out", str(run / "heldout.json"), "--overwrite"]) == 2
         assert f"{run}: in use by another process (pid " in capsys.readouterr().err
         assert main([*args, "--out", str(tmp_path / "elsewhere.json")]) == 0
+    # a report is not replaced unless asked: the run's own is named as such
+    assert main([*args, "--out", str(run / "heldout.json")]) == 0
+    before = (run / "heldout.json").read_text()
+    assert main([*args, "--out", str(run / "heldout.json")]) == 2
+    assert ("heldout.json exists (the run's own report, which train writes): give another "
+            "file, or --overwrite to replace it") in capsys.readouterr().err  # fmt: skip
+    assert (run / "heldout.json").read_text() == before
+    assert main([*args, "--out", str(tmp_path / "elsewhere.json")]) == 2
+    assert main([*args, "--out", str(tmp_path / "elsewhere.json"), "--overwrite"]) == 0
 
 
 def test_a_train_that_fails_before_a_generation_leaves_out_as_it_was(tmp_path, monkeypatch,
