@@ -151,8 +151,11 @@ def _glitches(track: Track) -> list[str]:
 
 
 @lru_cache(maxsize=16)
-def flawed_tracks(tracks: tuple[Track, ...], road: StaticRoad) -> dict[str, list[str]]:
-    """The flaws of each flawed track of a scene, by track id (cached per scene)."""
+def flawed_tracks(
+    tracks: tuple[Track, ...], road: StaticRoad | None = None
+) -> dict[str, list[str]]:
+    """The flaws of each flawed track of a scene (on ``road``'s map, if given), by track id
+    (cached per scene)."""
     out = {}
     for tr in tracks:
         problems = track_problems(tr, road)
@@ -169,11 +172,13 @@ class SceneReport:
     problems: tuple[str, ...]
     warnings: tuple[str, ...]
     flawed: frozenset[str]
+    #: what was checked, as the refusal names it
+    checked: str = "recorded scene"
 
     def refusal(self, source: str) -> str:
         """The error message refusing the scene of ``source`` for its :attr:`problems`."""
         lines = "\n".join(f"  - {p}" for p in self.problems)
-        return f"{source}: implausible recorded scene ({len(self.problems)} problem(s)):\n{lines}"
+        return f"{source}: implausible {self.checked} ({len(self.problems)} problem(s)):\n{lines}"
 
 
 def _alone_in_time(tracks: list[Track], source: str) -> list[str]:
@@ -198,22 +203,45 @@ def _alone_in_time(tracks: list[Track], source: str) -> list[str]:
             "meet no traffic; are their time stamps from one clock?"]  # fmt: skip
 
 
+def _verdict(
+    flawed: dict[str, list[str]], total: int, source: str, what: str, kept: str
+) -> tuple[list[str], list[str]]:
+    """``(problems, warnings)`` of ``flawed`` tracks among ``total``: one problem listing
+    them when most are (``what`` they are), else a warning per flaw (what is done with the
+    track: ``kept``)."""
+    lines = [p for problems in flawed.values() for p in problems]
+    if len(flawed) > MAX_FLAWED_SHARE * total:
+        more = [f"... and {len(lines) - 10} more"] if len(lines) > 10 else []
+        return ["\n    ".join([f"{source}: {len(flawed)} of its {total} tracks are {what}:",
+                               *lines[:10], *more])], []  # fmt: skip
+    return [], [f"{line}; {kept}" for line in lines]
+
+
+def library_report(tracks: list[Track], source: str) -> SceneReport:
+    """Checks of the library tracks a generated road draws its traffic's and human's speed
+    profiles from (``source``: the scenario): their flaws without a map (time stamps and
+    speeds in other units, headings in degrees, glitches). A problem when most tracks have
+    one, else a warning per flawed track, which is not used."""
+    flawed = flawed_tracks(tuple(tracks))
+    problems, warnings = _verdict(flawed, len(tracks), source,
+                                  "in the wrong units (are time stamps in seconds, speeds in "
+                                  "m/s and headings in radians?)",
+                                  "not used as a speed profile")  # fmt: skip
+    return SceneReport(tuple(problems), tuple(warnings), frozenset(flawed),
+                       "traffic.library (its tracks give the speed profiles)")  # fmt: skip
+
+
 def scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> SceneReport:
     """Checks of a recorded scene: its tracks' flaws (a problem when most tracks have one,
     else warnings), a scene (or the one track named as ``ego.track``) shorter than the
     planning horizon, and a named ego track that is flawed."""
     flawed = flawed_tracks(tuple(tracks), road)
-    lines = [p for problems in flawed.values() for p in problems]
     source = tracks[0].source or scenario.source
-    problems, warnings = [], []
-    if len(flawed) > MAX_FLAWED_SHARE * len(tracks):
-        more = [f"... and {len(lines) - 10} more"] if len(lines) > 10 else []
-        problems.append("\n    ".join([
-            f"{source}: {len(flawed)} of its {len(tracks)} tracks are implausible for this map "
-            "or in the wrong units (does the map belong to the tracks? are time stamps in "
-            "seconds and positions in metres?):", *lines[:10], *more]))  # fmt: skip
-    else:
-        warnings += [f"{line}; kept as traffic, not offered as the ego" for line in lines]
+    problems, warnings = _verdict(flawed, len(tracks), source,
+                                  "implausible for this map or in the wrong units (does the map "
+                                  "belong to the tracks? are time stamps in seconds and "
+                                  "positions in metres?)",
+                                  "kept as traffic, not offered as the ego")  # fmt: skip
     env = scenario.config.env
     need = env.horizon_time
     longest = max(tracks, key=lambda t: t.duration)

@@ -7,13 +7,15 @@ from __future__ import annotations
 import glob
 import hashlib
 import time
+import warnings
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import ScenarioError
+from gridsim.errors import DataError, DataWarning, ScenarioError
 from gridsim.road.polyline import Polyline
+from gridsim.scenario.checks import SceneReport, library_report
 from gridsim.scenario.family import is_recorded
 from gridsim.scenario.schema import MAX_WHEELBASE_SHARE, Scenario, VehicleConfig
 from gridsim.traffic.library import TrajectoryLibrary
@@ -197,7 +199,26 @@ def seed_streams(seed: int) -> tuple[int, np.random.Generator, np.random.Generat
 
 
 def synthetic_tracks(scenario: Scenario) -> list[Track]:
-    """Library tracks usable as human profiles (>= 2 s long, not longer than the limit)."""
+    """Library tracks usable as human profiles (>= 2 s long, not longer than the limit, not
+    flawed: :func:`library_data_report`; its problems refuse the scenario, its warnings are
+    shown)."""
+    tracks = _profile_tracks(scenario)
+    report = library_report(tracks, scenario.source)
+    if report.problems:
+        raise DataError(report.refusal(scenario.source))
+    if report.warnings:  # shown once per message and place (Python's default filter)
+        warnings.warn("\n".join(report.warnings), DataWarning, stacklevel=2)
+    return [t for t in tracks if t.track_id not in report.flawed] if report.flawed else tracks
+
+
+def library_data_report(scenario: Scenario) -> SceneReport:
+    """The plausibility report of the library tracks a generated road takes its speed
+    profiles from (:func:`~gridsim.scenario.checks.library_report`)."""
+    return library_report(_profile_tracks(scenario), scenario.source)
+
+
+def _profile_tracks(scenario: Scenario) -> list[Track]:
+    """The library's tracks >= 2 s long and not longer than the limit."""
     t = scenario.config.traffic
     tracks = library_for(scenario).select(
         min_duration=MIN_TRACK_SECONDS, max_length=t.max_vehicle_length

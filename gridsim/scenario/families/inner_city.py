@@ -15,6 +15,7 @@ from gridsim.road.city import CityParams, CityRoad
 from gridsim.scenario.family import Family, register_family
 from gridsim.scenario.parts import (
     fixed_route,
+    library_data_report,
     seed_streams,
     speed_bounds,
     synthetic_tracks,
@@ -99,6 +100,7 @@ FAMILY = register_family(Family(
         "traffic": {"participants": 20, "v_min": 2.77, "v_max": 8.33},
         "ego": {"speed": 5.0, "vehicle": {"v_max": 8.33}},
     },
+    data_report=library_data_report,
     ignores=(("ego.track", "ego.lane"), "the ego starts on a route of the street network; "
              "only recorded scenes have tracks"),
 ))  # fmt: skip

@@ -14,7 +14,13 @@ from gridsim.errors import ScenarioError
 from gridsim.road.polyline import Polyline
 from gridsim.road.seamless import SeamlessParams, SeamlessRoad
 from gridsim.scenario.family import Family, register_family
-from gridsim.scenario.parts import seed_streams, speed_bounds, synthetic_tracks, vehicle_params
+from gridsim.scenario.parts import (
+    library_data_report,
+    seed_streams,
+    speed_bounds,
+    synthetic_tracks,
+    vehicle_params,
+)
 from gridsim.scenario.schema import PositiveFloat, Scenario, Seed, Strict
 from gridsim.traffic.sources import SeamlessTraffic
 from gridsim.world.world import World
@@ -91,5 +97,6 @@ def _lane_centre(road: SeamlessRoad, lane: int) -> Polyline:
 FAMILY = register_family(Family(
     SeamlessRoadConfig,
     build,
+    data_report=library_data_report,
     ignores=(("ego.track",), "only recorded scenes have tracks"),
 ))  # fmt: skip

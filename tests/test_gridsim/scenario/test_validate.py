@@ -168,3 +168,48 @@ def test_tracks_alone_in_time_are_found_as_by_comparing_every_pair():
         if found:
             assert f"{len(alone)} of the {n} tracks" in found[0]
             assert ", ".join(tracks[k].track_id for k in alone[:5]) in found[0]
+
+
+def _library_scenario(tmp_path, wrong: set[str] | None) -> str:
+    """A seamless scenario whose traffic.library is the shipped CSV with speeds in km/h, for
+    every track (``wrong`` None) or the tracks named."""
+    import csv
+    from importlib import resources
+
+    source = resources.files("gridsim").joinpath("data", "ngsim", "ngsim_trajectories.csv")
+    rows = list(csv.DictReader(source.read_text().splitlines()))
+    with (tmp_path / "kmh.csv").open("w", newline="") as fh:
+        out = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        out.writeheader()
+        for r in rows:
+            if wrong is None or r["track_id"] in wrong:
+                r = {**r, "speed_mps": f"{float(r['speed_mps']) * 3.6:.4f}"}
+            out.writerow(r)
+    path = tmp_path / "mine.yaml"
+    path.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [kmh.csv]}\n")
+    return str(path)
+
+
+def test_a_generated_roads_library_in_other_units_is_refused(tmp_path, capsys):
+    """The library's tracks give a generated road's speed profiles: speeds in km/h (or time
+    in steps, headings in degrees) loaded silently and changed every episode's traffic; the
+    checks that need no map now run on them too."""
+    path = _library_scenario(tmp_path, None)
+    with pytest.raises(DataError, match=r"implausible traffic.library \(its tracks give the "
+                       r"speed profiles\).*\n.* tracks are in the wrong units .*\n.*its speeds "
+                       r"must be in m/s \(km/h / 3.6\)"):  # fmt: skip
+        gym.make("GridSim-v0", scenario=path).reset(seed=0)
+    assert main(["validate", path]) == 2
+    assert "its speeds must be in m/s (km/h / 3.6)" in capsys.readouterr().err
+
+
+def test_a_flawed_library_track_is_not_used_as_a_speed_profile(tmp_path):
+    from gridsim.scenario.parts import synthetic_tracks
+
+    path = _library_scenario(tmp_path, {"1213"})
+    sc = load_scenario(path)
+    with pytest.warns(DataWarning, match=r"track 1213 of scene .*must be in m/s \(km/h / 3.6\); "
+                      r"not used as a speed profile"):  # fmt: skip
+        used = synthetic_tracks(sc)
+    assert "1213" not in {t.track_id for t in used}
+    assert len(used) == len(synthetic_tracks(load_scenario("seamless"))) - 1
