@@ -145,10 +145,11 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
         # a name given twice: its last column (as csv.DictReader reads it)
         where = [len(header) - 1 - header[::-1].index(c) for c in REQUIRED_COLUMNS]
         index: dict[tuple[str, str], int] = {}  # track -> its number, in order of first row
-        blocks, groups, rows, lines = [], [], [], []
+        blocks, groups, at, rows, lines = [], [], [], [], []
 
         def convert() -> None:  # the rows read so far
             blocks.append(_block(path, header, where, rows, lines))
+            at.append(np.array(lines, dtype=np.int64))
             groups.append([index.setdefault((r[where[0]], r[where[1]]), len(index))
                            for r in rows])  # fmt: skip
             rows.clear()
@@ -167,12 +168,21 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
     values = np.concatenate(blocks)
     group = np.concatenate([np.array(g, dtype=np.int64) for g in groups])
     order = np.lexsort((values[:, 0], group))  # by track, then time (stable: file order)
-    values, group = values[order], group[order]
+    values, group, line = values[order], group[order], np.concatenate(at)[order]
     bounds = np.flatnonzero(np.diff(group)) + 1
-    tracks, split, single, resized = [], [], [], []
-    for (sid, tid), a in zip(index, np.split(values, bounds), strict=True):
-        if np.any(np.diff(a[:, 0]) <= 0):
-            raise DataError(f"{path}: track ({sid}, {tid}) has repeated time stamps")
+    tracks, split, single, resized, repeated = [], [], [], [], []
+    for (sid, tid), a, rows_at in zip(index, np.split(values, bounds), np.split(line, bounds),
+                                      strict=True):  # fmt: skip
+        again = np.diff(a[:, 0]) <= 0  # (sorted by time: a time stamp given again)
+        if np.any(again):
+            conflict = np.flatnonzero(again & np.any(a[1:] != a[:-1], axis=1))
+            if len(conflict):
+                k = int(conflict[0])
+                raise DataError(f"{path}: lines {rows_at[k]} and {rows_at[k + 1]}: track "
+                                f"({sid}, {tid}) has two rows at time {a[k, 0]:g} s with other "
+                                "values")  # fmt: skip
+            repeated.append((int(np.count_nonzero(again)), int(rows_at[1:][again][0])))
+            a = a[np.concatenate(([True], ~again))]  # rows given twice: read once
         if np.any(np.ptp(a[:, 5:7], axis=0) > 0.1 * a[0, 5:7]):  # a size is the first row's
             resized.append(f"{tid} ({a[:, 5].min():g}-{a[:, 5].max():g} x "
                            f"{a[:, 6].min():g}-{a[:, 6].max():g} m)")  # fmt: skip
@@ -189,7 +199,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
                                 np.unwrap(piece[:, 3]), piece[:, 4], float(piece[0, 5]),
                                 float(piece[0, 6]), str(path)))  # fmt: skip
-    _warn_tracks(path, split, single, resized)
+    _warn_tracks(path, split, single, resized, repeated)
     if not tracks:
         raise DataError(f"{path}: no track with at least 2 states")
     return tracks
@@ -253,10 +263,15 @@ def _pieces(a: np.ndarray) -> list[np.ndarray]:
     return np.split(a, cuts) if len(cuts) else [a]
 
 
-def _warn_tracks(path: Path, split: list, single: list, resized: list) -> None:
-    """One :class:`DataWarning` naming the tracks cut at a pause, those left out and those
-    whose size varies."""
+def _warn_tracks(path: Path, split: list, single: list, resized: list,
+                 repeated: list) -> None:  # fmt: skip
+    """One :class:`DataWarning` naming the tracks cut at a pause, those left out, those
+    whose size varies, and the rows given twice (``(count, first line)`` per track)."""
     parts = []
+    if repeated:
+        count = sum(n for n, _ in repeated)
+        parts.append(f"{count} row(s) repeat an earlier one exactly (the first at line "
+                     f"{min(first for _, first in repeated)}): each is read once")  # fmt: skip
     if resized:
         more = f" and {len(resized) - 5} more" if len(resized) > 5 else ""
         parts.append(f"{len(resized)} track(s) change size by more than 10 % from row to row "

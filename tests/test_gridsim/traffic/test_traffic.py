@@ -5,7 +5,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gridsim.errors import DataError
+from gridsim.errors import DataError, DataWarning
 from gridsim.road.seamless import SeamlessParams, SeamlessRoad
 from gridsim.traffic.fleet import IDM, REPLAY, EgoPose, Fleet
 from gridsim.traffic.library import REQUIRED_COLUMNS, TrajectoryLibrary, read_tracks_csv
@@ -54,7 +54,8 @@ def test_user_csv_loads(tmp_path):
         ),
         (["s,1,0,0,zero,0,10,4.5,1.8"], HEADER, "column 'y_m' is not a number"),
         (["s,1,0,0,0,0,-1,4.5,1.8"], HEADER, "speed_mps must be >= 0"),
-        (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0,1,0,0,1,4.5,1.8"], HEADER, "repeated time stamps"),
+        (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0,1,0,0,1,4.5,1.8"], HEADER,
+         r"tracks.csv: lines 2 and 3: track \(s, 1\) has two rows at time 0 s with other values"),
         (["s,1,0,0,0,0,1,4.5,1.8"], HEADER, "no track with at least 2 states"),
         (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0,0,0,1,4.5"], HEADER,
          r"tracks.csv:3: 8 column\(s\), the header has 9 \(a line cut short\?\)"),
@@ -74,6 +75,16 @@ def test_user_csv_loads(tmp_path):
 def test_bad_csv_names_the_problem(tmp_path, rows, header, message):
     with pytest.raises(DataError, match=message):
         read_tracks_csv(write_csv(tmp_path, rows, header))
+
+
+def test_rows_given_twice_are_read_once_with_a_warning(tmp_path):
+    """An export that repeats rows (exactly) is read, not refused as a whole: each row once,
+    and a warning says how many and where the first is."""
+    rows = [f"s,1,{k * 0.1:g},{k:g},0,0,10,4.5,1.8" for k in range(5)]
+    with pytest.warns(DataWarning, match=r"tracks.csv: 2 row\(s\) repeat an earlier one "
+                      r"exactly \(the first at line 5\): each is read once"):  # fmt: skip
+        (track,) = read_tracks_csv(write_csv(tmp_path, [*rows[:3], rows[1], *rows[3:], rows[4]]))
+    assert track.t.tolist() == pytest.approx([0.0, 0.1, 0.2, 0.3, 0.4])
 
 
 def test_a_track_in_two_files_is_refused(tmp_path):
