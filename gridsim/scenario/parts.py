@@ -110,25 +110,29 @@ def library_for(scenario: Scenario) -> TrajectoryLibrary:
 
 
 def _library_files(scenario: Scenario) -> tuple:
-    """``traffic.library`` as ``"builtin"`` or file stamps (:func:`stamped`)."""
-    return tuple(f if f == "builtin" else stamped(f) for f in _library_refs(scenario))
+    """``traffic.library`` as ``("builtin", False)`` or ``(file stamp, found)``
+    (:func:`stamped`; ``found``: the file was found in a folder or glob)."""
+    return tuple(("builtin", False) if f == "builtin" else (stamped(f), found)
+                 for f, found in _library_refs(scenario))  # fmt: skip
 
 
-def _library_refs(scenario: Scenario) -> list:
-    """``traffic.library`` as ``"builtin"`` or the paths of its files."""
+def _library_refs(scenario: Scenario) -> list[tuple]:
+    """``traffic.library`` as ``("builtin", False)`` or ``(path, found)`` of its files
+    (``found``: in a folder or glob, not named)."""
     files: list = []
     for ref in scenario.config.traffic.library:
         if ref == "builtin":
-            files.append("builtin")
+            files.append(("builtin", False))
         elif ref == "scene":
             if not is_recorded(scenario):
                 raise ScenarioError(
                     f"{scenario.source}: traffic.library 'scene' needs road.type recorded (the "
                     "tracks of its CommonRoad map file)"
                 )
-            files.append(map_path(scenario))
+            files.append((map_path(scenario), False))
         else:
-            files += _library_paths(scenario, ref)
+            found, many = _library_paths(scenario, ref)
+            files += [(f, many) for f in found]
     return files
 
 
@@ -147,9 +151,10 @@ def matching_files(folder_or_pattern: Path | str, suffixes: tuple[str, ...]) -> 
 TRAJECTORY_SUFFIXES = (".csv", ".xml")
 
 
-def _library_paths(scenario: Scenario, ref: str) -> list[Path]:
+def _library_paths(scenario: Scenario, ref: str) -> tuple[list[Path], bool]:
     """The trajectory files a ``traffic.library`` entry names: a file, or every ``.csv`` and
-    ``.xml`` file of a folder or a glob pattern (sorted; relative to the scenario's folder)."""
+    ``.xml`` file of a folder or a glob pattern (sorted; relative to the scenario's folder);
+    and whether it is a folder or glob."""
     path = Path(ref)
     pattern = ref  # (the scenario's folder escaped: its name may hold * ? [)
     if not ref.startswith("builtin:") and not path.is_absolute() and scenario.base_dir:
@@ -160,14 +165,14 @@ def _library_paths(scenario: Scenario, ref: str) -> list[Path]:
         if not files:
             raise ScenarioError(f"{scenario.source}: traffic.library {ref!r}: no trajectory "
                                 f"files ({', '.join(TRAJECTORY_SUFFIXES)}) in {path}")  # fmt: skip
-        return files
-    return [resolve(scenario, ref, ("data", "ngsim"), ".csv", "traffic.library")]
+        return files, True
+    return [resolve(scenario, ref, ("data", "ngsim"), ".csv", "traffic.library")], False
 
 
 def input_files(scenario: Scenario) -> list[Path]:
     """The files a scenario's worlds are read from besides its own (its map and trajectory
     files; built-in data, part of the installed package, is not listed)."""
-    files = [f for f in _library_refs(scenario) if f != "builtin"]
+    files = [f for f, _ in _library_refs(scenario) if f != "builtin"]
     return (files + [map_path(scenario)]) if is_recorded(scenario) else files
 
 
@@ -182,10 +187,27 @@ def input_stamps(scenario: Scenario) -> tuple:
 
 @lru_cache(maxsize=8)
 def _library(files: tuple) -> TrajectoryLibrary:
-    tracks = []
-    for f in files:
-        lib = TrajectoryLibrary.builtin() if f == "builtin" else TrajectoryLibrary.from_files(f[0])
-        tracks += lib.tracks
+    """The tracks of :func:`_library_files`: a file found in a folder or glob that cannot be
+    read is skipped, all of them named in one :class:`~gridsim.errors.DataWarning` (as a
+    collection skips its unusable scenario files); a file named on its own is refused."""
+    tracks, skipped = [], []
+    for f, found in files:
+        if f == "builtin":
+            tracks += TrajectoryLibrary.builtin().tracks
+            continue
+        try:
+            tracks += TrajectoryLibrary.from_files(f[0]).tracks
+        except DataError as exc:
+            if not found:
+                raise
+            skipped.append(f"{f[0]}: {str(exc).removeprefix(f'{f[0]}: ')}")
+    if skipped:
+        lines = "\n".join(f"  - {line}" for line in skipped)
+        if not tracks:
+            raise DataError(f"traffic.library: none of its {len(files)} files can be read:\n"
+                            f"{lines}")  # fmt: skip
+        warnings.warn(f"traffic.library: skipped {len(skipped)} of {len(files)} trajectory files "
+                      f"that cannot be read:\n{lines}", DataWarning, stacklevel=2)  # fmt: skip
     return TrajectoryLibrary(tracks)
 
 

@@ -213,3 +213,33 @@ def test_a_flawed_library_track_is_not_used_as_a_speed_profile(tmp_path):
         used = synthetic_tracks(sc)
     assert "1213" not in {t.track_id for t in used}
     assert len(used) == len(synthetic_tracks(load_scenario("seamless"))) - 1
+
+
+def test_a_library_folder_skips_the_files_it_cannot_read(tmp_path):
+    """A folder of daily trajectory files with an empty one and one cut mid-line: both are
+    named in one warning and the rest is used (one bad file made the whole library, and so
+    the scenario, unusable); a file named on its own is still refused, as is a folder of
+    which no file can be read."""
+    from importlib import resources
+
+    from gridsim.scenario.parts import library_for
+
+    source = resources.files("gridsim").joinpath("data", "ngsim", "ngsim_trajectories.csv")
+    lines = source.read_text().splitlines()
+    (tmp_path / "days").mkdir()
+    (tmp_path / "days" / "a.csv").write_text("\n".join(lines) + "\n")
+    (tmp_path / "days" / "b.csv").write_text("")
+    (tmp_path / "days" / "c.csv").write_text("\n".join(lines[:3]) + "\n" + lines[3][:20])
+    path = tmp_path / "mine.yaml"
+    path.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [days]}\n")
+    said = r"skipped 2 of 3 trajectory files that cannot be read:\n  - .*b.csv: the file is empty"
+    with pytest.warns(DataWarning, match=said + r".*\n  - .*c.csv:4: "):
+        tracks = library_for(load_scenario(path)).tracks
+    assert len(tracks) == len(library_for(load_scenario("seamless")).tracks)
+    path.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [days/b.csv]}\n")
+    with pytest.raises(DataError, match=r"b.csv: the file is empty"):
+        library_for(load_scenario(path))
+    (tmp_path / "days" / "a.csv").unlink()
+    path.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [days]}\n")
+    with pytest.raises(DataError, match=r"traffic.library: none of its 2 files can be read"):
+        library_for(load_scenario(path))
