@@ -70,10 +70,8 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
     if np.count_nonzero(moving) >= 2:
         ratio = float(np.median(implied[moving] / recorded[moving]))
         if not 1.0 / SPEED_RATIO <= ratio <= SPEED_RATIO:
-            why = (
-                "its speeds must be in m/s (km/h / 3.6)"
-                if abs(ratio * 3.6 - 1.0) < 0.1  # recorded in km/h
-                else f"time stamps must be in seconds (its time step is {np.median(dt):.3g} s: "
+            why = _unit_hint(ratio) or (
+                f"time stamps must be in seconds (its time step is {np.median(dt):.3g} s: "
                 "a CSV's time column, a CommonRoad file's timeStepSize)"
             )
             out.append(
@@ -122,6 +120,21 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
         else:
             out += _glitches(track)
     return out
+
+
+#: Implied over recorded speed, when a unit is wrong, and what to say: speeds in km/h or
+#: mph, positions in feet (with speeds in m/s).
+_UNIT_RATIOS = (
+    (1 / 3.6, "its speeds must be in m/s (km/h / 3.6)"),
+    (0.44704, "its speeds must be in m/s (mph x 0.44704)"),
+    (1 / 0.3048, "its positions must be in metres (feet x 0.3048)"),
+)
+
+
+def _unit_hint(ratio: float) -> str | None:
+    """What a ratio of implied over recorded speed says about the units, if it is one of
+    :data:`_UNIT_RATIOS` (within 10 %)."""
+    return next((why for r, why in _UNIT_RATIOS if abs(ratio / r - 1.0) < 0.1), None)
 
 
 def _degrees_off(direction: np.ndarray, heading: np.ndarray) -> float:

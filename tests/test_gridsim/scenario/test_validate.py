@@ -121,6 +121,14 @@ def test_speeds_in_km_h_and_swapped_coordinates_get_their_own_hint():
     (problem,) = track_problems(kmh)
     assert "recorded speeds say 36 m/s (median, ratio 0.278); its speeds must be in m/s" in problem
     assert "must be in seconds" not in problem
+    mph = track("mph", X, np.full(41, -1.75))
+    mph.speed[:] = 10.0 / 0.44704  # 10 m/s recorded in mph
+    (problem,) = track_problems(mph)
+    assert problem.endswith("(median, ratio 0.447); its speeds must be in m/s (mph x 0.44704)")
+    feet = track("feet", X / 0.3048, np.full(41, -1.75 / 0.3048))
+    feet.speed[:] = 10.0  # 10 m/s, positions in feet
+    assert any(p.endswith("its positions must be in metres (feet x 0.3048)")
+               for p in track_problems(feet))  # fmt: skip
     swapped = track("swapped", np.full(41, 5.0), X)  # drives +y, its heading says +x
     (problem,) = track_problems(swapped)
     assert "it drives 90 degrees off its recorded heading" in problem
