@@ -103,9 +103,24 @@ def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
         lines += ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
         for r in results:
             for m, s in r.closed_loop.items():
-                vals = [_number(s[k]) if k != "episodes" else str(int(s[k])) for k in LOOP_KEYS]
+                vals = [_loop_cell(k, s[k]) for k in LOOP_KEYS]
                 lines.append("| " + " | ".join([r.group, m, *vals]) + " |")
     return write_text(out / "table2.md", "\n".join(lines) + "\n")
+
+
+#: Closed-loop columns written with fixed decimals, so that a column reads in one style
+#: (shares 1.00 beside 0.33, not 1 beside 0.333); the fitness sums take :func:`_number`.
+_LOOP_DECIMALS = {"completed": 2, "progress": 2, "collision": 2, "off_road": 2,
+                  "mean_speed": 2, "mean_steer_rate": 3}  # fmt: skip
+
+
+def _loop_cell(key: str, v: float) -> str:
+    """A closed-loop figure of column ``key`` for the Markdown table."""
+    if key == "episodes":
+        return str(int(v))
+    if key in _LOOP_DECIMALS:
+        return f"{v:.{_LOOP_DECIMALS[key]}f}".replace("-0.00", "0.00")
+    return _number(v)
 
 
 def _number(v: float) -> str:
@@ -137,7 +152,8 @@ def _write_csv(results, out: Path) -> Path:
             w.writerow(["group", "method", *LOOP_KEYS])
             for r in results:
                 for m, s in r.closed_loop.items():
-                    w.writerow([r.group, m, *[f"{s[k]:.4f}" for k in LOOP_KEYS]])
+                    w.writerow([r.group, m, *[f"{s[k]:.4f}" if k != "episodes"
+                                              else str(int(s[k])) for k in LOOP_KEYS]])  # fmt: skip
     return path
 
 

@@ -285,3 +285,10 @@ def test_closed_loop_figures_read_in_one_style():
     cells = [8.58e-11, -3e-8, 0.0448, 0.9, 1.0, 6.69, 844.4, 1284.6, 225894.2]
     assert [_number(v) for v in cells] == ["0.000", "0.000", "0.0448", "0.9", "1", "6.69",
                                            "844", "1,285", "225,894"]  # fmt: skip
+    # shares and speeds: fixed decimals per column (1 beside 0.333, 8 beside 7.22 before)
+    from neurotrajectory.compare.report import _loop_cell
+
+    assert [_loop_cell("completed", v) for v in (1.0, 1 / 3, 0.0, -1e-12)] == [
+        "1.00", "0.33", "0.00", "0.00"]  # fmt: skip
+    assert [_loop_cell("mean_speed", v) for v in (8.0, 7.2233)] == ["8.00", "7.22"]
+    assert _loop_cell("mean_steer_rate", 0.0722) == "0.072" and _loop_cell("episodes", 3.0) == "3"
