@@ -69,7 +69,7 @@ def plot_run(
                              " (not drawn to scale)") if g == gens[0] else None)  # fmt: skip
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_title(NAMES[k], fontsize=9, pad=10)
+        ax.set_title(NAMES[k] + ("\n(log scale)" if k == 0 else ""), fontsize=9, pad=10)
     fig.suptitle("every member of every generation, on that generation's training episodes "
                  "(drawn anew each generation)", fontsize=10)  # fmt: skip
     _legend_below(fig, axes[0], 3, 0.07)
