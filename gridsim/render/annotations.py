@@ -80,15 +80,19 @@ _ENDINGS = (("collision", "collision"), ("off_road", "off the road"),
 
 
 def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
-             inset_size: int | None = None) -> np.ndarray:  # fmt: skip
-    """Write ``caption``, the colour legend, the grid inset's legend (beside an inset of
+             inset_size: int | None = None, ego_row: float | None = None,
+             setpoints: bool = True) -> np.ndarray:  # fmt: skip
+    """Write ``caption``, the colour legend (without the set-points' colours unless
+    ``setpoints``: a frame that draws none), the grid inset's legend (beside an inset of
     ``inset_size`` pixels at the top right, if any; under it when the caption is too wide)
-    and a scale bar on ``img`` (in place); returns ``img``."""
+    and a scale bar on ``img`` (in place); returns ``img``. The banner of an episode's end
+    keeps clear of the ego's pixel row ``ego_row``, if given."""
     text = [(t, None, "") for t in caption.lines()]
     _band(img, 0, 0, text)
     if caption.ended:
-        _banner(img, f"episode over: {caption.ended} at {caption.time:.1f} s")
-    _band(img, 0, img.shape[0] - _STEP * len(LEGEND) - 8, LEGEND)
+        _banner(img, f"episode over: {caption.ended} at {caption.time:.1f} s", ego_row)
+    legend = LEGEND if setpoints else tuple(e for e in LEGEND if e[2] != "dot")
+    _band(img, 0, img.shape[0] - _STEP * len(legend) - 8, legend)
     if inset_size:
         grid = [("sensor grid:", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
         width = _width(grid)
@@ -122,12 +126,14 @@ def _band(img: np.ndarray, x: int, y: int, lines, width: int | None = None) -> N
                     cv2.LINE_AA)  # fmt: skip
 
 
-def _banner(img: np.ndarray, text: str) -> None:
-    """``text`` in large letters on a dark band across the middle of the frame's lower half
-    (where the ego, at the centre, is not)."""
+def _banner(img: np.ndarray, text: str, ego_row: float | None = None) -> None:
+    """``text`` in large letters on a dark band across the frame, at 70 % of its height, or
+    at 45 % when the ego (at pixel row ``ego_row``: the view runs ahead of it, so it sits
+    low when it heads up the frame) is in the lower part: the banner does not hide it."""
     scale, thickness = 0.8, 2
     (w, h), _ = cv2.getTextSize(text, _FONT, scale, thickness)
-    x, y = (img.shape[1] - w) // 2, int(img.shape[0] * 0.7)
+    low = ego_row is not None and ego_row > 0.55 * img.shape[0]
+    x, y = (img.shape[1] - w) // 2, int(img.shape[0] * (0.45 if low else 0.7))
     _darken(img[y - h - 10 : y + 12, max(x - 12, 0) : x + w + 12])
     cv2.putText(img, text, (x, y), _FONT, scale, _WHITE, thickness, cv2.LINE_AA)
 
@@ -156,6 +162,7 @@ def annotate_env_frame(env, frame: np.ndarray, info: dict, label: str | None,
                        fitness: np.ndarray) -> np.ndarray:  # fmt: skip
     """:func:`annotate` a GridSim-v0 ``frame`` (of ``env``, wrapped or not) with the caption of
     its step's ``info`` and the ``fitness`` summed so far, at the env renderer's scale."""
-    view = env.unwrapped.renderer.view
+    renderer = env.unwrapped.renderer
     caption = Caption.from_info(info, label, fitness)
-    return annotate(frame, caption, view.pixels_per_metre, view.inset_size)
+    return annotate(frame, caption, renderer.view.pixels_per_metre, renderer.view.inset_size,
+                    renderer.ego_row(env.unwrapped.world))  # fmt: skip

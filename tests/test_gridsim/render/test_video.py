@@ -58,6 +58,17 @@ def test_frames_say_how_the_episode_ended_and_videos_who_drives():
     unmarked = annotate(frame.copy(), Caption.from_info({**info, "time": 7.25}, None, None), 8.0)
     rows = np.flatnonzero(np.any(marked != unmarked, axis=(1, 2)))
     assert rows.min() > 300 and rows.max() < 360  # the banner, across the lower half
+    # an ego low in the frame (heading up it, the view leads it) keeps the banner off it
+    ego_low = annotate(frame.copy(), caption, 8.0, ego_row=336.0)
+    rows = np.flatnonzero(np.any(ego_low != unmarked, axis=(1, 2)))
+    assert rows.min() > 170 and rows.max() < 240
+    # a frame without set-points (gridsim drive) does not list their colours
+    plain = annotate(frame.copy(), caption, 8.0, setpoints=False)
+    from gridsim.render.topdown import PLAN_COLOUR
+
+    legend = np.s_[380:, :140]
+    assert np.any(np.all(marked[legend] == PLAN_COLOUR, axis=-1))  # the plan's dot
+    assert not np.any(np.all(plain[legend] == PLAN_COLOUR, axis=-1))
 
     def my_planner(env, obs, info):
         return info["reference_setpoints"]
