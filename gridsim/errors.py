@@ -6,6 +6,10 @@ range). Catch :class:`GridSimError` to handle any of them.
 
 from __future__ import annotations
 
+import os
+import sys
+import warnings
+
 
 class GridSimError(Exception):
     """Base class of all errors raised by gridsim for bad input or bad state."""
@@ -33,3 +37,26 @@ class UnfitEgoWarning(DataWarning):
     """A track named as the ego (``ego.track``) that a random ego is not drawn from: it
     overlaps another, grazes a road edge or is a long vehicle (its episodes may end at
     once). A caller that drives such tracks on purpose (``record``) says so once."""
+
+
+#: Folders whose code is not where a user's call is (their frames are skipped by
+#: :func:`warn_data`): gridsim's own, and those that register themselves (neurotrajectory).
+_INTERNAL: list[str] = [os.path.dirname(__file__) + os.sep]
+
+
+def count_as_internal(folder: str) -> None:
+    """Let :func:`warn_data` skip the frames of code in ``folder`` (a package's own)."""
+    _INTERNAL.append(os.path.join(folder, ""))
+
+
+def warn_data(message: str, category: type[Warning] = DataWarning) -> None:
+    """Warn ``message`` at the line of the user's code that led to it: the first frame
+    outside gridsim (and the packages that :func:`count_as_internal`, and gymnasium's
+    ``make``), not a line deep in the loader; Python's default filter then shows it once per
+    message and user line."""
+    gym = sys.modules.get("gymnasium")
+    skipped = (*_INTERNAL, os.path.dirname(gym.__file__) + os.sep) if gym else tuple(_INTERNAL)
+    frame, level = sys._getframe(1), 2
+    while frame is not None and frame.f_code.co_filename.startswith(skipped):
+        frame, level = frame.f_back, level + 1
+    warnings.warn(message, category, stacklevel=level - 1 if frame is None else level)

@@ -26,5 +26,8 @@ import os
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 from gridsim import __version__  # noqa: E402  (one distribution, one version)
+from gridsim.errors import count_as_internal  # noqa: E402
+
+count_as_internal(os.path.dirname(__file__))  # DataWarnings point at the user's line
 
 __all__ = ["__version__"]

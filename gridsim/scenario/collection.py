@@ -16,12 +16,11 @@ from __future__ import annotations
 
 import hashlib
 import os
-import warnings
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from gridsim.errors import DataWarning, GridSimError, ScenarioError
+from gridsim.errors import GridSimError, ScenarioError, warn_data
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.parts import matching_files
@@ -55,10 +54,11 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
         if nested:
             suffixes = sorted({s for found in nested.values() for s in found})
             globs = " or ".join(f"'{path / '**' / ('*' + s)}'" for s in suffixes)
-            warnings.warn(f"{text}: its subfolders {', '.join(sorted(nested))} hold scenario "
-                          "files that are not read (a folder is read without its subfolders; "
-                          f"for all, give the glob {globs})", DataWarning,
-                          stacklevel=2)  # fmt: skip
+            warn_data(
+                f"{text}: its subfolders {', '.join(sorted(nested))} hold scenario "
+                "files that are not read (a folder is read without its subfolders; "
+                f"for all, give the glob {globs})"
+            )
     elif "," in text and not path.exists():
         return _listed_files(text)
     elif any(c in text for c in "*?["):
@@ -127,11 +127,12 @@ def usable_files(
     used = [f for f in files if f not in {g for g, _ in skipped}]
     pairs = list(zip(used, scenarios, strict=True))
     for first, again, scene in repeated_recordings(pairs):
-        warnings.warn(f"{ref}: {again} replays the same recording as {first} (scene {scene}, "
-                      "the same tracks and ego tracks): its episodes and windows count twice",
-                      DataWarning, stacklevel=2)  # fmt: skip
+        warn_data(
+            f"{ref}: {again} replays the same recording as {first} (scene {scene}, the "
+            "same tracks and ego tracks): its episodes and windows count twice"
+        )
     for shared in shared_track_names(pairs):
-        warnings.warn(f"{ref}: {shared_names_message(*shared)}", DataWarning, stacklevel=2)
+        warn_data(f"{ref}: {shared_names_message(*shared)}")
     return scenarios, skipped
 
 
@@ -213,8 +214,9 @@ def report_skipped(
     lines = skipped_lines(skipped)
     if not any_used:
         raise error(f"{where}: none of its {total} scenario files {phrases[0]}:\n{lines}")
-    warnings.warn(f"{where}: skipped {len(skipped)} of {total} scenario files that {phrases[1]}:"
-                  f"\n{lines}", DataWarning, stacklevel=3)  # fmt: skip
+    warn_data(
+        f"{where}: skipped {len(skipped)} of {total} scenario files that {phrases[1]}:\n{lines}"
+    )
 
 
 #: Lines of one skipped file's reason shown (the rest: ``gridsim validate FILE``).

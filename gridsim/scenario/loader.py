@@ -7,7 +7,6 @@ import difflib
 import os
 import re
 import typing
-import warnings
 from collections.abc import Mapping
 from importlib import resources
 from pathlib import Path
@@ -17,7 +16,7 @@ import numpy as np
 import yaml
 from pydantic import ValidationError
 
-from gridsim.errors import DataWarning, ScenarioError
+from gridsim.errors import ScenarioError, warn_data
 from gridsim.scenario.family import FAMILIES, family_defaults
 from gridsim.scenario.schema import Scenario, ScenarioConfig, Strict
 
@@ -316,8 +315,9 @@ def parse_scenario(
     scenario = Scenario(_validate(doc, source), source, base_dir)
     if unused:
         why = FAMILIES[family].ignores[1]
-        warnings.warn(f"{source}: {', '.join(unused)} not used by road type {family!r} ({why}); "
-                      "ignored", DataWarning, stacklevel=2)  # fmt: skip
+        warn_data(
+            f"{source}: {', '.join(unused)} not used by road type {family!r} ({why}); ignored"
+        )
     return scenario
 
 

@@ -7,13 +7,12 @@ from __future__ import annotations
 import glob
 import hashlib
 import time
-import warnings
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import DataError, DataWarning, ScenarioError
+from gridsim.errors import DataError, ScenarioError, warn_data
 from gridsim.road.polyline import Polyline
 from gridsim.scenario.checks import SceneReport, library_report
 from gridsim.scenario.family import is_recorded
@@ -206,8 +205,10 @@ def _library(files: tuple) -> TrajectoryLibrary:
         if not tracks:
             raise DataError(f"traffic.library: none of its {len(files)} files can be read:\n"
                             f"{lines}")  # fmt: skip
-        warnings.warn(f"traffic.library: skipped {len(skipped)} of {len(files)} trajectory files "
-                      f"that cannot be read:\n{lines}", DataWarning, stacklevel=2)  # fmt: skip
+        warn_data(
+            f"traffic.library: skipped {len(skipped)} of {len(files)} trajectory files "
+            f"that cannot be read:\n{lines}"
+        )
     return TrajectoryLibrary(tracks)
 
 
@@ -229,7 +230,7 @@ def synthetic_tracks(scenario: Scenario) -> list[Track]:
     if report.problems:
         raise DataError(report.refusal(scenario.source))
     if report.warnings:  # shown once per message and place (Python's default filter)
-        warnings.warn("\n".join(report.warnings), DataWarning, stacklevel=2)
+        warn_data("\n".join(report.warnings))
     return [t for t in tracks if t.track_id not in report.flawed] if report.flawed else tracks
 
 

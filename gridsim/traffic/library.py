@@ -10,13 +10,12 @@ counter-clockwise from +x. Tracks are keyed by ``(scenario_id, track_id)``.
 from __future__ import annotations
 
 import csv
-import warnings
 from importlib import resources
 from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import DataError, DataWarning
+from gridsim.errors import DataError, warn_data
 from gridsim.outputs import atomic_text, short_repr
 from gridsim.traffic.commonroad import read_tracks_commonroad
 from gridsim.traffic.track import Track
@@ -292,7 +291,7 @@ def _warn_tracks(path: Path, split: list, single: list, resized: list,
             f"needed): {', '.join(single[:5])}{more}"
         )
     if parts:
-        warnings.warn(f"{path}: " + "; ".join(parts), DataWarning, stacklevel=4)
+        warn_data(f"{path}: " + "; ".join(parts))
 
 
 def is_number(text: str) -> bool:

@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import re
 import time
-import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, ClassVar
@@ -31,7 +30,7 @@ import numpy as np
 from pydantic import Field, model_validator
 from tqdm import tqdm
 
-from gridsim.errors import DataWarning
+from gridsim.errors import warn_data
 from gridsim.outputs import new_folder, write_json
 from gridsim.policies import Reference
 from gridsim.scenario.schema import MAX_DURATION
@@ -196,8 +195,7 @@ def _evaluate_group(
         from neurotrajectory.compare.report import not_held_out
 
         said = not_held_out(group, seen, len(test_tracks))
-        warnings.warn(f"{said} ({front.run.out}); evaluate it on scenes the run did not train "
-                      "on", DataWarning, stacklevel=2)  # fmt: skip
+        warn_data(f"{said} ({front.run.out}); evaluate it on scenes the run did not train on")
     setting = Setting.from_manifest(ds.manifest)
     log(f"{group}: {len(train)} train / {len(test)} test windows; training End2End")
     e2e = End2End.train(train, setting, cfg.end2end, progress=progress)

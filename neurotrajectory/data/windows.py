@@ -30,7 +30,7 @@ import numpy as np
 
 from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.errors import DataWarning, GridSimError, ScenarioError, UnfitEgoWarning
+from gridsim.errors import GridSimError, ScenarioError, UnfitEgoWarning, warn_data
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write_json, write_npz
 from gridsim.policies import Reference
@@ -196,11 +196,12 @@ def _say_unfit_egos(scenario, chosen: list, tracks: list, road) -> None:
     unfit = [t.track_id for t in chosen if t.track_id not in fit]
     if unfit:
         shown = ", ".join(unfit[:8]) + (f" and {len(unfit) - 8} more" if len(unfit) > 8 else "")
-        warnings.warn(f"{scenario.source}: {len(unfit)} of the {len(chosen)} tracks driven as "
-                      f"the ego are not ones a random ego is drawn from (a long vehicle, one "
-                      f"overlapping another or grazing a road edge: `gridsim validate` names "
-                      f"why): {shown}; they are driven as recorded all the same", DataWarning,
-                      stacklevel=3)  # fmt: skip
+        warn_data(
+            f"{scenario.source}: {len(unfit)} of the {len(chosen)} tracks driven as "
+            f"the ego are not ones a random ego is drawn from (a long vehicle, one "
+            f"overlapping another or grazing a road edge: `gridsim validate` names "
+            f"why): {shown}; they are driven as recorded all the same"
+        )
 
 
 def episodes_of(

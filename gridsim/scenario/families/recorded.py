@@ -4,7 +4,6 @@ recorded vehicles replayed, one of them the ego (its track is the human referenc
 from __future__ import annotations
 
 import dataclasses
-import warnings
 from functools import lru_cache, partial
 from typing import Annotated, Literal
 
@@ -12,7 +11,7 @@ import numpy as np
 from pydantic import Field
 
 from gridsim import libm
-from gridsim.errors import DataError, DataWarning, ScenarioError, UnfitEgoWarning
+from gridsim.errors import DataError, ScenarioError, UnfitEgoWarning, warn_data
 from gridsim.road.base import StaticRoad
 from gridsim.road.lanelet import load_lanelet_road
 from gridsim.road.polyline import Polyline
@@ -74,10 +73,10 @@ def recorded_scene(scenario: Scenario, check: bool = True) -> tuple[StaticRoad, 
         if report.problems:
             raise DataError(report.refusal(scenario.source))
         if report.warnings:  # shown once per message and place (Python's default filter)
-            warnings.warn("\n".join(report.warnings), DataWarning, stacklevel=2)
+            warn_data("\n".join(report.warnings))
         note = _unfit_ego_note(scenario, road, tracks)
         if note:
-            warnings.warn(note, UnfitEgoWarning, stacklevel=2)
+            warn_data(note, UnfitEgoWarning)
     return road, tracks
 
 

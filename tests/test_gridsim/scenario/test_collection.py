@@ -402,3 +402,20 @@ def test_other_recordings_of_a_scene_with_the_same_track_ids_are_named(tmp_path,
         load_collection(tmp_path)
     assert gridsim_main(["validate", str(tmp_path)]) == 0
     assert "track id(s) in common" in capsys.readouterr().out
+
+
+def test_a_data_warning_points_at_the_users_line(tmp_path):
+    """``gym.make`` of a scenario with a key its road type does not read: the warning's
+    place is the user's call, not a line of the loader (where Python's default filter would
+    also have shown it once for every user line together)."""
+    import warnings
+
+    import gymnasium as gym
+
+    path = tmp_path / "mine.yaml"
+    path.write_text("name: mine\nroad: {type: seamless}\nego: {track: '5'}\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        gym.make("GridSim-v0", scenario=str(path))  # the line the warning names
+    (said,) = [w for w in caught if issubclass(w.category, DataWarning)]
+    assert said.filename == __file__ and "ego.track not used" in str(said.message)
