@@ -11,7 +11,8 @@ cumulative distance ``S``, speed ``V``, lateral offset ``D`` and heading ``H``):
 - *IDM*: when replay would close in on the vehicle ahead (gap below the IDM desired gap
   ``s*``), the vehicle follows the IDM with the replay speed as desired speed, and its profile
   time advances in proportion to its progress. It hands back to replay once the gap exceeds
-  ``resume_factor * s*`` and its speed has caught up with the profile. A recorded vehicle
+  ``resume_factor * s*`` (at the faster of its speed and the replay speed) and its speed has
+  caught up with the profile. A recorded vehicle
   keeps the recorded heading at its profile time in both modes (never the tangent of its
   recorded path, which is position noise where it stood still).
 

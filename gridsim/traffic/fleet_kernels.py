@@ -75,11 +75,16 @@ def advance(idx, now, nxt, fleet, lead_v, limits, idm, dt, decay) -> None:
         v_rep = min(k * nxt[q, _V], v_max)
         dv = v - lv
         m = mode[i]
+        # back to replay at a gap with room to spare at the faster of its speed and the
+        # replay's: a vehicle faster than its profile keeps its speed for a tick or more
+        # after handing back (rate-limited), and the desired gap at the replay speed alone
+        # could hand it back and forth tick after tick
+        v_back = max(v, v_rep)
         if m == REPLAY and g < idm_gap(v, dv, *idm):
             m = IDM
         elif (
             m == IDM
-            and g > resume_factor * idm_gap(v_rep, v_rep - lv, *idm)
+            and g > resume_factor * idm_gap(v_back, v_back - lv, *idm)
             and v >= v_rep - resume_tol
         ):
             m = REPLAY

@@ -52,7 +52,7 @@ def test_compiled_shadow_ticks_equal_the_python_ticks(monkeypatch, seed):
     assert batched > 0.8 * len(python.t)  # most ticks were compiled
 
 
-@pytest.mark.parametrize("seed", [0, 3, 5])
+@pytest.mark.parametrize("seed", [0, 3, 6])  # (5's no longer needs a revision)
 def test_compiled_shadow_ticks_revise_as_the_python_ticks(monkeypatch, seed):
     """A near-miss box 10 m longer at each end (dense traffic): revisions, replays, giving
     way and unavoidable collisions, all as in Python."""

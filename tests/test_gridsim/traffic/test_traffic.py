@@ -766,3 +766,27 @@ def test_a_recording_timed_from_far_from_zero_places_tracks_at_their_tick():
     assert not src.fleet.active[1]
     src.tick(0.1, far)
     assert src.time != 103.0 and src.fleet.active[1]
+
+
+def test_a_car_faster_than_its_slowing_profile_is_not_handed_back_and_forth():
+    """A generated car in IDM, at 10 m/s behind a leader at 5 m/s, its profile slowing to
+    5 m/s: at a gap of 12 m it hands back to replay only if the desired gap at its own
+    (faster) speed allows. Taken at the profile speed alone (1.3 x 8 m), it was handed back,
+    kept most of its speed for the tick (braking at b_max) and was handed over again, tick
+    after tick (the orange-blue flicker of traffic in videos)."""
+    from gridsim.traffic import fleet_kernels
+    from gridsim.traffic.fleet import FleetParams
+
+    p = FleetParams()  # speeds in [0, 30] m/s, accelerating at 3, braking at 4 m/s^2
+    limits = (0.0, 30.0, 3.0, 4.0, p.resume_factor, p.resume_speed_tol)
+    profile = np.array([[0.0, 5.0, 0.0, 0.0]])  # s, v, d, heading: the profile at 5 m/s
+    mode = np.array([fleet_kernels.IDM])
+    state = (np.zeros(1), np.array([10.0]), np.zeros(1), np.zeros(1), np.zeros(1),
+             np.ones(1), mode, np.zeros(1, bool), np.array([12.0]))  # fmt: skip
+    modes = []
+    for _ in range(4):
+        fleet_kernels.advance(np.array([0]), profile, profile, state, np.array([5.0]), limits,
+                              p.idm.values, 0.1, 1.0)  # fmt: skip
+        state[-1][:] = 12.0  # the gap held
+        modes.append(int(mode[0]))
+    assert modes == [fleet_kernels.IDM] * 4
