@@ -152,18 +152,9 @@ def shared_track_names(pairs: list[tuple[Path, Scenario]]) -> list[tuple[Path, P
     (file, scenario) whose scene has track ``ids`` in common with an earlier file's while
     their tracks differ (another recording whose ids restart; a copy is
     :func:`repeated_recordings`'s)."""
-    from gridsim.scenario.families.recorded import recorded_scene, scene_of
-    from gridsim.scenario.family import is_recorded
-
     seen: dict[str, list[tuple[Path, dict]]] = {}
     out = []
-    for path, scenario in pairs:
-        if not is_recorded(scenario):
-            continue
-        _, tracks = recorded_scene(scenario, check=False)
-        mine = {t.track_id: (len(t.t), float(t.t[0]), float(t.x[0]), float(t.y[0]))
-                for t in tracks}  # fmt: skip
-        scene = scene_of(scenario)
+    for path, _, scene, mine in _recorded_tracks(pairs):
         for first, theirs in seen.get(scene, []):
             common = sorted(k for k in mine.keys() & theirs.keys() if mine[k] != theirs[k])
             if common:
@@ -178,24 +169,37 @@ def repeated_recordings(pairs: list[tuple[Path, Scenario]]) -> list[tuple[Path, 
     scenario) that replays the same tracks (ids, first states, lengths) with the same
     ``ego.track`` as an earlier one: copies of a recording under other names (a CSV saved
     again with a BOM or other line ends)."""
-    from gridsim.scenario.families.recorded import recorded_scene, scene_of
-    from gridsim.scenario.family import is_recorded
-
     seen: dict[tuple, Path] = {}
     out = []
-    for path, scenario in pairs:
-        if not is_recorded(scenario):
-            continue
-        _, tracks = recorded_scene(scenario, check=False)
+    for path, scenario, scene, tracks in _recorded_tracks(pairs):
         ego = scenario.config.ego.track
-        key = (scene_of(scenario), ego if isinstance(ego, str) else tuple(ego),
-               tuple(sorted((t.track_id, len(t.t), float(t.t[0]), float(t.x[0]), float(t.y[0]))
-                            for t in tracks)))  # fmt: skip
+        key = (scene, ego if isinstance(ego, str) else tuple(ego),
+               tuple(sorted((tid, *first) for tid, first in tracks.items())))  # fmt: skip
         if key in seen:
-            out.append((seen[key], path, key[0]))
+            out.append((seen[key], path, scene))
         else:
             seen[key] = path
     return out
+
+
+def _recorded_tracks(pairs: list[tuple[Path, Scenario]]):
+    """``(file, scenario, scene, {track id: (samples, first time, x, y)})`` of each recorded
+    scenario of ``pairs`` (file, scenario): what tells its tracks from another recording's."""
+    from gridsim.scenario.families.recorded import recorded_scene, scene_of
+    from gridsim.scenario.family import is_recorded
+
+    for path, scenario in pairs:
+        if is_recorded(scenario):
+            _, tracks = recorded_scene(scenario, check=False)
+            yield (
+                path,
+                scenario,
+                scene_of(scenario),
+                {
+                    t.track_id: (len(t.t), float(t.t[0]), float(t.x[0]), float(t.y[0]))
+                    for t in tracks
+                },
+            )
 
 
 def report_skipped(

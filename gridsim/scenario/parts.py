@@ -130,8 +130,8 @@ def _library_refs(scenario: Scenario) -> list[tuple]:
                 )
             files.append((map_path(scenario), False))
         else:
-            found, many = _library_paths(scenario, ref)
-            files += [(f, many) for f in found]
+            paths, found = _library_paths(scenario, ref)
+            files += [(f, found) for f in paths]
     return files
 
 

@@ -277,7 +277,7 @@ def drive_windows(
         for episode in episodes:
             wanted = json.dumps(episode.overrides, sort_keys=True)
             if wanted != key:
-                env = key = None  # (released before the next is built)
+                env = None  # (released before the next is built)
                 env, key = GridSimEnv(scenario, **episode.overrides), wanted
             parts.append(_episode_windows(env, episode.seed, stride, episode.track, policy,
                                           labels))  # fmt: skip

@@ -98,9 +98,8 @@ PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm st
 WARM_START_FILE = "warm_start.npz"  # the warm start's genome in a run folder
 #: The SHA-256 of the files the run's scenario is read from when it began (resumes check them).
 INPUTS_FILE = "inputs.json"
-BEST_KNEE_FILE = (
-    "best_knee.npz"  # runs with a warm start: the best validated knee of any generation
-)
+#: Runs with a warm start: the best validated knee of any generation.
+BEST_KNEE_FILE = "best_knee.npz"
 
 
 class RunError(RuntimeError):
