@@ -54,13 +54,7 @@ def add_parser(sub) -> None:
 def execute(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from neurotrajectory.data.windows import (
-        Dataset,
-        check_group,
-        record_group,
-        save_dataset,
-        split_by_track,
-    )
+    from neurotrajectory.data.windows import check_group, record_dataset
 
     if args.group is not None:
         raise RunError(f"record --group {args.group}: the dataset's group name is --name now "
@@ -74,32 +68,31 @@ def execute(args: argparse.Namespace) -> int:
         args.episodes = EVAL["episodes"]
     name, source = (args.name, args.scenario) if args.name else (args.scenario, None)
     check_group(args.scenario)
-    with new_folder(args.out) as partial:  # held before recording; --out appears when done
-        with tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar:
+    # the side evaluate --seed S --test-fraction F uses
+    split = (args.split, args.test_fraction) if args.split else None
+    # --out is held before recording and appears when done; the windows are written as
+    # they are recorded (memory holds about one shard whatever the dataset's size)
+    with (
+        new_folder(args.out) as partial,
+        tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar,
+    ):
 
-            def planned(count: int) -> None:  # a file's episodes: the bar's total grows
-                bar.total = (bar.total or 0) + count
-                bar.refresh()
+        def planned(count: int) -> None:  # a file's episodes: the bar's total grows
+            bar.total = (bar.total or 0) + count
+            bar.refresh()
 
-            ds = record_group(name, args.episodes, args.seed, args.stride, args.episode_seconds,
-                              progress=bar.update, source=source,
-                              goal_seconds=args.goal_seconds, planned=planned)  # fmt: skip
-        if args.split:  # the side evaluate --seed S --test-fraction F uses
-            halves = split_by_track(ds.windows, args.test_fraction, args.seed)
-            sides = dict(zip(("train", "test"), halves, strict=True))
-            split = {"side": args.split, "test_fraction": args.test_fraction, "seed": args.seed}
-            ds = Dataset(sides[args.split], {**ds.manifest, "split": split})
-        save_dataset(ds, partial)
-    path = Path(args.out)
-    w = ds.windows
+        manifest, tracks = record_dataset(
+            partial, name, args.episodes, args.seed, args.stride, args.episode_seconds,
+            progress=bar.update, source=source, goal_seconds=args.goal_seconds,
+            planned=planned, split=split)  # fmt: skip
     print(
         json.dumps(
             {
-                "out": str(path),
-                "windows": len(w),
-                "tracks": len(set(w.track.tolist())),
-                "group": ds.manifest["group"],
-                "source": ds.manifest["source"],
+                "out": str(Path(args.out)),
+                "windows": manifest["count"],
+                "tracks": tracks,
+                "group": manifest["group"],
+                "source": manifest["source"],
             },
             indent=1,
         )

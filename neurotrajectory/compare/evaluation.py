@@ -49,8 +49,7 @@ from neurotrajectory.data.windows import (
     check_new_folder,
     group_scenarios,
     load_dataset,
-    record_group,
-    save_dataset,
+    record_dataset,
     split_by_track,
 )
 from neurotrajectory.evolve.pareto import PICKS, pick_member
@@ -149,11 +148,11 @@ def _dataset(
         return ds
     log(f"{group}: recording windows")
     with tqdm(desc=f"record {group}", unit="episode", leave=False, disable=not progress) as bar:
-        ds = record_group(group, cfg.episodes, cfg.seed, duration=cfg.episode_seconds,
-                          progress=bar.update, source=cfg.sources.get(group),
-                          goal_seconds=cfg.goal_seconds)  # fmt: skip
-    save_dataset(ds, out / "data" / group)
-    return ds
+        # written as recorded, then read back: memory holds the windows once
+        record_dataset(out / "data" / group, group, cfg.episodes, cfg.seed,
+                       duration=cfg.episode_seconds, progress=bar.update,
+                       source=cfg.sources.get(group), goal_seconds=cfg.goal_seconds)  # fmt: skip
+    return load_dataset(out / "data" / group)
 
 
 @dataclass(frozen=True)

@@ -22,7 +22,7 @@ import hashlib
 import json
 import platform
 import warnings
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, fields
 from pathlib import Path
 
@@ -255,11 +255,26 @@ def drive_windows(
     progress: Callable[[int], None] | None = None,
     labels: str = "rejoin",
 ) -> Windows | None:
-    """The windows of ``episodes`` of ``scenario``, one every ``stride`` decisions while the
-    reference covers the whole horizon. The ego drives the reference, or follows ``policy``
-    (a trajectory-action policy ``(env, obs, info) -> set-points``), as in DAgger; the label
-    is the reference's next set-points from the ego's pose, with a policy as ``labels`` says
-    (:data:`DAGGER_LABELS`). ``None`` if no window was taken."""
+    """The windows of ``episodes`` of ``scenario`` together (:func:`iter_windows`), ``None``
+    if no window was taken."""
+    parts = list(iter_windows(scenario, episodes, stride, policy, progress, labels))
+    return Windows.concat(parts) if parts else None
+
+
+def iter_windows(
+    scenario: str,
+    episodes: list[PlannedEpisode],
+    stride: int,
+    policy=None,
+    progress: Callable[[int], None] | None = None,
+    labels: str = "rejoin",
+) -> Iterator[Windows]:
+    """The windows of each episode of ``episodes`` of ``scenario`` in turn (episodes that give
+    none are passed over), one every ``stride`` decisions while the reference covers the
+    whole horizon. The ego drives the reference, or follows ``policy`` (a trajectory-action
+    policy ``(env, obs, info) -> set-points``), as in DAgger; the label is the reference's
+    next set-points from the ego's pose, with a policy as ``labels`` says
+    (:data:`DAGGER_LABELS`). ``progress(1)`` after each episode."""
     if stride < 1:
         raise DatasetError(f"stride must be >= 1, got {stride}")
     if labels not in DAGGER_LABELS:
@@ -271,20 +286,18 @@ def drive_windows(
     # a recorded scene's differ per ego track: each environment holds the whole scene's
     # traffic, so it is let go before the next (keeping them all grew with the tracks squared)
     env, key = None, None
-    parts = []
-    with warnings.catch_warnings():  # an unfit ego track: said once (_say_unfit_egos)
-        warnings.simplefilter("ignore", UnfitEgoWarning)
-        for episode in episodes:
+    for episode in episodes:
+        with warnings.catch_warnings():  # an unfit ego track: said once (_say_unfit_egos)
+            warnings.simplefilter("ignore", UnfitEgoWarning)
             wanted = json.dumps(episode.overrides, sort_keys=True)
             if wanted != key:
                 env = None  # (released before the next is built)
                 env, key = GridSimEnv(scenario, **episode.overrides), wanted
-            parts.append(_episode_windows(env, episode.seed, stride, episode.track, policy,
-                                          labels))  # fmt: skip
-            if progress:
-                progress(1)
-    parts = [p for p in parts if p is not None]
-    return Windows.concat(parts) if parts else None
+            windows = _episode_windows(env, episode.seed, stride, episode.track, policy, labels)
+        if progress:
+            progress(1)
+        if windows is not None:
+            yield windows
 
 
 class _WindowTaker:
@@ -364,23 +377,62 @@ def record_scenario(
     """Windows of one scenario (the ego drives the reference; see :func:`scenario_episodes`
     for the episodes, ``goal_seconds`` for the destination) and their provenance;
     ``planned(n)`` is told how many episodes it will drive, ``progress(1)`` after each."""
+    sink = _Collected()
+    meta = _record_scenario_into(sink, scenario, episodes, seed, stride, duration, progress,
+                                 seeds, goal_seconds, planned)  # fmt: skip
+    return Windows.concat(sink.parts), meta
+
+
+def _record_scenario_into(
+    sink,
+    scenario: str,
+    episodes: int,
+    seed: int,
+    stride: int,
+    duration: float | None,
+    progress: Callable[[int], None] | None,
+    seeds: list[int] | None,
+    goal_seconds: float | None,
+    planned: Callable[[int], None] | None,
+) -> dict:
+    """:func:`record_scenario`, each episode's windows given to ``sink.add`` as they come;
+    returns the provenance."""
     plan, source = scenario_episodes(scenario, episodes, seed, duration, seeds,
                                      goal_seconds=goal_seconds)  # fmt: skip
     if planned is not None:
         planned(len(plan))
-    windows = drive_windows(scenario, plan, stride, progress=progress)
-    if windows is None:
+    count = 0
+    for windows in iter_windows(scenario, plan, stride, progress=progress):
+        sink.add(windows)
+        count += len(windows)
+    if not count:
         raise DatasetError("no windows were recorded")
     cfg = load_scenario(scenario).config
     goal = cfg.env.goal_seconds if goal_seconds is None else float(goal_seconds)
-    meta = {"scenario": scenario, **source, "horizon": cfg.env.horizon,
+    return {"scenario": scenario, **source, "horizon": cfg.env.horizon,
             "history": cfg.env.history, "setpoint_period": cfg.env.setpoint_period,
             "decision_period": cfg.env.decision_period, "stride": stride,
             "sensor": {"rows": cfg.sensor.rows, "cols": cfg.sensor.cols,
                        "cell_size": cfg.sensor.cell_size, "orientation": cfg.sensor.orientation},
             "vehicle": cfg.ego.vehicle.model_dump(),
             **({"goal_seconds": goal} if goal is not None else {})}  # fmt: skip
-    return windows, meta
+
+
+class _Collected:
+    """Windows kept in memory as they are recorded (the sink of :func:`record_group`; see
+    :class:`ShardWriter` for the one that writes them)."""
+
+    def __init__(self) -> None:
+        self.parts: list[Windows] = []
+
+    def add(self, windows: Windows) -> None:
+        self.parts.append(windows)
+
+    def mark(self) -> int:
+        return len(self.parts)
+
+    def rollback(self, mark: int) -> None:
+        del self.parts[mark:]
 
 
 def group_scenarios(name: str, source: str | None = None) -> tuple[str, ...]:
@@ -433,60 +485,108 @@ def record_group(
     planned: Callable[[int], None] | None = None,
 ) -> Dataset:
     """Windows of a scenario group (see :func:`group_scenarios`: of :data:`GROUPS`, or the
-    usable files of the folder or glob ``source``), or of one scenario. ``stride`` defaults to
-    every decision on recorded scenes, every fifth elsewhere. Of a group of several files,
-    a file that gives no window is skipped and named in a warning; it and the files that do
-    not load are listed in the manifest's ``skipped``; the group fails only when none gives
+    usable files of the folder or glob ``source``), or of one scenario, in memory
+    (:func:`record_dataset` writes them as they come). ``stride`` defaults to every
+    decision on recorded scenes, every fifth elsewhere. Of a group of several files, a file
+    that gives no window is skipped and named in a warning; it and the files that do not
+    load are listed in the manifest's ``skipped``; the group fails only when none gives
     any."""
+    sink = _Collected()
+    manifest = _record_group_into(sink, name, episodes, seed, stride, duration, progress,
+                                  source, goal_seconds, planned)  # fmt: skip
+    return Dataset(Windows.concat(sink.parts), manifest)
+
+
+def record_dataset(
+    out: str | Path,
+    name: str,
+    episodes: int,
+    seed: int = 0,
+    stride: int | None = None,
+    duration: float | None = None,
+    progress: Callable[[int], None] | None = None,
+    source: str | None = None,
+    goal_seconds: float | None = None,
+    planned: Callable[[int], None] | None = None,
+    split: tuple[str, float] | None = None,
+) -> tuple[dict, int]:
+    """:func:`record_group` written into the dataset folder ``out`` (new or empty) as the
+    windows come, so that memory holds about one shard whatever the dataset's size; with
+    ``split`` ``(side, test_fraction)``, only that side of :func:`split_by_track` (seed
+    ``seed``) is kept: the whole group is written aside first (``out/.spool``), then that
+    side of it copied. Returns the manifest written and the number of tracks kept."""
+    out = Path(out)
+    check_new_folder(out)
+    spool = out / ".spool" if split else out
+    writer = ShardWriter(spool)
+    manifest = _record_group_into(writer, name, episodes, seed, stride, duration, progress,
+                                  source, goal_seconds, planned)  # fmt: skip
+    if split is None:
+        return writer.finish(manifest), len(writer.tracks)
+    side, test_fraction = split
+    writer.flush()
+    held = _held_out_tracks(np.array(list(writer.tracks)), test_fraction, seed)
+    kept = ShardWriter(out)
+    for shard in writer.shards:
+        part = _read_shard(spool / shard["file"])
+        kept.add(part.take(np.flatnonzero(np.isin(part.track, held) == (side == "test"))))
+        (spool / shard["file"]).unlink()
+    spool.rmdir()
+    split_info = {"side": side, "test_fraction": test_fraction, "seed": seed}
+    return kept.finish({**manifest, "split": split_info}), len(kept.tracks)
+
+
+def _record_group_into(
+    sink,
+    name: str,
+    episodes: int,
+    seed: int,
+    stride: int | None,
+    duration: float | None,
+    progress: Callable[[int], None] | None,
+    source: str | None,
+    goal_seconds: float | None,
+    planned: Callable[[int], None] | None,
+) -> dict:
+    """:func:`record_group`, each episode's windows given to ``sink`` as they come (a failed
+    file's rolled back: ``sink.mark()``, ``sink.rollback(mark)``); returns the manifest."""
     scenarios, unloaded = group_files(name, source)
     recorded = {scenario: is_recorded(scenario) for scenario in scenarios}
-    parts, metas, skipped = [], [], []
+    metas, skipped = [], []
     for scenario in scenarios:
         s = stride or (RECORDED_STRIDE if recorded[scenario] else GENERATED_STRIDE)
+        mark = sink.mark()
         try:
-            w, meta = record_scenario(scenario, episodes, seed, s, duration, progress,
-                                      goal_seconds=goal_seconds, planned=planned)  # fmt: skip
+            meta = _record_scenario_into(sink, scenario, episodes, seed, s, duration, progress,
+                                         None, goal_seconds, planned)  # fmt: skip
         except GridSimError as exc:
+            sink.rollback(mark)
             if len(scenarios) == 1:
                 raise
             skipped.append((Path(scenario), str(exc)))
             continue
-        parts.append(w)
         metas.append(meta)
-    report_skipped(f"group {name!r}", skipped, len(scenarios), bool(parts),
+    report_skipped(f"group {name!r}", skipped, len(scenarios), bool(metas),
                    ("gave a window", "gave no window"), DatasetError)  # fmt: skip
     first = metas[0]
     for m in metas[1:]:
         for key in ("horizon", "history", "setpoint_period", "sensor", "goal_seconds"):
             if m.get(key) != first.get(key):
                 raise DatasetError(f"group {name!r}: scenarios differ in {key}")
-    manifest = {
+    same = ("horizon", "history", "setpoint_period", "decision_period", "sensor", "vehicle")
+    unused = unloaded + skipped
+    return {
         "format": FORMAT_VERSION,
         "group": name,
         "source": GROUP_SOURCE.get(name)
         or ("human (NGSIM)" if all(recorded.values()) else "simulator"),
         "seed": seed,
-        **{
-            k: first[k]
-            for k in (
-                "horizon",
-                "history",
-                "setpoint_period",
-                "decision_period",
-                "sensor",
-                "vehicle",
-            )
-        },  # fmt: skip
+        **{k: first[k] for k in same},
         **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),
         "scenarios": metas,
-        **(
-            {"skipped": [{"file": str(f), "reason": r} for f, r in unloaded + skipped]}
-            if unloaded or skipped
-            else {}
-        ),  # fmt: skip
+        **({"skipped": [{"file": str(f), "reason": r} for f, r in unused]} if unused else {}),
         "versions": _versions(),
     }
-    return Dataset(Windows.concat(parts), manifest)
 
 
 def _versions() -> dict:
@@ -506,15 +606,20 @@ def split_by_track(
 ) -> tuple[Windows, Windows]:
     """``(train, test)``: whole tracks go to one side; about ``test_fraction`` of the tracks
     (at least one on each side) are held out."""
+    held_out = np.isin(windows.track, _held_out_tracks(windows.track, test_fraction, seed))
+    return windows.take(np.flatnonzero(~held_out)), windows.take(np.flatnonzero(held_out))
+
+
+def _held_out_tracks(tracks: np.ndarray, test_fraction: float, seed: int) -> np.ndarray:
+    """The test side's tracks of :func:`split_by_track` among the track labels ``tracks``."""
     if not 0 < test_fraction < 1:
         raise DatasetError(f"test_fraction must be in (0, 1), got {test_fraction}")
-    tracks = np.unique(windows.track)
+    tracks = np.unique(tracks)
     if len(tracks) < 2:
         raise DatasetError(f"need windows from >= 2 tracks to split, got {len(tracks)}")
     order = stream(seed, Salt.TRACK_SPLIT).permutation(len(tracks))
     n_test = min(max(1, int(round(test_fraction * len(tracks)))), len(tracks) - 1)
-    held_out = np.isin(windows.track, tracks[order[:n_test]])
-    return windows.take(np.flatnonzero(~held_out)), windows.take(np.flatnonzero(held_out))
+    return tracks[order[:n_test]]
 
 
 # -- storage --------------------------------------------------------------------------------
@@ -529,26 +634,82 @@ def save_dataset(dataset: Dataset, out: str | Path) -> Path:
     """Write ``dataset`` into the folder ``out`` (created; must be empty if it exists)."""
     out = Path(out)
     check_new_folder(out)
-    out.mkdir(parents=True, exist_ok=True)
-    w = dataset.windows
-    shards = []
-    for k, start in enumerate(range(0, len(w), SHARD_SIZE)):
-        part = w.take(np.arange(start, min(start + SHARD_SIZE, len(w))))
-        name = f"shard-{k:05d}.npz"
-        write_npz(out / name, compressed=True,
-                  **{f.name: getattr(part, f.name) for f in fields(Windows)})  # fmt: skip
-        shards.append({"file": name, "windows": len(part), "sha256": _sha256(out / name)})
-    manifest = {**dataset.manifest, "count": len(w), "shards": shards}
-    write_json(out / "manifest.json", manifest)  # last: a folder without it is no dataset
+    writer = ShardWriter(out)
+    writer.add(dataset.windows)
+    writer.finish(dataset.manifest)
     return out
+
+
+class ShardWriter:
+    """Writes windows into ``folder`` (created) as they come: compressed shards of
+    :data:`SHARD_SIZE` windows each (``shard-NNNNN.npz``, the last one shorter), so that
+    memory holds at most one shard besides what is added; :meth:`finish` writes
+    ``manifest.json``. The shards of the same windows are the same whatever pieces they
+    were added in."""
+
+    def __init__(self, folder: Path) -> None:
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.shards: list[dict] = []  # {"file", "windows", "sha256"} of each shard written
+        self.tracks: dict[str, None] = {}  # the track labels added, in order
+        self._buffer: list[Windows] = []
+        self._buffered = 0
+
+    @property
+    def count(self) -> int:
+        return sum(s["windows"] for s in self.shards) + self._buffered
+
+    def add(self, windows: Windows) -> None:
+        if not len(windows):
+            return
+        self.tracks.update(dict.fromkeys(np.unique(windows.track).tolist()))
+        self._buffer.append(windows)
+        self._buffered += len(windows)
+        while self._buffered >= SHARD_SIZE:
+            self._write(SHARD_SIZE)
+
+    def flush(self) -> None:
+        """Write what is buffered as a (shorter) shard."""
+        if self._buffered:
+            self._write(self._buffered)
+
+    def _write(self, n: int) -> None:
+        whole = Windows.concat(self._buffer)
+        part = whole.take(np.arange(n))
+        self._buffer = [whole.take(np.arange(n, len(whole)))] if n < len(whole) else []
+        self._buffered = len(whole) - n
+        name = f"shard-{len(self.shards):05d}.npz"
+        write_npz(self.folder / name, compressed=True,
+                  **{f.name: getattr(part, f.name) for f in fields(Windows)})  # fmt: skip
+        self.shards.append({"file": name, "windows": n, "sha256": _sha256(self.folder / name)})
+
+    def mark(self) -> tuple[int, list[Windows], dict[str, None]]:
+        """Where the windows added so far end (for :meth:`rollback`)."""
+        return len(self.shards), list(self._buffer), dict(self.tracks)
+
+    def rollback(self, mark: tuple[int, list[Windows], dict[str, None]]) -> None:
+        """Forget the windows added since ``mark`` (their shards are removed)."""
+        shards, buffer, tracks = mark
+        for shard in self.shards[shards:]:
+            (self.folder / shard["file"]).unlink()
+        del self.shards[shards:]
+        self._buffer, self._buffered, self.tracks = list(buffer), sum(map(len, buffer)), tracks
+
+    def finish(self, manifest: dict) -> dict:
+        """Write the last shard and ``manifest.json`` (``manifest`` with the count and the
+        shards; last: a folder without it is no dataset); returns what was written."""
+        self.flush()
+        manifest = {**manifest, "count": self.count, "shards": self.shards}
+        write_json(self.folder / "manifest.json", manifest)
+        return manifest
 
 
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-def load_dataset(folder: str | Path) -> Dataset:
-    """Read a dataset folder written by :func:`save_dataset`, checking every shard."""
+def dataset_manifest(folder: str | Path) -> dict:
+    """The manifest of the dataset folder ``folder`` (checked; no window is read)."""
     folder = Path(folder)
     path = folder / "manifest.json"
     manifest = read_manifest(folder, "manifest.json", "dataset", DatasetError, (FORMAT_VERSION,),
@@ -561,16 +722,56 @@ def load_dataset(folder: str | Path) -> Dataset:
                 and isinstance(shard.get("sha256"), str)):  # fmt: skip
             raise DatasetError(f"{path}: shards[{k}] must be an object with the strings 'file' "
                                f"and 'sha256', got {short_repr(shard)}")  # fmt: skip
-    parts = []
-    for shard in shards:
+    count = manifest.get("count")
+    if not isinstance(count, int) or isinstance(count, bool) or count < 1:
+        raise DatasetError(f"{path}: 'count' must be a positive integer, got {short_repr(count)}")
+    return manifest
+
+
+def load_dataset(folder: str | Path) -> Dataset:
+    """Read a dataset folder written by :func:`save_dataset`, checking every shard. The
+    windows are read into arrays of the manifest's count (memory: the dataset and one
+    shard)."""
+    folder = Path(folder)
+    path = folder / "manifest.json"
+    manifest = dataset_manifest(folder)
+    count = manifest["count"]
+    out: dict[str, np.ndarray] = {}
+    labels: list[np.ndarray] = []  # the track labels (their string width varies per shard)
+    done = 0
+    for shard in manifest["shards"]:
         file = folder / shard["file"]
         if not file.is_file():
             raise DatasetError(f"{folder}: shard {shard['file']} is missing")
         if _sha256(file) != shard["sha256"]:
             raise DatasetError(f"{file}: checksum mismatch (the file was changed or truncated)")
+        part = _read_shard(file)
+        n = len(part)
+        if done + n > count:
+            raise DatasetError(f"{path}: the shards hold more windows than the manifest's "
+                               f"count {count}")  # fmt: skip
+        for f in fields(Windows):
+            value = getattr(part, f.name)
+            if f.name == "track":
+                labels.append(value)
+                continue
+            if f.name not in out:
+                out[f.name] = np.empty((count, *value.shape[1:]), value.dtype)
+            if value.shape[1:] != out[f.name].shape[1:] or value.dtype != out[f.name].dtype:
+                raise DatasetError(f"{file}: {f.name!r} is {value.dtype} {value.shape[1:]} "
+                                   f"per window, the first shard's "
+                                   f"{out[f.name].dtype} {out[f.name].shape[1:]}")  # fmt: skip
+            out[f.name][done : done + n] = value
+        done += n
+    if done != count:
+        raise DatasetError(f"{path}: {done} windows, manifest says {count}")
+    return Dataset(Windows(**out, track=np.concatenate(labels)), manifest)
+
+
+def _read_shard(file: Path) -> Windows:
+    """One shard's windows (every array read; the checksum is the caller's)."""
+    try:
         with np.load(file) as data:
-            parts.append(Windows(**{f.name: data[f.name] for f in fields(Windows)}))
-    windows = Windows.concat(parts)
-    if len(windows) != manifest.get("count"):
-        raise DatasetError(f"{path}: {len(windows)} windows, manifest says {manifest.get('count')}")
-    return Dataset(windows, manifest)
+            return Windows(**{f.name: data[f.name] for f in fields(Windows)})
+    except KeyError as exc:
+        raise DatasetError(f"{file}: no array {exc} (not a shard of this format)") from None

@@ -48,6 +48,7 @@ from neurotrajectory.data.windows import (
     RECORDED_STRIDE,
     DatasetError,
     Windows,
+    dataset_manifest,
     drive_windows,
     episodes_of,
     goal_overrides,
@@ -1161,7 +1162,7 @@ def _check_size(config: TrainConfig, weights: int) -> None:
 def _goal_mismatch(config: TrainConfig, env) -> str | None:
     """Why the dataset ``config.pretrain`` was recorded with another destination than the run
     gives its network (``env``: the run's :class:`~gridsim.scenario.schema.EnvConfig`)."""
-    data = load_dataset(config.pretrain).manifest.get("goal_seconds")
+    data = dataset_manifest(config.pretrain).get("goal_seconds")  # (the windows: read before)
     run = env.goal_seconds
     if data == run:
         return None

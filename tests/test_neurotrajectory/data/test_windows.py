@@ -2,10 +2,19 @@
 warning for the tracks a random ego is not drawn from."""
 
 import gc
+import hashlib
+import json
+import re
 import warnings
 import weakref
+from dataclasses import fields
+from pathlib import Path
+
+import numpy as np
+import pytest
 
 from gridsim.errors import DataWarning
+from gridsim.outputs import write_npz
 from neurotrajectory.data import windows
 from neurotrajectory.data.windows import drive_windows, scenario_episodes
 
@@ -43,3 +52,110 @@ def test_tracks_a_random_ego_is_not_drawn_from_are_named_once():
     assert len(said) == 1, said
     assert "2 of the 12 tracks driven as the ego are not ones a random ego" in said[0]
     assert "387, 401;" in said[0]
+
+
+def _windows(n: int, first: int = 0, track: str = "s/1") -> windows.Windows:
+    """``n`` made-up windows, told apart by their values (``first`` on)."""
+    rng = np.random.default_rng(first)
+    return windows.Windows(
+        grids=rng.integers(0, 255, (n, 2, 8, 8), dtype=np.uint8),
+        ego=np.arange(first, first + n, dtype=np.float32)[:, None].repeat(6, axis=1),
+        destination=np.zeros((n, 2), np.float32),
+        target=np.zeros((n, 5, 2), np.float32),
+        steer=np.zeros(n, np.int64),
+        longitudinal=np.zeros(n, np.int64),
+        accel=np.zeros(n, np.float32),
+        vehicle=np.ones((n, 3), np.float32),
+        track=np.array([track] * n),
+        time=np.zeros(n, np.float32),
+    )
+
+
+def _shard_digests(folder: Path) -> list[tuple[str, int, str]]:
+    manifest = json.loads((folder / "manifest.json").read_text())
+    return [(s["file"], s["windows"], s["sha256"]) for s in manifest["shards"]]
+
+
+def test_windows_written_as_they_come_make_the_shards_of_the_whole(tmp_path, monkeypatch):
+    """``record`` writes each episode's windows as they come; the shards are those that
+    ``save_dataset`` writes of all the windows at once, however they were cut, and no more
+    than a shard is ever held back."""
+    monkeypatch.setattr(windows, "SHARD_SIZE", 16)
+    pieces = [_windows(n, first) for n, first in ((5, 0), (16, 5), (40, 21), (1, 61), (9, 62))]
+    whole = windows.Windows.concat(pieces)
+    windows.save_dataset(windows.Dataset(whole, {"format": 1}), tmp_path / "whole")
+    writer = windows.ShardWriter(tmp_path / "pieces")
+    for piece in pieces:
+        writer.add(piece)
+        assert writer._buffered < 16
+    writer.finish({"format": 1})
+    assert _shard_digests(tmp_path / "pieces") == _shard_digests(tmp_path / "whole")
+    assert [n for _, n, _ in _shard_digests(tmp_path / "whole")] == [16, 16, 16, 16, 7]
+    back = windows.load_dataset(tmp_path / "pieces").windows
+    for f in fields(windows.Windows):
+        np.testing.assert_array_equal(getattr(back, f.name), getattr(whole, f.name))
+
+
+def test_a_rolled_back_file_leaves_no_window_behind(tmp_path, monkeypatch):
+    """A file of a group that fails half-way (after some of its shards were written) is
+    skipped whole: the dataset is that of the other files alone."""
+    monkeypatch.setattr(windows, "SHARD_SIZE", 8)
+    kept_a, lost, kept_b = _windows(5, 0, "a/1"), _windows(30, 100, "b/1"), _windows(12, 7, "c/1")
+    writer = windows.ShardWriter(tmp_path / "rolled")
+    writer.add(kept_a)
+    mark = writer.mark()
+    writer.add(lost)
+    assert len(writer.shards) == 4
+    writer.rollback(mark)
+    writer.add(kept_b)
+    assert list(writer.tracks) == ["a/1", "c/1"]
+    writer.finish({"format": 1})
+    both = windows.Windows.concat([kept_a, kept_b])
+    windows.save_dataset(windows.Dataset(both, {"format": 1}), tmp_path / "both")
+    assert _shard_digests(tmp_path / "rolled") == _shard_digests(tmp_path / "both")
+    assert sorted(p.name for p in (tmp_path / "rolled").iterdir()) == [
+        "manifest.json", "shard-00000.npz", "shard-00001.npz", "shard-00002.npz"]  # fmt: skip
+
+
+def test_a_split_recorded_as_it_comes_is_the_split_of_the_whole(tmp_path, monkeypatch):
+    """``record --split`` keeps the side of the split by track that ``evaluate`` makes of the
+    whole group (the same windows in the same shards), and leaves nothing aside."""
+    monkeypatch.setattr(windows, "SHARD_SIZE", 32)
+    whole = windows.record_group("us101_3_3", 1, stride=10)
+    for side, half in zip(("train", "test"), windows.split_by_track(whole.windows, 0.3, 2),
+                          strict=True):  # fmt: skip
+        out = tmp_path / side
+        manifest, tracks = windows.record_dataset(out, "us101_3_3", 1, seed=2, stride=10,
+                                                  split=(side, 0.3))  # fmt: skip
+        assert manifest["split"] == {"side": side, "test_fraction": 0.3, "seed": 2}
+        assert tracks == len(np.unique(half.track)) and manifest["count"] == len(half)
+        expected = windows.Dataset(half, {**whole.manifest, "split": manifest["split"]})
+        windows.save_dataset(expected, tmp_path / f"{side}-whole")
+        assert _shard_digests(out) == _shard_digests(tmp_path / f"{side}-whole")
+        assert not (out / ".spool").exists()
+
+
+def test_a_shard_unlike_the_others_is_named(tmp_path):
+    windows.save_dataset(windows.Dataset(_windows(3), {"format": 1}), tmp_path / "d")
+    shard = tmp_path / "d" / "shard-00001.npz"
+    odd = _windows(2, 3)
+    odd.grids = odd.grids[:, :, :4]
+    write_npz(shard, compressed=True, **{f.name: getattr(odd, f.name) for f in fields(odd)})
+    manifest = tmp_path / "d" / "manifest.json"
+    doc = json.loads(manifest.read_text())
+    sha = hashlib.sha256(shard.read_bytes()).hexdigest()
+    doc["shards"].append({"file": shard.name, "windows": 2, "sha256": sha})
+    doc["count"] = 5
+    manifest.write_text(json.dumps(doc))
+    with pytest.raises(windows.DatasetError, match=re.escape(
+            f"{shard}: 'grids' is uint8 (2, 4, 8) per window, the first shard's uint8 "
+            "(2, 8, 8)")):  # fmt: skip
+        windows.load_dataset(tmp_path / "d")
+    doc["count"] = 4
+    manifest.write_text(json.dumps(doc))
+    with pytest.raises(windows.DatasetError, match="more windows than the manifest's count 4"):
+        windows.load_dataset(tmp_path / "d")
+    doc["count"] = "5"
+    manifest.write_text(json.dumps(doc))
+    with pytest.raises(windows.DatasetError, match="'count' must be a positive integer, got '5'"):
+        windows.load_dataset(tmp_path / "d")

@@ -150,10 +150,10 @@ def test_resume_refuses_the_checkpoint_of_another_run(tmp_path):
 
 
 def test_record_that_fails_leaves_out_as_it_was(tmp_path, monkeypatch, capsys):
-    def broken(*args, **kwargs):
+    def broken(*args, **kwargs):  # after the shards are written, before the manifest
         raise RuntimeError("disk trouble")
 
-    monkeypatch.setattr("neurotrajectory.data.windows.record_group", broken)
+    monkeypatch.setattr("neurotrajectory.data.windows.ShardWriter.finish", broken)
     out = tmp_path / "ds"
     assert main(["record", "--scenario", "seamless", "--episodes", "1", "--out", str(out)]) == 3
     assert not out.exists() and list(tmp_path.iterdir()) == []
