@@ -21,7 +21,7 @@ from gridsim.seeding import copy_generator
 from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
 from gridsim.traffic.profile_kernels import continue_profiles
 from gridsim.traffic.profiles import HumanProfiles, SpeedBounds, human_profiles
-from gridsim.traffic.tables import TableBank
+from gridsim.traffic.tables import TableBank, checked_table
 from gridsim.traffic.track import Track
 
 _SPAWN_CLEARANCE = 6.0  # free distance [m] kept around a new participant, beyond the footprints
@@ -91,6 +91,20 @@ class TrafficSource(ABC):
         return []
 
 
+@lru_cache(maxsize=8)
+def _scene_tables(tracks: tuple[Track, ...]) -> tuple[list[tuple], list[tuple]]:
+    """Each track's path table (arc lengths [m] -> points) and profile table (time [s] from
+    its start -> arc length, speed, 0, heading), checked, made once per scene: every episode
+    of a scene (one per ego track when a scene is recorded) replays the same tracks."""
+    paths, profiles = [], []
+    for tr in tracks:
+        path_pts, path_s, s_samples = track_path(tr)
+        paths.append(checked_table(path_s, path_pts, 2))
+        prof = np.stack([s_samples, tr.speed, np.zeros_like(tr.t), tr.heading], axis=1)
+        profiles.append(checked_table(tr.t - tr.t[0], prof, 4))
+    return paths, profiles
+
+
 #: s: a clock that adds its ticks up from a start time far from 0 (a recording timed from
 #: 100 s: 102.99999999999983 after 30 ticks) still places a track at the tick it starts.
 TIME_TOLERANCE = 1e-9
@@ -107,14 +121,13 @@ class RecordedSceneTraffic(TrafficSource):
         start_time: float = 0.0,
         params: FleetParams | None = None,
     ) -> None:
-        self.tracks = [t for t in tracks if t.track_id != exclude]
+        paths, profiles = _scene_tables(tuple(tracks))
+        kept = [i for i, t in enumerate(tracks) if t.track_id != exclude]
+        self.tracks = [tracks[i] for i in kept]
         self.start_time = start_time
         self.fleet = Fleet(max(1, len(self.tracks)), params)
-        for tr in self.tracks:
-            path_pts, path_s, s_samples = track_path(tr)
-            self.fleet.paths.add_path(path_pts, path_s)
-            prof = np.stack([s_samples, tr.speed, np.zeros_like(tr.t), tr.heading], axis=1)
-            self.fleet.profiles.add(tr.t - tr.t[0], prof)
+        self.fleet.paths.extend_paths([paths[i] for i in kept])
+        self.fleet.profiles.extend([profiles[i] for i in kept])
         self.time = start_time
         self._done = np.zeros(len(self.tracks), bool)
         #: each track's first time [s] and duration [s], to find the ones due at once

@@ -16,6 +16,17 @@ from gridsim.traffic import table_kernels
 _GAP = 1.0  # separation of tables on the shared key axis
 
 
+def checked_table(x: np.ndarray, y: np.ndarray, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """A table's knots ``x`` and values ``y`` as :class:`TableBank` stores them (float64, ``y``
+    of shape ``(len(x), width)``); a ValueError unless ``x`` has >= 2 strictly increasing
+    knots."""
+    x = np.asarray(x, dtype=np.float64)
+    y = np.asarray(y, dtype=np.float64).reshape(len(x), width)
+    if len(x) < 2 or np.any(np.diff(x) <= 0):
+        raise ValueError("a table needs >= 2 strictly increasing knots")
+    return x, y
+
+
 class TableBank:
     """Tables ``x_k -> y_k`` (``y`` of width ``width``) stored back to back.
 
@@ -53,11 +64,19 @@ class TableBank:
         return slot
 
     def set(self, slot: int, x: np.ndarray, y: np.ndarray) -> None:
-        x = np.asarray(x, dtype=np.float64)
-        y = np.asarray(y, dtype=np.float64).reshape(len(x), self.width)
-        if len(x) < 2 or np.any(np.diff(x) <= 0):
-            raise ValueError("a table needs >= 2 strictly increasing knots")
-        self._x[slot], self._y[slot] = x, y
+        self._x[slot], self._y[slot] = checked_table(x, y, self.width)
+        self._dirty = True
+
+    def extend(self, tables: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        """Append tables already checked (:func:`checked_table` of this width), in order
+        (their slots follow on; arrays shared, as :meth:`add` keeps them): a scene of thousands
+        of tracks is added at once."""
+        if not tables:
+            return
+        if self._free:
+            raise ValueError("extend appends to a bank without free slots")
+        self._x.extend(x for x, _ in tables)
+        self._y.extend(y for _, y in tables)
         self._dirty = True
 
     def remove(self, slot: int) -> None:
@@ -187,6 +206,14 @@ class PathBank(TableBank):
         self._corridor[slot] = corridor
         self._corridors_stale = True  # (made again when asked: a scene adds thousands)
         return slot
+
+    def extend_paths(self, paths: list[tuple[np.ndarray, np.ndarray]]) -> None:
+        """Append paths of no corridor already checked (``(s, points)``:
+        :func:`checked_table` of width 2), in order (see :meth:`TableBank.extend`)."""
+        if paths:
+            self.extend(paths)
+            self._corridor.extend([-1] * len(paths))
+            self._corridors_stale = True
 
     @property
     def all_in_corridors(self) -> bool:

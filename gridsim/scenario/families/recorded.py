@@ -54,7 +54,14 @@ class RecordedRoadConfig(Strict):
 
 def scene_of(scenario: Scenario) -> str:
     """The scene a recorded scenario replays: ``road.scene``, or its map file's scene id."""
-    return scenario.config.road.scene or scene_id(map_path(scenario))
+    return scenario.config.road.scene or _file_scene_id(stamped(map_path(scenario)))
+
+
+@lru_cache(maxsize=64)
+def _file_scene_id(file: tuple) -> str:
+    """:func:`~gridsim.traffic.commonroad.scene_id` of the file ``file`` (:func:`stamped`):
+    read once, not at every episode of a scene (it parses the file's head)."""
+    return scene_id(file[0])
 
 
 @lru_cache(maxsize=8)

@@ -159,3 +159,34 @@ def test_vehicles_sized_in_feet_get_a_hint(tmp_path):
               for name, x in (("ego", 20.0), ("other", 80.0))]  # fmt: skip
     with pytest.raises(GridSimError, match=r"median length is 14.8 m: are sizes in metres"):
         GridSimEnv(str(write_scene(tmp_path, tracks, ego={"track": "random"}))).reset(seed=0)
+
+
+def test_a_scene_s_tables_made_once_are_those_made_track_by_track():
+    """Every episode of a recorded scene replays the same tracks: their path and profile
+    tables are made once per scene and shared (record builds one world per ego track; made
+    per world, a scene of N tracks cost N^2). The banks are those that adding each track in
+    turn makes, bit for bit, whichever track is the ego."""
+    from gridsim.scenario.families.recorded import recorded_scene
+    from gridsim.scenario.loader import load_scenario
+    from gridsim.traffic.fleet import Fleet
+    from gridsim.traffic.sources import RecordedSceneTraffic, track_path
+
+    _, tracks = recorded_scene(load_scenario("us101_3_3"))
+    for exclude in (None, tracks[0].track_id, tracks[len(tracks) // 2].track_id):
+        shared = RecordedSceneTraffic(tracks, exclude=exclude).fleet
+        one_by_one = Fleet(len(tracks))
+        for tr in (t for t in tracks if t.track_id != exclude):
+            points, s, s_samples = track_path(tr)
+            one_by_one.paths.add_path(points, s)
+            prof = np.stack([s_samples, tr.speed, np.zeros_like(tr.t), tr.heading], axis=1)
+            one_by_one.profiles.add(tr.t - tr.t[0], prof)
+        for bank in ("paths", "profiles"):
+            a, b = getattr(shared, bank).kernel_data(), getattr(one_by_one, bank).kernel_data()
+            flat_a, flat_b = [*a[0], *a[1:]], [*b[0], *b[1:]]
+            assert len(flat_a) == len(flat_b)
+            for x, y in zip(flat_a, flat_b, strict=True):
+                np.testing.assert_array_equal(x, y)
+        np.testing.assert_array_equal(shared.paths.corridor_ids, one_by_one.paths.corridor_ids)
+    first = RecordedSceneTraffic(tracks, exclude=tracks[1].track_id).fleet.paths
+    second = RecordedSceneTraffic(tracks, exclude=tracks[2].track_id).fleet.paths
+    assert first._x[0] is second._x[0]  # shared, not made again
