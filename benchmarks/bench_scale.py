@@ -7,6 +7,9 @@ the NGSIM files but many more of them), then, each in a fresh process:
 - ``read``: parse the file into tracks;
 - ``make_reset``: ``gym.make("GridSim-v0", scenario=FILE)`` and ``reset(seed=0)``;
 - ``validate``: the plausibility checks of ``gridsim validate``;
+- ``record`` (only when asked, ``--phases record``: minutes at thousands of vehicles):
+  ``neurotrajectory record`` of the scene (every track driven once as the ego, a window
+  every 0.1 s) into a dataset folder;
 
 and prints seconds and peak memory above the imports (MB) per phase, and the ratio of each
 figure to the smallest scene's scaled by the vehicle count (1.0: linear).
@@ -23,7 +26,9 @@ import json
 import resource
 import subprocess
 import sys
+import tempfile
 import time
+import warnings
 from pathlib import Path
 
 LANES, LANE_WIDTH, LENGTH, WAVE, GAP, STATES, DT = 6, 3.5, 1000.0, 60, 90.0, 50, 0.1
@@ -79,6 +84,7 @@ def measure(phase: str, path: str) -> dict:
     from gridsim.scenario import load_scenario
     from gridsim.scenario.families import scenario_problems
     from gridsim.traffic.commonroad import read_tracks_commonroad
+    from neurotrajectory.data.windows import record_dataset
 
     base = _peak_mb()
     t0 = time.perf_counter()
@@ -88,6 +94,10 @@ def measure(phase: str, path: str) -> dict:
         env = gym.make("GridSim-v0", scenario=path)
         env.reset(seed=0)
         n = len(env.unwrapped.world.traffic.tracks)
+    elif phase == "record":
+        warnings.simplefilter("ignore")  # (the scene's warnings: said once, not what is timed)
+        with tempfile.TemporaryDirectory() as tmp:
+            n = record_dataset(Path(tmp) / "ds", path, 1)[0]["count"]
     else:
         n = len(scenario_problems(load_scenario(path)))
     return {"seconds": time.perf_counter() - t0, "peak_mb": _peak_mb() - base, "count": n}
