@@ -24,6 +24,7 @@ TRAFFIC_COLOUR = (40, 90, 220)
 IDM_COLOUR = (250, 160, 40)
 #: Set-points: the human reference's next ones, the last commanded (planned) ones.
 REFERENCE_COLOUR = (255, 255, 255)
+POINTER_OUTLINE = (20, 20, 20)  # behind the arrow to a human out of view, and its label
 PLAN_COLOUR = (255, 220, 0)
 #: The view leads the ego by what it drives in this long [s], at most LEAD_MAX [m].
 LEAD_SECONDS, LEAD_MAX = 0.8, 12.0
@@ -135,17 +136,14 @@ class TopDownRenderer:
         scale = min((right - cx) / max(abs(du), 1e-9), (bottom - cy) / max(abs(dv), 1e-9))
         tip = (int(cx + du * scale), int(cy + dv * scale))
         tail = (int(cx + du * scale * 0.85), int(cy + dv * scale * 0.85))
+        # white on dark: legible over the road, a car or the grass alike
+        cv2.arrowedLine(img, tail, tip, POINTER_OUTLINE, 4, cv2.LINE_AA, tipLength=0.5)
         cv2.arrowedLine(img, tail, tip, REFERENCE_COLOUR, 2, cv2.LINE_AA, tipLength=0.5)
-        cv2.putText(
-            img,
-            "human",
-            (tail[0] - 20, tail[1] + (14 if dv < 0 else -8)),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            0.4,
-            REFERENCE_COLOUR,
-            1,
-            cv2.LINE_AA,
-        )
+        x, y = tail[0] - 20, tail[1] + (17 if dv < 0 else -11)  # the label's baseline
+        (tw, th), base = cv2.getTextSize("human", cv2.FONT_HERSHEY_SIMPLEX, 0.4, 1)
+        cv2.rectangle(img, (x - 2, y - th - 2), (x + tw + 2, y + base), POINTER_OUTLINE, -1)
+        cv2.putText(img, "human", (x, y), cv2.FONT_HERSHEY_SIMPLEX, 0.4, REFERENCE_COLOUR, 1,
+                    cv2.LINE_AA)  # fmt: skip
 
     def _inset(self, img: np.ndarray, grid: np.ndarray, ego=None, grid_frame=None) -> None:
         s = self.view.inset_size

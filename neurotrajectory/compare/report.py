@@ -192,7 +192,8 @@ def _fig8(results, methods, out: Path) -> Path:
     """RMSE per set-point against its time after the decision [s], one panel per group; the
     band is one standard deviation over the windows (for NeuroTrajectory only: the bands of
     every method hide each other)."""
-    fig, axes = plt.subplots(1, len(results), figsize=(4.2 * len(results), 3.8), squeeze=False)
+    fig, axes = plt.subplots(1, len(results), figsize=(4.2 * len(results), 4.2), squeeze=False)
+    shown: dict[str, object] = {}  # one legend entry per method, below the panels
     for ax, r in zip(axes[0], results, strict=True):
         for m, (marker, line) in zip(methods, _STYLES * 2, strict=False):
             if m not in r.accuracy:
@@ -204,18 +205,22 @@ def _fig8(results, methods, out: Path) -> Path:
             (drawn,) = ax.plot(t, mean, marker=marker, ls=line, label=m, ms=7 if hollow else 5,
                                mfc="none" if hollow else None,
                                zorder=3 if m == NT_PICKED else 2)  # fmt: skip
+            shown.setdefault(m, drawn)
             if m == NT_PICKED:
                 ax.fill_between(t, np.maximum(mean - std, 0), mean + std, alpha=0.15,
                                 color=drawn.get_color())  # fmt: skip
-        ax.set_title(GROUP_TITLES.get(r.group, r.group), fontsize=9)
+        ax.set_title(GROUP_TITLES.get(r.group, r.group), fontsize=10)
         ax.set_xlabel("time after the decision [s]" if r.setpoint_times else "set-point")
         ax.set_xticks(t)
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("RMSE [m] (band: NeuroTrajectory +- 1 std)")
-    axes[0, -1].legend(fontsize=7)
-    fig.tight_layout()
+    columns = min(len(shown), 2 if len(results) == 1 else 3 * len(results))
+    fig.legend(list(shown.values()), list(shown), loc="lower center", ncol=columns,
+               fontsize=9, frameon=False)  # fmt: skip
+    rows = -(-len(shown) // columns)
+    fig.tight_layout(rect=(0, 0.035 * rows + 0.03, 1, 1))
     path = out / "fig8_rmse_per_setpoint.png"
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=110, bbox_inches="tight")  # (with the legend: a panel may be narrow)
     plt.close(fig)
     return path
 
