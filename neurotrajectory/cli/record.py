@@ -54,7 +54,7 @@ def add_parser(sub) -> None:
 def execute(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from neurotrajectory.data.windows import check_group, record_dataset
+    from neurotrajectory.data.windows import bar_callbacks, check_group, record_dataset
 
     if args.group is not None:
         raise RunError(f"record --group {args.group}: the dataset's group name is --name now "
@@ -76,15 +76,10 @@ def execute(args: argparse.Namespace) -> int:
         new_folder(args.out) as partial,
         tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar,
     ):
-
-        def planned(count: int) -> None:  # a file's episodes: the bar's total grows
-            bar.total = (bar.total or 0) + count
-            bar.refresh()
-
         manifest, tracks = record_dataset(
             partial, name, args.episodes, args.seed, args.stride, args.episode_seconds,
-            progress=bar.update, source=source, goal_seconds=args.goal_seconds,
-            planned=planned, split=split)  # fmt: skip
+            source=source, goal_seconds=args.goal_seconds, split=split,
+            **bar_callbacks(bar))  # fmt: skip
     print(
         json.dumps(
             {

@@ -44,13 +44,14 @@ from neurotrajectory.compare.metrics import Accuracy, accuracy
 from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
 from neurotrajectory.data.windows import (
     GROUPS,
-    Dataset,
     DatasetError,
+    Windows,
+    bar_callbacks,
     check_new_folder,
+    dataset_manifest,
     group_scenarios,
-    load_dataset,
+    load_split,
     record_dataset,
-    split_by_track,
 )
 from neurotrajectory.evolve.pareto import PICKS, pick_member
 from neurotrajectory.settings import Bool, Integer, OneOf, Real, Seed, Settings
@@ -129,30 +130,35 @@ class GroupResult:
     trained_test_tracks: tuple[str, ...] = ()
 
 
-def _dataset(
+def _split_dataset(
     group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log, progress: bool = True
-) -> Dataset:
-    """The group's windows: from ``data_dir/<group>`` if given, else recorded into ``out``."""
+) -> tuple[dict, Windows, Windows]:
+    """The group's manifest and its windows split by track (``train``, ``test``): from
+    ``data_dir/<group>`` if given, else recorded into ``out`` first. Each window is read once
+    (:func:`~neurotrajectory.data.windows.load_split`)."""
     if data_dir is not None:
-        ds = load_dataset(data_dir / group)
-        if "split" in ds.manifest:
+        folder = data_dir / group
+        manifest = dataset_manifest(folder)
+        if "split" in manifest:
             raise DatasetError(
-                f"{data_dir / group}: holds only the {ds.manifest['split']['side']} side of a "
-                "split (record --split); evaluation needs the whole group's windows"
+                f"{folder}: holds only the {manifest['split']['side']} side of a split "
+                "(record --split); evaluation needs the whole group's windows"
             )
-        if ds.manifest.get("goal_seconds") != cfg.goal_seconds:
-            raise DatasetError(f"{data_dir / group}: recorded with goal_seconds "
-                               f"{ds.manifest.get('goal_seconds')}, the evaluation asks "
+        if manifest.get("goal_seconds") != cfg.goal_seconds:
+            raise DatasetError(f"{folder}: recorded with goal_seconds "
+                               f"{manifest.get('goal_seconds')}, the evaluation asks "
                                f"{cfg.goal_seconds}: record it with the same "
                                "--goal-seconds")  # fmt: skip
-        return ds
-    log(f"{group}: recording windows")
-    with tqdm(desc=f"record {group}", unit="episode", leave=False, disable=not progress) as bar:
-        # written as recorded, then read back: memory holds the windows once
-        record_dataset(out / "data" / group, group, cfg.episodes, cfg.seed,
-                       duration=cfg.episode_seconds, progress=bar.update,
-                       source=cfg.sources.get(group), goal_seconds=cfg.goal_seconds)  # fmt: skip
-    return load_dataset(out / "data" / group)
+    else:
+        folder = out / "data" / group
+        log(f"{group}: recording windows")
+        with tqdm(desc=f"record {group}", unit="episode", leave=False,
+                  disable=not progress) as bar:  # fmt: skip
+            # written as recorded, then read back
+            record_dataset(folder, group, cfg.episodes, cfg.seed, duration=cfg.episode_seconds,
+                           source=cfg.sources.get(group), goal_seconds=cfg.goal_seconds,
+                           **bar_callbacks(bar))  # fmt: skip
+    return load_split(folder, cfg.test_fraction, cfg.seed)
 
 
 @dataclass(frozen=True)
@@ -185,9 +191,16 @@ def _load_fronts(runs: dict[str, str | Path], pick: str) -> dict[str, Front]:
 
 
 def _evaluate_group(
-    group: str, ds: Dataset, front: Front, cfg: EvalConfig, out: Path, log, progress: bool = True
+    group: str,
+    data: tuple[dict, Windows, Windows],
+    front: Front,
+    cfg: EvalConfig,
+    out: Path,
+    log,
+    progress: bool = True,
 ) -> GroupResult:
-    train, test = split_by_track(ds.windows, cfg.test_fraction, cfg.seed)
+    """One group's scores: ``data`` is its manifest and ``(train, test)`` windows."""
+    manifest, train, test = data
     test_tracks = set(test.track.tolist())
     seen = sorted(test_tracks & trained_tracks(front.run.config))
     if seen:  # the run drove these as the ego in training: its scores on them are not held out
@@ -195,7 +208,7 @@ def _evaluate_group(
 
         said = not_held_out(group, seen, len(test_tracks))
         warn_data(f"{said} ({front.run.out}); evaluate it on scenes the run did not train on")
-    setting = Setting.from_manifest(ds.manifest)
+    setting = Setting.from_manifest(manifest)
     log(f"{group}: {len(train)} train / {len(test)} test windows; training End2End")
     e2e = End2End.train(train, setting, cfg.end2end, progress=progress)
     e2e.save(out / "models" / f"end2end-{group}")
@@ -248,7 +261,7 @@ def _evaluate_group(
             loop[name]["per_episode"] = [{"scenario": Path(sc).stem, **row}
                                          for sc, p in zip(scenarios, per, strict=True)
                                          for row in p["per_episode"]]  # fmt: skip
-    return GroupResult(group, ds.manifest["source"], len(train), len(test),
+    return GroupResult(group, manifest["source"], len(train), len(test),
                        len(test_tracks), scores, loop, best,
                        tuple(float(t) for t in setting.times), tuple(seen))  # fmt: skip
 
@@ -290,8 +303,9 @@ def evaluate(
         results = []
         for group in cfg.groups:
             t0 = time.perf_counter()
-            ds = _dataset(group, cfg, data_dir, partial, log, progress)
-            result = _evaluate_group(group, ds, fronts[group], cfg, partial, log, progress)
+            data = _split_dataset(group, cfg, data_dir, partial, log, progress)
+            result = _evaluate_group(group, data, fronts[group], cfg, partial, log, progress)
+            del data  # (the next group's windows are read without these)
             results.append(result)
             log(f"{group}: done in {time.perf_counter() - t0:.0f} s; RMSE "
                 + ", ".join(f"{k} {v.rmse:.2f}" for k, v in result.accuracy.items()))  # fmt: skip

@@ -473,6 +473,18 @@ def group_files(
     return tuple(sc.source for _, sc in usable), skipped
 
 
+def bar_callbacks(bar) -> dict:
+    """``progress`` and ``planned`` for :func:`record_group` and :func:`record_dataset` that
+    drive the progress bar ``bar`` (tqdm): one step per episode, the total growing by each
+    file's episodes as they are planned."""
+
+    def planned(count: int) -> None:
+        bar.total = (bar.total or 0) + count
+        bar.refresh()
+
+    return {"progress": bar.update, "planned": planned}
+
+
 def record_group(
     name: str,
     episodes: int,
@@ -733,45 +745,91 @@ def load_dataset(folder: str | Path) -> Dataset:
     windows are read into arrays of the manifest's count (memory: the dataset and one
     shard)."""
     folder = Path(folder)
-    path = folder / "manifest.json"
     manifest = dataset_manifest(folder)
-    count = manifest["count"]
-    out: dict[str, np.ndarray] = {}
-    labels: list[np.ndarray] = []  # the track labels (their string width varies per shard)
-    done = 0
+    return Dataset(_read_windows(folder, manifest, _checked_shards(folder, manifest)), manifest)
+
+
+def load_split(
+    folder: str | Path, test_fraction: float, seed: int
+) -> tuple[dict, Windows, Windows]:
+    """The manifest and ``(train, test)`` of :func:`split_by_track` of the dataset folder
+    ``folder`` (the same windows in the same order), each side read straight from the shards:
+    memory holds every window once (split after loading, it held them twice)."""
+    folder = Path(folder)
+    manifest = dataset_manifest(folder)
+    files = _checked_shards(folder, manifest)
+    tracks = [_shard_arrays(file, ("track",))["track"] for file in files]
+    total = sum(map(len, tracks))
+    if total != manifest["count"]:
+        raise DatasetError(f"{folder / 'manifest.json'}: {total} windows, manifest says "
+                           f"{manifest['count']}")  # fmt: skip
+    held = _held_out_tracks(np.concatenate(tracks), test_fraction, seed)
+    test = [np.isin(t, held) for t in tracks]
+    train = [~m for m in test]
+    return (manifest, _read_windows(folder, manifest, files, train),
+            _read_windows(folder, manifest, files, test))  # fmt: skip
+
+
+def _checked_shards(folder: Path, manifest: dict) -> list[Path]:
+    """The shard files of ``manifest``, each there and with its checksum."""
+    files = []
     for shard in manifest["shards"]:
         file = folder / shard["file"]
         if not file.is_file():
             raise DatasetError(f"{folder}: shard {shard['file']} is missing")
         if _sha256(file) != shard["sha256"]:
             raise DatasetError(f"{file}: checksum mismatch (the file was changed or truncated)")
+        files.append(file)
+    return files
+
+
+def _read_windows(
+    folder: Path, manifest: dict, files: list[Path], keep: list[np.ndarray] | None = None
+) -> Windows:
+    """The windows of the shard ``files``, or of each the ones ``keep[k]`` (a mask per
+    shard) selects, read into arrays of their count."""
+    path = folder / "manifest.json"
+    count = manifest["count"]
+    size = count if keep is None else int(sum(m.sum() for m in keep))
+    out: dict[str, np.ndarray] = {}
+    labels: list[np.ndarray] = []  # the track labels (their string width varies per shard)
+    done = total = 0
+    for k, file in enumerate(files):
         part = _read_shard(file)
-        n = len(part)
-        if done + n > count:
+        total += len(part)
+        if total > count:
             raise DatasetError(f"{path}: the shards hold more windows than the manifest's "
                                f"count {count}")  # fmt: skip
+        if keep is not None:
+            part = part.take(np.flatnonzero(keep[k]))
+        n = len(part)
         for f in fields(Windows):
             value = getattr(part, f.name)
             if f.name == "track":
                 labels.append(value)
                 continue
             if f.name not in out:
-                out[f.name] = np.empty((count, *value.shape[1:]), value.dtype)
+                out[f.name] = np.empty((size, *value.shape[1:]), value.dtype)
             if value.shape[1:] != out[f.name].shape[1:] or value.dtype != out[f.name].dtype:
                 raise DatasetError(f"{file}: {f.name!r} is {value.dtype} {value.shape[1:]} "
                                    f"per window, the first shard's "
                                    f"{out[f.name].dtype} {out[f.name].shape[1:]}")  # fmt: skip
             out[f.name][done : done + n] = value
         done += n
-    if done != count:
-        raise DatasetError(f"{path}: {done} windows, manifest says {count}")
-    return Dataset(Windows(**out, track=np.concatenate(labels)), manifest)
+    if total != count:
+        raise DatasetError(f"{path}: {total} windows, manifest says {count}")
+    return Windows(**out, track=np.concatenate(labels))
 
 
 def _read_shard(file: Path) -> Windows:
     """One shard's windows (every array read; the checksum is the caller's)."""
+    return Windows(**_shard_arrays(file, tuple(f.name for f in fields(Windows))))
+
+
+def _shard_arrays(file: Path, names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The arrays ``names`` of one shard (only those are read)."""
     try:
         with np.load(file) as data:
-            return Windows(**{f.name: data[f.name] for f in fields(Windows)})
+            return {name: data[name] for name in names}
     except KeyError as exc:
         raise DatasetError(f"{file}: no array {exc} (not a shard of this format)") from None

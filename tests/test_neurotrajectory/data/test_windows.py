@@ -159,3 +159,23 @@ def test_a_shard_unlike_the_others_is_named(tmp_path):
     manifest.write_text(json.dumps(doc))
     with pytest.raises(windows.DatasetError, match="'count' must be a positive integer, got '5'"):
         windows.load_dataset(tmp_path / "d")
+
+
+def test_a_split_read_from_the_shards_is_the_split_of_the_whole(tmp_path, monkeypatch):
+    """``evaluate`` reads each side of its split straight from the shards (every window held
+    once): the same windows in the same order as splitting the whole dataset."""
+    monkeypatch.setattr(windows, "SHARD_SIZE", 7)
+    pieces = [_windows(n, first, f"s/{k}") for k, (n, first) in enumerate(
+        ((5, 0), (9, 5), (3, 14), (12, 17), (4, 29), (6, 33)))]  # fmt: skip
+    whole = windows.Windows.concat(pieces)
+    windows.save_dataset(windows.Dataset(whole, {"format": 1}), tmp_path / "d")
+    for seed in (0, 1, 2):
+        manifest, train, test = windows.load_split(tmp_path / "d", 0.3, seed)
+        assert manifest["count"] == len(whole)
+        for read, split in zip((train, test), windows.split_by_track(whole, 0.3, seed),
+                               strict=True):  # fmt: skip
+            for f in fields(windows.Windows):
+                np.testing.assert_array_equal(getattr(read, f.name), getattr(split, f.name))
+    with pytest.raises(windows.DatasetError, match="need windows from >= 2 tracks"):
+        windows.save_dataset(windows.Dataset(pieces[0], {"format": 1}), tmp_path / "one")
+        windows.load_split(tmp_path / "one", 0.3, 0)

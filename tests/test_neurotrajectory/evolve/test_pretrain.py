@@ -207,7 +207,7 @@ def test_a_run_can_record_its_own_warm_start(tmp_path, capsys):
 def test_a_recorded_scene_run_drives_only_the_tracks_of_its_training_data(tmp_path):
     """record --split train keeps evaluate's train side; a run on that scene with it as
     warm-start data trains on exactly those tracks, and its held-out report on the others."""
-    from neurotrajectory.compare.evaluation import EvalConfig, _dataset
+    from neurotrajectory.compare.evaluation import EvalConfig, _split_dataset
 
     data = tmp_path / "highway-train"
     assert main(["record", "--scenario", "us101_3_3", "--split", "train", "--out", str(data),
@@ -234,7 +234,7 @@ def test_a_recorded_scene_run_drives_only_the_tracks_of_its_training_data(tmp_pa
     (tmp_path / "data").mkdir()
     data.rename(tmp_path / "data" / "highway")
     with pytest.raises(DatasetError, match="holds only the train side"):
-        _dataset("highway", EvalConfig(), tmp_path / "data", tmp_path, print)
+        _split_dataset("highway", EvalConfig(), tmp_path / "data", tmp_path, print)
 
 
 class _Lagging:
