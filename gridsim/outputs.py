@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import errno
 import fcntl
 import json
 import os
@@ -148,13 +149,15 @@ def folder_lock(folder: str | Path, flag: str = "--out") -> Iterator[Path]:
 
 
 @contextmanager
-def new_folder(out: str | Path, flag: str = "--out", hint: str = "choose another --out"
-               ) -> Iterator[Path]:  # fmt: skip
+def new_folder(out: str | Path, flag: str = "--out", hint: str = "choose another --out",
+               resumable: bool = False) -> Iterator[Path]:  # fmt: skip
     """A new output folder written as a whole or not at all: the block writes into a hidden
     folder beside ``out`` (which it gets), renamed to ``out`` when the block ends without an
     error and removed otherwise, so that a failed or killed command leaves ``out`` as it was.
     One process at a time (:func:`folder_lock` on the hidden folder); ``out`` must be new or
-    empty (checked before and after taking the lock)."""
+    empty (checked before and after taking the lock). ``resumable``: the block gets the
+    hidden folder as an interrupted block left it (Ctrl-C, a full disk or a killed process),
+    and decides what of it to keep."""
     out = Path(out)
     problem = new_folder_problem(out, hint)
     if problem:
@@ -164,16 +167,29 @@ def new_folder(out: str | Path, flag: str = "--out", hint: str = "choose another
         problem = new_folder_problem(out, hint)  # another process may have finished it
         if problem:
             raise OutputError(f"{flag} {out}: {problem}")
-        empty_folder(partial)  # what a killed process left
+        if not resumable:
+            empty_folder(partial)  # what a killed process left
         try:
             yield partial
-        except BaseException:
-            shutil.rmtree(partial, ignore_errors=True)
+        except BaseException as exc:
+            if not (resumable and interrupted(exc)):
+                shutil.rmtree(partial, ignore_errors=True)
             raise
         (partial / LOCK_NAME).unlink()
         if out.is_dir():
             out.rmdir()  # empty (checked under the lock)
         partial.rename(out)
+
+
+#: Errors of a full disk or quota, not of the program.
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
+
+
+def interrupted(exc: BaseException) -> bool:
+    """Whether ``exc`` interrupted work that can go on when the command runs again (Ctrl-C,
+    a full disk or quota), rather than showing it cannot."""
+    disk_full = isinstance(exc, OSError) and exc.errno in DISK_FULL
+    return isinstance(exc, KeyboardInterrupt) or disk_full
 
 
 def _mode_for(path: Path) -> int:

@@ -4,7 +4,6 @@ errors into one line each (bad input: status 2; a bug: status 3, the traceback s
 from __future__ import annotations
 
 import argparse
-import errno
 import os
 import select
 import shlex
@@ -17,6 +16,7 @@ from pathlib import Path
 
 from gridsim import interrupts
 from gridsim.errors import DataWarning, GridSimError
+from gridsim.outputs import DISK_FULL
 
 #: Where unexpected errors are to be reported.
 REPORT_TO = "the GridSim issue tracker"
@@ -94,7 +94,7 @@ def run_command(
         except Exception as exc:
             if isinstance(exc, BrokenPipeError) and _stdout_closed():
                 return 141  # the reader went away (`| head`): stop quietly, as a shell tool
-            if isinstance(exc, OSError) and exc.errno in _DISK_FULL:  # not a bug: the disk
+            if isinstance(exc, OSError) and exc.errno in DISK_FULL:  # not a bug: the disk
                 where = f"{exc.filename}: " if exc.filename else ""
                 print(f"{parser.prog}: error: {where}{exc.strerror}; free some space (or write "
                       "elsewhere) and run it again", file=sys.stderr)  # fmt: skip
@@ -106,10 +106,6 @@ def run_command(
                   f"This is a bug, not a problem of your input. Please report it to {REPORT_TO} "
                   f"with the traceback saved in {saved}", file=sys.stderr)  # fmt: skip
             return 3
-
-
-#: Errors of a full disk or quota, not of the program.
-_DISK_FULL = (errno.ENOSPC, errno.EDQUOT)
 
 
 def _stdout_closed() -> bool:

@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
+import sys
 from pathlib import Path
 
 from gridsim.cli.flags import at_least, quiet_flag, seed_flag
-from gridsim.outputs import new_folder
+from gridsim.outputs import interrupted, new_folder
 from neurotrajectory.cli.flags import goal_flag, settings_flag
 from neurotrajectory.compare.evaluation import EvalConfig
-from neurotrajectory.data.windows import GROUPS
+from neurotrajectory.data.windows import CHECKPOINT_SECONDS, GROUPS, PROGRESS_FILE
 from neurotrajectory.evolve.runs import RunError
 
 #: The evaluation's defaults: a split recorded here is the one ``evaluate`` makes.
@@ -71,15 +73,22 @@ def execute(args: argparse.Namespace) -> int:
     # the side evaluate --seed S --test-fraction F uses
     split = (args.split, args.test_fraction) if args.split else None
     # --out is held before recording and appears when done; the windows are written as
-    # they are recorded (memory holds about one shard whatever the dataset's size)
+    # they are recorded (memory holds about one shard whatever the dataset's size), with
+    # checkpoints from which the same command goes on if it is interrupted
     with (
-        new_folder(args.out) as partial,
+        new_folder(args.out, resumable=True) as partial,
         tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar,
     ):
-        manifest, tracks = record_dataset(
-            partial, name, args.episodes, args.seed, args.stride, args.episode_seconds,
-            source=source, goal_seconds=args.goal_seconds, split=split,
-            **bar_callbacks(bar))  # fmt: skip
+        try:
+            manifest, tracks = record_dataset(
+                partial, name, args.episodes, args.seed, args.stride, args.episode_seconds,
+                source=source, goal_seconds=args.goal_seconds, split=split, resume=True,
+                log=lambda line: bar.write(f"record: {line}", file=sys.stderr),
+                **bar_callbacks(bar))  # fmt: skip
+        except BaseException as exc:
+            if interrupted(exc):
+                bar.write(_kept(partial), file=sys.stderr)
+            raise
     print(
         json.dumps(
             {
@@ -93,3 +102,16 @@ def execute(args: argparse.Namespace) -> int:
         )
     )
     return 0
+
+
+def _kept(partial: Path) -> str:
+    """What an interrupted ``record`` leaves in ``partial`` for the same command to go on
+    with (nothing, and ``partial`` is removed, before its first checkpoint)."""
+    checkpoint = next(partial.rglob(PROGRESS_FILE), None)
+    if checkpoint is None:
+        shutil.rmtree(partial, ignore_errors=True)
+        return (f"record: interrupted before its first checkpoint (one every "
+                f"{CHECKPOINT_SECONDS:g} s): nothing is kept")  # fmt: skip
+    windows = json.loads(checkpoint.read_text())["windows"]
+    return (f"record: the {windows} windows recorded until the last checkpoint are kept in "
+            f"{partial}: the same command goes on from there")  # fmt: skip

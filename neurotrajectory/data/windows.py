@@ -21,9 +21,11 @@ import difflib
 import hashlib
 import json
 import platform
+import shutil
+import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, fields
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
@@ -32,7 +34,14 @@ from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError, ScenarioError, UnfitEgoWarning, warn_data
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
-from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write_json, write_npz
+from gridsim.outputs import (
+    empty_folder,
+    new_folder_problem,
+    read_manifest,
+    short_repr,
+    write_json,
+    write_npz,
+)
 from gridsim.policies import Reference
 from gridsim.scenario.checks import flawed_tracks
 from gridsim.scenario.collection import (
@@ -50,6 +59,10 @@ from neurotrajectory.data.commands import implied_commands
 
 FORMAT_VERSION = 1
 SHARD_SIZE = 256
+#: :func:`record_dataset`'s checkpoint of an interrupted recording, and how often one is
+#: taken [s]
+PROGRESS_FILE = "progress.json"
+CHECKPOINT_SECONDS = 30.0
 
 #: Scenario groups of the evaluation and the built-in scenarios they consist of.
 GROUPS: dict[str, tuple[str, ...]] = {
@@ -257,7 +270,8 @@ def drive_windows(
 ) -> Windows | None:
     """The windows of ``episodes`` of ``scenario`` together (:func:`iter_windows`), ``None``
     if no window was taken."""
-    parts = list(iter_windows(scenario, episodes, stride, policy, progress, labels))
+    driven = iter_windows(scenario, episodes, stride, policy, progress, labels)
+    parts = [w for w in driven if w is not None]
     return Windows.concat(parts) if parts else None
 
 
@@ -268,9 +282,9 @@ def iter_windows(
     policy=None,
     progress: Callable[[int], None] | None = None,
     labels: str = "rejoin",
-) -> Iterator[Windows]:
-    """The windows of each episode of ``episodes`` of ``scenario`` in turn (episodes that give
-    none are passed over), one every ``stride`` decisions while the reference covers the
+) -> Iterator[Windows | None]:
+    """The windows of each episode of ``episodes`` of ``scenario`` in turn (None for an
+    episode that gives none), one every ``stride`` decisions while the reference covers the
     whole horizon. The ego drives the reference, or follows ``policy`` (a trajectory-action
     policy ``(env, obs, info) -> set-points``), as in DAgger; the label is the reference's
     next set-points from the ego's pose, with a policy as ``labels`` says
@@ -296,8 +310,7 @@ def iter_windows(
             windows = _episode_windows(env, episode.seed, stride, episode.track, policy, labels)
         if progress:
             progress(1)
-        if windows is not None:
-            yield windows
+        yield windows
 
 
 class _WindowTaker:
@@ -394,17 +407,26 @@ def _record_scenario_into(
     seeds: list[int] | None,
     goal_seconds: float | None,
     planned: Callable[[int], None] | None,
+    resume: tuple[int, int] = (0, 0),
+    recorded: Callable[[int, int], None] | None = None,
 ) -> dict:
     """:func:`record_scenario`, each episode's windows given to ``sink.add`` as they come;
-    returns the provenance."""
+    returns the provenance. ``resume`` ``(episode, windows)``: the episodes before
+    ``episode``, which gave ``windows`` windows, were recorded before (by an interrupted
+    :func:`record_dataset`); ``recorded(next episode, windows so far)`` after each
+    episode."""
     plan, source = scenario_episodes(scenario, episodes, seed, duration, seeds,
                                      goal_seconds=goal_seconds)  # fmt: skip
+    first, count = resume
     if planned is not None:
-        planned(len(plan))
-    count = 0
-    for windows in iter_windows(scenario, plan, stride, progress=progress):
-        sink.add(windows)
-        count += len(windows)
+        planned(len(plan) - first)
+    driven = iter_windows(scenario, plan[first:], stride, progress=progress)
+    for k, windows in enumerate(driven, first + 1):
+        if windows is not None:
+            sink.add(windows)
+            count += len(windows)
+        if recorded is not None:
+            recorded(k, count)
     if not count:
         raise DatasetError("no windows were recorded")
     cfg = load_scenario(scenario).config
@@ -521,31 +543,153 @@ def record_dataset(
     goal_seconds: float | None = None,
     planned: Callable[[int], None] | None = None,
     split: tuple[str, float] | None = None,
+    resume: bool = False,
+    log: Callable[[str], None] | None = None,
 ) -> tuple[dict, int]:
     """:func:`record_group` written into the dataset folder ``out`` (new or empty) as the
     windows come, so that memory holds about one shard whatever the dataset's size; with
     ``split`` ``(side, test_fraction)``, only that side of :func:`split_by_track` (seed
     ``seed``) is kept: the whole group is written aside first (``out/.spool``), then that
-    side of it copied. Returns the manifest written and the number of tracks kept."""
+    side of it copied. Returns the manifest written and the number of tracks kept.
+
+    With ``resume``, the recording leaves checkpoints in ``out`` as it goes
+    (:class:`_Checkpoints`), and ``out`` may hold those of an interrupted recording: one of
+    the same arguments goes on from its last checkpoint (the same dataset, bit for bit, as
+    one not interrupted); anything else in ``out`` is removed. ``log`` is told which."""
     out = Path(out)
-    check_new_folder(out)
     spool = out / ".spool" if split else out
-    writer = ShardWriter(spool)
+    arguments = {"name": name, "source": source, "episodes": episodes, "seed": seed,
+                 "stride": stride, "duration": duration, "goal_seconds": goal_seconds,
+                 "split": list(split) if split else None, "format": FORMAT_VERSION,
+                 "versions": _versions(), "files": _file_stamps(name, source)}  # fmt: skip
+    checkpoints = _Checkpoints(spool, arguments) if resume else None
+    found = checkpoints.load() if checkpoints is not None else None
+    if found is not None:
+        state, writer = found
+        if log:
+            log(f"going on with the interrupted recording of the same arguments in {out}: "
+                f"{writer.count} windows kept")  # fmt: skip
+    else:
+        if resume and out.is_dir():
+            empty_folder(out)  # what another recording left
+        check_new_folder(out)
+        state, writer = _GroupProgress(), ShardWriter(spool)
+    if checkpoints is not None:
+        checkpoints.follow(writer, state)
     manifest = _record_group_into(writer, name, episodes, seed, stride, duration, progress,
-                                  source, goal_seconds, planned)  # fmt: skip
+                                  source, goal_seconds, planned, state,
+                                  checkpoints)  # fmt: skip
     if split is None:
-        return writer.finish(manifest), len(writer.tracks)
+        done = writer.finish(manifest)
+        if checkpoints is not None:
+            checkpoints.remove()
+        return done, len(writer.tracks)
     side, test_fraction = split
     writer.flush()
     held = _held_out_tracks(np.array(list(writer.tracks)), test_fraction, seed)
+    for stale in out.glob("shard-*.npz"):  # an interrupted copy's
+        stale.unlink()
     kept = ShardWriter(out)
     for shard in writer.shards:
         part = _read_shard(spool / shard["file"])
         kept.add(part.take(np.flatnonzero(np.isin(part.track, held) == (side == "test"))))
-        (spool / shard["file"]).unlink()
-    spool.rmdir()
     split_info = {"side": side, "test_fraction": test_fraction, "seed": seed}
-    return kept.finish({**manifest, "split": split_info}), len(kept.tracks)
+    done = kept.finish({**manifest, "split": split_info})
+    shutil.rmtree(spool)
+    return done, len(kept.tracks)
+
+
+def _file_stamps(name: str, source: str | None) -> list:
+    """``[path, size, modification time [ns]]`` of the group's scenario files (built-in
+    scenarios: their names), so that a recording is not continued on files since changed."""
+    out = []
+    for scenario in group_files(name, source)[0]:
+        path = Path(scenario)
+        st = path.stat() if path.is_file() else None
+        out.append([scenario, st.st_size, st.st_mtime_ns] if st else [scenario])
+    return out
+
+
+class _Checkpoints:
+    """:func:`record_dataset`'s checkpoints in the folder it writes shards into, for an
+    interrupted recording to go on: ``progress.json`` (the arguments, how far the group is,
+    the shards written and the track labels) and ``pending-N.npz`` (the windows not yet in a
+    shard), written after an episode when :data:`CHECKPOINT_SECONDS` have passed since the
+    last, and after every file of the group. A checkpoint names its pending file, written
+    before it; shards written after the last checkpoint are written again."""
+
+    def __init__(self, folder: Path, arguments: dict) -> None:
+        self.folder, self.arguments = folder, arguments
+        self.path = folder / PROGRESS_FILE
+        self.writer: ShardWriter | None = None
+        self.state: _GroupProgress | None = None
+        self.last, self.number = time.monotonic(), 0
+
+    def follow(self, writer: ShardWriter, state: _GroupProgress) -> None:
+        self.writer, self.state = writer, state
+
+    def __call__(self, now: bool = False) -> None:
+        """A checkpoint if ``now`` or :data:`CHECKPOINT_SECONDS` have passed."""
+        if not now and time.monotonic() - self.last < CHECKPOINT_SECONDS:
+            return
+        self.number += 1
+        pending = self.writer.pending()
+        name = f"pending-{self.number:06d}.npz" if pending is not None else None
+        if name:
+            write_npz(self.folder / name, **{f.name: getattr(pending, f.name)
+                                            for f in fields(Windows)})  # fmt: skip
+        write_json(self.path, {"arguments": self.arguments, "state": asdict(self.state),
+                               "shards": self.writer.shards, "tracks": list(self.writer.tracks),
+                               "pending": name, "checkpoint": self.number,
+                               "windows": self.writer.count})  # fmt: skip
+        for old in self.folder.glob("pending-*.npz"):
+            if old.name != name:
+                old.unlink()
+        self.last = time.monotonic()
+
+    def load(self) -> tuple[_GroupProgress, ShardWriter] | None:
+        """How far the interrupted recording in the folder had gone, and a writer that goes
+        on from there; None if there is none, or one of other arguments, or damaged."""
+        try:
+            doc = json.loads(self.path.read_text())
+            if doc["arguments"] != self.arguments:
+                return None
+            state = _GroupProgress(**doc["state"])
+            pending = doc["pending"] and _read_shard(self.folder / doc["pending"])
+            for shard in doc["shards"]:
+                if _sha256(self.folder / shard["file"]) != shard["sha256"]:
+                    return None
+        except (OSError, ValueError, KeyError, TypeError, DatasetError):
+            return None
+        self.number = int(doc["checkpoint"])
+        listed = {shard["file"] for shard in doc["shards"]}
+        for stale in self.folder.glob("shard-*.npz"):  # written after the last checkpoint
+            if stale.name not in listed:
+                stale.unlink()
+        writer = ShardWriter(self.folder)
+        writer.shards = list(doc["shards"])
+        writer.tracks = dict.fromkeys(doc["tracks"])
+        if pending:
+            writer.add(pending)
+        return state, writer
+
+    def remove(self) -> None:
+        self.path.unlink(missing_ok=True)
+        for old in self.folder.glob("pending-*.npz"):
+            old.unlink()
+
+
+@dataclass
+class _GroupProgress:
+    """How far :func:`_record_group_into` is: the scenarios done (``metas``: their
+    provenance; ``skipped``: ``[file, reason]`` of those skipped), the next scenario, its next
+    episode and the windows its episodes before gave (to go on from there)."""
+
+    scenario: int = 0
+    episode: int = 0
+    windows: int = 0
+    metas: list = field(default_factory=list)
+    skipped: list = field(default_factory=list)
 
 
 def _record_group_into(
@@ -559,25 +703,40 @@ def _record_group_into(
     source: str | None,
     goal_seconds: float | None,
     planned: Callable[[int], None] | None,
+    state: _GroupProgress | None = None,
+    recorded: Callable[[bool], None] | None = None,
 ) -> dict:
     """:func:`record_group`, each episode's windows given to ``sink`` as they come (a failed
-    file's rolled back: ``sink.mark()``, ``sink.rollback(mark)``); returns the manifest."""
+    file's rolled back: ``sink.mark()``, ``sink.rollback(mark)``); returns the manifest.
+    ``state`` is updated after each episode, then ``recorded(False)`` is called (``True``
+    after a rollback); given, the group goes on from where it says."""
     scenarios, unloaded = group_files(name, source)
-    recorded = {scenario: is_recorded(scenario) for scenario in scenarios}
-    metas, skipped = [], []
-    for scenario in scenarios:
-        s = stride or (RECORDED_STRIDE if recorded[scenario] else GENERATED_STRIDE)
+    recorded_scene = {scenario: is_recorded(scenario) for scenario in scenarios}
+    state = _GroupProgress() if state is None else state
+    for i, scenario in enumerate(scenarios[state.scenario :], state.scenario):
+        s = stride or (RECORDED_STRIDE if recorded_scene[scenario] else GENERATED_STRIDE)
         mark = sink.mark()
+
+        def episode_done(episode: int, windows: int, i: int = i) -> None:
+            state.scenario, state.episode, state.windows = i, episode, windows
+            if recorded is not None:
+                recorded(False)
+
         try:
             meta = _record_scenario_into(sink, scenario, episodes, seed, s, duration, progress,
-                                         None, goal_seconds, planned)  # fmt: skip
+                                         None, goal_seconds, planned,
+                                         (state.episode, state.windows), episode_done)  # fmt: skip
         except GridSimError as exc:
             sink.rollback(mark)
             if len(scenarios) == 1:
                 raise
-            skipped.append((Path(scenario), str(exc)))
-            continue
-        metas.append(meta)
+            state.skipped.append([scenario, str(exc)])
+        else:
+            state.metas.append(meta)
+        state.scenario, state.episode, state.windows = i + 1, 0, 0
+        if recorded is not None:
+            recorded(True)
+    metas, skipped = state.metas, [(Path(f), reason) for f, reason in state.skipped]
     report_skipped(f"group {name!r}", skipped, len(scenarios), bool(metas),
                    ("gave a window", "gave no window"), DatasetError)  # fmt: skip
     first = metas[0]
@@ -591,7 +750,7 @@ def _record_group_into(
         "format": FORMAT_VERSION,
         "group": name,
         "source": GROUP_SOURCE.get(name)
-        or ("human (NGSIM)" if all(recorded.values()) else "simulator"),
+        or ("human (NGSIM)" if all(recorded_scene.values()) else "simulator"),
         "seed": seed,
         **{k: first[k] for k in same},
         **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),
@@ -679,6 +838,10 @@ class ShardWriter:
         self._buffered += len(windows)
         while self._buffered >= SHARD_SIZE:
             self._write(SHARD_SIZE)
+
+    def pending(self) -> Windows | None:
+        """The windows added that are not yet in a shard (None: none)."""
+        return Windows.concat(self._buffer) if self._buffered else None
 
     def flush(self) -> None:
         """Write what is buffered as a (shorter) shard."""

@@ -179,3 +179,61 @@ def test_a_split_read_from_the_shards_is_the_split_of_the_whole(tmp_path, monkey
     with pytest.raises(windows.DatasetError, match="need windows from >= 2 tracks"):
         windows.save_dataset(windows.Dataset(pieces[0], {"format": 1}), tmp_path / "one")
         windows.load_split(tmp_path / "one", 0.3, 0)
+
+
+def _interrupt_at(monkeypatch, episode: int) -> None:
+    """Ctrl-C while the ``episode``-th episode (from 1) of the next recording is driven."""
+    drive, calls = windows._episode_windows, []
+
+    def interrupted(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == episode:
+            raise KeyboardInterrupt
+        return drive(*args, **kwargs)
+
+    monkeypatch.setattr(windows, "_episode_windows", interrupted)
+
+
+@pytest.mark.parametrize(
+    ("scenario", "kwargs", "stop"),
+    [("seamless", {"duration": 4.0}, 3), ("us101_3_3", {"stride": 10, "split": ("test", 0.3)}, 7)],
+)
+def test_an_interrupted_recording_goes_on_to_the_same_dataset(
+    tmp_path, monkeypatch, scenario, kwargs, stop
+):
+    """``record`` leaves checkpoints as it goes; run again with the same arguments it goes on
+    from the last one, and the dataset is the one recorded without a break, bit for bit."""
+    monkeypatch.setattr(windows, "SHARD_SIZE", 8)
+    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
+    whole, _ = windows.record_dataset(tmp_path / "whole", scenario, 5, seed=3, **kwargs)
+    with monkeypatch.context() as m:
+        _interrupt_at(m, stop)
+        with pytest.raises(KeyboardInterrupt):
+            windows.record_dataset(tmp_path / "part", scenario, 5, seed=3, resume=True, **kwargs)
+    checkpoint = tmp_path / "part" / (".spool" if "split" in kwargs else "") / "progress.json"
+    assert json.loads(checkpoint.read_text())["state"]["episode"] == stop - 1
+    said = []
+    again, _ = windows.record_dataset(tmp_path / "part", scenario, 5, seed=3, resume=True,
+                                      log=said.append, **kwargs)  # fmt: skip
+    assert len(said) == 1 and "going on with the interrupted recording" in said[0]
+    assert _shard_digests(tmp_path / "part") == _shard_digests(tmp_path / "whole")
+    assert {k: v for k, v in again.items() if k != "versions"} == {
+        k: v for k, v in json.loads(json.dumps(whole)).items() if k != "versions"}  # fmt: skip
+    assert sorted(p.name for p in (tmp_path / "part").iterdir()) == sorted(
+        p.name for p in (tmp_path / "whole").iterdir())  # fmt: skip
+
+
+def test_a_recording_of_other_arguments_starts_afresh(tmp_path, monkeypatch):
+    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
+    with monkeypatch.context() as m:
+        _interrupt_at(m, 2)
+        with pytest.raises(KeyboardInterrupt):
+            windows.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0,
+                                   resume=True)  # fmt: skip
+    assert (tmp_path / "d" / "progress.json").is_file()
+    said = []
+    done, _ = windows.record_dataset(tmp_path / "d", "seamless", 3, seed=2, duration=3.0,
+                                     resume=True, log=said.append)  # fmt: skip
+    assert said == [] and done["scenarios"][0]["episode_seeds"] == windows.scenario_episodes(
+        "seamless", 3, seed=2)[1]["episode_seeds"]  # fmt: skip
+    assert not (tmp_path / "d" / "progress.json").exists()

@@ -327,3 +327,37 @@ def test_a_skipped_file_is_named_once_by_train_and_its_workers(tmp_path, capfd):
     err = capfd.readouterr().err
     assert err.count("bad.yaml: malformed YAML") == 1
     assert err.startswith("neurotrajectory: warning: ") and "DataWarning" not in err
+
+
+def test_record_interrupted_goes_on_when_run_again(tmp_path, monkeypatch, capsys):
+    """Ctrl-C keeps what ``record`` wrote until its last checkpoint (a failure does not:
+    above); the same command then goes on from there, and --out is the dataset recorded
+    without a break."""
+    from neurotrajectory.data import windows
+
+    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
+    argv = ["record", "--scenario", "seamless", "--episodes", "3", "--episode-seconds", "3",
+            "--quiet", "--out"]  # fmt: skip
+    assert main([*argv, str(tmp_path / "whole")]) == 0
+    drive, calls = windows._episode_windows, []
+
+    def interrupted(*args, **kwargs):
+        calls.append(1)
+        if len(calls) == 3:
+            raise KeyboardInterrupt
+        return drive(*args, **kwargs)
+
+    monkeypatch.setattr(windows, "_episode_windows", interrupted)
+    out = tmp_path / "ds"
+    assert main([*argv, str(out)]) == 130
+    err = capsys.readouterr().err
+    partial = tmp_path / ".ds.partial"
+    assert f"recorded until the last checkpoint are kept in {partial}: the same command" in err
+    assert not out.exists() and (partial / "progress.json").is_file()
+    monkeypatch.setattr(windows, "_episode_windows", drive)
+    assert main([*argv, str(out)]) == 0
+    assert "going on with the interrupted recording" in capsys.readouterr().err
+    assert not partial.exists() and not (out / "progress.json").exists()
+    same = ("count", "shards", "scenarios")
+    whole, part = (json.loads((d / "manifest.json").read_text()) for d in (tmp_path / "whole", out))
+    assert {k: whole[k] for k in same} == {k: part[k] for k in same}
