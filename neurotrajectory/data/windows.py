@@ -114,6 +114,15 @@ class Windows:
     def take(self, index: np.ndarray) -> Windows:
         return Windows(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
 
+    def select(self, index: np.ndarray) -> Windows:
+        """:meth:`take`, but the grids (nearly all the memory) are read from these windows'
+        as they are indexed (:class:`GridRows`), not copied."""
+        grids = self.grids
+        base, rows = (grids.base, grids.rows[index]) if isinstance(grids, GridRows) else (
+            grids, np.arange(len(self))[index])  # fmt: skip
+        small = {f.name: getattr(self, f.name)[index] for f in fields(self) if f.name != "grids"}
+        return Windows(grids=GridRows(base, rows), **small)
+
     @staticmethod
     def concat(parts: Iterable[Windows]) -> Windows:
         parts = [p for p in parts if len(p)]
@@ -122,6 +131,32 @@ class Windows:
         return Windows(
             **{f.name: np.concatenate([getattr(p, f.name) for p in parts]) for f in fields(Windows)}
         )
+
+
+class GridRows:
+    """The grids ``base[rows]`` (``base`` uint8 ``(N, tau_i, H, W)``) without a copy: indexing
+    reads the rows it asks for; ``np.asarray`` makes the copy."""
+
+    def __init__(self, base: np.ndarray, rows: np.ndarray) -> None:
+        self.base, self.rows = base, np.asarray(rows, dtype=np.int64)
+
+    @property
+    def shape(self) -> tuple[int, ...]:
+        return (len(self.rows), *self.base.shape[1:])
+
+    @property
+    def dtype(self) -> np.dtype:
+        return self.base.dtype
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def __getitem__(self, index) -> np.ndarray:
+        return self.base[self.rows[index]]
+
+    def __array__(self, dtype=None, copy=None) -> np.ndarray:
+        out = self.base[self.rows]
+        return out if dtype is None else out.astype(dtype)
 
 
 @dataclass(frozen=True)
@@ -777,8 +812,16 @@ def split_by_track(
 ) -> tuple[Windows, Windows]:
     """``(train, test)``: whole tracks go to one side; about ``test_fraction`` of the tracks
     (at least one on each side) are held out."""
+    train, test = split_rows(windows, test_fraction, seed)
+    return windows.take(train), windows.take(test)
+
+
+def split_rows(
+    windows: Windows, test_fraction: float = 0.3, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """The row indices ``(train, test)`` of :func:`split_by_track`, in order."""
     held_out = np.isin(windows.track, _held_out_tracks(windows.track, test_fraction, seed))
-    return windows.take(np.flatnonzero(~held_out)), windows.take(np.flatnonzero(held_out))
+    return np.flatnonzero(~held_out), np.flatnonzero(held_out)
 
 
 def _held_out_tracks(tracks: np.ndarray, test_fraction: float, seed: int) -> np.ndarray:

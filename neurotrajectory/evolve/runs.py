@@ -847,7 +847,8 @@ class Run:
         def fit(visited):
             return pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed,
                                    validation=cfg.pretrain_validation, visited=visited,
-                                   visited_share=cfg.dagger_weight)  # fmt: skip
+                                   visited_share=cfg.dagger_weight,
+                                   progress=self._progress)  # fmt: skip
 
         base, stats = fit(None)
         visited, rounds = [], []

@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from gridsim.seeding import Salt, stream
-from neurotrajectory.data.windows import DatasetError, Windows, split_by_track
+from neurotrajectory.data.windows import DatasetError, Windows, split_rows
 from neurotrajectory.evolve.genome import get_genome, set_genome
 from neurotrajectory.model import (
     TrajectoryNet,
@@ -121,6 +122,7 @@ def pretrain_genome(
     validation: float = 0.0,
     visited: Windows | None = None,
     visited_share: float | None = None,
+    progress: bool = False,
 ) -> tuple[np.ndarray, dict]:
     """Fit ``net`` (starting from ``genome``) to ``windows``, holding out ``validation`` of
     the tracks to pick the epoch (see the module docstring); returns the new genome and
@@ -130,7 +132,8 @@ def pretrain_genome(
     ``visited`` (DAgger: the states the network drove to, labelled with the human's next
     set-points) are fitted too, weighted by :func:`visited_weights` with ``visited_share``, but
     never validated on: the epoch is picked on the held-out tracks' human windows, and the
-    visited windows of those tracks are left out."""
+    visited windows of those tracks are left out. ``progress``: a bar over the batches of
+    all epochs (with each epoch's validation error)."""
     problem = size_mismatch(net.cfg, windows)
     if problem:
         raise PretrainError(f"pre-training: {problem}")
@@ -143,7 +146,9 @@ def pretrain_genome(
                 "pre-training: a validation share needs windows of >= 2 tracks, got "
                 f"{len(np.unique(windows.track))}; record more episodes or set it to 0"
             )
-        windows, held_out = split_by_track(windows, validation, seed)
+        # (the grids are read from the dataset's as batches ask for them, not copied)
+        windows, held_out = (windows.select(rows) for rows in split_rows(windows, validation,
+                                                                         seed))  # fmt: skip
     weights = None
     if visited is not None and len(visited):
         if held_out is not None:
@@ -162,8 +167,11 @@ def pretrain_genome(
         target = torch.from_numpy(windows.target.astype(np.float32))
         weight = None if weights is None else torch.from_numpy(weights.astype(np.float32))
         rng = stream(seed, Salt.WARM_START_BATCHES)
-        for _ in range(epochs):
+        bar = tqdm(total=epochs * -(-len(windows) // batch_size), desc="warm start",
+                   unit="batch", leave=False, disable=not progress)  # fmt: skip
+        for epoch in range(epochs):
             net.train()
+            bar.set_postfix(epoch=f"{epoch + 1}/{epochs}")
             order = rng.permutation(len(windows))
             for start in range(0, len(order), batch_size):
                 idx = order[start : start + batch_size]
@@ -172,11 +180,13 @@ def pretrain_genome(
                 opt.zero_grad()
                 loss.backward()
                 opt.step()
+                bar.update()
             net.eval()
             if held_out is not None:
                 scores.append(setpoint_mse(net, held_out))
                 if scores[-1] < min(scores[:-1]):
                     best = get_genome(net).copy()
+        bar.close()
         if held_out is None:
             best = get_genome(net)
         set_genome(net, best.copy())  # the parameters alias what they are set from

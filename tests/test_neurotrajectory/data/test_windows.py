@@ -237,3 +237,21 @@ def test_a_recording_of_other_arguments_starts_afresh(tmp_path, monkeypatch):
     assert said == [] and done["scenarios"][0]["episode_seeds"] == windows.scenario_episodes(
         "seamless", 3, seed=2)[1]["episode_seeds"]  # fmt: skip
     assert not (tmp_path / "d" / "progress.json").exists()
+
+
+def test_a_selection_reads_the_grids_it_is_asked_for_without_a_copy():
+    """The warm start splits its windows by track with ``select``: the same windows as
+    ``take``, but the grids (nearly all the memory) stay the dataset's until a batch reads
+    them, so a split does not hold the dataset twice."""
+    whole = _windows(40)
+    rows = np.array([3, 5, 7, 11, 13, 17, 19, 23])
+    picked, copied = whole.select(rows), whole.take(rows)
+    assert picked.grids.base is whole.grids and picked.grids.shape == copied.grids.shape
+    again = picked.select(np.array([6, 1, 2]))  # a selection of a selection: still the base
+    assert again.grids.base is whole.grids
+    np.testing.assert_array_equal(again.grids[np.arange(3)], copied.grids[[6, 1, 2]])
+    for f in fields(windows.Windows):
+        np.testing.assert_array_equal(np.asarray(getattr(picked, f.name)),
+                                      getattr(copied, f.name))  # fmt: skip
+    both = windows.Windows.concat([picked, whole.take(rows[:2])])  # (DAgger: copied then)
+    np.testing.assert_array_equal(both.grids, np.concatenate([copied.grids, copied.grids[:2]]))
