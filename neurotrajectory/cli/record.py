@@ -12,7 +12,7 @@ from gridsim.cli.flags import at_least, quiet_flag, seed_flag
 from gridsim.outputs import interrupted, new_folder
 from neurotrajectory.cli.flags import goal_flag, settings_flag
 from neurotrajectory.compare.evaluation import EvalConfig
-from neurotrajectory.data.windows import CHECKPOINT_SECONDS, GROUPS, PROGRESS_FILE
+from neurotrajectory.data.windows import CHECKPOINT_SECONDS, GROUPS, checkpoint_windows
 from neurotrajectory.evolve.runs import RunError
 
 #: The evaluation's defaults: a split recorded here is the one ``evaluate`` makes.
@@ -107,11 +107,10 @@ def execute(args: argparse.Namespace) -> int:
 def _kept(partial: Path) -> str:
     """What an interrupted ``record`` leaves in ``partial`` for the same command to go on
     with (nothing, and ``partial`` is removed, before its first checkpoint)."""
-    checkpoint = next(partial.rglob(PROGRESS_FILE), None)
-    if checkpoint is None:
+    windows = checkpoint_windows(partial)
+    if windows is None:
         shutil.rmtree(partial, ignore_errors=True)
         return (f"record: interrupted before its first checkpoint (one every "
                 f"{CHECKPOINT_SECONDS:g} s): nothing is kept")  # fmt: skip
-    windows = json.loads(checkpoint.read_text())["windows"]
     return (f"record: the {windows} windows recorded until the last checkpoint are kept in "
             f"{partial}: the same command goes on from there")  # fmt: skip

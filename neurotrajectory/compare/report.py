@@ -214,9 +214,10 @@ def _fig8(results, methods, out: Path) -> Path:
         ax.set_xticks(t)
         ax.grid(alpha=0.3)
     axes[0, 0].set_ylabel("RMSE [m] (band: NeuroTrajectory +- 1 std)")
-    columns = min(len(shown), 2 if len(results) == 1 else 3 * len(results))
-    fig.legend(list(shown.values()), list(shown), loc="lower center", ncol=columns,
-               fontsize=9, frameon=False)  # fmt: skip
+    columns = max(1, min(len(shown), 2 if len(results) == 1 else 3 * len(results)))
+    if shown:
+        fig.legend(list(shown.values()), list(shown), loc="lower center", ncol=columns,
+                   fontsize=9, frameon=False)  # fmt: skip
     rows = -(-len(shown) // columns)
     fig.tight_layout(rect=(0, 0.035 * rows + 0.03, 1, 1))
     path = out / "fig8_rmse_per_setpoint.png"

@@ -35,6 +35,7 @@ from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError, ScenarioError, UnfitEgoWarning, warn_data
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import (
+    LOCK_NAME,
     empty_folder,
     new_folder_problem,
     read_manifest,
@@ -113,6 +114,10 @@ class Windows:
 
     def take(self, index: np.ndarray) -> Windows:
         return Windows(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+
+    def rows(self, start: int, stop: int) -> Windows:
+        """Windows ``start`` to ``stop`` (views where the arrays allow)."""
+        return Windows(**{f.name: getattr(self, f.name)[start:stop] for f in fields(self)})
 
     def select(self, index: np.ndarray) -> Windows:
         """:meth:`take`, but the grids (nearly all the memory) are read from these windows'
@@ -590,25 +595,39 @@ def record_dataset(
     With ``resume``, the recording leaves checkpoints in ``out`` as it goes
     (:class:`_Checkpoints`), and ``out`` may hold those of an interrupted recording: one of
     the same arguments goes on from its last checkpoint (the same dataset, bit for bit, as
-    one not interrupted); anything else in ``out`` is removed. ``log`` is told which."""
+    one not interrupted); another recording's files are removed (``log`` is told why), and
+    anything else in ``out`` is refused as by ``resume=False``."""
     out = Path(out)
+    if split is not None:
+        side, test_fraction = split
+        if side not in ("train", "test"):
+            raise DatasetError(f"split side must be 'train' or 'test', got {side!r}")
+        _held_out_tracks(np.array(["a", "b"]), test_fraction, seed)  # (checks the fraction)
     spool = out / ".spool" if split else out
-    arguments = {"name": name, "source": source, "episodes": episodes, "seed": seed,
-                 "stride": stride, "duration": duration, "goal_seconds": goal_seconds,
-                 "split": list(split) if split else None, "format": FORMAT_VERSION,
-                 "versions": _versions(), "files": _file_stamps(name, source)}  # fmt: skip
-    checkpoints = _Checkpoints(spool, arguments) if resume else None
-    found = checkpoints.load() if checkpoints is not None else None
-    if found is not None:
-        state, writer = found
-        if log:
-            log(f"going on with the interrupted recording of the same arguments in {out}: "
-                f"{writer.count} windows kept")  # fmt: skip
-    else:
-        if resume and out.is_dir():
-            empty_folder(out)  # what another recording left
+    state, writer, checkpoints = _GroupProgress(), None, None
+    if resume:
+        arguments = {"name": name, "source": None if source is None else str(source),
+                     "episodes": int(episodes), "seed": int(seed),
+                     "stride": None if stride is None else int(stride),
+                     "duration": None if duration is None else float(duration),
+                     "goal_seconds": None if goal_seconds is None else float(goal_seconds),
+                     "split": list(split) if split else None, "format": FORMAT_VERSION,
+                     "shard_size": SHARD_SIZE, "versions": _versions(),
+                     "files": _file_stamps(name, source)}  # fmt: skip
+        checkpoints = _Checkpoints(spool, arguments)
+        found, why = checkpoints.load()
+        if found is not None:
+            state, writer = found
+            if log:
+                log(f"going on with the interrupted recording of the same arguments in {out}: "
+                    f"{writer.count} windows kept")  # fmt: skip
+        elif out.is_dir() and _ours_only(out):
+            if why and log:
+                log(f"starting afresh in {out}: the interrupted recording there {why}")
+            empty_folder(out)
+    if writer is None:
         check_new_folder(out)
-        state, writer = _GroupProgress(), ShardWriter(spool)
+        writer = ShardWriter(spool)
     if checkpoints is not None:
         checkpoints.follow(writer, state)
     manifest = _record_group_into(writer, name, episodes, seed, stride, duration, progress,
@@ -619,11 +638,9 @@ def record_dataset(
         if checkpoints is not None:
             checkpoints.remove()
         return done, len(writer.tracks)
-    side, test_fraction = split
     writer.flush()
     held = _held_out_tracks(np.array(list(writer.tracks)), test_fraction, seed)
-    for stale in out.glob("shard-*.npz"):  # an interrupted copy's
-        stale.unlink()
+    _remove_all_but(out, {spool.name, LOCK_NAME})  # an interrupted copy's files
     kept = ShardWriter(out)
     for shard in writer.shards:
         part = _read_shard(spool / shard["file"])
@@ -634,24 +651,44 @@ def record_dataset(
     return done, len(kept.tracks)
 
 
+#: What :func:`record_dataset` writes into its folder (``.*.tmp``: a write under way).
+_OURS = ("shard-*.npz", "pending-*.npz", PROGRESS_FILE, "manifest.json", ".spool", ".*.tmp")
+
+
+def _ours_only(folder: Path) -> bool:
+    """Whether the folder ``folder`` holds nothing but what :func:`record_dataset` writes."""
+    ours = (*_OURS, LOCK_NAME)
+    return all(any(p.match(g) for g in ours) for p in folder.iterdir())
+
+
+def _remove_all_but(folder: Path, keep: set[str]) -> None:
+    """Remove the files :func:`record_dataset` writes (:data:`_OURS`) from ``folder`` but the
+    names ``keep``: those of a copy or a checkpoint that a killed process left behind."""
+    for p in folder.iterdir():
+        if p.name not in keep and any(p.match(g) for g in _OURS):
+            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
+
+
 def _file_stamps(name: str, source: str | None) -> list:
     """``[path, size, modification time [ns]]`` of the group's scenario files (built-in
-    scenarios: their names), so that a recording is not continued on files since changed."""
+    scenarios: their names), so that a recording is not continued on files since changed
+    (the files they refer to, maps and track libraries, are not looked at)."""
     out = []
     for scenario in group_files(name, source)[0]:
         path = Path(scenario)
         st = path.stat() if path.is_file() else None
-        out.append([scenario, st.st_size, st.st_mtime_ns] if st else [scenario])
+        out.append([str(scenario), st.st_size, st.st_mtime_ns] if st else [str(scenario)])
     return out
 
 
 class _Checkpoints:
     """:func:`record_dataset`'s checkpoints in the folder it writes shards into, for an
     interrupted recording to go on: ``progress.json`` (the arguments, how far the group is,
-    the shards written and the track labels) and ``pending-N.npz`` (the windows not yet in a
-    shard), written after an episode when :data:`CHECKPOINT_SECONDS` have passed since the
-    last, and after every file of the group. A checkpoint names its pending file, written
-    before it; shards written after the last checkpoint are written again."""
+    the shards written, the track labels, and the name, count and checksum of the pending
+    file) and ``pending-N.npz`` (the windows not yet in a shard), written after an episode
+    when :data:`CHECKPOINT_SECONDS` have passed since the last, and after every file of the
+    group. The pending file is written before the checkpoint that names it; what a
+    checkpoint does not name is removed when the recording goes on."""
 
     def __init__(self, folder: Path, arguments: dict) -> None:
         self.folder, self.arguments = folder, arguments
@@ -669,49 +706,75 @@ class _Checkpoints:
             return
         self.number += 1
         pending = self.writer.pending()
-        name = f"pending-{self.number:06d}.npz" if pending is not None else None
-        if name:
+        doc = {"arguments": self.arguments, "state": asdict(self.state),
+               "shards": self.writer.shards, "tracks": list(self.writer.tracks),
+               "checkpoint": self.number, "windows": self.writer.count,
+               "pending": None}  # fmt: skip
+        if pending is not None:
+            name = f"pending-{self.number:06d}.npz"
             write_npz(self.folder / name, **{f.name: getattr(pending, f.name)
                                             for f in fields(Windows)})  # fmt: skip
-        write_json(self.path, {"arguments": self.arguments, "state": asdict(self.state),
-                               "shards": self.writer.shards, "tracks": list(self.writer.tracks),
-                               "pending": name, "checkpoint": self.number,
-                               "windows": self.writer.count})  # fmt: skip
-        for old in self.folder.glob("pending-*.npz"):
-            if old.name != name:
-                old.unlink()
+            doc["pending"] = {"file": name, "windows": len(pending),
+                              "sha256": _sha256(self.folder / name)}  # fmt: skip
+        write_json(self.path, doc)
+        _remove_all_but(self.folder, self._named(doc))
         self.last = time.monotonic()
 
-    def load(self) -> tuple[_GroupProgress, ShardWriter] | None:
+    def _named(self, doc: dict) -> set[str]:
+        """What the checkpoint ``doc`` names in the folder (with the lock and the spool)."""
+        pending = [doc["pending"]["file"]] if doc["pending"] else []
+        return {PROGRESS_FILE, LOCK_NAME, *pending, *(s["file"] for s in doc["shards"])}
+
+    def load(self) -> tuple[tuple[_GroupProgress, ShardWriter] | None, str | None]:
         """How far the interrupted recording in the folder had gone, and a writer that goes
-        on from there; None if there is none, or one of other arguments, or damaged."""
+        on from there; or None and why not (None: there is none)."""
+        if not self.path.is_file():
+            return None, None
         try:
             doc = json.loads(self.path.read_text())
             if doc["arguments"] != self.arguments:
-                return None
+                changed = sorted(k for k in self.arguments
+                                 if doc["arguments"].get(k) != self.arguments[k])  # fmt: skip
+                return None, f"had other {', '.join(changed)}"
             state = _GroupProgress(**doc["state"])
-            pending = doc["pending"] and _read_shard(self.folder / doc["pending"])
-            for shard in doc["shards"]:
-                if _sha256(self.folder / shard["file"]) != shard["sha256"]:
-                    return None
-        except (OSError, ValueError, KeyError, TypeError, DatasetError):
-            return None
-        self.number = int(doc["checkpoint"])
-        listed = {shard["file"] for shard in doc["shards"]}
-        for stale in self.folder.glob("shard-*.npz"):  # written after the last checkpoint
-            if stale.name not in listed:
-                stale.unlink()
+            if not all(isinstance(getattr(state, k), int)
+                       for k in ("scenario", "episode", "windows")):  # fmt: skip
+                raise ValueError("a count that is not an integer")
+            files = [*doc["shards"], *([doc["pending"]] if doc["pending"] else [])]
+            for entry in files:
+                if _sha256(self.folder / entry["file"]) != entry["sha256"]:
+                    raise ValueError(f"{entry['file']} was changed or truncated")
+            pending = _read_shard(self.folder / doc["pending"]["file"]) if doc["pending"] else None
+            counted = sum(int(e["windows"]) for e in files)
+            if counted != doc["windows"] or (
+                pending is not None and len(pending) != doc["pending"]["windows"]
+            ):
+                raise ValueError("its counts of windows disagree")  # fmt: skip
+            number, tracks = int(doc["checkpoint"]), list(doc["tracks"])
+        except Exception as exc:  # noqa: BLE001 - a damaged checkpoint is not used, and said
+            return None, f"has a checkpoint that cannot be used ({type(exc).__name__}: {exc})"
+        self.number = number
+        _remove_all_but(self.folder, self._named(doc))  # files written after the checkpoint
         writer = ShardWriter(self.folder)
         writer.shards = list(doc["shards"])
-        writer.tracks = dict.fromkeys(doc["tracks"])
-        if pending:
+        if pending is not None:
             writer.add(pending)
-        return state, writer
+        writer.tracks = dict.fromkeys(tracks)
+        return (state, writer), None
 
     def remove(self) -> None:
         self.path.unlink(missing_ok=True)
         for old in self.folder.glob("pending-*.npz"):
             old.unlink()
+
+
+def checkpoint_windows(folder: Path) -> int | None:
+    """How many windows the interrupted recording in ``folder`` (or its spool) kept at its
+    last checkpoint; None: it has none."""
+    for path in (folder / PROGRESS_FILE, folder / ".spool" / PROGRESS_FILE):
+        if path.is_file():
+            return int(json.loads(path.read_text())["windows"])
+    return None
 
 
 @dataclass
@@ -725,6 +788,8 @@ class _GroupProgress:
     windows: int = 0
     metas: list = field(default_factory=list)
     skipped: list = field(default_factory=list)
+    #: the sink's mark at the start of the scenario under way (to roll it back if it fails)
+    mark: object = None
 
 
 def _record_group_into(
@@ -750,7 +815,8 @@ def _record_group_into(
     state = _GroupProgress() if state is None else state
     for i, scenario in enumerate(scenarios[state.scenario :], state.scenario):
         s = stride or (RECORDED_STRIDE if recorded_scene[scenario] else GENERATED_STRIDE)
-        mark = sink.mark()
+        if state.mark is None:  # the file begins now (not one gone on with part-way)
+            state.mark = sink.mark()
 
         def episode_done(episode: int, windows: int, i: int = i) -> None:
             state.scenario, state.episode, state.windows = i, episode, windows
@@ -762,13 +828,13 @@ def _record_group_into(
                                          None, goal_seconds, planned,
                                          (state.episode, state.windows), episode_done)  # fmt: skip
         except GridSimError as exc:
-            sink.rollback(mark)
+            sink.rollback(state.mark)
             if len(scenarios) == 1:
                 raise
             state.skipped.append([scenario, str(exc)])
         else:
             state.metas.append(meta)
-        state.scenario, state.episode, state.windows = i + 1, 0, 0
+        state.scenario, state.episode, state.windows, state.mark = i + 1, 0, 0, None
         if recorded is not None:
             recorded(True)
     metas, skipped = state.metas, [(Path(f), reason) for f, reason in state.skipped]
@@ -856,16 +922,16 @@ def save_dataset(dataset: Dataset, out: str | Path) -> Path:
 
 class ShardWriter:
     """Writes windows into ``folder`` (created) as they come: compressed shards of
-    :data:`SHARD_SIZE` windows each (``shard-NNNNN.npz``, the last one shorter), so that
-    memory holds at most one shard besides what is added; :meth:`finish` writes
-    ``manifest.json``. The shards of the same windows are the same whatever pieces they
-    were added in."""
+    :data:`SHARD_SIZE` windows each (``shard-NNNNN.npz``), so that memory holds at most one
+    shard besides what is added; :meth:`finish` writes ``manifest.json``. A shard is shorter
+    only where :meth:`flush` (at :meth:`mark`, and at the end) writes what is buffered, so the
+    shards hold the same windows whatever pieces they were added in."""
 
     def __init__(self, folder: Path) -> None:
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.shards: list[dict] = []  # {"file", "windows", "sha256"} of each shard written
-        self.tracks: dict[str, None] = {}  # the track labels added, in order
+        self.tracks: dict[str, None] = {}  # the track labels added, in the order first seen
         self._buffer: list[Windows] = []
         self._buffered = 0
 
@@ -874,13 +940,15 @@ class ShardWriter:
         return sum(s["windows"] for s in self.shards) + self._buffered
 
     def add(self, windows: Windows) -> None:
-        if not len(windows):
-            return
-        self.tracks.update(dict.fromkeys(np.unique(windows.track).tolist()))
-        self._buffer.append(windows)
-        self._buffered += len(windows)
-        while self._buffered >= SHARD_SIZE:
-            self._write(SHARD_SIZE)
+        self.tracks.update(dict.fromkeys(windows.track.tolist()))
+        start = 0
+        while start < len(windows):  # a shard's worth at a time (a big piece is not copied)
+            stop = min(start + SHARD_SIZE - self._buffered, len(windows))
+            self._buffer.append(windows.rows(start, stop))
+            self._buffered += stop - start
+            start = stop
+            if self._buffered == SHARD_SIZE:
+                self._write()
 
     def pending(self) -> Windows | None:
         """The windows added that are not yet in a shard (None: none)."""
@@ -889,29 +957,30 @@ class ShardWriter:
     def flush(self) -> None:
         """Write what is buffered as a (shorter) shard."""
         if self._buffered:
-            self._write(self._buffered)
+            self._write()
 
-    def _write(self, n: int) -> None:
-        whole = Windows.concat(self._buffer)
-        part = whole.take(np.arange(n))
-        self._buffer = [whole.take(np.arange(n, len(whole)))] if n < len(whole) else []
-        self._buffered = len(whole) - n
+    def _write(self) -> None:
+        part = Windows.concat(self._buffer)
+        self._buffer, self._buffered = [], 0
         name = f"shard-{len(self.shards):05d}.npz"
         write_npz(self.folder / name, compressed=True,
                   **{f.name: getattr(part, f.name) for f in fields(Windows)})  # fmt: skip
-        self.shards.append({"file": name, "windows": n, "sha256": _sha256(self.folder / name)})
+        self.shards.append({"file": name, "windows": len(part),
+                            "sha256": _sha256(self.folder / name)})  # fmt: skip
 
-    def mark(self) -> tuple[int, list[Windows], dict[str, None]]:
-        """Where the windows added so far end (for :meth:`rollback`)."""
-        return len(self.shards), list(self._buffer), dict(self.tracks)
+    def mark(self) -> list:
+        """Where the windows added so far end, for :meth:`rollback` (what is buffered is
+        written first): ``[shards, track labels]``, as JSON keeps it."""
+        self.flush()
+        return [len(self.shards), list(self.tracks)]
 
-    def rollback(self, mark: tuple[int, list[Windows], dict[str, None]]) -> None:
+    def rollback(self, mark: list) -> None:
         """Forget the windows added since ``mark`` (their shards are removed)."""
-        shards, buffer, tracks = mark
+        shards, tracks = mark
         for shard in self.shards[shards:]:
-            (self.folder / shard["file"]).unlink()
+            (self.folder / shard["file"]).unlink(missing_ok=True)
         del self.shards[shards:]
-        self._buffer, self._buffered, self.tracks = list(buffer), sum(map(len, buffer)), tracks
+        self._buffer, self._buffered, self.tracks = [], 0, dict.fromkeys(tracks)
 
     def finish(self, manifest: dict) -> dict:
         """Write the last shard and ``manifest.json`` (``manifest`` with the count and the

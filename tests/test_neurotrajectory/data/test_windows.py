@@ -98,21 +98,25 @@ def test_windows_written_as_they_come_make_the_shards_of_the_whole(tmp_path, mon
 
 def test_a_rolled_back_file_leaves_no_window_behind(tmp_path, monkeypatch):
     """A file of a group that fails half-way (after some of its shards were written) is
-    skipped whole: the dataset is that of the other files alone."""
+    skipped whole: the dataset is that of the other files alone. A file starts a shard (the
+    mark writes what is buffered), so that its rollback is a number of shards."""
     monkeypatch.setattr(windows, "SHARD_SIZE", 8)
     kept_a, lost, kept_b = _windows(5, 0, "a/1"), _windows(30, 100, "b/1"), _windows(12, 7, "c/1")
     writer = windows.ShardWriter(tmp_path / "rolled")
     writer.add(kept_a)
     mark = writer.mark()
+    assert mark == [1, ["a/1"]]  # kept_a written as a shard of its own
     writer.add(lost)
     assert len(writer.shards) == 4
     writer.rollback(mark)
     writer.add(kept_b)
     assert list(writer.tracks) == ["a/1", "c/1"]
     writer.finish({"format": 1})
+    assert [n for _, n, _ in _shard_digests(tmp_path / "rolled")] == [5, 8, 4]
+    back = windows.load_dataset(tmp_path / "rolled").windows
     both = windows.Windows.concat([kept_a, kept_b])
-    windows.save_dataset(windows.Dataset(both, {"format": 1}), tmp_path / "both")
-    assert _shard_digests(tmp_path / "rolled") == _shard_digests(tmp_path / "both")
+    for f in fields(windows.Windows):
+        np.testing.assert_array_equal(getattr(back, f.name), getattr(both, f.name))
     assert sorted(p.name for p in (tmp_path / "rolled").iterdir()) == [
         "manifest.json", "shard-00000.npz", "shard-00001.npz", "shard-00002.npz"]  # fmt: skip
 
@@ -234,7 +238,10 @@ def test_a_recording_of_other_arguments_starts_afresh(tmp_path, monkeypatch):
     said = []
     done, _ = windows.record_dataset(tmp_path / "d", "seamless", 3, seed=2, duration=3.0,
                                      resume=True, log=said.append)  # fmt: skip
-    assert said == [] and done["scenarios"][0]["episode_seeds"] == windows.scenario_episodes(
+    assert said == [
+        f"starting afresh in {tmp_path / 'd'}: the interrupted recording there had other seed"
+    ]
+    assert done["scenarios"][0]["episode_seeds"] == windows.scenario_episodes(
         "seamless", 3, seed=2)[1]["episode_seeds"]  # fmt: skip
     assert not (tmp_path / "d" / "progress.json").exists()
 
@@ -255,3 +262,76 @@ def test_a_selection_reads_the_grids_it_is_asked_for_without_a_copy():
                                       getattr(copied, f.name))  # fmt: skip
     both = windows.Windows.concat([picked, whole.take(rows[:2])])  # (DAgger: copied then)
     np.testing.assert_array_equal(both.grids, np.concatenate([copied.grids, copied.grids[:2]]))
+
+
+def _group_of_three(tmp_path: Path) -> Path:
+    """A folder of three small recorded scenes (a group of files)."""
+    folder = tmp_path / "group"
+    folder.mkdir()
+    data = Path(__file__).parents[2] / "data" / "commonroad"
+    for name, copy in (("straight_2018b", "a"), ("straight_2020a", "b"), ("straight_2018b", "c")):
+        (folder / f"{copy}.xml").write_bytes((data / f"{name}.xml").read_bytes())
+    return folder
+
+
+def test_a_file_that_fails_after_a_break_is_skipped_whole(tmp_path, monkeypatch):
+    """A file interrupted part-way and then failing when the recording goes on is rolled
+    back to its start as recorded before the break: the dataset is the one an unbroken
+    recording makes, which skips that file."""
+    from gridsim.errors import ScenarioError
+
+    monkeypatch.setattr(windows, "SHARD_SIZE", 4)
+    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
+    folder = _group_of_three(tmp_path)
+    files = windows.group_files("g", str(folder))[0]
+    bad = (files[0], windows.scenario_episodes(files[0])[0][2].track)  # its third episode
+    drive, calls = windows._episode_windows, []
+
+    def failing(env, seed, stride, track, *args, interrupt=None, **kwargs):
+        calls.append(1)
+        if len(calls) == interrupt:
+            raise KeyboardInterrupt
+        if (str(env.scenario.source), track) == bad:
+            raise ScenarioError("made up")
+        return drive(env, seed, stride, track, *args, **kwargs)
+
+    monkeypatch.setattr(windows, "_episode_windows", failing)
+    kwargs = {"source": str(folder), "stride": 5}
+    with pytest.warns(Warning):
+        whole, _ = windows.record_dataset(tmp_path / "whole", "g", 1, **kwargs)
+    assert [s["file"] for s in whole["skipped"]] == [files[0]]
+    calls.clear()
+    monkeypatch.setattr(windows, "_episode_windows",
+                        lambda *a, **k: failing(*a, interrupt=2, **k))  # fmt: skip
+    with pytest.raises(KeyboardInterrupt):
+        windows.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs)
+    monkeypatch.setattr(windows, "_episode_windows", failing)
+    with pytest.warns(Warning):
+        again, _ = windows.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs)
+    assert again["count"] == whole["count"]
+    assert _shard_digests(tmp_path / "part") == _shard_digests(tmp_path / "whole")
+
+
+def test_a_damaged_checkpoint_is_said_and_not_used(tmp_path, monkeypatch):
+    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
+    monkeypatch.setattr(windows, "SHARD_SIZE", 64)
+    kwargs = {"duration": 4.0, "seed": 1}
+    with monkeypatch.context() as m:
+        _interrupt_at(m, 3)
+        with pytest.raises(KeyboardInterrupt):
+            windows.record_dataset(tmp_path / "d", "seamless", 4, resume=True, **kwargs)
+    (pending,) = (tmp_path / "d").glob("pending-*.npz")
+    pending.write_bytes(pending.read_bytes()[:100])
+    said = []
+    done, _ = windows.record_dataset(tmp_path / "d", "seamless", 4, resume=True,
+                                     log=said.append, **kwargs)  # fmt: skip
+    assert len(said) == 1 and "has a checkpoint that cannot be used (ValueError: " \
+        f"{pending.name} was changed or truncated)" in said[0]  # fmt: skip
+    whole, _ = windows.record_dataset(tmp_path / "whole", "seamless", 4, **kwargs)
+    assert done["count"] == whole["count"]
+    # a folder with files of its own is not emptied
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("keep")
+    with pytest.raises(windows.DatasetError, match="exists and is not empty"):
+        windows.record_dataset(tmp_path / "mine", "seamless", 1, resume=True, **kwargs)
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "keep"
