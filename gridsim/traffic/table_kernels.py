@@ -63,3 +63,40 @@ def frenet(path, slots, s, d, buckets, xy, h) -> None:
     """:func:`frenet_one` for every query, into ``xy`` ``(n, 2)`` and ``h`` ``(n,)``."""
     for q in range(len(s)):
         xy[q, 0], xy[q, 1], h[q] = frenet_one(path, slots[q], s[q], d[q], buckets)
+
+
+@kernel
+def flat_tables(xs, lengths, ys, gap, keys, slope, base, first, last) -> None:
+    """The flat arrays of tables laid back to back (``TableBank._rebuild``): table ``k`` holds
+    ``lengths[k]`` knots of the concatenated ``xs`` and ``ys`` ``(N, width)``; its keys are
+    ``xs + base[k]``, ``base[k] = offset - x[0]``, the next table's offset ``x[-1] + base[k] +
+    gap``; ``slope[i] = (ys[i + 1] - ys[i]) / (keys[i + 1] - keys[i])`` (the last knot: 0 over
+    a key step of 1). The NumPy expressions' operations, in their order: the same bits."""
+    offset, n = 0.0, 0
+    for k in range(len(lengths)):
+        m = lengths[k]
+        b = offset - xs[n]
+        for j in range(n, n + m):
+            keys[j] = xs[j] + b
+        base[k], first[k], last[k] = b, n, n + m - 2
+        offset = xs[n + m - 1] + b + gap
+        n += m
+    width = ys.shape[1]
+    for i in range(n - 1):
+        dx = keys[i + 1] - keys[i]
+        for c in range(width):
+            slope[i, c] = (ys[i + 1, c] - ys[i, c]) / dx
+    dx = (keys[n - 1] + 1.0) - keys[n - 1]
+    for c in range(width):
+        slope[n - 1, c] = (ys[n - 1, c] - ys[n - 1, c]) / dx
+
+
+@kernel
+def counts_up_to(keys, edges, out) -> None:
+    """``out[b]``: how many of the increasing ``keys`` are <= ``edges[b]`` (increasing):
+    ``np.searchsorted(keys, edges, side="right")`` in one merge pass."""
+    i, n = 0, len(keys)
+    for b in range(len(edges)):
+        while i < n and keys[i] <= edges[b]:
+            i += 1
+        out[b] = i

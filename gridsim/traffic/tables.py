@@ -100,31 +100,19 @@ class TableBank:
         return float(x[0]), float(x[-1])
 
     def _rebuild(self) -> None:
-        keys, ys, first, last, base = [], [], [], [], []
-        offset, n = 0.0, 0
         # An empty bank gets a placeholder table, so that the kernels always get arrays
-        # (a fleet hands them over even when no participant is active).
-        tables = zip(self._x, self._y, strict=True) if self._x else [(None, None)]
-        for x, y in tables:
-            if x is None:
-                x, y = np.array([0.0, 1.0]), np.zeros((2, self.width))
-            b = offset - x[0]
-            keys.append(x + b)
-            ys.append(y)
-            base.append(b)
-            first.append(n)
-            last.append(n + len(x) - 2)
-            n += len(x)
-            offset = x[-1] + b + _GAP
-        self._keys = np.concatenate(keys)
-        self._ys = np.vstack(ys)
-        # Slope of the segment starting at each knot (the last knot of a table gets the slope
-        # of the gap to the next table; it is never used, lookups clip to ``last``).
-        dx = np.diff(self._keys, append=self._keys[-1] + 1.0)
-        self._slope = np.diff(self._ys, axis=0, append=self._ys[-1:]) / dx[:, None]
-        self._base = np.array(base)
-        self._first = np.array(first, dtype=np.int64)
-        self._last = np.array(last, dtype=np.int64)
+        # (a fleet hands them over even when no participant is active); so does a freed slot.
+        empty = (np.array([0.0, 1.0]), np.zeros((2, self.width)))
+        tables = list(zip(self._x, self._y, strict=True)) if self._x else [(None, None)]
+        tables = [empty if x is None else (x, y) for x, y in tables]
+        lengths = np.array([len(x) for x, _ in tables], dtype=np.int64)
+        xs = np.concatenate([x for x, _ in tables])
+        self._ys = np.concatenate([y for _, y in tables])
+        self._keys, self._slope = np.empty_like(xs), np.empty_like(self._ys)
+        self._base = np.empty(len(tables))
+        self._first, self._last = (np.empty(len(tables), np.int64) for _ in range(2))
+        table_kernels.flat_tables(xs, lengths, self._ys, _GAP, self._keys, self._slope,
+                                  self._base, self._first, self._last)  # fmt: skip
         self._lo = np.array([x[0] if x is not None else 0.0 for x in self._x])
         self._hi = np.array([x[-1] if x is not None else 1.0 for x in self._x])
         self._build_buckets()
@@ -144,7 +132,8 @@ class TableBank:
         self._bucket_width = max(width, span / 2_000_000, 1e-9)
         edges = keys[0] + self._bucket_width * np.arange(int(span / self._bucket_width) + 3)
         # _bucket_count[b] = number of keys <= the lower edge of bucket b.
-        self._bucket_count = np.searchsorted(keys, edges, side="right")
+        self._bucket_count = np.empty(len(edges), np.int64)
+        table_kernels.counts_up_to(keys, edges, self._bucket_count)
 
     def _on_rebuild(self) -> None:
         """Hook for subclasses that derive per-segment data."""

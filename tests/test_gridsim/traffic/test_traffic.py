@@ -790,3 +790,55 @@ def test_a_car_faster_than_its_slowing_profile_is_not_handed_back_and_forth():
         state[-1][:] = 12.0  # the gap held
         modes.append(int(mode[0]))
     assert modes == [fleet_kernels.IDM] * 4
+
+
+def _flat_tables_with_numpy(bank):
+    """The flat arrays as ``TableBank._rebuild`` made them with NumPy before they were
+    compiled (the reference the compiled pass must equal, bit for bit)."""
+    keys, ys, first, last, base = [], [], [], [], []
+    offset, n = 0.0, 0
+    tables = zip(bank._x, bank._y, strict=True) if bank._x else [(None, None)]
+    for x, y in tables:
+        if x is None:
+            x, y = np.array([0.0, 1.0]), np.zeros((2, bank.width))
+        b = offset - x[0]
+        keys.append(x + b)
+        ys.append(y)
+        base.append(b)
+        first.append(n)
+        last.append(n + len(x) - 2)
+        n += len(x)
+        offset = x[-1] + b + 1.0
+    keys, ys = np.concatenate(keys), np.vstack(ys)
+    dx = np.diff(keys, append=keys[-1] + 1.0)
+    slope = np.diff(ys, axis=0, append=ys[-1:]) / dx[:, None]
+    step = np.diff(keys)
+    width = float(np.percentile(step, 5)) if len(step) else 1.0
+    span = float(keys[-1] - keys[0])
+    width = max(width, span / 2_000_000, 1e-9)
+    edges = keys[0] + width * np.arange(int(span / width) + 3)
+    counts = np.searchsorted(keys, edges, side="right")
+    return keys, ys, slope, np.array(base), np.array(first), np.array(last), counts
+
+
+def test_the_compiled_flat_tables_are_those_numpy_made():
+    """Tables of random knots (times far from 0, as recordings have them), with freed slots
+    and an empty bank: the compiled pass gives NumPy's arrays bit for bit."""
+    from gridsim.traffic.tables import PathBank, TableBank
+
+    rng = np.random.default_rng(7)
+    for width, tables, freed in ((4, 3000, ()), (2, 50, (3, 17, 49)), (4, 0, ())):
+        bank = PathBank() if width == 2 else TableBank(width)
+        for _ in range(tables):
+            m = int(rng.integers(2, 60))
+            x = 1000.0 * rng.random() + np.cumsum(rng.uniform(1e-3, 0.3, m))
+            bank.add(x - (x[0] if rng.random() < 0.5 else 0.0), rng.normal(0, 50, (m, width)))
+        for slot in freed:
+            bank.remove(slot)
+        keys, ys, slope, base, first, last, counts = _flat_tables_with_numpy(bank)
+        (got_keys, got_base, got_first, got_last, *_, got_counts, _), got_ys, got_slope = (
+            TableBank.kernel_data(bank)[:3])  # fmt: skip
+        for a, b in ((got_keys, keys), (got_ys, ys), (got_slope, slope), (got_base, base),
+                     (got_first, first), (got_last, last), (got_counts, counts)):  # fmt: skip
+            np.testing.assert_array_equal(a, b)
+            assert a.dtype == b.dtype
