@@ -28,6 +28,11 @@ class OutputError(GridSimError):
     or is not writable."""
 
 
+class WorkKept(OutputError):
+    """Refused, but the hidden folder of a resumable output (:func:`gridsim.outputs.new_folder`)
+    is kept: it holds interrupted work to go on with."""
+
+
 class DataWarning(UserWarning):
     """Data that is used, but not all of it: a flawed track kept as traffic only, a file of
     a collection that is skipped. The message names the file and the reason."""

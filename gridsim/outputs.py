@@ -18,7 +18,7 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from gridsim.errors import OutputError
+from gridsim.errors import OutputError, WorkKept
 
 #: The lock file of a folder being written (:func:`folder_lock`).
 LOCK_NAME = ".lock"
@@ -157,7 +157,8 @@ def new_folder(out: str | Path, flag: str = "--out", hint: str = "choose another
     One process at a time (:func:`folder_lock` on the hidden folder); ``out`` must be new or
     empty (checked before and after taking the lock). ``resumable``: the block gets the
     hidden folder as an interrupted block left it (Ctrl-C, a full disk or a killed process),
-    and decides what of it to keep."""
+    and decides what of it to keep; it is kept when the block is interrupted again, or
+    refuses to go on with it (:class:`~gridsim.errors.WorkKept`)."""
     out = Path(out)
     problem = new_folder_problem(out, hint)
     if problem:
@@ -172,7 +173,7 @@ def new_folder(out: str | Path, flag: str = "--out", hint: str = "choose another
         try:
             yield partial
         except BaseException as exc:
-            if not (resumable and interrupted(exc)):
+            if not (resumable and (interrupted(exc) or isinstance(exc, WorkKept))):
                 shutil.rmtree(partial, ignore_errors=True)
             raise
         (partial / LOCK_NAME).unlink()

@@ -48,7 +48,10 @@ def add_parser(sub) -> None:
     settings_flag(p, EvalConfig, "--test-fraction",
                   help="share of the tracks on the test side of --split")  # fmt: skip
     goal_flag(p, "the windows see the destination")
-    p.add_argument("--out", required=True, help="dataset folder (created)")
+    p.add_argument("--out", required=True,
+                   help="dataset folder (created). An interrupted record keeps its work in the "
+                        "hidden folder .OUT.partial beside it, and the same command goes on from "
+                        "there; remove that folder to start afresh")  # fmt: skip
     quiet_flag(p)
     p.set_defaults(func=execute)
 
@@ -87,7 +90,8 @@ def execute(args: argparse.Namespace) -> int:
                 **bar_callbacks(bar))  # fmt: skip
         except BaseException as exc:
             if interrupted(exc):
-                bar.write(_kept(partial), file=sys.stderr)
+                bar.close()  # (not drawn again below the message)
+                print(_kept(partial), file=sys.stderr)
             raise
     print(
         json.dumps(
@@ -107,10 +111,13 @@ def execute(args: argparse.Namespace) -> int:
 def _kept(partial: Path) -> str:
     """What an interrupted ``record`` leaves in ``partial`` for the same command to go on
     with (nothing, and ``partial`` is removed, before its first checkpoint)."""
-    windows = checkpoint_windows(partial)
-    if windows is None:
+    kept = checkpoint_windows(partial)
+    if kept is None:
         shutil.rmtree(partial, ignore_errors=True)
         return (f"record: interrupted before its first checkpoint (one every "
                 f"{CHECKPOINT_SECONDS:g} s): nothing is kept")  # fmt: skip
-    return (f"record: the {windows} windows recorded until the last checkpoint are kept in "
-            f"{partial}: the same command goes on from there")  # fmt: skip
+    windows, whole = kept
+    of = " of the whole group (the split's side is copied at the end)" if whole else ""
+    return (f"record: the {windows} windows{of} recorded until the last checkpoint are kept "
+            f"in {partial}: the same command goes on from there (remove that folder to "
+            "start afresh)")  # fmt: skip

@@ -32,7 +32,7 @@ import numpy as np
 
 from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.errors import GridSimError, ScenarioError, UnfitEgoWarning, warn_data
+from gridsim.errors import GridSimError, ScenarioError, UnfitEgoWarning, WorkKept, warn_data
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import (
     LOCK_NAME,
@@ -595,8 +595,9 @@ def record_dataset(
     With ``resume``, the recording leaves checkpoints in ``out`` as it goes
     (:class:`_Checkpoints`), and ``out`` may hold those of an interrupted recording: one of
     the same arguments goes on from its last checkpoint (the same dataset, bit for bit, as
-    one not interrupted); another recording's files are removed (``log`` is told why), and
-    anything else in ``out`` is refused as by ``resume=False``."""
+    one not interrupted); one of other arguments is refused and kept
+    (:class:`~gridsim.errors.WorkKept`, naming them), a damaged one removed (``log`` is told
+    why), and anything else in ``out`` is refused as by ``resume=False``."""
     out = Path(out)
     if split is not None:
         side, test_fraction = split
@@ -616,6 +617,9 @@ def record_dataset(
                      "files": _file_stamps(name, source)}  # fmt: skip
         checkpoints = _Checkpoints(spool, arguments)
         found, why = checkpoints.load()
+        if why and why.startswith("was made with"):
+            raise WorkKept(f"{out} holds an interrupted recording that {why}: run it with those "
+                           f"to go on with it, or remove {out} to start afresh")  # fmt: skip
         if found is not None:
             state, writer = found
             if log:
@@ -639,6 +643,8 @@ def record_dataset(
             checkpoints.remove()
         return done, len(writer.tracks)
     writer.flush()
+    if log:
+        log(f"copying the {side} side of the split out of the {writer.count} windows recorded")
     held = _held_out_tracks(np.array(list(writer.tracks)), test_fraction, seed)
     _remove_all_but(out, {spool.name, LOCK_NAME})  # an interrupted copy's files
     kept = ShardWriter(out)
@@ -670,14 +676,16 @@ def _remove_all_but(folder: Path, keep: set[str]) -> None:
 
 
 def _file_stamps(name: str, source: str | None) -> list:
-    """``[path, size, modification time [ns]]`` of the group's scenario files (built-in
-    scenarios: their names), so that a recording is not continued on files since changed
-    (the files they refer to, maps and track libraries, are not looked at)."""
+    """``[path, digest of its contents]`` of the group's scenario files (built-in scenarios:
+    their names), so that a recording is not continued on files whose contents changed (the
+    files they refer to, maps and track libraries, are not looked at)."""
     out = []
     for scenario in group_files(name, source)[0]:
         path = Path(scenario)
-        st = path.stat() if path.is_file() else None
-        out.append([str(scenario), st.st_size, st.st_mtime_ns] if st else [str(scenario)])
+        if not path.is_file():
+            out.append([str(scenario)])
+            continue
+        out.append([str(scenario), hashlib.blake2b(path.read_bytes(), digest_size=16).hexdigest()])
     return out
 
 
@@ -733,9 +741,7 @@ class _Checkpoints:
         try:
             doc = json.loads(self.path.read_text())
             if doc["arguments"] != self.arguments:
-                changed = sorted(k for k in self.arguments
-                                 if doc["arguments"].get(k) != self.arguments[k])  # fmt: skip
-                return None, f"had other {', '.join(changed)}"
+                return None, f"was made with {_differences(doc['arguments'], self.arguments)}"
             state = _GroupProgress(**doc["state"])
             if not all(isinstance(getattr(state, k), int)
                        for k in ("scenario", "episode", "windows")):  # fmt: skip
@@ -768,12 +774,30 @@ class _Checkpoints:
             old.unlink()
 
 
-def checkpoint_windows(folder: Path) -> int | None:
-    """How many windows the interrupted recording in ``folder`` (or its spool) kept at its
-    last checkpoint; None: it has none."""
-    for path in (folder / PROGRESS_FILE, folder / ".spool" / PROGRESS_FILE):
+def _differences(then: dict, now: dict) -> str:
+    """What differs between the arguments of a recording ``then`` and ``now``, in words."""
+    said = []
+    for key in sorted(set(then) | set(now)):
+        old, new = then.get(key), now.get(key)
+        if old == new:
+            continue
+        if key == "files":
+            changed = [str(f[0]) for f in (new or []) if f not in (old or [])]
+            said.append(f"other contents of {', '.join(changed) or 'its scenario files'}")
+        elif key == "versions":
+            said.append(f"other versions ({old}, now {new})")
+        else:
+            said.append(f"{key} {old!r} (now {new!r})")
+    return "; ".join(said)
+
+
+def checkpoint_windows(folder: Path) -> tuple[int, bool] | None:
+    """How many windows the interrupted recording in ``folder`` kept at its last checkpoint,
+    and whether they are the whole group's (recorded for a split, one side of which is
+    copied at the end); None: it has none."""
+    for path, whole in ((folder / PROGRESS_FILE, False), (folder / ".spool" / PROGRESS_FILE, True)):
         if path.is_file():
-            return int(json.loads(path.read_text())["windows"])
+            return int(json.loads(path.read_text())["windows"]), whole
     return None
 
 

@@ -219,7 +219,7 @@ def test_an_interrupted_recording_goes_on_to_the_same_dataset(
     said = []
     again, _ = windows.record_dataset(tmp_path / "part", scenario, 5, seed=3, resume=True,
                                       log=said.append, **kwargs)  # fmt: skip
-    assert len(said) == 1 and "going on with the interrupted recording" in said[0]
+    assert "going on with the interrupted recording" in said[0]
     assert _shard_digests(tmp_path / "part") == _shard_digests(tmp_path / "whole")
     assert {k: v for k, v in again.items() if k != "versions"} == {
         k: v for k, v in json.loads(json.dumps(whole)).items() if k != "versions"}  # fmt: skip
@@ -227,23 +227,51 @@ def test_an_interrupted_recording_goes_on_to_the_same_dataset(
         p.name for p in (tmp_path / "whole").iterdir())  # fmt: skip
 
 
-def test_a_recording_of_other_arguments_starts_afresh(tmp_path, monkeypatch):
+def test_a_recording_of_other_arguments_is_refused_and_kept(tmp_path, monkeypatch):
+    """An interrupted recording is not thrown away for a changed argument (a typo would lose
+    hours of work): the refusal names what differs, and the same arguments go on with it."""
+    from gridsim.errors import WorkKept
+
     monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
     with monkeypatch.context() as m:
         _interrupt_at(m, 2)
         with pytest.raises(KeyboardInterrupt):
             windows.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0,
                                    resume=True)  # fmt: skip
-    assert (tmp_path / "d" / "progress.json").is_file()
+    kept = sorted(p.name for p in (tmp_path / "d").iterdir())
+    with pytest.raises(WorkKept, match=re.escape(
+            f"{tmp_path / 'd'} holds an interrupted recording that was made with seed 1 (now "
+            f"2): run it with those to go on with it, or remove {tmp_path / 'd'} to start "
+            "afresh")):  # fmt: skip
+        windows.record_dataset(tmp_path / "d", "seamless", 3, seed=2, duration=3.0, resume=True)
+    assert sorted(p.name for p in (tmp_path / "d").iterdir()) == kept
     said = []
-    done, _ = windows.record_dataset(tmp_path / "d", "seamless", 3, seed=2, duration=3.0,
-                                     resume=True, log=said.append)  # fmt: skip
-    assert said == [
-        f"starting afresh in {tmp_path / 'd'}: the interrupted recording there had other seed"
-    ]
-    assert done["scenarios"][0]["episode_seeds"] == windows.scenario_episodes(
-        "seamless", 3, seed=2)[1]["episode_seeds"]  # fmt: skip
+    windows.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0, resume=True,
+                           log=said.append)  # fmt: skip
+    assert "going on with the interrupted recording" in said[0]
     assert not (tmp_path / "d" / "progress.json").exists()
+
+
+def test_a_scenario_file_changed_after_a_break_is_named(tmp_path, monkeypatch):
+    """A scenario file written again with the same contents goes on; other contents are
+    named."""
+    from gridsim.errors import WorkKept
+
+    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
+    scenario = tmp_path / "mine.yaml"
+    scenario.write_text("name: mine\nroad: {type: seamless}\n")
+    with monkeypatch.context() as m:
+        _interrupt_at(m, 2)
+        with pytest.raises(KeyboardInterrupt):
+            windows.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
+    scenario.write_text("name: mine\nroad: {type: seamless}\n")  # the same, written again
+    with monkeypatch.context() as m:
+        _interrupt_at(m, 1)
+        with pytest.raises(KeyboardInterrupt):
+            windows.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
+    scenario.write_text("name: mine\nroad: {type: seamless}\nsensor: {rows: 128}\n")
+    with pytest.raises(WorkKept, match=f"made with other contents of {re.escape(str(scenario))}"):
+        windows.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
 
 
 def test_a_selection_reads_the_grids_it_is_asked_for_without_a_copy():
