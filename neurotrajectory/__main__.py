@@ -28,8 +28,11 @@ def main(argv: list[str] | None = None) -> int:
               "simulator alone does not install: pip install \"gridsim[train]\" (from a "
               "checkout: pip install \".[train]\")", file=sys.stderr)  # fmt: skip
         return 2
-    from neurotrajectory.cli import main as run
-
+    try:  # (torch and the trainer load for a second or two: Ctrl-C meanwhile is no crash)
+        from neurotrajectory.cli import main as run
+    except KeyboardInterrupt:
+        print("neurotrajectory: interrupted", file=sys.stderr)
+        return 130
     return run(argv)
 
 

@@ -84,3 +84,19 @@ def test_record_group_is_now_name_and_says_so(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--name mine" in err and "evaluate" in err
     assert not out.exists()
+
+
+def test_ctrl_c_while_the_trainer_loads_is_no_crash(monkeypatch, capsys):
+    """The command loads torch and the trainer for a second or two before it parses its
+    arguments: a Ctrl-C then says "interrupted" (status 130), not a Python traceback."""
+    import sys
+
+    from neurotrajectory import __main__ as entry
+
+    class Loading:
+        def __getattr__(self, name):
+            raise KeyboardInterrupt
+
+    monkeypatch.setitem(sys.modules, "neurotrajectory.cli", Loading())
+    assert entry.main(["--help"]) == 130
+    assert capsys.readouterr().err == "neurotrajectory: interrupted\n"
