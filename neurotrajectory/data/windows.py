@@ -835,10 +835,10 @@ def _record_group_into(
     ``state`` is updated after each episode, then ``recorded(False)`` is called (``True``
     after a rollback); given, the group goes on from where it says."""
     scenarios, unloaded = group_files(name, source)
-    recorded_scene = {scenario: is_recorded(scenario) for scenario in scenarios}
+    replays = {scenario: is_recorded(scenario) for scenario in scenarios}
     state = _GroupProgress() if state is None else state
     for i, scenario in enumerate(scenarios[state.scenario :], state.scenario):
-        s = stride or (RECORDED_STRIDE if recorded_scene[scenario] else GENERATED_STRIDE)
+        s = stride or (RECORDED_STRIDE if replays[scenario] else GENERATED_STRIDE)
         if state.mark is None:  # the file begins now (not one gone on with part-way)
             state.mark = sink.mark()
 
@@ -875,7 +875,7 @@ def _record_group_into(
         "format": FORMAT_VERSION,
         "group": name,
         "source": GROUP_SOURCE.get(name)
-        or ("human (NGSIM)" if all(recorded_scene.values()) else "simulator"),
+        or ("human (NGSIM)" if all(replays.values()) else "simulator"),
         "seed": seed,
         **{k: first[k] for k in same},
         **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),
