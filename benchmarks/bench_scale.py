@@ -84,7 +84,7 @@ def measure(phase: str, path: str) -> dict:
     from gridsim.scenario import load_scenario
     from gridsim.scenario.families import scenario_problems
     from gridsim.traffic.commonroad import read_tracks_commonroad
-    from neurotrajectory.data.windows import record_dataset
+    from neurotrajectory.data.recording import record_dataset
 
     base = _peak_mb()
     t0 = time.perf_counter()

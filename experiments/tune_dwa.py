@@ -40,14 +40,8 @@ from neurotrajectory.compare.baselines.dwa import DWA, DWAConfig
 from neurotrajectory.compare.evaluation import EvalConfig
 from neurotrajectory.compare.metrics import accuracy
 from neurotrajectory.compare.predictors import Setting
-from neurotrajectory.data.windows import (
-    GROUPS,
-    Windows,
-    load_dataset,
-    record_group,
-    save_dataset,
-    split_by_track,
-)
+from neurotrajectory.data.storage import load_dataset, save_dataset
+from neurotrajectory.data.windows import GROUPS, Windows, record_group, split_by_track
 
 #: DWA as evaluated before issue 10: its defaults then, with the old fallback.
 BEFORE_ISSUE_10 = DWAConfig(margin=0.05, collision_horizon=0.5, headway=0.5, w_heading=0.02,

@@ -12,7 +12,8 @@ from gridsim.cli.flags import at_least, quiet_flag, seed_flag
 from gridsim.outputs import interrupted, new_folder
 from neurotrajectory.cli.flags import goal_flag, settings_flag
 from neurotrajectory.compare.evaluation import EvalConfig
-from neurotrajectory.data.windows import CHECKPOINT_SECONDS, GROUPS, checkpoint_windows
+from neurotrajectory.data.recording import CHECKPOINT_SECONDS, checkpoint_windows
+from neurotrajectory.data.windows import GROUPS
 from neurotrajectory.evolve.runs import RunError
 
 #: The evaluation's defaults: a split recorded here is the one ``evaluate`` makes.
@@ -59,7 +60,8 @@ def add_parser(sub) -> None:
 def execute(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from neurotrajectory.data.windows import bar_callbacks, check_group, record_dataset
+    from neurotrajectory.data.recording import record_dataset
+    from neurotrajectory.data.windows import bar_callbacks, check_group
 
     if args.group is not None:
         raise RunError(f"record --group {args.group}: the dataset's group name is --name now "

@@ -42,16 +42,14 @@ from neurotrajectory.compare.front import NetPredictor, load_front, trained_trac
 from neurotrajectory.compare.methods import NT_BEST, NT_PICKED
 from neurotrajectory.compare.metrics import Accuracy, accuracy
 from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
+from neurotrajectory.data.recording import record_dataset
+from neurotrajectory.data.storage import check_new_folder, dataset_manifest, load_split
 from neurotrajectory.data.windows import (
     GROUPS,
     DatasetError,
     Windows,
     bar_callbacks,
-    check_new_folder,
-    dataset_manifest,
     group_scenarios,
-    load_split,
-    record_dataset,
 )
 from neurotrajectory.evolve.pareto import PICKS, pick_member
 from neurotrajectory.settings import Bool, Integer, OneOf, Real, Seed, Settings
@@ -135,7 +133,7 @@ def _split_dataset(
 ) -> tuple[dict, Windows, Windows]:
     """The group's manifest and its windows split by track (``train``, ``test``): from
     ``data_dir/<group>`` if given, else recorded into ``out`` first. Each window is read once
-    (:func:`~neurotrajectory.data.windows.load_split`)."""
+    (:func:`~neurotrajectory.data.storage.load_split`)."""
     if data_dir is not None:
         folder = data_dir / group
         manifest = dataset_manifest(folder)

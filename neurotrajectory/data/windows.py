@@ -7,8 +7,8 @@ roads). It holds the observation (``tau_i`` grids, ego state, destination), the 
 (:mod:`neurotrajectory.data.commands`), the ego's size, and the *track* it came from (an NGSIM
 vehicle or a simulated episode), so that train and test sets never share a track.
 
-On disk a dataset is a folder with ``manifest.json`` (scenario group, seeds, sizes, versions,
-shard checksums) and compressed ``shard-NNNNN.npz`` files.
+On disk a dataset is a folder of shards (:mod:`neurotrajectory.data.storage`); ``record``
+writes one as it records (:mod:`neurotrajectory.data.recording`).
 
 Scenario groups (:data:`GROUPS`): ``seamless`` and ``inner_city`` are GridSim's generated
 scenarios; ``highway`` (US-101) and ``urban`` (Lankershim, Peachtree) drive every recorded
@@ -18,31 +18,19 @@ NGSIM track of the shipped scenes in turn as the ego, removed from the replayed 
 from __future__ import annotations
 
 import difflib
-import hashlib
 import json
 import platform
-import shutil
-import time
 import warnings
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import numpy as np
 
 from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
-from gridsim.errors import GridSimError, ScenarioError, UnfitEgoWarning, WorkKept, warn_data
+from gridsim.errors import GridSimError, ScenarioError, UnfitEgoWarning, warn_data
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
-from gridsim.outputs import (
-    LOCK_NAME,
-    empty_folder,
-    new_folder_problem,
-    read_manifest,
-    short_repr,
-    write_json,
-    write_npz,
-)
 from gridsim.policies import Reference
 from gridsim.scenario.checks import flawed_tracks
 from gridsim.scenario.collection import (
@@ -59,11 +47,6 @@ from gridsim.traffic.track import scene_ids, track_name
 from neurotrajectory.data.commands import implied_commands
 
 FORMAT_VERSION = 1
-SHARD_SIZE = 256
-#: :func:`record_dataset`'s checkpoint of an interrupted recording, and how often one is
-#: taken [s]
-PROGRESS_FILE = "progress.json"
-CHECKPOINT_SECONDS = 30.0
 
 #: Scenario groups of the evaluation and the built-in scenarios they consist of.
 GROUPS: dict[str, tuple[str, ...]] = {
@@ -453,8 +436,8 @@ def _record_scenario_into(
     """:func:`record_scenario`, each episode's windows given to ``sink.add`` as they come;
     returns the provenance. ``resume`` ``(episode, windows)``: the episodes before
     ``episode``, which gave ``windows`` windows, were recorded before (by an interrupted
-    :func:`record_dataset`); ``recorded(next episode, windows so far)`` after each
-    episode."""
+    :func:`~neurotrajectory.data.recording.record_dataset`); ``recorded(next episode,
+    windows so far)`` after each episode."""
     plan, source = scenario_episodes(scenario, episodes, seed, duration, seeds,
                                      goal_seconds=goal_seconds)  # fmt: skip
     first, count = resume
@@ -482,7 +465,7 @@ def _record_scenario_into(
 
 class _Collected:
     """Windows kept in memory as they are recorded (the sink of :func:`record_group`; see
-    :class:`ShardWriter` for the one that writes them)."""
+    :class:`~neurotrajectory.data.storage.ShardWriter` for the one that writes them)."""
 
     def __init__(self) -> None:
         self.parts: list[Windows] = []
@@ -536,9 +519,10 @@ def group_files(
 
 
 def bar_callbacks(bar) -> dict:
-    """``progress`` and ``planned`` for :func:`record_group` and :func:`record_dataset` that
-    drive the progress bar ``bar`` (tqdm): one step per episode, the total growing by each
-    file's episodes as they are planned."""
+    """``progress`` and ``planned`` for :func:`record_group` and
+    :func:`~neurotrajectory.data.recording.record_dataset` that drive the progress bar ``bar``
+    (tqdm): one step per episode, the total growing by each file's episodes as they are
+    planned."""
 
     def planned(count: int) -> None:
         bar.total = (bar.total or 0) + count
@@ -560,250 +544,20 @@ def record_group(
 ) -> Dataset:
     """Windows of a scenario group (see :func:`group_scenarios`: of :data:`GROUPS`, or the
     usable files of the folder or glob ``source``), or of one scenario, in memory
-    (:func:`record_dataset` writes them as they come). ``stride`` defaults to every
-    decision on recorded scenes, every fifth elsewhere. Of a group of several files, a file
-    that gives no window is skipped and named in a warning; it and the files that do not
-    load are listed in the manifest's ``skipped``; the group fails only when none gives
-    any."""
+    (:func:`~neurotrajectory.data.recording.record_dataset` writes them as they come).
+    ``stride`` defaults to every decision on recorded scenes, every fifth elsewhere. Of a
+    group of several files, a file that gives no window is skipped and named in a warning;
+    it and the files that do not load are listed in the manifest's ``skipped``; the group
+    fails only when none gives any."""
     sink = _Collected()
-    manifest = _record_group_into(sink, name, episodes, seed, stride, duration, progress,
+    manifest = record_group_into(sink, name, episodes, seed, stride, duration, progress,
                                   source, goal_seconds, planned)  # fmt: skip
     return Dataset(Windows.concat(sink.parts), manifest)
 
 
-def record_dataset(
-    out: str | Path,
-    name: str,
-    episodes: int,
-    seed: int = 0,
-    stride: int | None = None,
-    duration: float | None = None,
-    progress: Callable[[int], None] | None = None,
-    source: str | None = None,
-    goal_seconds: float | None = None,
-    planned: Callable[[int], None] | None = None,
-    split: tuple[str, float] | None = None,
-    resume: bool = False,
-    log: Callable[[str], None] | None = None,
-) -> tuple[dict, int]:
-    """:func:`record_group` written into the dataset folder ``out`` (new or empty) as the
-    windows come, so that memory holds about one shard whatever the dataset's size; with
-    ``split`` ``(side, test_fraction)``, only that side of :func:`split_by_track` (seed
-    ``seed``) is kept: the whole group is written aside first (``out/.spool``), then that
-    side of it copied. Returns the manifest written and the number of tracks kept.
-
-    With ``resume``, the recording leaves checkpoints in ``out`` as it goes
-    (:class:`_Checkpoints`), and ``out`` may hold those of an interrupted recording: one of
-    the same arguments goes on from its last checkpoint (the same dataset, bit for bit, as
-    one not interrupted); one of other arguments is refused and kept
-    (:class:`~gridsim.errors.WorkKept`, naming them), a damaged one removed (``log`` is told
-    why), and anything else in ``out`` is refused as by ``resume=False``."""
-    out = Path(out)
-    if split is not None:
-        side, test_fraction = split
-        if side not in ("train", "test"):
-            raise DatasetError(f"split side must be 'train' or 'test', got {side!r}")
-        _held_out_tracks(np.array(["a", "b"]), test_fraction, seed)  # (checks the fraction)
-    spool = out / ".spool" if split else out
-    state, writer, checkpoints = _GroupProgress(), None, None
-    if resume:
-        arguments = {"name": name, "source": None if source is None else str(source),
-                     "episodes": int(episodes), "seed": int(seed),
-                     "stride": None if stride is None else int(stride),
-                     "duration": None if duration is None else float(duration),
-                     "goal_seconds": None if goal_seconds is None else float(goal_seconds),
-                     "split": list(split) if split else None, "format": FORMAT_VERSION,
-                     "shard_size": SHARD_SIZE, "versions": _versions(),
-                     "files": _file_stamps(name, source)}  # fmt: skip
-        checkpoints = _Checkpoints(spool, arguments)
-        found, why = checkpoints.load()
-        if why and why.startswith("was made with"):
-            raise WorkKept(f"{out} holds an interrupted recording that {why}: run it with those "
-                           f"to go on with it, or remove {out} to start afresh")  # fmt: skip
-        if found is not None:
-            state, writer = found
-            if log:
-                log(f"going on with the interrupted recording of the same arguments in {out}: "
-                    f"{writer.count} windows kept")  # fmt: skip
-        elif out.is_dir() and _ours_only(out):
-            if why and log:
-                log(f"starting afresh in {out}: the interrupted recording there {why}")
-            empty_folder(out)
-    if writer is None:
-        check_new_folder(out)
-        writer = ShardWriter(spool)
-    if checkpoints is not None:
-        checkpoints.follow(writer, state)
-    manifest = _record_group_into(writer, name, episodes, seed, stride, duration, progress,
-                                  source, goal_seconds, planned, state,
-                                  checkpoints)  # fmt: skip
-    if split is None:
-        done = writer.finish(manifest)
-        if checkpoints is not None:
-            checkpoints.remove()
-        return done, len(writer.tracks)
-    writer.flush()
-    if log:
-        log(f"copying the {side} side of the split out of the {writer.count} windows recorded")
-    held = _held_out_tracks(np.array(list(writer.tracks)), test_fraction, seed)
-    _remove_all_but(out, {spool.name, LOCK_NAME})  # an interrupted copy's files
-    kept = ShardWriter(out)
-    for shard in writer.shards:
-        part = _read_shard(spool / shard["file"])
-        kept.add(part.take(np.flatnonzero(np.isin(part.track, held) == (side == "test"))))
-    split_info = {"side": side, "test_fraction": test_fraction, "seed": seed}
-    done = kept.finish({**manifest, "split": split_info})
-    shutil.rmtree(spool)
-    return done, len(kept.tracks)
-
-
-#: What :func:`record_dataset` writes into its folder (``.*.tmp``: a write under way).
-_OURS = ("shard-*.npz", "pending-*.npz", PROGRESS_FILE, "manifest.json", ".spool", ".*.tmp")
-
-
-def _ours_only(folder: Path) -> bool:
-    """Whether the folder ``folder`` holds nothing but what :func:`record_dataset` writes."""
-    ours = (*_OURS, LOCK_NAME)
-    return all(any(p.match(g) for g in ours) for p in folder.iterdir())
-
-
-def _remove_all_but(folder: Path, keep: set[str]) -> None:
-    """Remove the files :func:`record_dataset` writes (:data:`_OURS`) from ``folder`` but the
-    names ``keep``: those of a copy or a checkpoint that a killed process left behind."""
-    for p in folder.iterdir():
-        if p.name not in keep and any(p.match(g) for g in _OURS):
-            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
-
-
-def _file_stamps(name: str, source: str | None) -> list:
-    """``[path, digest of its contents]`` of the group's scenario files (built-in scenarios:
-    their names), so that a recording is not continued on files whose contents changed (the
-    files they refer to, maps and track libraries, are not looked at)."""
-    out = []
-    for scenario in group_files(name, source)[0]:
-        path = Path(scenario)
-        if not path.is_file():
-            out.append([str(scenario)])
-            continue
-        out.append([str(scenario), hashlib.blake2b(path.read_bytes(), digest_size=16).hexdigest()])
-    return out
-
-
-class _Checkpoints:
-    """:func:`record_dataset`'s checkpoints in the folder it writes shards into, for an
-    interrupted recording to go on: ``progress.json`` (the arguments, how far the group is,
-    the shards written, the track labels, and the name, count and checksum of the pending
-    file) and ``pending-N.npz`` (the windows not yet in a shard), written after an episode
-    when :data:`CHECKPOINT_SECONDS` have passed since the last, and after every file of the
-    group. The pending file is written before the checkpoint that names it; what a
-    checkpoint does not name is removed when the recording goes on."""
-
-    def __init__(self, folder: Path, arguments: dict) -> None:
-        self.folder, self.arguments = folder, arguments
-        self.path = folder / PROGRESS_FILE
-        self.writer: ShardWriter | None = None
-        self.state: _GroupProgress | None = None
-        self.last, self.number = time.monotonic(), 0
-
-    def follow(self, writer: ShardWriter, state: _GroupProgress) -> None:
-        self.writer, self.state = writer, state
-
-    def __call__(self, now: bool = False) -> None:
-        """A checkpoint if ``now`` or :data:`CHECKPOINT_SECONDS` have passed."""
-        if not now and time.monotonic() - self.last < CHECKPOINT_SECONDS:
-            return
-        self.number += 1
-        pending = self.writer.pending()
-        doc = {"arguments": self.arguments, "state": asdict(self.state),
-               "shards": self.writer.shards, "tracks": list(self.writer.tracks),
-               "checkpoint": self.number, "windows": self.writer.count,
-               "pending": None}  # fmt: skip
-        if pending is not None:
-            name = f"pending-{self.number:06d}.npz"
-            write_npz(self.folder / name, **{f.name: getattr(pending, f.name)
-                                            for f in fields(Windows)})  # fmt: skip
-            doc["pending"] = {"file": name, "windows": len(pending),
-                              "sha256": _sha256(self.folder / name)}  # fmt: skip
-        write_json(self.path, doc)
-        _remove_all_but(self.folder, self._named(doc))
-        self.last = time.monotonic()
-
-    def _named(self, doc: dict) -> set[str]:
-        """What the checkpoint ``doc`` names in the folder (with the lock and the spool)."""
-        pending = [doc["pending"]["file"]] if doc["pending"] else []
-        return {PROGRESS_FILE, LOCK_NAME, *pending, *(s["file"] for s in doc["shards"])}
-
-    def load(self) -> tuple[tuple[_GroupProgress, ShardWriter] | None, str | None]:
-        """How far the interrupted recording in the folder had gone, and a writer that goes
-        on from there; or None and why not (None: there is none)."""
-        if not self.path.is_file():
-            return None, None
-        try:
-            doc = json.loads(self.path.read_text())
-            if doc["arguments"] != self.arguments:
-                return None, f"was made with {_differences(doc['arguments'], self.arguments)}"
-            state = _GroupProgress(**doc["state"])
-            if not all(isinstance(getattr(state, k), int)
-                       for k in ("scenario", "episode", "windows")):  # fmt: skip
-                raise ValueError("a count that is not an integer")
-            files = [*doc["shards"], *([doc["pending"]] if doc["pending"] else [])]
-            for entry in files:
-                if _sha256(self.folder / entry["file"]) != entry["sha256"]:
-                    raise ValueError(f"{entry['file']} was changed or truncated")
-            pending = _read_shard(self.folder / doc["pending"]["file"]) if doc["pending"] else None
-            counted = sum(int(e["windows"]) for e in files)
-            if counted != doc["windows"] or (
-                pending is not None and len(pending) != doc["pending"]["windows"]
-            ):
-                raise ValueError("its counts of windows disagree")  # fmt: skip
-            number, tracks = int(doc["checkpoint"]), list(doc["tracks"])
-        except Exception as exc:  # noqa: BLE001 - a damaged checkpoint is not used, and said
-            return None, f"has a checkpoint that cannot be used ({type(exc).__name__}: {exc})"
-        self.number = number
-        _remove_all_but(self.folder, self._named(doc))  # files written after the checkpoint
-        writer = ShardWriter(self.folder)
-        writer.shards = list(doc["shards"])
-        if pending is not None:
-            writer.add(pending)
-        writer.tracks = dict.fromkeys(tracks)
-        return (state, writer), None
-
-    def remove(self) -> None:
-        self.path.unlink(missing_ok=True)
-        for old in self.folder.glob("pending-*.npz"):
-            old.unlink()
-
-
-def _differences(then: dict, now: dict) -> str:
-    """What differs between the arguments of a recording ``then`` and ``now``, in words."""
-    said = []
-    for key in sorted(set(then) | set(now)):
-        old, new = then.get(key), now.get(key)
-        if old == new:
-            continue
-        if key == "files":
-            changed = [str(f[0]) for f in (new or []) if f not in (old or [])]
-            said.append(f"other contents of {', '.join(changed) or 'its scenario files'}")
-        elif key == "versions":
-            said.append(f"other versions ({old}, now {new})")
-        else:
-            said.append(f"{key} {old!r} (now {new!r})")
-    return "; ".join(said)
-
-
-def checkpoint_windows(folder: Path) -> tuple[int, bool] | None:
-    """How many windows the interrupted recording in ``folder`` kept at its last checkpoint,
-    and whether they are the whole group's (recorded for a split, one side of which is
-    copied at the end); None: it has none."""
-    for path, whole in ((folder / PROGRESS_FILE, False), (folder / ".spool" / PROGRESS_FILE, True)):
-        if path.is_file():
-            return int(json.loads(path.read_text())["windows"]), whole
-    return None
-
-
 @dataclass
-class _GroupProgress:
-    """How far :func:`_record_group_into` is: the scenarios done (``metas``: their
+class GroupProgress:
+    """How far :func:`record_group_into` is: the scenarios done (``metas``: their
     provenance; ``skipped``: ``[file, reason]`` of those skipped), the next scenario, its next
     episode and the windows its episodes before gave (to go on from there)."""
 
@@ -816,7 +570,7 @@ class _GroupProgress:
     mark: object = None
 
 
-def _record_group_into(
+def record_group_into(
     sink,
     name: str,
     episodes: int,
@@ -827,7 +581,7 @@ def _record_group_into(
     source: str | None,
     goal_seconds: float | None,
     planned: Callable[[int], None] | None,
-    state: _GroupProgress | None = None,
+    state: GroupProgress | None = None,
     recorded: Callable[[bool], None] | None = None,
 ) -> dict:
     """:func:`record_group`, each episode's windows given to ``sink`` as they come (a failed
@@ -836,7 +590,7 @@ def _record_group_into(
     after a rollback); given, the group goes on from where it says."""
     scenarios, unloaded = group_files(name, source)
     replays = {scenario: is_recorded(scenario) for scenario in scenarios}
-    state = _GroupProgress() if state is None else state
+    state = GroupProgress() if state is None else state
     for i, scenario in enumerate(scenarios[state.scenario :], state.scenario):
         s = stride or (RECORDED_STRIDE if replays[scenario] else GENERATED_STRIDE)
         if state.mark is None:  # the file begins now (not one gone on with part-way)
@@ -881,11 +635,11 @@ def _record_group_into(
         **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),
         "scenarios": metas,
         **({"skipped": [{"file": str(f), "reason": r} for f, r in unused]} if unused else {}),
-        "versions": _versions(),
+        "versions": package_versions(),
     }
 
 
-def _versions() -> dict:
+def package_versions() -> dict:
     from importlib.metadata import PackageNotFoundError, version
 
     out = {"python": platform.python_version(), "numpy": np.__version__}
@@ -910,11 +664,11 @@ def split_rows(
     windows: Windows, test_fraction: float = 0.3, seed: int = 0
 ) -> tuple[np.ndarray, np.ndarray]:
     """The row indices ``(train, test)`` of :func:`split_by_track`, in order."""
-    held_out = np.isin(windows.track, _held_out_tracks(windows.track, test_fraction, seed))
+    held_out = np.isin(windows.track, held_out_tracks(windows.track, test_fraction, seed))
     return np.flatnonzero(~held_out), np.flatnonzero(held_out)
 
 
-def _held_out_tracks(tracks: np.ndarray, test_fraction: float, seed: int) -> np.ndarray:
+def held_out_tracks(tracks: np.ndarray, test_fraction: float, seed: int) -> np.ndarray:
     """The test side's tracks of :func:`split_by_track` among the track labels ``tracks``."""
     if not 0 < test_fraction < 1:
         raise DatasetError(f"test_fraction must be in (0, 1), got {test_fraction}")
@@ -924,211 +678,3 @@ def _held_out_tracks(tracks: np.ndarray, test_fraction: float, seed: int) -> np.
     order = stream(seed, Salt.TRACK_SPLIT).permutation(len(tracks))
     n_test = min(max(1, int(round(test_fraction * len(tracks)))), len(tracks) - 1)
     return tracks[order[:n_test]]
-
-
-# -- storage --------------------------------------------------------------------------------
-def check_new_folder(out: str | Path) -> None:
-    """A :class:`DatasetError` unless ``out`` can become a new output folder."""
-    problem = new_folder_problem(out)
-    if problem:
-        raise DatasetError(f"{out}: {problem}")
-
-
-def save_dataset(dataset: Dataset, out: str | Path) -> Path:
-    """Write ``dataset`` into the folder ``out`` (created; must be empty if it exists)."""
-    out = Path(out)
-    check_new_folder(out)
-    writer = ShardWriter(out)
-    writer.add(dataset.windows)
-    writer.finish(dataset.manifest)
-    return out
-
-
-class ShardWriter:
-    """Writes windows into ``folder`` (created) as they come: compressed shards of
-    :data:`SHARD_SIZE` windows each (``shard-NNNNN.npz``), so that memory holds at most one
-    shard besides what is added; :meth:`finish` writes ``manifest.json``. A shard is shorter
-    only where :meth:`flush` (at :meth:`mark`, and at the end) writes what is buffered, so the
-    shards hold the same windows whatever pieces they were added in."""
-
-    def __init__(self, folder: Path) -> None:
-        self.folder = Path(folder)
-        self.folder.mkdir(parents=True, exist_ok=True)
-        self.shards: list[dict] = []  # {"file", "windows", "sha256"} of each shard written
-        self.tracks: dict[str, None] = {}  # the track labels added, in the order first seen
-        self._buffer: list[Windows] = []
-        self._buffered = 0
-
-    @property
-    def count(self) -> int:
-        return sum(s["windows"] for s in self.shards) + self._buffered
-
-    def add(self, windows: Windows) -> None:
-        self.tracks.update(dict.fromkeys(windows.track.tolist()))
-        start = 0
-        while start < len(windows):  # a shard's worth at a time (a big piece is not copied)
-            stop = min(start + SHARD_SIZE - self._buffered, len(windows))
-            self._buffer.append(windows.rows(start, stop))
-            self._buffered += stop - start
-            start = stop
-            if self._buffered == SHARD_SIZE:
-                self._write()
-
-    def pending(self) -> Windows | None:
-        """The windows added that are not yet in a shard (None: none)."""
-        return Windows.concat(self._buffer) if self._buffered else None
-
-    def flush(self) -> None:
-        """Write what is buffered as a (shorter) shard."""
-        if self._buffered:
-            self._write()
-
-    def _write(self) -> None:
-        part = Windows.concat(self._buffer)
-        self._buffer, self._buffered = [], 0
-        name = f"shard-{len(self.shards):05d}.npz"
-        write_npz(self.folder / name, compressed=True,
-                  **{f.name: getattr(part, f.name) for f in fields(Windows)})  # fmt: skip
-        self.shards.append({"file": name, "windows": len(part),
-                            "sha256": _sha256(self.folder / name)})  # fmt: skip
-
-    def mark(self) -> list:
-        """Where the windows added so far end, for :meth:`rollback` (what is buffered is
-        written first): ``[shards, track labels]``, as JSON keeps it."""
-        self.flush()
-        return [len(self.shards), list(self.tracks)]
-
-    def rollback(self, mark: list) -> None:
-        """Forget the windows added since ``mark`` (their shards are removed)."""
-        shards, tracks = mark
-        for shard in self.shards[shards:]:
-            (self.folder / shard["file"]).unlink(missing_ok=True)
-        del self.shards[shards:]
-        self._buffer, self._buffered, self.tracks = [], 0, dict.fromkeys(tracks)
-
-    def finish(self, manifest: dict) -> dict:
-        """Write the last shard and ``manifest.json`` (``manifest`` with the count and the
-        shards; last: a folder without it is no dataset); returns what was written."""
-        self.flush()
-        manifest = {**manifest, "count": self.count, "shards": self.shards}
-        write_json(self.folder / "manifest.json", manifest)
-        return manifest
-
-
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
-
-
-def dataset_manifest(folder: str | Path) -> dict:
-    """The manifest of the dataset folder ``folder`` (checked; no window is read)."""
-    folder = Path(folder)
-    path = folder / "manifest.json"
-    manifest = read_manifest(folder, "manifest.json", "dataset", DatasetError, (FORMAT_VERSION,),
-                             keys=("shards",))  # fmt: skip
-    shards = manifest["shards"]
-    if not isinstance(shards, list) or not shards:
-        raise DatasetError(f"{path}: 'shards' must be a non-empty list, got {short_repr(shards)}")
-    for k, shard in enumerate(shards):
-        if not (isinstance(shard, dict) and isinstance(shard.get("file"), str)
-                and isinstance(shard.get("sha256"), str)):  # fmt: skip
-            raise DatasetError(f"{path}: shards[{k}] must be an object with the strings 'file' "
-                               f"and 'sha256', got {short_repr(shard)}")  # fmt: skip
-    count = manifest.get("count")
-    if not isinstance(count, int) or isinstance(count, bool) or count < 1:
-        raise DatasetError(f"{path}: 'count' must be a positive integer, got {short_repr(count)}")
-    return manifest
-
-
-def load_dataset(folder: str | Path) -> Dataset:
-    """Read a dataset folder written by :func:`save_dataset`, checking every shard. The
-    windows are read into arrays of the manifest's count (memory: the dataset and one
-    shard)."""
-    folder = Path(folder)
-    manifest = dataset_manifest(folder)
-    return Dataset(_read_windows(folder, manifest, _checked_shards(folder, manifest)), manifest)
-
-
-def load_split(
-    folder: str | Path, test_fraction: float, seed: int
-) -> tuple[dict, Windows, Windows]:
-    """The manifest and ``(train, test)`` of :func:`split_by_track` of the dataset folder
-    ``folder`` (the same windows in the same order), each side read straight from the shards:
-    memory holds every window once (split after loading, it held them twice)."""
-    folder = Path(folder)
-    manifest = dataset_manifest(folder)
-    files = _checked_shards(folder, manifest)
-    tracks = [_shard_arrays(file, ("track",))["track"] for file in files]
-    total = sum(map(len, tracks))
-    if total != manifest["count"]:
-        raise DatasetError(f"{folder / 'manifest.json'}: {total} windows, manifest says "
-                           f"{manifest['count']}")  # fmt: skip
-    held = _held_out_tracks(np.concatenate(tracks), test_fraction, seed)
-    test = [np.isin(t, held) for t in tracks]
-    train = [~m for m in test]
-    return (manifest, _read_windows(folder, manifest, files, train),
-            _read_windows(folder, manifest, files, test))  # fmt: skip
-
-
-def _checked_shards(folder: Path, manifest: dict) -> list[Path]:
-    """The shard files of ``manifest``, each there and with its checksum."""
-    files = []
-    for shard in manifest["shards"]:
-        file = folder / shard["file"]
-        if not file.is_file():
-            raise DatasetError(f"{folder}: shard {shard['file']} is missing")
-        if _sha256(file) != shard["sha256"]:
-            raise DatasetError(f"{file}: checksum mismatch (the file was changed or truncated)")
-        files.append(file)
-    return files
-
-
-def _read_windows(
-    folder: Path, manifest: dict, files: list[Path], keep: list[np.ndarray] | None = None
-) -> Windows:
-    """The windows of the shard ``files``, or of each the ones ``keep[k]`` (a mask per
-    shard) selects, read into arrays of their count."""
-    path = folder / "manifest.json"
-    count = manifest["count"]
-    size = count if keep is None else int(sum(m.sum() for m in keep))
-    out: dict[str, np.ndarray] = {}
-    labels: list[np.ndarray] = []  # the track labels (their string width varies per shard)
-    done = total = 0
-    for k, file in enumerate(files):
-        part = _read_shard(file)
-        total += len(part)
-        if total > count:
-            raise DatasetError(f"{path}: the shards hold more windows than the manifest's "
-                               f"count {count}")  # fmt: skip
-        if keep is not None:
-            part = part.take(np.flatnonzero(keep[k]))
-        n = len(part)
-        for f in fields(Windows):
-            value = getattr(part, f.name)
-            if f.name == "track":
-                labels.append(value)
-                continue
-            if f.name not in out:
-                out[f.name] = np.empty((size, *value.shape[1:]), value.dtype)
-            if value.shape[1:] != out[f.name].shape[1:] or value.dtype != out[f.name].dtype:
-                raise DatasetError(f"{file}: {f.name!r} is {value.dtype} {value.shape[1:]} "
-                                   f"per window, the first shard's "
-                                   f"{out[f.name].dtype} {out[f.name].shape[1:]}")  # fmt: skip
-            out[f.name][done : done + n] = value
-        done += n
-    if total != count:
-        raise DatasetError(f"{path}: {total} windows, manifest says {count}")
-    return Windows(**out, track=np.concatenate(labels))
-
-
-def _read_shard(file: Path) -> Windows:
-    """One shard's windows (every array read; the checksum is the caller's)."""
-    return Windows(**_shard_arrays(file, tuple(f.name for f in fields(Windows))))
-
-
-def _shard_arrays(file: Path, names: tuple[str, ...]) -> dict[str, np.ndarray]:
-    """The arrays ``names`` of one shard (only those are read)."""
-    try:
-        with np.load(file) as data:
-            return {name: data[name] for name in names}
-    except KeyError as exc:
-        raise DatasetError(f"{file}: no array {exc} (not a shard of this format)") from None

@@ -42,19 +42,18 @@ from gridsim.outputs import (
 )
 from gridsim.scenario.schema import MAX_DURATION
 from gridsim.seeding import Salt, stream
+from neurotrajectory.data.storage import dataset_manifest, load_dataset
 from neurotrajectory.data.windows import (
     DAGGER_LABELS,
     GENERATED_STRIDE,
     RECORDED_STRIDE,
     DatasetError,
     Windows,
-    dataset_manifest,
     drive_windows,
     episodes_of,
     goal_overrides,
     has_recorded,
     is_recorded,
-    load_dataset,
     scenario_episodes,
 )
 from neurotrajectory.evolve.backends import BACKENDS, WorkerSpec, make_backend

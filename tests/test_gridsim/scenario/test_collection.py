@@ -131,7 +131,8 @@ def test_validate_and_scenarios_print_one_line_per_file(folder, capsys):
 def test_record_a_folder_as_a_named_group(folder, tmp_path):
     from neurotrajectory.cli import main as nt_main
     from neurotrajectory.compare.evaluation import EvalConfig
-    from neurotrajectory.data.windows import DatasetError, group_scenarios, load_dataset
+    from neurotrajectory.data.storage import load_dataset
+    from neurotrajectory.data.windows import DatasetError, group_scenarios
 
     assert group_scenarios("urban") == ("lankershim_1_1", "peachtree_4_8")
     assert len(group_scenarios("mine", str(folder))) == 2
@@ -220,7 +221,7 @@ def test_record_refuses_a_folder_that_run_refuses(folder, tmp_path, capsys):
 
 def test_a_dataset_s_manifest_lists_the_files_that_did_not_load(folder, tmp_path, capsys):
     from neurotrajectory.cli import main as nt_main
-    from neurotrajectory.data.windows import load_dataset
+    from neurotrajectory.data.storage import load_dataset
 
     (folder / "truncated.xml").write_text((folder / "straight_2018b.xml").read_text()[:500])
     code = nt_main(["record", "--scenario", str(folder), "--out", str(tmp_path / "ds"),
@@ -259,7 +260,7 @@ def test_a_collection_with_no_usable_file_names_them_all(tmp_path):
 
 def test_record_skips_the_unusable_files_and_says_so(folder, tmp_path, capsys):
     from neurotrajectory.cli import main as nt_main
-    from neurotrajectory.data.windows import load_dataset
+    from neurotrajectory.data.storage import load_dataset
 
     add_unusable_files(folder)
     out = tmp_path / "ds"

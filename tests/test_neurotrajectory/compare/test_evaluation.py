@@ -9,13 +9,8 @@ import pytest
 
 from neurotrajectory.cli import main
 from neurotrajectory.data.commands import implied_commands
-from neurotrajectory.data.windows import (
-    DatasetError,
-    load_dataset,
-    record_group,
-    save_dataset,
-    split_by_track,
-)
+from neurotrajectory.data.storage import load_dataset, save_dataset
+from neurotrajectory.data.windows import DatasetError, record_group, split_by_track
 from neurotrajectory.evolve.runs import Run, TrainConfig
 
 #: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).

@@ -15,7 +15,7 @@ import pytest
 
 from gridsim.errors import DataWarning
 from gridsim.outputs import write_npz
-from neurotrajectory.data import windows
+from neurotrajectory.data import recording, storage, windows
 from neurotrajectory.data.windows import drive_windows, scenario_episodes
 
 
@@ -80,18 +80,18 @@ def test_windows_written_as_they_come_make_the_shards_of_the_whole(tmp_path, mon
     """``record`` writes each episode's windows as they come; the shards are those that
     ``save_dataset`` writes of all the windows at once, however they were cut, and no more
     than a shard is ever held back."""
-    monkeypatch.setattr(windows, "SHARD_SIZE", 16)
+    monkeypatch.setattr(storage, "SHARD_SIZE", 16)
     pieces = [_windows(n, first) for n, first in ((5, 0), (16, 5), (40, 21), (1, 61), (9, 62))]
     whole = windows.Windows.concat(pieces)
-    windows.save_dataset(windows.Dataset(whole, {"format": 1}), tmp_path / "whole")
-    writer = windows.ShardWriter(tmp_path / "pieces")
+    storage.save_dataset(windows.Dataset(whole, {"format": 1}), tmp_path / "whole")
+    writer = storage.ShardWriter(tmp_path / "pieces")
     for piece in pieces:
         writer.add(piece)
         assert writer._buffered < 16
     writer.finish({"format": 1})
     assert _shard_digests(tmp_path / "pieces") == _shard_digests(tmp_path / "whole")
     assert [n for _, n, _ in _shard_digests(tmp_path / "whole")] == [16, 16, 16, 16, 7]
-    back = windows.load_dataset(tmp_path / "pieces").windows
+    back = storage.load_dataset(tmp_path / "pieces").windows
     for f in fields(windows.Windows):
         np.testing.assert_array_equal(getattr(back, f.name), getattr(whole, f.name))
 
@@ -100,9 +100,9 @@ def test_a_rolled_back_file_leaves_no_window_behind(tmp_path, monkeypatch):
     """A file of a group that fails half-way (after some of its shards were written) is
     skipped whole: the dataset is that of the other files alone. A file starts a shard (the
     mark writes what is buffered), so that its rollback is a number of shards."""
-    monkeypatch.setattr(windows, "SHARD_SIZE", 8)
+    monkeypatch.setattr(storage, "SHARD_SIZE", 8)
     kept_a, lost, kept_b = _windows(5, 0, "a/1"), _windows(30, 100, "b/1"), _windows(12, 7, "c/1")
-    writer = windows.ShardWriter(tmp_path / "rolled")
+    writer = storage.ShardWriter(tmp_path / "rolled")
     writer.add(kept_a)
     mark = writer.mark()
     assert mark == [1, ["a/1"]]  # kept_a written as a shard of its own
@@ -113,7 +113,7 @@ def test_a_rolled_back_file_leaves_no_window_behind(tmp_path, monkeypatch):
     assert list(writer.tracks) == ["a/1", "c/1"]
     writer.finish({"format": 1})
     assert [n for _, n, _ in _shard_digests(tmp_path / "rolled")] == [5, 8, 4]
-    back = windows.load_dataset(tmp_path / "rolled").windows
+    back = storage.load_dataset(tmp_path / "rolled").windows
     both = windows.Windows.concat([kept_a, kept_b])
     for f in fields(windows.Windows):
         np.testing.assert_array_equal(getattr(back, f.name), getattr(both, f.name))
@@ -124,23 +124,23 @@ def test_a_rolled_back_file_leaves_no_window_behind(tmp_path, monkeypatch):
 def test_a_split_recorded_as_it_comes_is_the_split_of_the_whole(tmp_path, monkeypatch):
     """``record --split`` keeps the side of the split by track that ``evaluate`` makes of the
     whole group (the same windows in the same shards), and leaves nothing aside."""
-    monkeypatch.setattr(windows, "SHARD_SIZE", 32)
+    monkeypatch.setattr(storage, "SHARD_SIZE", 32)
     whole = windows.record_group("us101_3_3", 1, stride=10)
     for side, half in zip(("train", "test"), windows.split_by_track(whole.windows, 0.3, 2),
                           strict=True):  # fmt: skip
         out = tmp_path / side
-        manifest, tracks = windows.record_dataset(out, "us101_3_3", 1, seed=2, stride=10,
+        manifest, tracks = recording.record_dataset(out, "us101_3_3", 1, seed=2, stride=10,
                                                   split=(side, 0.3))  # fmt: skip
         assert manifest["split"] == {"side": side, "test_fraction": 0.3, "seed": 2}
         assert tracks == len(np.unique(half.track)) and manifest["count"] == len(half)
         expected = windows.Dataset(half, {**whole.manifest, "split": manifest["split"]})
-        windows.save_dataset(expected, tmp_path / f"{side}-whole")
+        storage.save_dataset(expected, tmp_path / f"{side}-whole")
         assert _shard_digests(out) == _shard_digests(tmp_path / f"{side}-whole")
         assert not (out / ".spool").exists()
 
 
 def test_a_shard_unlike_the_others_is_named(tmp_path):
-    windows.save_dataset(windows.Dataset(_windows(3), {"format": 1}), tmp_path / "d")
+    storage.save_dataset(windows.Dataset(_windows(3), {"format": 1}), tmp_path / "d")
     shard = tmp_path / "d" / "shard-00001.npz"
     odd = _windows(2, 3)
     odd.grids = odd.grids[:, :, :4]
@@ -154,35 +154,35 @@ def test_a_shard_unlike_the_others_is_named(tmp_path):
     with pytest.raises(windows.DatasetError, match=re.escape(
             f"{shard}: 'grids' is uint8 (2, 4, 8) per window, the first shard's uint8 "
             "(2, 8, 8)")):  # fmt: skip
-        windows.load_dataset(tmp_path / "d")
+        storage.load_dataset(tmp_path / "d")
     doc["count"] = 4
     manifest.write_text(json.dumps(doc))
     with pytest.raises(windows.DatasetError, match="more windows than the manifest's count 4"):
-        windows.load_dataset(tmp_path / "d")
+        storage.load_dataset(tmp_path / "d")
     doc["count"] = "5"
     manifest.write_text(json.dumps(doc))
     with pytest.raises(windows.DatasetError, match="'count' must be a positive integer, got '5'"):
-        windows.load_dataset(tmp_path / "d")
+        storage.load_dataset(tmp_path / "d")
 
 
 def test_a_split_read_from_the_shards_is_the_split_of_the_whole(tmp_path, monkeypatch):
     """``evaluate`` reads each side of its split straight from the shards (every window held
     once): the same windows in the same order as splitting the whole dataset."""
-    monkeypatch.setattr(windows, "SHARD_SIZE", 7)
+    monkeypatch.setattr(storage, "SHARD_SIZE", 7)
     pieces = [_windows(n, first, f"s/{k}") for k, (n, first) in enumerate(
         ((5, 0), (9, 5), (3, 14), (12, 17), (4, 29), (6, 33)))]  # fmt: skip
     whole = windows.Windows.concat(pieces)
-    windows.save_dataset(windows.Dataset(whole, {"format": 1}), tmp_path / "d")
+    storage.save_dataset(windows.Dataset(whole, {"format": 1}), tmp_path / "d")
     for seed in (0, 1, 2):
-        manifest, train, test = windows.load_split(tmp_path / "d", 0.3, seed)
+        manifest, train, test = storage.load_split(tmp_path / "d", 0.3, seed)
         assert manifest["count"] == len(whole)
         for read, split in zip((train, test), windows.split_by_track(whole, 0.3, seed),
                                strict=True):  # fmt: skip
             for f in fields(windows.Windows):
                 np.testing.assert_array_equal(getattr(read, f.name), getattr(split, f.name))
     with pytest.raises(windows.DatasetError, match="need windows from >= 2 tracks"):
-        windows.save_dataset(windows.Dataset(pieces[0], {"format": 1}), tmp_path / "one")
-        windows.load_split(tmp_path / "one", 0.3, 0)
+        storage.save_dataset(windows.Dataset(pieces[0], {"format": 1}), tmp_path / "one")
+        storage.load_split(tmp_path / "one", 0.3, 0)
 
 
 def _interrupt_at(monkeypatch, episode: int) -> None:
@@ -207,17 +207,17 @@ def test_an_interrupted_recording_goes_on_to_the_same_dataset(
 ):
     """``record`` leaves checkpoints as it goes; run again with the same arguments it goes on
     from the last one, and the dataset is the one recorded without a break, bit for bit."""
-    monkeypatch.setattr(windows, "SHARD_SIZE", 8)
-    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
-    whole, _ = windows.record_dataset(tmp_path / "whole", scenario, 5, seed=3, **kwargs)
+    monkeypatch.setattr(storage, "SHARD_SIZE", 8)
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
+    whole, _ = recording.record_dataset(tmp_path / "whole", scenario, 5, seed=3, **kwargs)
     with monkeypatch.context() as m:
         _interrupt_at(m, stop)
         with pytest.raises(KeyboardInterrupt):
-            windows.record_dataset(tmp_path / "part", scenario, 5, seed=3, resume=True, **kwargs)
+            recording.record_dataset(tmp_path / "part", scenario, 5, seed=3, resume=True, **kwargs)
     checkpoint = tmp_path / "part" / (".spool" if "split" in kwargs else "") / "progress.json"
     assert json.loads(checkpoint.read_text())["state"]["episode"] == stop - 1
     said = []
-    again, _ = windows.record_dataset(tmp_path / "part", scenario, 5, seed=3, resume=True,
+    again, _ = recording.record_dataset(tmp_path / "part", scenario, 5, seed=3, resume=True,
                                       log=said.append, **kwargs)  # fmt: skip
     assert "going on with the interrupted recording" in said[0]
     assert _shard_digests(tmp_path / "part") == _shard_digests(tmp_path / "whole")
@@ -232,21 +232,21 @@ def test_a_recording_of_other_arguments_is_refused_and_kept(tmp_path, monkeypatc
     hours of work): the refusal names what differs, and the same arguments go on with it."""
     from gridsim.errors import WorkKept
 
-    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
     with monkeypatch.context() as m:
         _interrupt_at(m, 2)
         with pytest.raises(KeyboardInterrupt):
-            windows.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0,
+            recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0,
                                    resume=True)  # fmt: skip
     kept = sorted(p.name for p in (tmp_path / "d").iterdir())
     with pytest.raises(WorkKept, match=re.escape(
             f"{tmp_path / 'd'} holds an interrupted recording that was made with seed 1 (now "
             f"2): run it with those to go on with it, or remove {tmp_path / 'd'} to start "
             "afresh")):  # fmt: skip
-        windows.record_dataset(tmp_path / "d", "seamless", 3, seed=2, duration=3.0, resume=True)
+        recording.record_dataset(tmp_path / "d", "seamless", 3, seed=2, duration=3.0, resume=True)
     assert sorted(p.name for p in (tmp_path / "d").iterdir()) == kept
     said = []
-    windows.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0, resume=True,
+    recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0, resume=True,
                            log=said.append)  # fmt: skip
     assert "going on with the interrupted recording" in said[0]
     assert not (tmp_path / "d" / "progress.json").exists()
@@ -257,21 +257,21 @@ def test_a_scenario_file_changed_after_a_break_is_named(tmp_path, monkeypatch):
     named."""
     from gridsim.errors import WorkKept
 
-    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
     scenario = tmp_path / "mine.yaml"
     scenario.write_text("name: mine\nroad: {type: seamless}\n")
     with monkeypatch.context() as m:
         _interrupt_at(m, 2)
         with pytest.raises(KeyboardInterrupt):
-            windows.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
+            recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
     scenario.write_text("name: mine\nroad: {type: seamless}\n")  # the same, written again
     with monkeypatch.context() as m:
         _interrupt_at(m, 1)
         with pytest.raises(KeyboardInterrupt):
-            windows.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
+            recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
     scenario.write_text("name: mine\nroad: {type: seamless}\nsensor: {rows: 128}\n")
     with pytest.raises(WorkKept, match=f"made with other contents of {re.escape(str(scenario))}"):
-        windows.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
+        recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
 
 
 def test_a_selection_reads_the_grids_it_is_asked_for_without_a_copy():
@@ -308,8 +308,8 @@ def test_a_file_that_fails_after_a_break_is_skipped_whole(tmp_path, monkeypatch)
     recording makes, which skips that file."""
     from gridsim.errors import ScenarioError
 
-    monkeypatch.setattr(windows, "SHARD_SIZE", 4)
-    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
+    monkeypatch.setattr(storage, "SHARD_SIZE", 4)
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
     folder = _group_of_three(tmp_path)
     files = windows.group_files("g", str(folder))[0]
     bad = (files[0], windows.scenario_episodes(files[0])[0][2].track)  # its third episode
@@ -326,40 +326,40 @@ def test_a_file_that_fails_after_a_break_is_skipped_whole(tmp_path, monkeypatch)
     monkeypatch.setattr(windows, "_episode_windows", failing)
     kwargs = {"source": str(folder), "stride": 5}
     with pytest.warns(Warning):
-        whole, _ = windows.record_dataset(tmp_path / "whole", "g", 1, **kwargs)
+        whole, _ = recording.record_dataset(tmp_path / "whole", "g", 1, **kwargs)
     assert [s["file"] for s in whole["skipped"]] == [files[0]]
     calls.clear()
     monkeypatch.setattr(windows, "_episode_windows",
                         lambda *a, **k: failing(*a, interrupt=2, **k))  # fmt: skip
     with pytest.raises(KeyboardInterrupt):
-        windows.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs)
+        recording.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs)
     monkeypatch.setattr(windows, "_episode_windows", failing)
     with pytest.warns(Warning):
-        again, _ = windows.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs)
+        again, _ = recording.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs)
     assert again["count"] == whole["count"]
     assert _shard_digests(tmp_path / "part") == _shard_digests(tmp_path / "whole")
 
 
 def test_a_damaged_checkpoint_is_said_and_not_used(tmp_path, monkeypatch):
-    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
-    monkeypatch.setattr(windows, "SHARD_SIZE", 64)
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
+    monkeypatch.setattr(storage, "SHARD_SIZE", 64)
     kwargs = {"duration": 4.0, "seed": 1}
     with monkeypatch.context() as m:
         _interrupt_at(m, 3)
         with pytest.raises(KeyboardInterrupt):
-            windows.record_dataset(tmp_path / "d", "seamless", 4, resume=True, **kwargs)
+            recording.record_dataset(tmp_path / "d", "seamless", 4, resume=True, **kwargs)
     (pending,) = (tmp_path / "d").glob("pending-*.npz")
     pending.write_bytes(pending.read_bytes()[:100])
     said = []
-    done, _ = windows.record_dataset(tmp_path / "d", "seamless", 4, resume=True,
+    done, _ = recording.record_dataset(tmp_path / "d", "seamless", 4, resume=True,
                                      log=said.append, **kwargs)  # fmt: skip
     assert len(said) == 1 and "has a checkpoint that cannot be used (ValueError: " \
         f"{pending.name} was changed or truncated)" in said[0]  # fmt: skip
-    whole, _ = windows.record_dataset(tmp_path / "whole", "seamless", 4, **kwargs)
+    whole, _ = recording.record_dataset(tmp_path / "whole", "seamless", 4, **kwargs)
     assert done["count"] == whole["count"]
     # a folder with files of its own is not emptied
     (tmp_path / "mine").mkdir()
     (tmp_path / "mine" / "notes.txt").write_text("keep")
     with pytest.raises(windows.DatasetError, match="exists and is not empty"):
-        windows.record_dataset(tmp_path / "mine", "seamless", 1, resume=True, **kwargs)
+        recording.record_dataset(tmp_path / "mine", "seamless", 1, resume=True, **kwargs)
     assert (tmp_path / "mine" / "notes.txt").read_text() == "keep"

@@ -15,7 +15,7 @@ from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
 from neurotrajectory.compare.baselines.dwa import DWA
 from neurotrajectory.compare.predictors import Setting, observation_batch
 from neurotrajectory.curves import CurveLimits, curve_to
-from neurotrajectory.data.windows import load_dataset
+from neurotrajectory.data.storage import load_dataset
 from neurotrajectory.evolve.fitness import scenario_net_config
 from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
 from neurotrajectory.model import PRESETS, NetConfig

@@ -7,16 +7,15 @@ import numpy as np
 import pytest
 
 from neurotrajectory.cli import main
+from neurotrajectory.data.storage import load_dataset, save_dataset
 from neurotrajectory.data.windows import (
     DatasetError,
     Windows,
     drive_windows,
     episodes_of,
-    load_dataset,
     record_group,
     record_scenario,
     rejoin_labels,
-    save_dataset,
     scenario_episodes,
     split_by_track,
 )

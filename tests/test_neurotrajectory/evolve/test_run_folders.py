@@ -153,7 +153,7 @@ def test_record_that_fails_leaves_out_as_it_was(tmp_path, monkeypatch, capsys):
     def broken(*args, **kwargs):  # after the shards are written, before the manifest
         raise RuntimeError("disk trouble")
 
-    monkeypatch.setattr("neurotrajectory.data.windows.ShardWriter.finish", broken)
+    monkeypatch.setattr("neurotrajectory.data.storage.ShardWriter.finish", broken)
     out = tmp_path / "ds"
     assert main(["record", "--scenario", "seamless", "--episodes", "1", "--out", str(out)]) == 3
     assert not out.exists() and list(tmp_path.iterdir()) == []
@@ -333,9 +333,9 @@ def test_record_interrupted_goes_on_when_run_again(tmp_path, monkeypatch, capsys
     """Ctrl-C keeps what ``record`` wrote until its last checkpoint (a failure does not:
     above); the same command then goes on from there, and --out is the dataset recorded
     without a break."""
-    from neurotrajectory.data import windows
+    from neurotrajectory.data import recording, windows
 
-    monkeypatch.setattr(windows, "CHECKPOINT_SECONDS", 0.0)
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
     argv = ["record", "--scenario", "seamless", "--episodes", "3", "--episode-seconds", "3",
             "--quiet", "--out"]  # fmt: skip
     assert main([*argv, str(tmp_path / "whole")]) == 0
