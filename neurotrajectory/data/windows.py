@@ -678,3 +678,20 @@ def held_out_tracks(tracks: np.ndarray, test_fraction: float, seed: int) -> np.n
     order = stream(seed, Salt.TRACK_SPLIT).permutation(len(tracks))
     n_test = min(max(1, int(round(test_fraction * len(tracks)))), len(tracks) - 1)
     return tracks[order[:n_test]]
+
+
+#: Names that lived here before the dataset folder got its own module, and where they are now.
+_MOVED = {"load_dataset": "storage", "save_dataset": "storage", "check_new_folder": "storage",
+          "SHARD_SIZE": "storage"}  # fmt: skip
+
+
+def __getattr__(name: str):
+    """The names of :data:`_MOVED`, from their new module, with a DeprecationWarning."""
+    if name not in _MOVED:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    import importlib
+
+    module = importlib.import_module(f"neurotrajectory.data.{_MOVED[name]}")
+    warnings.warn(f"{__name__}.{name} moved to {module.__name__}.{name}", DeprecationWarning,
+                  stacklevel=2)  # fmt: skip
+    return getattr(module, name)

@@ -363,3 +363,14 @@ def test_a_damaged_checkpoint_is_said_and_not_used(tmp_path, monkeypatch):
     with pytest.raises(windows.DatasetError, match="exists and is not empty"):
         recording.record_dataset(tmp_path / "mine", "seamless", 1, resume=True, **kwargs)
     assert (tmp_path / "mine" / "notes.txt").read_text() == "keep"
+
+
+def test_the_dataset_folder_s_functions_are_still_found_where_they_were():
+    with pytest.warns(
+        DeprecationWarning,
+        match="windows.load_dataset moved to neurotrajectory.data.storage.load_dataset",
+    ):
+        from neurotrajectory.data.windows import load_dataset
+    assert load_dataset is storage.load_dataset
+    with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
+        windows.nothing  # noqa: B018
