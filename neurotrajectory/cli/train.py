@@ -23,6 +23,7 @@ from neurotrajectory.compare.front import heldout_problem
 from neurotrajectory.evolve.runs import (
     AFTER_DEFAULTS,
     WARM_START_FILE,
+    WARM_START_FIT_FILE,
     Run,
     RunError,
     TrainConfig,
@@ -123,6 +124,8 @@ def kept_note(out: Path) -> str:
         return f"{out} keeps its {done} finished generation{'s' * (done > 1)}; {resume}"
     if (out / WARM_START_FILE).exists():
         return f"{out} keeps its warm start (not fitted again); {resume}"
+    if (out / WARM_START_FIT_FILE).exists():
+        return f"{out} keeps its warm start's fit after its last full epoch; {resume}"
     return f"{out} has no finished generation yet; {resume}"
 
 

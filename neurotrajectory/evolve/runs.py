@@ -96,6 +96,8 @@ from neurotrajectory.settings import Bool, Integer, OneOf, Real, Seed, Settings
 FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
 PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
 WARM_START_FILE = "warm_start.npz"  # the warm start's genome in a run folder
+#: the warm start's fit while it runs, saved after each epoch (an interrupted fit goes on)
+WARM_START_FIT_FILE = "warm_start_fit.pt"
 #: The SHA-256 of the files the run's scenario is read from when it began (resumes check them).
 INPUTS_FILE = "inputs.json"
 #: Runs with a warm start: the best validated knee of any generation.
@@ -426,6 +428,8 @@ Made by `{command}` on {date}.
 - `history.json`: every generation's fitness, Pareto ranks, hypervolume, timing, and the
   knee's validation score (the learning curve)
 - `warm_start.npz`: the warm start's genome (runs with a warm start)
+- `warm_start_fit.pt`: the warm start's fit after its last full epoch, while it runs (an
+  interrupted fit goes on from it with `--resume`)
 - `best_knee.npz`: the best validated knee of any generation (runs with a warm start)
 - `front.npz`, `front.json`: the final Pareto front, weights and scores on the episodes it
   was chosen on
@@ -847,7 +851,8 @@ class Run:
             return pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed,
                                    validation=cfg.pretrain_validation, visited=visited,
                                    visited_share=cfg.dagger_weight,
-                                   progress=self._progress)  # fmt: skip
+                                   progress=self._progress,
+                                   checkpoint=self.out / WARM_START_FIT_FILE)  # fmt: skip
 
         base, stats = fit(None)
         visited, rounds = [], []
@@ -1080,7 +1085,8 @@ def run_folder(out: str | Path, resume: bool) -> Iterator[Path]:
         try:
             yield out
         except BaseException:
-            kept = [f for f in ("checkpoint.npz", WARM_START_FILE) if (out / f).exists()]
+            kept = [f for f in ("checkpoint.npz", WARM_START_FILE, WARM_START_FIT_FILE)
+                    if (out / f).exists()]  # fmt: skip
             if not resume and not kept:
                 _undo(out, remove_folder=not existed)
             raise

@@ -14,10 +14,13 @@ on this machine (single-threaded torch).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import torch
 from tqdm import tqdm
 
+from gridsim.outputs import atomic_write
 from gridsim.seeding import Salt, stream
 from neurotrajectory.data.windows import DatasetError, Windows, split_rows
 from neurotrajectory.evolve.genome import get_genome, set_genome
@@ -100,6 +103,34 @@ def fit_skip(
     return {"ridge_penalty": penalty, "ridge_validation_mse": score}
 
 
+def _save_fit(path: Path, key: dict, epochs: int, net, opt, scores: list, best) -> None:
+    """The fit after ``epochs`` epochs, for :func:`_load_fit` (written atomically)."""
+
+    def write(tmp: str) -> None:
+        torch.save({"key": key, "epochs": epochs, "genome": get_genome(net).copy(),
+                    "optimizer": opt.state_dict(), "scores": list(scores),
+                    "best": np.array(best, copy=True)}, tmp)  # fmt: skip
+
+    atomic_write(path, write)
+
+
+def _load_fit(path: Path, key: dict, net, opt) -> tuple[int, list, np.ndarray] | None:
+    """``(epochs done, validation scores, best genome)`` of the fit saved in ``path``, with
+    ``net`` and ``opt`` set as they were then; None if there is none, or one of other inputs
+    or damaged (the fit then starts over)."""
+    if not path.is_file():
+        return None
+    try:
+        saved = torch.load(path, weights_only=False)
+        if saved["key"] != key:
+            return None
+        set_genome(net, np.array(saved["genome"], dtype=np.float32, copy=True))
+        opt.load_state_dict(saved["optimizer"])
+        return int(saved["epochs"]), list(saved["scores"]), np.array(saved["best"], copy=True)
+    except Exception:  # noqa: BLE001 - a damaged file: the fit starts over
+        return None
+
+
 def visited_weights(human: int, visited: int, share: float | None) -> np.ndarray | None:
     """Per-window weights (mean 1) of ``human`` human windows followed by ``visited`` visited
     ones (DAgger): each human window weighs 1 and the visited windows together ``share`` times
@@ -123,6 +154,7 @@ def pretrain_genome(
     visited: Windows | None = None,
     visited_share: float | None = None,
     progress: bool = False,
+    checkpoint: Path | None = None,
 ) -> tuple[np.ndarray, dict]:
     """Fit ``net`` (starting from ``genome``) to ``windows``, holding out ``validation`` of
     the tracks to pick the epoch (see the module docstring); returns the new genome and
@@ -133,7 +165,9 @@ def pretrain_genome(
     set-points) are fitted too, weighted by :func:`visited_weights` with ``visited_share``, but
     never validated on: the epoch is picked on the held-out tracks' human windows, and the
     visited windows of those tracks are left out. ``progress``: a bar over the batches of
-    all epochs (with each epoch's validation error)."""
+    all epochs (with each epoch's validation error). ``checkpoint``: a file where the fit is
+    saved after each epoch, and from which a fit of the same inputs that was interrupted
+    goes on (to the same genome, bit for bit); removed when the fit ends."""
     problem = size_mismatch(net.cfg, windows)
     if problem:
         raise PretrainError(f"pre-training: {problem}")
@@ -169,10 +203,22 @@ def pretrain_genome(
         rng = stream(seed, Salt.WARM_START_BATCHES)
         bar = tqdm(total=epochs * -(-len(windows) // batch_size), desc="warm start",
                    unit="batch", leave=False, disable=not progress)  # fmt: skip
+        key = {"windows": len(windows), "held_out": 0 if held_out is None else len(held_out),
+               "epochs": epochs, "seed": seed, "batch_size": batch_size,
+               "learning_rate": learning_rate, "genome": float(np.sum(genome, dtype=np.float64)),
+               "target": float(np.sum(windows.target, dtype=np.float64))}  # fmt: skip
+        done = _load_fit(checkpoint, key, net, opt) if checkpoint is not None else None
+        if done is not None:
+            first, scores, best = done
+            bar.update(first * -(-len(windows) // batch_size))
+        else:
+            first = 0
         for epoch in range(epochs):
+            order = rng.permutation(len(windows))  # (drawn for the epochs done before too)
+            if epoch < first:
+                continue
             net.train()
             bar.set_postfix(epoch=f"{epoch + 1}/{epochs}")
-            order = rng.permutation(len(windows))
             for start in range(0, len(order), batch_size):
                 idx = order[start : start + batch_size]
                 error = (net(*window_inputs(windows, idx)) - target[idx]) ** 2
@@ -186,7 +232,11 @@ def pretrain_genome(
                 scores.append(setpoint_mse(net, held_out))
                 if scores[-1] < min(scores[:-1]):
                     best = get_genome(net).copy()
+            if checkpoint is not None:
+                _save_fit(checkpoint, key, epoch + 1, net, opt, scores, best)
         bar.close()
+        if checkpoint is not None:
+            checkpoint.unlink(missing_ok=True)
         if held_out is None:
             best = get_genome(net)
         set_genome(net, best.copy())  # the parameters alias what they are set from

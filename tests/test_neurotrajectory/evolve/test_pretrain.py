@@ -436,3 +436,46 @@ def test_heldout_drives_a_finished_run_on_longer_unseen_episodes(windows_dir, tm
         with pytest.raises(SystemExit) as exit_:  # argparse refuses the value
             main(["heldout", "--run", str(out), "--seconds", seconds, "--out", str(report)])
         assert exit_.value.code == 2 and f"--seconds: {said}" in capsys.readouterr().err
+
+
+def test_an_interrupted_fit_goes_on_to_the_same_genome(windows_dir, tmp_path, monkeypatch):
+    """The warm start's fit is saved after each epoch: interrupted, the same fit goes on from
+    its last full epoch to the genome and scores of an unbroken one, bit for bit; a fit of
+    other inputs starts over; the file goes when the fit ends."""
+    from neurotrajectory.evolve import warm_start
+
+    w = load_dataset(windows_dir).windows
+    start = initial_genome(_tiny_net(), 3)
+    kwargs = {"epochs": 4, "seed": 0, "learning_rate": 1e-2, "validation": 0.3}
+    whole, whole_stats = pretrain_genome(_tiny_net(), start, w, **kwargs)
+    saved = tmp_path / "fit.pt"
+    save, calls = warm_start._save_fit, []
+
+    def interrupted(*args):
+        save(*args)
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+
+    with monkeypatch.context() as m:
+        m.setattr(warm_start, "_save_fit", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
+    assert saved.is_file()
+    calls.clear()
+    with monkeypatch.context() as m:
+        m.setattr(warm_start, "_save_fit", lambda *a: calls.append(a[2]) or save(*a))
+        again, again_stats = pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
+    assert calls == [3, 4]  # epochs 1 and 2 were not fitted again
+    np.testing.assert_array_equal(again, whole)
+    assert again_stats == whole_stats
+    assert not saved.exists()
+    # a saved fit of other inputs is not used
+    with monkeypatch.context() as m:
+        m.setattr(warm_start, "_save_fit", interrupted)
+        calls.clear()
+        with pytest.raises(KeyboardInterrupt):
+            pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
+    other, _ = pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **{**kwargs, "seed": 1})
+    alone, _ = pretrain_genome(_tiny_net(), start, w, **{**kwargs, "seed": 1})
+    np.testing.assert_array_equal(other, alone)

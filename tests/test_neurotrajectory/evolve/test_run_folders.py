@@ -366,3 +366,31 @@ def test_record_interrupted_goes_on_when_run_again(tmp_path, monkeypatch, capsys
     same = ("count", "shards", "scenarios")
     whole, part = (json.loads((d / "manifest.json").read_text()) for d in (tmp_path / "whole", out))
     assert {k: whole[k] for k in same} == {k: part[k] for k in same}
+
+
+def test_a_warm_start_interrupted_goes_on_from_its_last_epoch(tmp_path, monkeypatch, capsys):
+    """A warm start can fit for many minutes on a large dataset: Ctrl-C keeps the fit as of
+    its last full epoch, and --resume goes on from there to the warm start of an unbroken
+    run."""
+    from neurotrajectory.evolve import warm_start
+
+    argv = [*QUICK, "--pretrain-episodes", "2", "--pretrain-epochs", "3", "--heldout", "0"]
+    assert main(["train", *argv, "--out", str(tmp_path / "whole")]) == 0
+    save, calls = warm_start._save_fit, []
+
+    def interrupted(*args):
+        save(*args)
+        calls.append(1)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(warm_start, "_save_fit", interrupted)
+    run = tmp_path / "run"
+    assert main(["train", *argv, "--out", str(run)]) == 130
+    assert "keeps its warm start's fit after its last full epoch; go on with: " \
+        f"neurotrajectory train --resume {run}" in capsys.readouterr().err  # fmt: skip
+    monkeypatch.setattr(warm_start, "_save_fit", save)
+    assert main(["train", "--resume", str(run), "--quiet"]) == 0
+    with np.load(tmp_path / "whole" / "warm_start.npz") as a, np.load(run / "warm_start.npz") as b:
+        np.testing.assert_array_equal(a["genome"], b["genome"])
+    assert not (run / "warm_start_fit.pt").exists()
