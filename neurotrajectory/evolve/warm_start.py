@@ -106,10 +106,12 @@ def fit_skip(
 def _save_fit(path: Path, key: dict, epochs: int, net, opt, scores: list, best) -> None:
     """The fit after ``epochs`` epochs, for :func:`_load_fit` (written atomically)."""
 
-    def write(tmp: str) -> None:
-        torch.save({"key": key, "epochs": epochs, "genome": get_genome(net).copy(),
-                    "optimizer": opt.state_dict(), "scores": list(scores),
-                    "best": np.array(best, copy=True)}, tmp)  # fmt: skip
+    def write(tmp: str) -> None:  # tensors and plain values: loaded with weights_only
+        torch.save({"key": key, "epochs": epochs,
+                    "genome": torch.from_numpy(get_genome(net).copy()),
+                    "optimizer": opt.state_dict(), "scores": [float(v) for v in scores],
+                    "best": torch.from_numpy(np.array(best, dtype=np.float32, copy=True))},
+                   tmp)  # fmt: skip
 
     atomic_write(path, write)
 
@@ -121,12 +123,12 @@ def _load_fit(path: Path, key: dict, net, opt) -> tuple[int, list, np.ndarray] |
     if not path.is_file():
         return None
     try:
-        saved = torch.load(path, weights_only=False)
+        saved = torch.load(path, weights_only=True)
         if saved["key"] != key:
             return None
-        set_genome(net, np.array(saved["genome"], dtype=np.float32, copy=True))
+        set_genome(net, saved["genome"].numpy().copy())
         opt.load_state_dict(saved["optimizer"])
-        return int(saved["epochs"]), list(saved["scores"]), np.array(saved["best"], copy=True)
+        return int(saved["epochs"]), list(saved["scores"]), saved["best"].numpy().copy()
     except Exception:  # noqa: BLE001 - a damaged file: the fit starts over
         return None
 
