@@ -88,9 +88,14 @@ def record_dataset(
                      "files": _file_stamps(name, source)}  # fmt: skip
         checkpoints = _Checkpoints(spool, arguments)
         found, why = checkpoints.load()
-        if why and why.startswith("was made with"):
-            raise WorkKept(f"{out} holds an interrupted recording that {why}: run it with those "
-                           f"to go on with it, or remove {out} to start afresh")  # fmt: skip
+        other = out if split else out / ".spool"  # where one with(out) --split keeps its own
+        if why is None and (other / PROGRESS_FILE).is_file():
+            then = "without" if split else "with"
+            why = f"was made {then} --split (now {'with' if split else 'without'})"
+        if why and why.startswith("was made "):
+            raise WorkKept(f"{out} holds an interrupted recording that {why}: give the "
+                           f"arguments it was made with to go on with it, or remove {out} to "
+                           "start afresh")  # fmt: skip
         if found is not None:
             state, writer = found
             if log:

@@ -682,7 +682,8 @@ def held_out_tracks(tracks: np.ndarray, test_fraction: float, seed: int) -> np.n
 
 #: Names that lived here before the dataset folder got its own module, and where they are now.
 _MOVED = {"load_dataset": "storage", "save_dataset": "storage", "check_new_folder": "storage",
-          "SHARD_SIZE": "storage"}  # fmt: skip
+          "SHARD_SIZE": "storage", "dataset_manifest": "storage", "load_split": "storage",
+          "ShardWriter": "storage", "record_dataset": "recording"}  # fmt: skip
 
 
 def __getattr__(name: str):

@@ -96,7 +96,8 @@ from neurotrajectory.settings import Bool, Integer, OneOf, Real, Seed, Settings
 FORMAT_VERSION = 2  # 1: before frame, skip and pretrain_validation
 PRETRAIN_EPISODE_SECONDS = 30.0  # length of the episodes recorded for a warm start [s]
 WARM_START_FILE = "warm_start.npz"  # the warm start's genome in a run folder
-#: the warm start's fit while it runs, saved after each epoch (an interrupted fit goes on)
+#: the warm start's fit while it runs, saved after each epoch (an interrupted fit goes on;
+#: runs without DAgger rounds)
 WARM_START_FIT_FILE = "warm_start_fit.pt"
 #: The SHA-256 of the files the run's scenario is read from when it began (resumes check them).
 INPUTS_FILE = "inputs.json"
@@ -847,12 +848,15 @@ class Run:
         self.say(f"warm start: fitting the network to {len(windows)} windows "
                  f"({cfg.pretrain_epochs} epochs at most)")  # fmt: skip
 
+        # a fit interrupted goes on from its last epoch; with DAgger rounds (several fits,
+        # driving between them), a run interrupted in its warm start fits again from the start
+        saved = None if cfg.dagger_rounds else self.out / WARM_START_FIT_FILE
+
         def fit(visited):
             return pretrain_genome(probe, start, windows, cfg.pretrain_epochs, cfg.seed,
                                    validation=cfg.pretrain_validation, visited=visited,
                                    visited_share=cfg.dagger_weight,
-                                   progress=self._progress,
-                                   checkpoint=self.out / WARM_START_FIT_FILE)  # fmt: skip
+                                   progress=self._progress, checkpoint=saved)  # fmt: skip
 
         base, stats = fit(None)
         visited, rounds = [], []

@@ -14,6 +14,9 @@ on this machine (single-threaded torch).
 
 from __future__ import annotations
 
+import hashlib
+import json
+from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +25,7 @@ from tqdm import tqdm
 
 from gridsim.outputs import atomic_write
 from gridsim.seeding import Salt, stream
-from neurotrajectory.data.windows import DatasetError, Windows, split_rows
+from neurotrajectory.data.windows import DatasetError, GridRows, Windows, split_rows
 from neurotrajectory.evolve.genome import get_genome, set_genome
 from neurotrajectory.model import (
     TrajectoryNet,
@@ -116,21 +119,48 @@ def _save_fit(path: Path, key: dict, epochs: int, net, opt, scores: list, best) 
     atomic_write(path, write)
 
 
-def _load_fit(path: Path, key: dict, net, opt) -> tuple[int, list, np.ndarray] | None:
+def _load_fit(path: Path, key: dict, net, opt, epochs: int) -> tuple[int, list, np.ndarray] | None:
     """``(epochs done, validation scores, best genome)`` of the fit saved in ``path``, with
-    ``net`` and ``opt`` set as they were then; None if there is none, or one of other inputs
-    or damaged (the fit then starts over)."""
+    ``net`` and ``opt`` set as they were then (only once every field was read and checked);
+    None if there is none, or one of other inputs or damaged (the fit then starts over)."""
     if not path.is_file():
         return None
+    size = sum(p.numel() for p in net.parameters())
     try:
         saved = torch.load(path, weights_only=True)
         if saved["key"] != key:
             return None
-        set_genome(net, saved["genome"].numpy().copy())
-        opt.load_state_dict(saved["optimizer"])
-        return int(saved["epochs"]), list(saved["scores"]), saved["best"].numpy().copy()
+        done, scores = int(saved["epochs"]), [float(v) for v in saved["scores"]]
+        weights, best = saved["genome"].numpy().copy(), saved["best"].numpy().copy()
+        state = saved["optimizer"]
+        if not 0 < done <= epochs or weights.shape != (size,) or best.shape != (size,):
+            return None
     except Exception:  # noqa: BLE001 - a damaged file: the fit starts over
         return None
+    set_genome(net, weights)
+    opt.load_state_dict(state)
+    return done, scores, best
+
+
+def _fit_inputs(net, genome, windows: Windows, held_out, weights) -> str:
+    """A digest of what a fit starts from: the network's configuration, the start genome,
+    every array of the fitted and held-out windows (the grids read in place) and the
+    windows' weights."""
+    h = hashlib.blake2b(digest_size=16)
+    h.update(json.dumps(net.cfg.to_dict(), sort_keys=True).encode())
+    h.update(np.ascontiguousarray(genome, dtype=np.float32).tobytes())
+    for part in (windows, held_out):
+        if part is None:
+            h.update(b"none")
+            continue
+        for f in fields(part):
+            value = getattr(part, f.name)
+            if isinstance(value, GridRows):
+                h.update(value.rows.tobytes())
+                value = value.base
+            h.update(memoryview(np.ascontiguousarray(value)).cast("B"))
+    h.update(b"none" if weights is None else np.ascontiguousarray(weights).tobytes())
+    return h.hexdigest()
 
 
 def visited_weights(human: int, visited: int, share: float | None) -> np.ndarray | None:
@@ -205,11 +235,12 @@ def pretrain_genome(
         rng = stream(seed, Salt.WARM_START_BATCHES)
         bar = tqdm(total=epochs * -(-len(windows) // batch_size), desc="warm start",
                    unit="batch", leave=False, disable=not progress)  # fmt: skip
-        key = {"windows": len(windows), "held_out": 0 if held_out is None else len(held_out),
-               "epochs": epochs, "seed": seed, "batch_size": batch_size,
-               "learning_rate": learning_rate, "genome": float(np.sum(genome, dtype=np.float64)),
-               "target": float(np.sum(windows.target, dtype=np.float64))}  # fmt: skip
-        done = _load_fit(checkpoint, key, net, opt) if checkpoint is not None else None
+        done = None
+        if checkpoint is not None:
+            key = {"inputs": _fit_inputs(net, genome, windows, held_out, weights),
+                   "epochs": epochs, "seed": seed, "batch_size": batch_size,
+                   "learning_rate": learning_rate}  # fmt: skip
+            done = _load_fit(checkpoint, key, net, opt, epochs)
         if done is not None:
             first, scores, best = done
             bar.update(first * -(-len(windows) // batch_size))

@@ -241,9 +241,13 @@ def test_a_recording_of_other_arguments_is_refused_and_kept(tmp_path, monkeypatc
     kept = sorted(p.name for p in (tmp_path / "d").iterdir())
     with pytest.raises(WorkKept, match=re.escape(
             f"{tmp_path / 'd'} holds an interrupted recording that was made with seed 1 (now "
-            f"2): run it with those to go on with it, or remove {tmp_path / 'd'} to start "
-            "afresh")):  # fmt: skip
-        recording.record_dataset(tmp_path / "d", "seamless", 3, seed=2, duration=3.0, resume=True)
+            f"2): give the arguments it was made with to go on with it, or remove "
+            f"{tmp_path / 'd'} to start afresh")):  # fmt: skip
+        recording.record_dataset(tmp_path / "d", "seamless", 3, seed=2, duration=3.0,
+                                 resume=True)  # fmt: skip
+    with pytest.raises(WorkKept, match="was made without --split \\(now with\\)"):
+        recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0,
+                                 resume=True, split=("train", 0.3))  # fmt: skip
     assert sorted(p.name for p in (tmp_path / "d").iterdir()) == kept
     said = []
     recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0, resume=True,

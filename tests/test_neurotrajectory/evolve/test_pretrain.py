@@ -470,12 +470,15 @@ def test_an_interrupted_fit_goes_on_to_the_same_genome(windows_dir, tmp_path, mo
     np.testing.assert_array_equal(again, whole)
     assert again_stats == whole_stats
     assert not saved.exists()
-    # a saved fit of other inputs is not used
-    with monkeypatch.context() as m:
-        m.setattr(warm_start, "_save_fit", interrupted)
-        calls.clear()
-        with pytest.raises(KeyboardInterrupt):
-            pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
-    other, _ = pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **{**kwargs, "seed": 1})
-    alone, _ = pretrain_genome(_tiny_net(), start, w, **{**kwargs, "seed": 1})
-    np.testing.assert_array_equal(other, alone)
+    # a saved fit of other inputs (a seed, the windows' destinations) is not used
+    moved = Windows(**{**{f.name: getattr(w, f.name) for f in fields(w)},
+                       "destination": w.destination + 5.0})  # fmt: skip
+    for other_kwargs, windows in (({**kwargs, "seed": 1}, w), (kwargs, moved)):
+        with monkeypatch.context() as m:
+            m.setattr(warm_start, "_save_fit", interrupted)
+            calls.clear()
+            with pytest.raises(KeyboardInterrupt):
+                pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
+        other, _ = pretrain_genome(_tiny_net(), start, windows, checkpoint=saved, **other_kwargs)
+        alone, _ = pretrain_genome(_tiny_net(), start, windows, **other_kwargs)
+        np.testing.assert_array_equal(other, alone)
