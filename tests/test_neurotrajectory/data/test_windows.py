@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from breaks import ctrl_c_at
 
 from gridsim.errors import DataWarning
 from gridsim.outputs import write_npz
@@ -187,15 +188,7 @@ def test_a_split_read_from_the_shards_is_the_split_of_the_whole(tmp_path, monkey
 
 def _interrupt_at(monkeypatch, episode: int) -> None:
     """Ctrl-C while the ``episode``-th episode (from 1) of the next recording is driven."""
-    drive, calls = windows._episode_windows, []
-
-    def interrupted(*args, **kwargs):
-        calls.append(1)
-        if len(calls) == episode:
-            raise KeyboardInterrupt
-        return drive(*args, **kwargs)
-
-    monkeypatch.setattr(windows, "_episode_windows", interrupted)
+    ctrl_c_at(monkeypatch, windows, "_episode_windows", episode)
 
 
 @pytest.mark.parametrize(

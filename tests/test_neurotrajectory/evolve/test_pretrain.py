@@ -5,6 +5,7 @@ from dataclasses import fields
 
 import numpy as np
 import pytest
+from breaks import ctrl_c_at
 
 from neurotrajectory.cli import main
 from neurotrajectory.data.storage import load_dataset, save_dataset
@@ -449,24 +450,15 @@ def test_an_interrupted_fit_goes_on_to_the_same_genome(windows_dir, tmp_path, mo
     kwargs = {"epochs": 4, "seed": 0, "learning_rate": 1e-2, "validation": 0.3}
     whole, whole_stats = pretrain_genome(_tiny_net(), start, w, **kwargs)
     saved = tmp_path / "fit.pt"
-    save, calls = warm_start._save_fit, []
-
-    def interrupted(*args):
-        save(*args)
-        calls.append(1)
-        if len(calls) == 2:
-            raise KeyboardInterrupt
-
-    with monkeypatch.context() as m:
-        m.setattr(warm_start, "_save_fit", interrupted)
+    with monkeypatch.context() as m:  # after the second epoch is saved
+        ctrl_c_at(m, warm_start, "_save_fit", 2, after=True)
         with pytest.raises(KeyboardInterrupt):
             pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
     assert saved.is_file()
-    calls.clear()
     with monkeypatch.context() as m:
-        m.setattr(warm_start, "_save_fit", lambda *a: calls.append(a[2]) or save(*a))
+        calls = ctrl_c_at(m, warm_start, "_save_fit", 0)  # (counts the saves only)
         again, again_stats = pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
-    assert calls == [3, 4]  # epochs 1 and 2 were not fitted again
+    assert [c[2] for c in calls] == [3, 4]  # epochs 1 and 2 were not fitted again
     np.testing.assert_array_equal(again, whole)
     assert again_stats == whole_stats
     assert not saved.exists()
@@ -475,8 +467,7 @@ def test_an_interrupted_fit_goes_on_to_the_same_genome(windows_dir, tmp_path, mo
                        "destination": w.destination + 5.0})  # fmt: skip
     for other_kwargs, windows in (({**kwargs, "seed": 1}, w), (kwargs, moved)):
         with monkeypatch.context() as m:
-            m.setattr(warm_start, "_save_fit", interrupted)
-            calls.clear()
+            ctrl_c_at(m, warm_start, "_save_fit", 2, after=True)
             with pytest.raises(KeyboardInterrupt):
                 pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
         other, _ = pretrain_genome(_tiny_net(), start, windows, checkpoint=saved, **other_kwargs)

@@ -6,6 +6,7 @@ import shutil
 
 import numpy as np
 import pytest
+from breaks import ctrl_c_at
 
 from gridsim.errors import OutputError
 from gridsim.outputs import folder_lock, new_folder
@@ -339,15 +340,8 @@ def test_record_interrupted_goes_on_when_run_again(tmp_path, monkeypatch, capsys
     argv = ["record", "--scenario", "seamless", "--episodes", "3", "--episode-seconds", "3",
             "--quiet", "--out"]  # fmt: skip
     assert main([*argv, str(tmp_path / "whole")]) == 0
-    drive, calls = windows._episode_windows, []
-
-    def interrupted(*args, **kwargs):
-        calls.append(1)
-        if len(calls) == 3:
-            raise KeyboardInterrupt
-        return drive(*args, **kwargs)
-
-    monkeypatch.setattr(windows, "_episode_windows", interrupted)
+    drive = windows._episode_windows
+    ctrl_c_at(monkeypatch, windows, "_episode_windows", 3)
     out = tmp_path / "ds"
     assert main([*argv, str(out)]) == 130
     err = capsys.readouterr().err
@@ -376,15 +370,8 @@ def test_a_warm_start_interrupted_goes_on_from_its_last_epoch(tmp_path, monkeypa
 
     argv = [*QUICK, "--pretrain-episodes", "2", "--pretrain-epochs", "3", "--heldout", "0"]
     assert main(["train", *argv, "--out", str(tmp_path / "whole")]) == 0
-    save, calls = warm_start._save_fit, []
-
-    def interrupted(*args):
-        save(*args)
-        calls.append(1)
-        if len(calls) == 2:
-            raise KeyboardInterrupt
-
-    monkeypatch.setattr(warm_start, "_save_fit", interrupted)
+    save = warm_start._save_fit
+    ctrl_c_at(monkeypatch, warm_start, "_save_fit", 2, after=True)
     run = tmp_path / "run"
     assert main(["train", *argv, "--out", str(run)]) == 130
     assert "keeps its warm start's fit after its last full epoch; go on with: " \
