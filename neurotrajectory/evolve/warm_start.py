@@ -149,6 +149,7 @@ def _fit_inputs(net, genome, windows: Windows, held_out, weights) -> str:
     h = hashlib.blake2b(digest_size=16)
     h.update(json.dumps(net.cfg.to_dict(), sort_keys=True).encode())
     h.update(np.ascontiguousarray(genome, dtype=np.float32).tobytes())
+    hashed: list[np.ndarray] = []  # the grids both sides select from: read once
     for part in (windows, held_out):
         if part is None:
             h.update(b"none")
@@ -157,6 +158,9 @@ def _fit_inputs(net, genome, windows: Windows, held_out, weights) -> str:
             value = getattr(part, f.name)
             if isinstance(value, GridRows):
                 h.update(value.rows.tobytes())
+                if any(value.base is seen for seen in hashed):
+                    continue
+                hashed.append(value.base)
                 value = value.base
             h.update(memoryview(np.ascontiguousarray(value)).cast("B"))
     h.update(b"none" if weights is None else np.ascontiguousarray(weights).tobytes())
@@ -233,8 +237,9 @@ def pretrain_genome(
         target = torch.from_numpy(windows.target.astype(np.float32))
         weight = None if weights is None else torch.from_numpy(weights.astype(np.float32))
         rng = stream(seed, Salt.WARM_START_BATCHES)
-        bar = tqdm(total=epochs * -(-len(windows) // batch_size), desc="warm start",
-                   unit="batch", leave=False, disable=not progress)  # fmt: skip
+        batches = -(-len(windows) // batch_size)  # per epoch
+        bar = tqdm(total=epochs * batches, desc="warm start", unit="batch", leave=False,
+                   disable=not progress)  # fmt: skip
         done = None
         if checkpoint is not None:
             key = {"inputs": _fit_inputs(net, genome, windows, held_out, weights),
@@ -243,7 +248,7 @@ def pretrain_genome(
             done = _load_fit(checkpoint, key, net, opt, epochs)
         if done is not None:
             first, scores, best = done
-            bar.update(first * -(-len(windows) // batch_size))
+            bar.update(first * batches)
         else:
             first = 0
         for epoch in range(epochs):
