@@ -9,25 +9,26 @@ import json
 import shutil
 import time
 from collections.abc import Callable
-from dataclasses import asdict, fields
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
 
 from gridsim.errors import WorkKept
-from gridsim.outputs import LOCK_NAME, empty_folder, write_json, write_npz
+from gridsim.outputs import LOCK_NAME, empty_folder, write_json
 from neurotrajectory.data import storage
 from neurotrajectory.data.storage import (
     ShardWriter,
     check_new_folder,
     read_shard,
     sha256_of,
+    write_shard,
 )
 from neurotrajectory.data.windows import (
     FORMAT_VERSION,
     DatasetError,
     GroupProgress,
-    Windows,
+    check_test_fraction,
     group_files,
     held_out_tracks,
     package_versions,
@@ -37,9 +38,9 @@ from neurotrajectory.data.windows import (
 #: :func:`record_dataset`'s checkpoint of an interrupted recording, and how often one is
 #: taken [s]
 PROGRESS_FILE = "progress.json"
-
-
 CHECKPOINT_SECONDS = 30.0
+#: where a recording for a split writes the whole group, inside its folder
+SPOOL = ".spool"
 
 
 def record_dataset(
@@ -74,8 +75,8 @@ def record_dataset(
         side, test_fraction = split
         if side not in ("train", "test"):
             raise DatasetError(f"split side must be 'train' or 'test', got {side!r}")
-        held_out_tracks(np.array(["a", "b"]), test_fraction, seed)  # (checks the fraction)
-    spool = out / ".spool" if split else out
+        check_test_fraction(test_fraction)
+    spool = out / SPOOL if split else out
     state, writer, checkpoints = GroupProgress(), None, None
     if resume:
         arguments = {"name": name, "source": None if source is None else str(source),
@@ -88,7 +89,7 @@ def record_dataset(
                      "files": _file_stamps(name, source)}  # fmt: skip
         checkpoints = _Checkpoints(spool, arguments)
         found, why = checkpoints.load()
-        other = out if split else out / ".spool"  # where one with(out) --split keeps its own
+        other = out if split else out / SPOOL  # where one with(out) --split keeps its own
         if why is None and (other / PROGRESS_FILE).is_file():
             then = "without" if split else "with"
             why = f"was made {then} --split (now {'with' if split else 'without'})"
@@ -134,7 +135,7 @@ def record_dataset(
 
 
 #: What :func:`record_dataset` writes into its folder (``.*.tmp``: a write under way).
-_OURS = ("shard-*.npz", "pending-*.npz", PROGRESS_FILE, "manifest.json", ".spool", ".*.tmp")
+_OURS = ("shard-*.npz", "pending-*.npz", PROGRESS_FILE, "manifest.json", SPOOL, ".*.tmp")
 
 
 def _ours_only(folder: Path) -> bool:
@@ -196,8 +197,7 @@ class _Checkpoints:
                "pending": None}  # fmt: skip
         if pending is not None:
             name = f"pending-{self.number:06d}.npz"
-            write_npz(self.folder / name, **{f.name: getattr(pending, f.name)
-                                            for f in fields(Windows)})  # fmt: skip
+            write_shard(self.folder / name, pending, compressed=False)
             doc["pending"] = {"file": name, "windows": len(pending),
                               "sha256": sha256_of(self.folder / name)}  # fmt: skip
         write_json(self.path, doc)
@@ -271,7 +271,7 @@ def checkpoint_windows(folder: Path) -> tuple[int, bool] | None:
     """How many windows the interrupted recording in ``folder`` kept at its last checkpoint,
     and whether they are the whole group's (recorded for a split, one side of which is
     copied at the end); None: it has none."""
-    for path, whole in ((folder / PROGRESS_FILE, False), (folder / ".spool" / PROGRESS_FILE, True)):
+    for path, whole in ((folder / PROGRESS_FILE, False), (folder / SPOOL / PROGRESS_FILE, True)):
         if path.is_file():
             return int(json.loads(path.read_text())["windows"]), whole
     return None

@@ -23,7 +23,6 @@ from neurotrajectory.data.windows import (
 SHARD_SIZE = 256
 
 
-# -- storage --------------------------------------------------------------------------------
 def check_new_folder(out: str | Path) -> None:
     """A :class:`DatasetError` unless ``out`` can become a new output folder."""
     problem = new_folder_problem(out)
@@ -84,8 +83,7 @@ class ShardWriter:
         part = Windows.concat(self._buffer)
         self._buffer, self._buffered = [], 0
         name = f"shard-{len(self.shards):05d}.npz"
-        write_npz(self.folder / name, compressed=True,
-                  **{f.name: getattr(part, f.name) for f in fields(Windows)})  # fmt: skip
+        write_shard(self.folder / name, part)
         self.shards.append({"file": name, "windows": len(part),
                             "sha256": sha256_of(self.folder / name)})  # fmt: skip
 
@@ -142,7 +140,8 @@ def load_dataset(folder: str | Path) -> Dataset:
     shard)."""
     folder = Path(folder)
     manifest = dataset_manifest(folder)
-    return Dataset(_read_windows(folder, manifest, _checked_shards(folder, manifest)), manifest)
+    (windows,) = _read_windows(folder, manifest, _checked_shards(folder, manifest))
+    return Dataset(windows, manifest)
 
 
 def load_split(
@@ -161,9 +160,8 @@ def load_split(
                            f"{manifest['count']}")  # fmt: skip
     held = held_out_tracks(np.concatenate(tracks), test_fraction, seed)
     test = [np.isin(t, held) for t in tracks]
-    train = [~m for m in test]
-    return (manifest, _read_windows(folder, manifest, files, train),
-            _read_windows(folder, manifest, files, test))  # fmt: skip
+    train, test = _read_windows(folder, manifest, files, [[~m for m in test], test])
+    return manifest, train, test
 
 
 def _checked_shards(folder: Path, manifest: dict) -> list[Path]:
@@ -180,41 +178,56 @@ def _checked_shards(folder: Path, manifest: dict) -> list[Path]:
 
 
 def _read_windows(
-    folder: Path, manifest: dict, files: list[Path], keep: list[np.ndarray] | None = None
-) -> Windows:
-    """The windows of the shard ``files``, or of each the ones ``keep[k]`` (a mask per
-    shard) selects, read into arrays of their count."""
+    folder: Path, manifest: dict, files: list[Path], sides: list[list[np.ndarray]] | None = None
+) -> list[Windows]:
+    """The windows of the shard ``files`` in one pass over them: all of them, or for each
+    side of ``sides`` (a mask per shard) those it selects, read into arrays of their
+    count."""
     path = folder / "manifest.json"
     count = manifest["count"]
-    size = count if keep is None else int(sum(m.sum() for m in keep))
-    out: dict[str, np.ndarray] = {}
-    labels: list[np.ndarray] = []  # the track labels (their string width varies per shard)
-    done = total = 0
+    if sides is None:
+        sides = [[None] * len(files)]
+    sizes = [
+        count if any(m is None for m in masks) else int(sum(m.sum() for m in masks))
+        for masks in sides
+    ]
+    out: list[dict[str, np.ndarray]] = [{} for _ in sides]
+    labels: list[list[np.ndarray]] = [[] for _ in sides]  # (their string width varies)
+    done, total = [0] * len(sides), 0
     for k, file in enumerate(files):
-        part = read_shard(file)
-        total += len(part)
+        whole = read_shard(file)
+        total += len(whole)
         if total > count:
             raise DatasetError(f"{path}: the shards hold more windows than the manifest's "
                                f"count {count}")  # fmt: skip
-        if keep is not None:
-            part = part.take(np.flatnonzero(keep[k]))
-        n = len(part)
-        for f in fields(Windows):
-            value = getattr(part, f.name)
-            if f.name == "track":
-                labels.append(value)
-                continue
-            if f.name not in out:
-                out[f.name] = np.empty((size, *value.shape[1:]), value.dtype)
-            if value.shape[1:] != out[f.name].shape[1:] or value.dtype != out[f.name].dtype:
-                raise DatasetError(f"{file}: {f.name!r} is {value.dtype} {value.shape[1:]} "
-                                   f"per window, the first shard's "
-                                   f"{out[f.name].dtype} {out[f.name].shape[1:]}")  # fmt: skip
-            out[f.name][done : done + n] = value
-        done += n
+        for j, masks in enumerate(sides):
+            part = whole if masks[k] is None else whole.take(np.flatnonzero(masks[k]))
+            n = len(part)
+            for f in fields(Windows):
+                value = getattr(part, f.name)
+                if f.name == "track":
+                    labels[j].append(value)
+                    continue
+                if f.name not in out[j]:
+                    out[j][f.name] = np.empty((sizes[j], *value.shape[1:]), value.dtype)
+                have = out[j][f.name]
+                if value.shape[1:] != have.shape[1:] or value.dtype != have.dtype:
+                    raise DatasetError(f"{file}: {f.name!r} is {value.dtype} "
+                                       f"{value.shape[1:]} per window, the first shard's "
+                                       f"{have.dtype} {have.shape[1:]}")  # fmt: skip
+                have[done[j] : done[j] + n] = value
+            done[j] += n
     if total != count:
         raise DatasetError(f"{path}: {total} windows, manifest says {count}")
-    return Windows(**out, track=np.concatenate(labels))
+    return [Windows(**arrays, track=np.concatenate(tracks))
+            for arrays, tracks in zip(out, labels, strict=True)]  # fmt: skip
+
+
+def write_shard(file: Path, windows: Windows, compressed: bool = True) -> None:
+    """``windows`` as one shard file (every array; written atomically): :func:`read_shard`
+    reads it back."""
+    write_npz(file, compressed=compressed,
+              **{f.name: getattr(windows, f.name) for f in fields(Windows)})  # fmt: skip
 
 
 def read_shard(file: Path) -> Windows:

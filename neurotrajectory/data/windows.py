@@ -668,10 +668,15 @@ def split_rows(
     return np.flatnonzero(~held_out), np.flatnonzero(held_out)
 
 
-def held_out_tracks(tracks: np.ndarray, test_fraction: float, seed: int) -> np.ndarray:
-    """The test side's tracks of :func:`split_by_track` among the track labels ``tracks``."""
+def check_test_fraction(test_fraction: float) -> None:
+    """A :class:`DatasetError` unless ``test_fraction`` (a split's test share) is in (0, 1)."""
     if not 0 < test_fraction < 1:
         raise DatasetError(f"test_fraction must be in (0, 1), got {test_fraction}")
+
+
+def held_out_tracks(tracks: np.ndarray, test_fraction: float, seed: int) -> np.ndarray:
+    """The test side's tracks of :func:`split_by_track` among the track labels ``tracks``."""
+    check_test_fraction(test_fraction)
     tracks = np.unique(tracks)
     if len(tracks) < 2:
         raise DatasetError(f"need windows from >= 2 tracks to split, got {len(tracks)}")
