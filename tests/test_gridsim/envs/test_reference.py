@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from paths import DATA
 
+from gridsim.envs import human_reference as human_reference_module
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.envs.human_reference import HumanReference, human_reference
 from gridsim.scenario.loader import load_scenario
@@ -50,6 +51,26 @@ def test_samples_do_not_depend_on_the_order_of_requests():
     assert np.array_equal(far, step_by_step.positions(np.array([19.0, 0.3])))
     assert np.array_equal(ahead.xy, step_by_step.xy)
     assert ahead.revisions == step_by_step.revisions != []
+
+
+def test_samples_do_not_depend_on_how_far_the_shadow_world_runs_ahead(monkeypatch):
+    """The shadow world runs SIMULATE_AHEAD further than asked (batches of many ticks): the
+    same samples, revisions and collisions as running no further than asked, asked step by
+    step as an environment asks."""
+    sc = load_scenario("inner_city", {"simulation": {"duration": 20.0}})
+    seed = 322709278  # needs a revision at ~6 s
+    refs = []
+    for ahead in (0.0, 0.3, 2.0, 7.0):
+        monkeypatch.setattr(human_reference_module, "SIMULATE_AHEAD", ahead)
+        ref = HumanReference(sc, seed, 22.5)
+        for t in np.arange(2.5, 22.5, 0.1):
+            ref.positions(np.array([t]))
+        refs.append(ref)
+    first = refs[0]
+    assert first.revisions != []
+    for ref in refs[1:]:
+        assert np.array_equal(ref.xy, first.xy) and np.array_equal(ref.v, first.v)
+        assert ref.revisions == first.revisions and ref.collisions == first.collisions
 
 
 def test_references_are_shared_per_seed():
