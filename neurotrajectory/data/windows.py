@@ -442,7 +442,9 @@ def _record_scenario_into(
                                      goal_seconds=goal_seconds)  # fmt: skip
     first, count = resume
     if planned is not None:
-        planned(len(plan) - first)
+        planned(len(plan))
+    if first and progress is not None:  # gone on with part-way: the bar counts those done
+        progress(first)
     driven = iter_windows(scenario, plan[first:], stride, progress=progress)
     for k, windows in enumerate(driven, first + 1):
         if windows is not None:
@@ -568,6 +570,8 @@ class GroupProgress:
     skipped: list = field(default_factory=list)
     #: the sink's mark at the start of the scenario under way (to roll it back if it fails)
     mark: object = None
+    #: the episodes of the scenarios done (for a progress bar that goes on where it was)
+    episodes_done: int = 0
 
 
 def record_group_into(
@@ -591,6 +595,10 @@ def record_group_into(
     scenarios, unloaded = group_files(name, source)
     replays = {scenario: is_recorded(scenario) for scenario in scenarios}
     state = GroupProgress() if state is None else state
+    if state.episodes_done:  # gone on with: the bar counts the scenarios done
+        for callback in (planned, progress):
+            if callback is not None:
+                callback(state.episodes_done)
     for i, scenario in enumerate(scenarios[state.scenario :], state.scenario):
         s = stride or (RECORDED_STRIDE if replays[scenario] else GENERATED_STRIDE)
         if state.mark is None:  # the file begins now (not one gone on with part-way)
@@ -612,6 +620,7 @@ def record_group_into(
             state.skipped.append([scenario, str(exc)])
         else:
             state.metas.append(meta)
+        state.episodes_done += state.episode
         state.scenario, state.episode, state.windows, state.mark = i + 1, 0, 0, None
         if recorded is not None:
             recorded(True)

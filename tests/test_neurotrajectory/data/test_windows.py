@@ -337,6 +337,38 @@ def test_a_file_that_fails_after_a_break_is_skipped_whole(tmp_path, monkeypatch)
     assert _shard_digests(tmp_path / "part") == _shard_digests(tmp_path / "whole")
 
 
+def test_a_recording_gone_on_with_counts_its_whole_bar(tmp_path, monkeypatch):
+    """The progress bar of a recording that goes on after a break starts where it was: its
+    total and its count at the end are those of a recording without a break (the files done
+    before the break and the episodes of the file under way included)."""
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
+    kwargs = {"source": str(_group_of_three(tmp_path)), "stride": 10}
+
+    def bar() -> tuple[dict, dict]:
+        counts = {"total": 0, "done": 0}
+
+        def planned(n: int) -> None:
+            counts["total"] += n
+
+        def progress(n: int) -> None:
+            counts["done"] += n
+
+        return counts, {"planned": planned, "progress": progress}
+
+    whole, callbacks = bar()
+    recording.record_dataset(tmp_path / "whole", "g", 1, **kwargs, **callbacks)
+    per_file = [len(windows.scenario_episodes(f)[0])
+                for f in windows.group_files("g", kwargs["source"])[0]]  # fmt: skip
+    assert whole == {"total": sum(per_file), "done": sum(per_file)}
+    with monkeypatch.context() as m:
+        _interrupt_at(m, per_file[0] + 2)  # the second file's second episode
+        with pytest.raises(KeyboardInterrupt):
+            recording.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs)
+    again, callbacks = bar()
+    recording.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs, **callbacks)
+    assert again == whole
+
+
 def test_a_damaged_checkpoint_is_said_and_not_used(tmp_path, monkeypatch):
     monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
     monkeypatch.setattr(storage, "SHARD_SIZE", 64)
