@@ -136,12 +136,18 @@ def main() -> None:
                 "file_mb": round(path.stat().st_size / 1e6, 1),
                 "seconds": round(row["seconds"], 2),
                 "peak_mb": round(row["peak_mb"], 1),
-                "time_vs_linear": round(row["seconds"] / (ref["seconds"] * scale), 2),
-                "memory_vs_linear": round(row["peak_mb"] / (ref["peak_mb"] * scale), 2),
+                "time_vs_linear": _ratio(row["seconds"], ref["seconds"] * scale),
+                "memory_vs_linear": _ratio(row["peak_mb"], ref["peak_mb"] * scale),
             }
             if phase == "make_reset":
                 out["target_s"] = 10.0
             print(json.dumps(out), flush=True)
+
+
+def _ratio(value: float, linear: float) -> float | None:
+    """``value`` over its linear extrapolation from the smallest scene (None when that is 0:
+    a phase whose peak stayed within the imports' memory)."""
+    return round(value / linear, 2) if linear > 0 else None
 
 
 if __name__ == "__main__":

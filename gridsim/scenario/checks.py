@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import lru_cache
+from typing import NamedTuple
 
 import numpy as np
 
@@ -248,27 +249,13 @@ def scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> S
     """Checks of a recorded scene: its tracks' flaws (a problem when most tracks have one,
     else warnings), a scene (or the one track named as ``ego.track``) shorter than the
     planning horizon, and a named ego track that is flawed."""
-    flawed = flawed_tracks(tuple(tracks), road)
-    source = tracks[0].source or scenario.source
-    problems, warnings = _verdict(flawed, len(tracks), source,
-                                  "implausible for this map or in the wrong units (does the map "
-                                  "belong to the tracks? are time stamps in seconds and "
-                                  "positions in metres?)",
-                                  "kept as traffic, not offered as the ego")  # fmt: skip
-    env = scenario.config.env
-    need = env.horizon_time
-    longest = max(tracks, key=lambda t: t.duration)
-    if longest.duration < need:
-        problems.append(
-            f"{longest.source or scenario.source}: scene {longest.scenario_id} lasts "
-            f"{longest.duration:.3g} s (its longest track, {longest.track_id}); the horizon "
-            f"needs {need:.3g} s (env.horizon x env.setpoint_period)"
-        )
-    warnings += _alone_in_time(tracks, source)
+    need = scenario.config.env.horizon_time
+    scene = _scene_checks(tuple(tracks), road, tracks[0].source or scenario.source, need)
+    problems, warnings, flawed = list(scene.problems), list(scene.warnings), scene.flawed
     wanted = scenario.config.ego.track  # one named track must be usable (a list is filtered)
     if isinstance(wanted, str):  # its id in this scene (SCENE/ID names another's: no check)
-        wanted = next(iter(ids_in_scene([wanted], longest.scenario_id)[0]), None)
-    named = next((t for t in tracks if t.track_id == wanted), None)
+        wanted = next(iter(ids_in_scene([wanted], tracks[0].scenario_id)[0]), None)
+    named = scene.by_id.get(wanted) if isinstance(wanted, str) else None
     if named is not None and named.duration < need:
         problems.append(
             f"{scenario.source}: ego.track {wanted} lasts {named.duration:.3g} s; "
@@ -278,3 +265,36 @@ def scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -> S
         problems.append(f"{scenario.source}: ego.track {wanted} cannot be the ego: "
                         f"{flawed[wanted][0]}")  # fmt: skip
     return SceneReport(tuple(problems), tuple(warnings), frozenset(flawed))
+
+
+class _SceneChecks(NamedTuple):
+    problems: tuple[str, ...]
+    warnings: tuple[str, ...]
+    flawed: dict  # track id -> its flaws
+    by_id: dict  # track id -> track
+
+
+@lru_cache(maxsize=16)
+def _scene_checks(tracks: tuple[Track, ...], road: StaticRoad, source: str,
+                  need: float) -> _SceneChecks:  # fmt: skip
+    """The checks of :func:`scene_report` that do not depend on the ego track, made once per
+    scene (``record`` builds a world per ego track: a scene of N tracks checked per world
+    cost N^2); ``need``: the planning horizon [s]."""
+    flawed = flawed_tracks(tracks, road)
+    problems, warnings = _verdict(flawed, len(tracks), source,
+                                  "implausible for this map or in the wrong units (does the map "
+                                  "belong to the tracks? are time stamps in seconds and "
+                                  "positions in metres?)",
+                                  "kept as traffic, not offered as the ego")  # fmt: skip
+    longest = max(tracks, key=lambda t: t.duration)
+    if longest.duration < need:
+        problems.append(
+            f"{longest.source or source}: scene {longest.scenario_id} lasts "
+            f"{longest.duration:.3g} s (its longest track, {longest.track_id}); the horizon "
+            f"needs {need:.3g} s (env.horizon x env.setpoint_period)"
+        )
+    warnings += _alone_in_time(list(tracks), source)
+    by_id: dict = {}
+    for t in tracks:  # (the first of an id, as a search would find)
+        by_id.setdefault(t.track_id, t)
+    return _SceneChecks(tuple(problems), tuple(warnings), flawed, by_id)

@@ -116,6 +116,19 @@ class Fleet:
     def capacity(self) -> int:
         return len(self.active)
 
+    def relaid(self, capacity: int, where: np.ndarray) -> Fleet:
+        """A fleet of ``capacity`` participants (sharing the paths and profiles) whose
+        participant ``where[i]`` is this one's ``i``, leaders renumbered; the others
+        inactive. ``where`` increasing: the participants keep their order."""
+        new = Fleet(capacity, self.p)
+        new.paths, new.profiles = self.paths, self.profiles
+        for mine, theirs in zip(self.state, new.state, strict=True):
+            theirs[where] = mine[: len(where)]
+        new.leader[where] = np.where(self.leader[: len(where)] >= 0,
+                                     where[np.maximum(self.leader[: len(where)], 0)],
+                                     self.leader[: len(where)])  # fmt: skip
+        return new
+
     @property
     def state(self) -> tuple[np.ndarray, ...]:
         """The arrays in :class:`~gridsim.traffic.fleet_kernels.FleetState` order, for the

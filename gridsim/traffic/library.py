@@ -42,6 +42,7 @@ class TrajectoryLibrary:
             raise DataError("the trajectory library is empty")
         self.tracks = tracks
         self._by_key: dict[tuple[str, str], Track] = {}
+        self._scenes: dict[str, list[Track]] = {}  # scene id -> its tracks (found once)
         for t in tracks:
             key = (t.scenario_id, t.track_id)
             if key in self._by_key:
@@ -76,12 +77,16 @@ class TrajectoryLibrary:
         return cls(tracks)
 
     def scene(self, scenario_id: str) -> list[Track]:
-        """All tracks of one recorded scene, in file order."""
-        out = [t for t in self.tracks if t.scenario_id == scenario_id]
+        """All tracks of one recorded scene, in file order (a new list; the scene is looked
+        for once: every world of a scene asks)."""
+        out = self._scenes.get(scenario_id)
+        if out is None:
+            out = self._scenes[scenario_id] = [t for t in self.tracks
+                                               if t.scenario_id == scenario_id]  # fmt: skip
         if not out:
             known = sorted({t.scenario_id for t in self.tracks})
             raise DataError(f"no tracks for scene {scenario_id!r}; known scenes: {known}")
-        return out
+        return list(out)
 
     def get(self, scenario_id: str, track_id: str) -> Track:
         try:

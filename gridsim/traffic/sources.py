@@ -9,6 +9,7 @@ from __future__ import annotations
 import copy
 import math
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import NamedTuple
 
@@ -21,7 +22,7 @@ from gridsim.seeding import copy_generator
 from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
 from gridsim.traffic.profile_kernels import continue_profiles
 from gridsim.traffic.profiles import HumanProfiles, SpeedBounds, human_profiles
-from gridsim.traffic.tables import TableBank, checked_table
+from gridsim.traffic.tables import PathBank, TableBank, checked_table
 from gridsim.traffic.track import Track
 
 _SPAWN_CLEARANCE = 6.0  # free distance [m] kept around a new participant, beyond the footprints
@@ -91,28 +92,56 @@ class TrafficSource(ABC):
         return []
 
 
+@dataclass(frozen=True, eq=False)
+class SceneTables:
+    """A recorded scene's tracks as every world of the scene replays them (made once per
+    scene, shared read-only): the path and profile tables of all its tracks, slot ``k`` the
+    scene's track ``k``, and each track's id, first time [s] and duration [s]."""
+
+    paths: PathBank  # arc length [m] -> points [m, world]
+    profiles: TableBank  # time [s] from the track's start -> arc length, speed, 0, heading
+    ids: np.ndarray  # the track ids (object)
+    t0: np.ndarray
+    duration: np.ndarray
+
+
 @lru_cache(maxsize=8)
-def _scene_tables(tracks: tuple[Track, ...]) -> tuple[list[tuple], list[tuple]]:
-    """Each track's path table (arc lengths [m] -> points) and profile table (time [s] from
-    its start -> arc length, speed, 0, heading), checked, made once per scene: every episode
-    of a scene (one per ego track when a scene is recorded) replays the same tracks."""
-    paths, profiles = [], []
+def scene_tables(tracks: tuple[Track, ...]) -> SceneTables:
+    """The :class:`SceneTables` of the recorded scene ``tracks``, checked, made once per
+    scene: every world of a scene (one per ego track when a scene is recorded) looks its
+    tracks up in the same flat tables, so that a world costs the tracks it replays, not the
+    scene's (and a track replays the same bits whichever world replays it)."""
+    paths, profiles = PathBank(), TableBank(width=4)
+    path_tables, profile_tables = [], []
     for tr in tracks:
         path_pts, path_s, s_samples = track_path(tr)
-        paths.append(checked_table(path_s, path_pts, 2))
+        path_tables.append(checked_table(path_s, path_pts, 2))
         prof = np.stack([s_samples, tr.speed, np.zeros_like(tr.t), tr.heading], axis=1)
-        profiles.append(checked_table(tr.t - tr.t[0], prof, 4))
-    return paths, profiles
+        profile_tables.append(checked_table(tr.t - tr.t[0], prof, 4))
+    paths.extend_paths(path_tables)
+    profiles.extend(profile_tables)
+    ids = np.array([tr.track_id for tr in tracks], dtype=object)
+    t0 = np.array([tr.t[0] for tr in tracks], dtype=np.float64)
+    duration = np.array([tr.duration for tr in tracks], dtype=np.float64)
+    return SceneTables(paths, profiles, ids, t0, duration)
 
 
 #: s: a clock that adds its ticks up from a start time far from 0 (a recording timed from
 #: 100 s: 102.99999999999983 after 30 ticks) still places a track at the tick it starts.
 TIME_TOLERANCE = 1e-9
+#: s: a world replaying a time span (``until``) keeps the tracks recorded within this much of
+#: it as well (kept tracks cost a little memory, never a different result).
+SPAN_MARGIN = 1.0
 
 
 class RecordedSceneTraffic(TrafficSource):
     """Replays the tracks of a recorded scene in their own geometry (exact poses, 10 Hz data
-    interpolated at the simulation rate). ``exclude`` removes one track (the expert ego)."""
+    interpolated at the simulation rate). ``exclude`` removes one track (the expert ego).
+    With ``until`` [s], the world replays the span from ``start_time`` to ``until`` (an ego
+    track's episode): only the tracks recorded in it are kept, so that a world of a scene of
+    thousands of vehicles holds the few hundred it meets; ticked past it, it takes in the
+    rest of the scene (the same bits as keeping it all along). Participant ``i`` replays the
+    scene's track ``slots[i]`` (its tables' slot)."""
 
     def __init__(
         self,
@@ -120,19 +149,33 @@ class RecordedSceneTraffic(TrafficSource):
         exclude: str | None = None,
         start_time: float = 0.0,
         params: FleetParams | None = None,
+        until: float | None = None,
     ) -> None:
-        paths, profiles = _scene_tables(tuple(tracks))
-        kept = [i for i, t in enumerate(tracks) if t.track_id != exclude]
-        self.tracks = [tracks[i] for i in kept]
-        self.start_time = start_time
-        self.fleet = Fleet(max(1, len(self.tracks)), params)
-        self.fleet.paths.extend_paths([paths[i] for i in kept])
-        self.fleet.profiles.extend([profiles[i] for i in kept])
+        self._scene = tuple(tracks)
+        self._exclude, self.start_time, self.until = exclude, start_time, until
         self.time = start_time
-        self._done = np.zeros(len(self.tracks), bool)
+        self._keep(Fleet(1, params))
+
+    def _keep(self, fleet: Fleet) -> None:
+        """Keep the scene's tracks (but the excluded one) recorded in the span, or all of them
+        without ``until``; the participants of ``fleet`` stay where their tracks are."""
+        scene = scene_tables(self._scene)
+        keep = scene.ids != self._exclude
+        if self.until is not None:
+            keep &= (scene.t0 <= self.until + SPAN_MARGIN) & (
+                scene.t0 + scene.duration >= self.start_time - SPAN_MARGIN
+            )
+        slots = np.flatnonzero(keep)
+        old = getattr(self, "slots", slots[:0])
+        where = np.searchsorted(slots, old)  # (the slots kept before are kept again)
+        self.fleet = fleet.relaid(max(1, len(slots)), where)
+        self.fleet.paths, self.fleet.profiles = scene.paths, scene.profiles
+        done = np.zeros(len(slots), bool)
+        done[where] = getattr(self, "_done", done[:0])
+        self.slots, self._done = slots, done
+        self.tracks = [self._scene[i] for i in slots]
         #: each track's first time [s] and duration [s], to find the ones due at once
-        self._t0 = np.array([tr.t[0] for tr in self.tracks], dtype=np.float64)
-        self._duration = np.array([tr.duration for tr in self.tracks], dtype=np.float64)
+        self._t0, self._duration = scene.t0[slots], scene.duration[slots]
 
     def reset(self, rng: np.random.Generator, ego: EgoPose) -> None:
         self.fleet.deactivate(np.arange(self.fleet.capacity))
@@ -148,13 +191,13 @@ class RecordedSceneTraffic(TrafficSource):
         early, late = taus < -TIME_TOLERANCE, taus > self._duration + TIME_TOLERANCE
         due = np.flatnonzero(~(self.fleet.active[:n] | self._done | early | late))
         for i in due:
-            tr, tau = self.tracks[i], taus[i]
-            vals = self.fleet.profiles.lookup(np.array([i]), np.array([tau]))
+            tr, tau, slot = self.tracks[i], taus[i], int(self.slots[i])
+            vals = self.fleet.profiles.lookup(np.array([slot]), np.array([tau]))
             self.fleet.place(
                 i,
-                path=i,
+                path=slot,
                 s=float(vals[0, 0]),
-                profile=i,
+                profile=slot,
                 tau=tau,
                 geometric=True,
                 length=tr.length,
@@ -169,7 +212,8 @@ class RecordedSceneTraffic(TrafficSource):
         """The tracks, their times and the fleet's paths and profiles: made from the
         recording, never changed (a scene of thousands of tracks is not copied per episode)."""
         f = self.fleet
-        return [self.tracks, self._t0, self._duration, f.paths, f.profiles]
+        return [self._scene, self.tracks, self.slots, self._t0, self._duration, f.paths,
+                f.profiles]  # fmt: skip
 
     def tick_data(self, dt: float, road: Road) -> TrafficTick:
         """:meth:`Fleet.tick_data` for :meth:`tick` (no window: a recording keeps its tracks
@@ -181,6 +225,9 @@ class RecordedSceneTraffic(TrafficSource):
         tracks whose recording ended are done, those whose recording begins are placed."""
         self.time += dt
         self._done[ended] = True
+        if self.until is not None and self.time > self.until + SPAN_MARGIN:
+            self.until = None  # ticked past its span: the whole scene from now on
+            self._keep(self.fleet)
         return self._activate_due()
 
 

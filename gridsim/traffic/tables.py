@@ -39,7 +39,7 @@ class TableBank:
         self._x: list[np.ndarray | None] = []
         self._y: list[np.ndarray | None] = []
         self._free: list[int] = []
-        self._dirty = True
+        self._dirty, self._size = True, None
 
     def __len__(self) -> int:
         return len(self._x)
@@ -65,7 +65,7 @@ class TableBank:
 
     def set(self, slot: int, x: np.ndarray, y: np.ndarray) -> None:
         self._x[slot], self._y[slot] = checked_table(x, y, self.width)
-        self._dirty = True
+        self._dirty, self._size = True, None
 
     def extend(self, tables: list[tuple[np.ndarray, np.ndarray]]) -> None:
         """Append tables already checked (:func:`checked_table` of this width), in order
@@ -77,23 +77,26 @@ class TableBank:
             raise ValueError("extend appends to a bank without free slots")
         self._x.extend(x for x, _ in tables)
         self._y.extend(y for _, y in tables)
-        self._dirty = True
+        self._dirty, self._size = True, None
 
     def remove(self, slot: int) -> None:
         self._x[slot] = self._y[slot] = None
         self._free.append(slot)
-        self._dirty = True
+        self._dirty, self._size = True, None
 
     @property
     def nbytes(self) -> int:
-        """The memory [bytes] of the tables and of the arrays derived from them."""
-        total = 0
-        for value in vars(self).values():
-            if isinstance(value, np.ndarray):
-                total += value.nbytes
-            elif isinstance(value, list):
-                total += sum(a.nbytes for a in value if isinstance(a, np.ndarray))
-        return total
+        """The memory [bytes] of the tables and of the arrays derived from them (counted
+        once until they change: a scene's bank holds thousands of tables)."""
+        if self._size is None:
+            total = 0
+            for value in vars(self).values():
+                if isinstance(value, np.ndarray):
+                    total += value.nbytes
+                elif isinstance(value, list):
+                    total += sum(a.nbytes for a in value if isinstance(a, np.ndarray))
+            self._size = total
+        return self._size
 
     def x_range(self, slot: int) -> tuple[float, float]:
         x = self._x[slot]
@@ -118,7 +121,7 @@ class TableBank:
         self._build_buckets()
         self._bank = (self._keys, self._base, self._first, self._last, self._lo, self._hi,
                       self._bucket_count, self._bucket_width)  # fmt: skip
-        self._dirty = False
+        self._dirty, self._size = False, None
         self._on_rebuild()
 
     def _build_buckets(self) -> None:

@@ -148,7 +148,8 @@ def build(scenario: Scenario, seed: int) -> World:
     route = Polyline(track_path(ego_track)[0])
     # the traffic replays from the ego's first recorded time: the scene as the ego saw it
     traffic = RecordedSceneTraffic(tracks, exclude=ego_track.track_id,
-                                   start_time=float(ego_track.t[0]))  # fmt: skip
+                                   start_time=float(ego_track.t[0]),
+                                   until=float(ego_track.t[-1]))  # fmt: skip
     return World(
         road,
         traffic,

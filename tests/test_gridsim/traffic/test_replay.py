@@ -9,6 +9,7 @@ from scenes import track, waiting, write_scene
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.envs.human_reference import reference_from_track
+from gridsim.traffic.fleet import EgoPose
 
 
 def drive_reference(path: Path) -> tuple[GridSimEnv, dict, bool]:
@@ -163,30 +164,73 @@ def test_vehicles_sized_in_feet_get_a_hint(tmp_path):
 
 def test_a_scene_s_tables_made_once_are_those_made_track_by_track():
     """Every episode of a recorded scene replays the same tracks: their path and profile
-    tables are made once per scene and shared (record builds one world per ego track; made
-    per world, a scene of N tracks cost N^2). The banks are those that adding each track in
-    turn makes, bit for bit, whichever track is the ego."""
+    tables are made once per scene and every world looks them up there (record builds one
+    world per ego track; made per world, a scene of N tracks cost N^2). The banks are those
+    that adding each track in turn makes, bit for bit; each world's participants replay the
+    scene's slots of the tracks they are."""
     from gridsim.scenario.families.recorded import recorded_scene
     from gridsim.scenario.loader import load_scenario
     from gridsim.traffic.fleet import Fleet
     from gridsim.traffic.sources import RecordedSceneTraffic, track_path
 
     _, tracks = recorded_scene(load_scenario("us101_3_3"))
+    one_by_one = Fleet(len(tracks))
+    for tr in tracks:
+        points, s, s_samples = track_path(tr)
+        one_by_one.paths.add_path(points, s)
+        prof = np.stack([s_samples, tr.speed, np.zeros_like(tr.t), tr.heading], axis=1)
+        one_by_one.profiles.add(tr.t - tr.t[0], prof)
+    fleets = []
     for exclude in (None, tracks[0].track_id, tracks[len(tracks) // 2].track_id):
-        shared = RecordedSceneTraffic(tracks, exclude=exclude).fleet
-        one_by_one = Fleet(len(tracks))
-        for tr in (t for t in tracks if t.track_id != exclude):
-            points, s, s_samples = track_path(tr)
-            one_by_one.paths.add_path(points, s)
-            prof = np.stack([s_samples, tr.speed, np.zeros_like(tr.t), tr.heading], axis=1)
-            one_by_one.profiles.add(tr.t - tr.t[0], prof)
-        for bank in ("paths", "profiles"):
-            a, b = getattr(shared, bank).kernel_data(), getattr(one_by_one, bank).kernel_data()
-            flat_a, flat_b = [*a[0], *a[1:]], [*b[0], *b[1:]]
-            assert len(flat_a) == len(flat_b)
-            for x, y in zip(flat_a, flat_b, strict=True):
-                np.testing.assert_array_equal(x, y)
-        np.testing.assert_array_equal(shared.paths.corridor_ids, one_by_one.paths.corridor_ids)
-    first = RecordedSceneTraffic(tracks, exclude=tracks[1].track_id).fleet.paths
-    second = RecordedSceneTraffic(tracks, exclude=tracks[2].track_id).fleet.paths
-    assert first._x[0] is second._x[0]  # shared, not made again
+        traffic = RecordedSceneTraffic(tracks, exclude=exclude)
+        assert [tracks[k] for k in traffic.slots] == traffic.tracks
+        assert [t.track_id for t in traffic.tracks] == [
+            t.track_id for t in tracks if t.track_id != exclude]  # fmt: skip
+        fleets.append(traffic.fleet)
+    shared = fleets[0]
+    for bank in ("paths", "profiles"):
+        a, b = getattr(shared, bank).kernel_data(), getattr(one_by_one, bank).kernel_data()
+        flat_a, flat_b = [*a[0], *a[1:]], [*b[0], *b[1:]]
+        assert len(flat_a) == len(flat_b)
+        for x, y in zip(flat_a, flat_b, strict=True):
+            np.testing.assert_array_equal(x, y)
+        assert all(getattr(f, bank) is getattr(shared, bank) for f in fleets)  # not made again
+    np.testing.assert_array_equal(shared.paths.corridor_ids, one_by_one.paths.corridor_ids)
+
+
+def test_a_world_keeps_the_tracks_of_its_span_and_replays_them_as_the_whole_scene():
+    """A world that replays an ego track's span keeps only the tracks recorded in it (a world
+    of a scene of thousands of vehicles holds those it meets), and its participants move as
+    in a world that keeps every track, bit for bit, past its span too (it then takes in the
+    rest of the scene)."""
+    import dataclasses
+
+    from gridsim.traffic.sources import RecordedSceneTraffic
+
+    tracks = []  # cars entering a three-lane road every 0.7 s, each recorded for 5 s
+    for k in range(40):
+        x = 10.0 * 0.1 * np.arange(51) + (k % 5)
+        tr = track(str(k), x, np.full(51, 1.75 + 3.5 * (k % 3)))
+        tracks.append(dataclasses.replace(tr, t=tr.t + 0.7 * k))
+    ego = tracks[20]
+    start, until = float(ego.t[0]), float(ego.t[-1])
+    span = RecordedSceneTraffic(tracks, exclude=ego.track_id, start_time=start, until=until)
+    whole = RecordedSceneTraffic(tracks, exclude=ego.track_id, start_time=start)
+    assert 0 < len(span.tracks) < len(whole.tracks)
+    met = [t.track_id for t in tracks
+           if t.track_id != ego.track_id and t.t[0] <= until and t.t[-1] >= start]  # fmt: skip
+    assert set(met) <= {t.track_id for t in span.tracks}
+    pose = EgoPose(float(ego.x[0]), float(ego.y[0]), float(ego.heading[0]), 0.0, 4.5, 1.8)
+    for source in (span, whole):
+        source.reset(np.random.default_rng(0), pose)
+    named = {t.track_id: i for i, t in enumerate(whole.tracks)}
+    for _ in range(round((until - start) / 0.1) + 40):
+        for source in (span, whole):
+            source.tick(0.1, pose)
+        f, g = span.fleet, whole.fleet
+        mine = np.flatnonzero(f.active)
+        theirs = [named[span.tracks[i].track_id] for i in mine]
+        assert theirs == list(np.flatnonzero(g.active))
+        for name in ("x", "y", "psi", "v", "s", "tau"):
+            np.testing.assert_array_equal(getattr(f, name)[mine], getattr(g, name)[theirs])
+    assert span.until is None and len(span.tracks) == len(whole.tracks)  # past its span

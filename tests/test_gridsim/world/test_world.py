@@ -114,8 +114,12 @@ def test_worlds_copied_from_the_pristine_one_tick_like_a_fresh_build(scenario):
     sc = load_scenario(scenario)
     fresh = family_of(sc).build(sc, 11)
     copies = [build_world(sc, 11), build_world(sc, 11)]
+    if scenario == "us101_3_3":  # a recording's tracks, paths and profiles: shared too
+        a, b = (w.traffic for w in copies)
+        assert a.tracks is b.tracks and a.fleet.paths is b.fleet.paths
+        assert a.fleet.profiles is b.fleet.profiles and a.fleet is not b.fleet
     drivers = [LaneFollower(speed=9.0) for _ in range(3)]
-    for _ in range(150):
+    for _ in range(150):  # (15 s: past the ego track's span on recorded scenes)
         for w, drive in zip([fresh, *copies], drivers, strict=True):
             w.tick(*drive(w))
         for w in copies:
@@ -123,10 +127,6 @@ def test_worlds_copied_from_the_pristine_one_tick_like_a_fresh_build(scenario):
             assert np.array_equal(w.traffic.fleet.x, fresh.traffic.fleet.x)
             assert w.last == fresh.last
     assert copies[0].road is copies[1].road or scenario == "seamless"  # static maps shared
-    if scenario == "us101_3_3":  # a recording's tracks, paths and profiles: shared too
-        a, b = (w.traffic for w in copies)
-        assert a.tracks is b.tracks and a.fleet.paths is b.fleet.paths
-        assert a.fleet.profiles is b.fleet.profiles and a.fleet is not b.fleet
 
 
 def test_the_kept_worlds_stay_within_their_memory(monkeypatch):
