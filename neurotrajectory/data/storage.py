@@ -6,11 +6,16 @@ of a split by track at a time."""
 from __future__ import annotations
 
 import hashlib
+import math
+import os
+import shutil
+import tempfile
 from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 
+from gridsim.errors import warn_data
 from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write_json, write_npz
 from neurotrajectory.data.windows import (
     FORMAT_VERSION,
@@ -21,6 +26,12 @@ from neurotrajectory.data.windows import (
 )
 
 SHARD_SIZE = 256
+#: Grids that would take more than this share of the memory available are read into a
+#: scratch file and mapped from it (the operating system keeps in memory what fits): a
+#: dataset bigger than the memory still trains and evaluates, the same bits.
+MEMORY_SHARE = 0.5
+#: The environment variable naming the scratch folder (default: the system's temporary one).
+SCRATCH_ENV = "NEUROTRAJECTORY_SCRATCH"
 
 
 def check_new_folder(out: str | Path) -> None:
@@ -209,7 +220,10 @@ def _read_windows(
                     labels[j].append(value)
                     continue
                 if f.name not in out[j]:
-                    out[j][f.name] = np.empty((sizes[j], *value.shape[1:]), value.dtype)
+                    shape, kind = (sizes[j], *value.shape[1:]), value.dtype
+                    big = f.name == "grids"  # (nearly all the memory)
+                    out[j][f.name] = (grid_array(shape, kind, folder) if big
+                                      else np.empty(shape, kind))  # fmt: skip
                 have = out[j][f.name]
                 if value.shape[1:] != have.shape[1:] or value.dtype != have.dtype:
                     raise DatasetError(f"{file}: {f.name!r} is {value.dtype} "
@@ -221,6 +235,51 @@ def _read_windows(
         raise DatasetError(f"{path}: {total} windows, manifest says {count}")
     return [Windows(**arrays, track=np.concatenate(tracks))
             for arrays, tracks in zip(out, labels, strict=True)]  # fmt: skip
+
+
+def memory_available() -> int:
+    """The memory [bytes] available to a new allocation (Linux's ``MemAvailable``; elsewhere
+    the free pages)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def grid_array(shape: tuple, dtype, dataset: Path) -> np.ndarray:
+    """An empty array for the grids of ``dataset``: in memory, or, past :data:`MEMORY_SHARE`
+    of the memory available, mapped from a scratch file (in :data:`SCRATCH_ENV`'s folder,
+    else the temporary one; removed at once, so nothing is left behind however the process
+    ends), with a note that says so."""
+    size = math.prod(shape) * np.dtype(dtype).itemsize
+    available = memory_available()
+    if size <= MEMORY_SHARE * available:
+        return np.empty(shape, dtype)
+    scratch = Path(os.environ.get(SCRATCH_ENV) or tempfile.gettempdir())
+    free = shutil.disk_usage(scratch).free if scratch.is_dir() else 0
+    if size > free:
+        raise DatasetError(f"{dataset}: its grids take {_gb(size)}, more than half the memory "
+                           f"available ({_gb(available)}) and more than the free space of the "
+                           f"scratch folder {scratch} ({_gb(free)}): set {SCRATCH_ENV} to a "
+                           "folder with room, or record with a larger --stride")  # fmt: skip
+    warn_data(f"{dataset}: its grids take {_gb(size)}, more than half the memory available "
+              f"({_gb(available)}): they are read into a scratch file in {scratch} (set "
+              f"{SCRATCH_ENV} to choose another folder); batches read from it")  # fmt: skip
+    fd, name = tempfile.mkstemp(prefix="neurotrajectory-grids-", dir=scratch)
+    try:
+        with os.fdopen(fd, "w+b") as f:
+            grids = np.memmap(f, dtype=dtype, mode="w+", shape=shape)
+    finally:
+        Path(name).unlink(missing_ok=True)  # (the mapping keeps the space until it goes)
+    return grids
+
+
+def _gb(size: int) -> str:
+    return f"{size / 2**30:.1f} GB"
 
 
 def write_shard(file: Path, windows: Windows, compressed: bool = True) -> None:

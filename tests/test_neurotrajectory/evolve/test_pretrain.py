@@ -61,6 +61,36 @@ def test_pretraining_fits_the_windows_deterministically(windows_dir):
         pretrain_genome(small, initial_genome(small, 0), w, epochs=1, seed=0)
 
 
+def test_grids_bigger_than_the_memory_are_read_into_a_scratch_file(windows_dir, tmp_path,
+                                                                   monkeypatch):  # fmt: skip
+    """A dataset whose grids would take more than half the memory available is read into a
+    scratch file and mapped (the operating system keeps what fits in memory): the same
+    windows, the same fit bit for bit, a note that says where, and no file left behind; a
+    scratch folder without room is named in a clear error."""
+    from gridsim.errors import DataWarning
+    from neurotrajectory.data import storage
+    from neurotrajectory.data.windows import DatasetError
+
+    in_memory = load_dataset(windows_dir).windows
+    scratch = tmp_path / "scratch"
+    scratch.mkdir()
+    monkeypatch.setenv(storage.SCRATCH_ENV, str(scratch))
+    monkeypatch.setattr(storage, "MEMORY_SHARE", 0.0)
+    with pytest.warns(DataWarning, match=f"read into a scratch file in {scratch}"):
+        mapped = load_dataset(windows_dir).windows
+    assert isinstance(mapped.grids, np.memmap) and list(scratch.iterdir()) == []
+    for f in fields(mapped):
+        np.testing.assert_array_equal(getattr(mapped, f.name), getattr(in_memory, f.name))
+    start = initial_genome(_tiny_net(), 3)
+    fits = [pretrain_genome(_tiny_net(), start, w, epochs=2, seed=0, validation=0.5)[0]
+            for w in (in_memory, mapped)]  # fmt: skip
+    np.testing.assert_array_equal(*fits)
+    monkeypatch.setattr(storage.shutil, "disk_usage", lambda _: type("U", (), {"free": 10})())
+    with pytest.raises(DatasetError, match=f"more than the free space of the scratch folder "
+                       f"{scratch} .*set {storage.SCRATCH_ENV} to a folder with room"):  # fmt: skip
+        load_dataset(windows_dir)
+
+
 def test_the_epoch_kept_is_the_one_that_predicts_held_out_tracks_best(windows_dir):
     w = load_dataset(windows_dir).windows
     net = _tiny_net()
