@@ -219,11 +219,13 @@ def _read_windows(
                 if f.name == "track":
                     labels[j].append(value)
                     continue
-                if f.name not in out[j]:
-                    shape, kind = (sizes[j], *value.shape[1:]), value.dtype
-                    big = f.name == "grids"  # (nearly all the memory)
-                    out[j][f.name] = (grid_array(shape, kind, folder) if big
-                                      else np.empty(shape, kind))  # fmt: skip
+                if f.name == "grids" and f.name not in out[j]:  # (nearly all the memory)
+                    shapes = [(n, *value.shape[1:]) for n in sizes]
+                    for side, grids in zip(out, grid_arrays(shapes, value.dtype, folder),
+                                           strict=True):  # fmt: skip
+                        side["grids"] = grids
+                elif f.name not in out[j]:
+                    out[j][f.name] = np.empty((sizes[j], *value.shape[1:]), value.dtype)
                 have = out[j][f.name]
                 if value.shape[1:] != have.shape[1:] or value.dtype != have.dtype:
                     raise DatasetError(f"{file}: {f.name!r} is {value.dtype} "
@@ -250,15 +252,17 @@ def memory_available() -> int:
     return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
 
 
-def grid_array(shape: tuple, dtype, dataset: Path) -> np.ndarray:
-    """An empty array for the grids of ``dataset``: in memory, or, past :data:`MEMORY_SHARE`
-    of the memory available, mapped from a scratch file (in :data:`SCRATCH_ENV`'s folder,
-    else the temporary one; removed at once, so nothing is left behind however the process
-    ends), with a note that says so."""
-    size = math.prod(shape) * np.dtype(dtype).itemsize
+def grid_arrays(shapes: list[tuple], dtype, dataset: Path) -> list[np.ndarray]:
+    """Empty arrays of ``shapes`` for the grids of ``dataset`` (one per side of a split): in
+    memory, or, when together they would take more than :data:`MEMORY_SHARE` of the memory
+    available, each mapped from a scratch file (in :data:`SCRATCH_ENV`'s folder, else the
+    temporary one; removed at once, so nothing is left behind however the process ends),
+    with a warning that says so."""
+    itemsize = np.dtype(dtype).itemsize
+    size = sum(math.prod(shape) for shape in shapes) * itemsize
     available = memory_available()
     if size <= MEMORY_SHARE * available:
-        return np.empty(shape, dtype)
+        return [np.empty(shape, dtype) for shape in shapes]
     scratch = Path(os.environ.get(SCRATCH_ENV) or tempfile.gettempdir())
     free = shutil.disk_usage(scratch).free if scratch.is_dir() else 0
     if size > free:
@@ -269,13 +273,20 @@ def grid_array(shape: tuple, dtype, dataset: Path) -> np.ndarray:
     warn_data(f"{dataset}: its grids take {_gb(size)}, more than half the memory available "
               f"({_gb(available)}): they are read into a scratch file in {scratch} (set "
               f"{SCRATCH_ENV} to choose another folder); batches read from it")  # fmt: skip
+    return [_scratch_array(shape, dtype, scratch) for shape in shapes]
+
+
+def _scratch_array(shape: tuple, dtype, scratch: Path) -> np.ndarray:
+    """An array mapped from a new file in ``scratch``, removed at once (the mapping keeps
+    its space until the array goes)."""
+    if not math.prod(shape):  # (nothing to map)
+        return np.empty(shape, dtype)
     fd, name = tempfile.mkstemp(prefix="neurotrajectory-grids-", dir=scratch)
     try:
         with os.fdopen(fd, "w+b") as f:
-            grids = np.memmap(f, dtype=dtype, mode="w+", shape=shape)
+            return np.memmap(f, dtype=dtype, mode="w+", shape=shape)
     finally:
-        Path(name).unlink(missing_ok=True)  # (the mapping keeps the space until it goes)
-    return grids
+        Path(name).unlink(missing_ok=True)
 
 
 def _gb(size: int) -> str:

@@ -85,6 +85,11 @@ def test_grids_bigger_than_the_memory_are_read_into_a_scratch_file(windows_dir, 
     fits = [pretrain_genome(_tiny_net(), start, w, epochs=2, seed=0, validation=0.5)[0]
             for w in (in_memory, mapped)]  # fmt: skip
     np.testing.assert_array_equal(*fits)
+    with pytest.warns(DataWarning, match="read into a scratch file"):  # both sides of a split
+        _, *sides = storage.load_split(windows_dir, 0.5, 0)
+    for side, split in zip(sides, split_by_track(in_memory, 0.5, 0), strict=True):
+        assert isinstance(side.grids, np.memmap)
+        np.testing.assert_array_equal(side.grids, split.grids)
     monkeypatch.setattr(storage.shutil, "disk_usage", lambda _: type("U", (), {"free": 10})())
     with pytest.raises(DatasetError, match=f"more than the free space of the scratch folder "
                        f"{scratch} .*set {storage.SCRATCH_ENV} to a folder with room"):  # fmt: skip
