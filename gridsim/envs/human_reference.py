@@ -165,11 +165,12 @@ REVISION_WINDOW = 3.0
 #: How long [s] after the foreseen collision the driver keeps giving way (it costs nothing
 #: once the vehicle is clear: the driver then drives as it would).
 YIELD_AFTER = 6.0
-#: Whenever the shadow world must run, it runs this much [s] further than asked: its compiled
-#: batches then cover many ticks per call instead of one decision's (a single environment
-#: stepping a fresh reference spent a third of its step on calls of one tick). The samples are
-#: the same whatever it is (they do not depend on the order of requests).
-SIMULATE_AHEAD = 2.0
+#: The shadow world runs in blocks of this many seconds of ticks, ending at fixed ticks, and
+#: hands out what a block made sure of only when the block is done: what it hands out, and so
+#: how far back a revision may reach, depends on the tick alone, never on the order or the
+#: reach of the requests (which differ between planners sharing a reference, and between
+#: backends). A block's ticks go to the compiled batch in one call.
+BLOCK_SECONDS = 2.0
 #: At most this many revisions per reference (a collision left after them stays).
 MAX_REVISIONS = 12
 #: A near miss is a collision too: the shadow ego's footprint is tested grown by this much
@@ -207,7 +208,7 @@ class HumanReference(ReferenceTrajectory):
         super().__init__(self._chain.times, np.empty((n, 2)), np.empty(n), np.empty(n))
         self._lag = round(REVISION_WINDOW / cfg.simulation.dt)
         self._after = round(YIELD_AFTER / cfg.simulation.dt)
-        self._stride = round(SIMULATE_AHEAD / cfg.simulation.dt)
+        self._block = max(1, round(BLOCK_SECONDS / cfg.simulation.dt))
         #: Revisions: (first tick, last tick, fleet indices to give way to).
         self.revisions: list[tuple[int, int, tuple[int, ...]]] = []
         #: Samples whose (near) collision no revision could avoid.
@@ -259,13 +260,13 @@ class HumanReference(ReferenceTrajectory):
     def _advance(self, ready: int) -> None:
         n = len(self.t)
         ready = min(ready, n)
-        if ready <= self._ready:
-            return
-        self._simulate(min(ready + self._lag + self._stride, n))
-        final = n if self._front == n else self._front - self._lag
-        for k in range(max(self._ready, 1), final):
-            self._known_length += float(np.hypot(*(self._xy[k] - self._xy[k - 1])))
-        self._ready = max(self._ready, final)
+        while self._ready < ready:  # whole blocks, each ending at a fixed tick
+            self._simulate(min((self._front - 1) // self._block * self._block + self._block + 1,
+                               n))  # fmt: skip
+            final = n if self._front == n else self._front - self._lag
+            for k in range(max(self._ready, 1), final):
+                self._known_length += float(np.hypot(*(self._xy[k] - self._xy[k - 1])))
+            self._ready = max(self._ready, final)
         if self.complete:
             self._world = self._driver = self._shadow = None  # free the shadow world
 
