@@ -225,8 +225,9 @@ class RecordedSceneTraffic(TrafficSource):
         tracks whose recording ended are done, those whose recording begins are placed."""
         self.time += dt
         self._done[ended] = True
-        if self.until is not None and self.time > self.until + SPAN_MARGIN:
+        if self.until is not None and self.time > self.until + SPAN_MARGIN / 2:
             self.until = None  # ticked past its span: the whole scene from now on
+            # (well before a track kept no longer could be due: they start after the margin)
             self._keep(self.fleet)
         return self._activate_due()
 
