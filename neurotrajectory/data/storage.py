@@ -6,17 +6,13 @@ of a split by track at a time."""
 from __future__ import annotations
 
 import hashlib
-import math
-import os
-import shutil
-import tempfile
 from dataclasses import fields
 from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import warn_data
 from gridsim.outputs import new_folder_problem, read_manifest, short_repr, write_json, write_npz
+from neurotrajectory.data.scratch import grid_arrays
 from neurotrajectory.data.windows import (
     FORMAT_VERSION,
     Dataset,
@@ -26,12 +22,6 @@ from neurotrajectory.data.windows import (
 )
 
 SHARD_SIZE = 256
-#: Grids that would take more than this share of the memory available are read into a
-#: scratch file and mapped from it (the operating system keeps in memory what fits): a
-#: dataset bigger than the memory still trains and evaluates, the same bits.
-MEMORY_SHARE = 0.5
-#: The environment variable naming the scratch folder (default: the system's temporary one).
-SCRATCH_ENV = "NEUROTRAJECTORY_SCRATCH"
 
 
 def check_new_folder(out: str | Path) -> None:
@@ -237,60 +227,6 @@ def _read_windows(
         raise DatasetError(f"{path}: {total} windows, manifest says {count}")
     return [Windows(**arrays, track=np.concatenate(tracks))
             for arrays, tracks in zip(out, labels, strict=True)]  # fmt: skip
-
-
-def memory_available() -> int:
-    """The memory [bytes] available to a new allocation (Linux's ``MemAvailable``; elsewhere
-    the free pages)."""
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-
-
-def grid_arrays(shapes: list[tuple], dtype, dataset: Path) -> list[np.ndarray]:
-    """Empty arrays of ``shapes`` for the grids of ``dataset`` (one per side of a split): in
-    memory, or, when together they would take more than :data:`MEMORY_SHARE` of the memory
-    available, each mapped from a scratch file (in :data:`SCRATCH_ENV`'s folder, else the
-    temporary one; removed at once, so nothing is left behind however the process ends),
-    with a warning that says so."""
-    itemsize = np.dtype(dtype).itemsize
-    size = sum(math.prod(shape) for shape in shapes) * itemsize
-    available = memory_available()
-    if size <= MEMORY_SHARE * available:
-        return [np.empty(shape, dtype) for shape in shapes]
-    scratch = Path(os.environ.get(SCRATCH_ENV) or tempfile.gettempdir())
-    free = shutil.disk_usage(scratch).free if scratch.is_dir() else 0
-    if size > free:
-        raise DatasetError(f"{dataset}: its grids take {_gb(size)}, more than half the memory "
-                           f"available ({_gb(available)}) and more than the free space of the "
-                           f"scratch folder {scratch} ({_gb(free)}): set {SCRATCH_ENV} to a "
-                           "folder with room, or record with a larger --stride")  # fmt: skip
-    warn_data(f"{dataset}: its grids take {_gb(size)}, more than half the memory available "
-              f"({_gb(available)}): they are read into a scratch file in {scratch} (set "
-              f"{SCRATCH_ENV} to choose another folder); batches read from it")  # fmt: skip
-    return [_scratch_array(shape, dtype, scratch) for shape in shapes]
-
-
-def _scratch_array(shape: tuple, dtype, scratch: Path) -> np.ndarray:
-    """An array mapped from a new file in ``scratch``, removed at once (the mapping keeps
-    its space until the array goes)."""
-    if not math.prod(shape):  # (nothing to map)
-        return np.empty(shape, dtype)
-    fd, name = tempfile.mkstemp(prefix="neurotrajectory-grids-", dir=scratch)
-    try:
-        with os.fdopen(fd, "w+b") as f:
-            return np.memmap(f, dtype=dtype, mode="w+", shape=shape)
-    finally:
-        Path(name).unlink(missing_ok=True)
-
-
-def _gb(size: int) -> str:
-    return f"{size / 2**30:.1f} GB"
 
 
 def write_shard(file: Path, windows: Windows, compressed: bool = True) -> None:

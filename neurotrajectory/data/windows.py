@@ -570,7 +570,9 @@ class GroupProgress:
     skipped: list = field(default_factory=list)
     #: the sink's mark at the start of the scenario under way (to roll it back if it fails)
     mark: object = None
-    #: the episodes of the scenarios done (for a progress bar that goes on where it was)
+    #: the episodes of the scenarios done, planned and driven (for a progress bar that goes
+    #: on where it was; they differ for a file that failed)
+    episodes_planned: int = 0
     episodes_done: int = 0
 
 
@@ -595,10 +597,10 @@ def record_group_into(
     scenarios, unloaded = group_files(name, source)
     replays = {scenario: is_recorded(scenario) for scenario in scenarios}
     state = GroupProgress() if state is None else state
-    if state.episodes_done:  # gone on with: the bar counts the scenarios done
-        for callback in (planned, progress):
-            if callback is not None:
-                callback(state.episodes_done)
+    if planned is not None and state.episodes_planned:  # gone on with: the bar counts the
+        planned(state.episodes_planned)  # scenarios done
+    if progress is not None and state.episodes_done:
+        progress(state.episodes_done)
     for i, scenario in enumerate(scenarios[state.scenario :], state.scenario):
         s = stride or (RECORDED_STRIDE if replays[scenario] else GENERATED_STRIDE)
         if state.mark is None:  # the file begins now (not one gone on with part-way)
@@ -609,9 +611,16 @@ def record_group_into(
             if recorded is not None:
                 recorded(False)
 
+        plan = [0]  # the file's episodes, as planned
+
+        def planned_file(count: int, plan: list = plan) -> None:
+            plan[0] = count
+            if planned is not None:
+                planned(count)
+
         try:
             meta = _record_scenario_into(sink, scenario, episodes, seed, s, duration, progress,
-                                         None, goal_seconds, planned,
+                                         None, goal_seconds, planned_file,
                                          (state.episode, state.windows), episode_done)  # fmt: skip
         except GridSimError as exc:
             sink.rollback(state.mark)
@@ -620,6 +629,7 @@ def record_group_into(
             state.skipped.append([scenario, str(exc)])
         else:
             state.metas.append(meta)
+        state.episodes_planned += plan[0]
         state.episodes_done += state.episode
         state.scenario, state.episode, state.windows, state.mark = i + 1, 0, 0, None
         if recorded is not None:

@@ -25,6 +25,7 @@ from tqdm import tqdm
 
 from gridsim.outputs import atomic_write
 from gridsim.seeding import Salt, stream
+from neurotrajectory.data.scratch import concat_windows
 from neurotrajectory.data.windows import DatasetError, GridRows, Windows, split_rows
 from neurotrajectory.evolve.genome import get_genome, set_genome
 from neurotrajectory.model import (
@@ -224,7 +225,7 @@ def pretrain_genome(
         if held_out is not None:
             visited = visited.take(np.flatnonzero(~np.isin(visited.track, held_out.track)))
         weights = visited_weights(len(windows), len(visited), visited_share)
-        windows = Windows.concat([windows, visited])
+        windows = concat_windows([windows, visited], "the warm start's windows")
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:

@@ -1,7 +1,9 @@
 """Warm-starting neuroevolution by fitting the network to recorded windows."""
 
 import json
+import tempfile
 from dataclasses import fields
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -65,35 +67,73 @@ def test_grids_bigger_than_the_memory_are_read_into_a_scratch_file(windows_dir, 
                                                                    monkeypatch):  # fmt: skip
     """A dataset whose grids would take more than half the memory available is read into a
     scratch file and mapped (the operating system keeps what fits in memory): the same
-    windows, the same fit bit for bit, a note that says where, and no file left behind; a
-    scratch folder without room is named in a clear error."""
+    windows, the same fit bit for bit (DAgger's concatenation too), a note that says where,
+    and no file left behind; a scratch folder missing or without room is named in a clear
+    error; where the memory available cannot be told, grids stay in memory."""
     from gridsim.errors import DataWarning
-    from neurotrajectory.data import storage
-    from neurotrajectory.data.windows import DatasetError
+    from neurotrajectory.data import scratch, storage
+    from neurotrajectory.data.windows import DatasetError, Windows
 
     in_memory = load_dataset(windows_dir).windows
-    scratch = tmp_path / "scratch"
-    scratch.mkdir()
-    monkeypatch.setenv(storage.SCRATCH_ENV, str(scratch))
-    monkeypatch.setattr(storage, "MEMORY_SHARE", 0.0)
-    with pytest.warns(DataWarning, match=f"read into a scratch file in {scratch}"):
+    folder = tmp_path / "scratch"
+    folder.mkdir()
+    monkeypatch.setenv(scratch.SCRATCH_ENV, str(folder))
+    monkeypatch.setattr(scratch, "MEMORY_SHARE", 0.0)
+    with pytest.warns(DataWarning, match=f"read into a scratch file in {folder}"):
         mapped = load_dataset(windows_dir).windows
-    assert isinstance(mapped.grids, np.memmap) and list(scratch.iterdir()) == []
+    assert isinstance(mapped.grids, np.memmap) and list(folder.iterdir()) == []
     for f in fields(mapped):
         np.testing.assert_array_equal(getattr(mapped, f.name), getattr(in_memory, f.name))
     start = initial_genome(_tiny_net(), 3)
     fits = [pretrain_genome(_tiny_net(), start, w, epochs=2, seed=0, validation=0.5)[0]
             for w in (in_memory, mapped)]  # fmt: skip
     np.testing.assert_array_equal(*fits)
+    visited = in_memory.take(np.arange(0, len(in_memory), 3))  # (as DAgger concatenates)
+    with pytest.warns(DataWarning, match="the warm start's windows: its grids take"):
+        joined = scratch.concat_windows([mapped.select(np.arange(5, 20)), visited],
+                                        "the warm start's windows")  # fmt: skip
+    expected = Windows.concat([in_memory.take(np.arange(5, 20)), visited])
+    assert isinstance(joined.grids, np.memmap)
+    for f in fields(joined):
+        np.testing.assert_array_equal(getattr(joined, f.name), getattr(expected, f.name))
     with pytest.warns(DataWarning, match="read into a scratch file"):  # both sides of a split
         _, *sides = storage.load_split(windows_dir, 0.5, 0)
     for side, split in zip(sides, split_by_track(in_memory, 0.5, 0), strict=True):
         assert isinstance(side.grids, np.memmap)
         np.testing.assert_array_equal(side.grids, split.grids)
-    monkeypatch.setattr(storage.shutil, "disk_usage", lambda _: type("U", (), {"free": 10})())
-    with pytest.raises(DatasetError, match=f"more than the free space of the scratch folder "
-                       f"{scratch} .*set {storage.SCRATCH_ENV} to a folder with room"):  # fmt: skip
+    monkeypatch.setattr(scratch, "memory_available", lambda: None)  # (macOS, Windows)
+    assert not isinstance(load_dataset(windows_dir).windows.grids, np.memmap)
+    monkeypatch.undo()
+    monkeypatch.setattr(scratch, "MEMORY_SHARE", 0.0)
+    monkeypatch.setenv(scratch.SCRATCH_ENV, str(tmp_path / "none"))
+    with pytest.raises(DatasetError, match=f"{scratch.SCRATCH_ENV} names {tmp_path / 'none'}, "
+                       "which is not a folder"):  # fmt: skip
         load_dataset(windows_dir)
+    monkeypatch.setenv(scratch.SCRATCH_ENV, str(folder))
+    monkeypatch.setattr(scratch.shutil, "disk_usage", lambda _: type("U", (), {"free": 10})())
+    with pytest.raises(DatasetError, match=f"more than the free space of the scratch folder "
+                       f"{folder} .*set {scratch.SCRATCH_ENV} to a folder with room"):  # fmt: skip
+        load_dataset(windows_dir)
+
+
+def test_the_scratch_folder_is_not_one_kept_in_memory(tmp_path, monkeypatch):
+    """Scratch files go to the temporary folder, unless it lives in memory (tmpfs): then
+    beside the dataset; a folder named in the environment wins."""
+    from neurotrajectory.data import scratch
+
+    monkeypatch.delenv(scratch.SCRATCH_ENV, raising=False)
+    dataset = tmp_path / "data"
+    dataset.mkdir()
+    monkeypatch.setattr(scratch, "_in_memory", lambda folder: False)
+    assert scratch.scratch_folder(dataset) == Path(tempfile.gettempdir())
+    monkeypatch.setattr(scratch, "_in_memory", lambda folder: True)
+    assert scratch.scratch_folder(dataset) == dataset
+    assert scratch.scratch_folder(dataset / "manifest.json") == dataset
+    monkeypatch.setenv(scratch.SCRATCH_ENV, str(tmp_path))
+    assert scratch.scratch_folder(dataset) == tmp_path
+    if Path("/proc/mounts").is_file() and Path("/dev/shm").is_dir():  # Linux: shared memory
+        monkeypatch.undo()
+        assert scratch._in_memory(Path("/dev/shm"))
 
 
 def test_the_epoch_kept_is_the_one_that_predicts_held_out_tracks_best(windows_dir):
