@@ -191,8 +191,11 @@ class HumanReference(ReferenceTrajectory):
     world is rebuilt and replayed to ``k - REVISION_WINDOW`` and driven on giving way to the
     vehicle hit (:func:`~gridsim.world.scripted_drivers.conflict_free_accel`) until
     ``k + YIELD_AFTER``.
-    A reference that never collides is exactly today's human drive; samples are handed out
-    only once no revision can change them, so they do not depend on the order of requests."""
+    A reference that never collides is exactly today's human drive. The shadow world runs in
+    blocks of :data:`BLOCK_SECONDS` ending at fixed ticks and hands samples out only once a
+    block is done and no revision can reach them (a revision found while one is replayed is
+    cut short there): the samples depend on the seed alone, never on the order or reach of
+    the requests."""
 
     def __init__(self, scenario: Scenario, seed: int, duration: float) -> None:
         cfg = scenario.config
