@@ -198,6 +198,35 @@ def test_a_scene_s_tables_made_once_are_those_made_track_by_track():
     np.testing.assert_array_equal(shared.paths.corridor_ids, one_by_one.paths.corridor_ids)
 
 
+def test_a_track_starting_at_the_span_s_margin_is_placed_as_in_the_whole_scene():
+    """A track recorded from exactly the margin past a world's span (25 Hz time stamps, where
+    the clock's sum falls a hair short of the margin) is placed at the same tick as in a
+    world that keeps every track: the world takes in the scene before it can be due."""
+    import dataclasses
+
+    from gridsim.traffic.sources import SPAN_MARGIN, RecordedSceneTraffic
+
+    def car(tid: str, t0: float, n: int, y: float):
+        tr = track(tid, 10.0 * 0.04 * np.arange(n) + 5 * int(tid), np.full(n, y), dt=0.04)
+        return dataclasses.replace(tr, t=np.round(t0 + 0.04 * np.arange(n), 2))
+
+    ego = car("0", 2.88, 126, 1.75)  # 2.88 .. 7.88 s
+    tracks = [ego, car("1", 7.88 + SPAN_MARGIN, 100, 5.25), car("2", 3.0, 50, 8.75)]
+    span = RecordedSceneTraffic(tracks, exclude="0", start_time=2.88, until=7.88)
+    whole = RecordedSceneTraffic(tracks, exclude="0", start_time=2.88)
+    pose = EgoPose(-100.0, 0.0, 0.0, 0.0, 4.5, 1.8)
+    for source in (span, whole):
+        source.reset(np.random.default_rng(0), pose)
+    for _ in range(80):
+        seen = []
+        for source in (span, whole):
+            source.tick(0.1, pose)
+            f = source.fleet
+            seen.append({source.tracks[i].track_id: (f.x[i], f.tau[i])
+                         for i in np.flatnonzero(f.active)})  # fmt: skip
+        assert seen[0] == seen[1]
+
+
 def test_a_world_keeps_the_tracks_of_its_span_and_replays_them_as_the_whole_scene():
     """A world that replays an ego track's span keeps only the tracks recorded in it (a world
     of a scene of thousands of vehicles holds those it meets), and its participants move as
