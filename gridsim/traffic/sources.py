@@ -154,6 +154,7 @@ class RecordedSceneTraffic(TrafficSource):
         self._scene = tuple(tracks)
         self._exclude, self.start_time, self.until = exclude, start_time, until
         self.time = start_time
+        self.slots, self._done = np.zeros(0, np.int64), np.zeros(0, bool)  # none kept yet
         self._keep(Fleet(1, params))
 
     def _keep(self, fleet: Fleet) -> None:
@@ -166,12 +167,11 @@ class RecordedSceneTraffic(TrafficSource):
                 scene.t0 + scene.duration >= self.start_time - SPAN_MARGIN
             )
         slots = np.flatnonzero(keep)
-        old = getattr(self, "slots", slots[:0])
-        where = np.searchsorted(slots, old)  # (the slots kept before are kept again)
+        where = np.searchsorted(slots, self.slots)  # (the slots kept before are kept again)
         self.fleet = fleet.relaid(max(1, len(slots)), where)
         self.fleet.paths, self.fleet.profiles = scene.paths, scene.profiles
         done = np.zeros(len(slots), bool)
-        done[where] = getattr(self, "_done", done[:0])
+        done[where] = self._done
         self.slots, self._done = slots, done
         self.tracks = [self._scene[i] for i in slots]
         #: each track's first time [s] and duration [s], to find the ones due at once
