@@ -61,9 +61,10 @@ def grid_arrays(shapes: list[tuple], dtype, what: str | Path) -> list[np.ndarray
         raise DatasetError(f"{big}, and more than the free space of the scratch folder "
                            f"{scratch} ({_gb(free)}): set {SCRATCH_ENV} to a folder with "
                            "room, or record with a larger --stride")  # fmt: skip
+    arrays = [_scratch_array(shape, dtype, scratch, big) for shape in shapes]
     warn_data(f"{big}: they are read into a scratch file in {scratch} (set {SCRATCH_ENV} to "
               "choose another folder); batches read from it")  # fmt: skip
-    return [_scratch_array(shape, dtype, scratch, big) for shape in shapes]
+    return arrays
 
 
 def scratch_folder(near: Path) -> Path:
@@ -102,16 +103,18 @@ def _scratch_array(shape: tuple, dtype, scratch: Path, big: str) -> np.ndarray:
     if not math.prod(shape):  # (nothing to map)
         return np.empty(shape, dtype)
     size = math.prod(shape) * np.dtype(dtype).itemsize
-    # (kept open while the array lives, not closed by a with)
-    f = tempfile.TemporaryFile(prefix="neurotrajectory-grids-", dir=scratch)  # noqa: SIM115
-    try:
+    f = None
+    try:  # (the file is kept open while the array lives, not closed by a with)
+        f = tempfile.TemporaryFile(prefix="neurotrajectory-grids-", dir=scratch)  # noqa: SIM115
         if hasattr(os, "posix_fallocate"):
             os.posix_fallocate(f.fileno(), 0, size)
         grids = np.memmap(f, dtype=dtype, mode="w+", shape=shape)
     except OSError as exc:
-        f.close()
-        raise DatasetError(f"{big}; a scratch file of that size in {scratch} failed: "
-                           f"{exc.strerror or exc}") from None  # fmt: skip
+        if f is not None:
+            f.close()
+        raise DatasetError(f"{big}; a scratch file of that size in {scratch} failed "
+                           f"({exc.strerror or exc}): set {SCRATCH_ENV} to a folder with room "
+                           "that you may write to") from None  # fmt: skip
     grids.scratch_file = f  # (open while the array lives; a nameless file goes with it)
     return grids
 

@@ -110,10 +110,21 @@ def test_grids_bigger_than_the_memory_are_read_into_a_scratch_file(windows_dir, 
                        "which is not a folder"):  # fmt: skip
         load_dataset(windows_dir)
     monkeypatch.setenv(scratch.SCRATCH_ENV, str(folder))
+    monkeypatch.setattr(scratch.tempfile, "TemporaryFile", _refused)  # (a folder not ours)
+    with pytest.raises(DatasetError, match=f"a scratch file of that size in {folder} failed "
+                       r"\(Permission denied\): set NEUROTRAJECTORY_SCRATCH"):  # fmt: skip
+        load_dataset(windows_dir)
+    monkeypatch.undo()
+    monkeypatch.setattr(scratch, "MEMORY_SHARE", 0.0)
+    monkeypatch.setenv(scratch.SCRATCH_ENV, str(folder))
     monkeypatch.setattr(scratch.shutil, "disk_usage", lambda _: type("U", (), {"free": 10})())
     with pytest.raises(DatasetError, match=f"more than the free space of the scratch folder "
                        f"{folder} .*set {scratch.SCRATCH_ENV} to a folder with room"):  # fmt: skip
         load_dataset(windows_dir)
+
+
+def _refused(*args, **kwargs):
+    raise PermissionError(13, "Permission denied")
 
 
 def test_the_scratch_folder_is_not_one_kept_in_memory(tmp_path, monkeypatch):
