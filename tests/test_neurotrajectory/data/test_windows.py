@@ -337,25 +337,63 @@ def test_a_file_that_fails_after_a_break_is_skipped_whole(tmp_path, monkeypatch)
     assert _shard_digests(tmp_path / "part") == _shard_digests(tmp_path / "whole")
 
 
+def _bar() -> tuple[dict, dict]:
+    """A progress bar's counts, and the ``planned`` and ``progress`` callbacks that move it."""
+    counts = {"total": 0, "done": 0}
+
+    def planned(n: int) -> None:
+        counts["total"] += n
+
+    def progress(n: int) -> None:
+        counts["done"] += n
+
+    return counts, {"planned": planned, "progress": progress}
+
+
+def test_a_recording_gone_on_after_a_failed_file_counts_the_bar_as_unbroken(tmp_path, monkeypatch):
+    """A file that failed before the break counts in the resumed bar as in an unbroken
+    recording: all its episodes planned, those driven before it failed done."""
+    from gridsim.errors import ScenarioError
+
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
+    folder = _group_of_three(tmp_path)
+    files = windows.group_files("g", str(folder))[0]
+    bad = (files[0], windows.scenario_episodes(files[0])[0][2].track)  # its third episode
+    drive, calls = windows._episode_windows, []
+
+    def failing(env, seed, stride, track, *args, interrupt=None, **kwargs):
+        calls.append(1)
+        if len(calls) == interrupt:
+            raise KeyboardInterrupt
+        if (str(env.scenario.source), track) == bad:
+            raise ScenarioError("made up")
+        return drive(env, seed, stride, track, *args, **kwargs)
+
+    monkeypatch.setattr(windows, "_episode_windows", failing)
+    kwargs = {"source": str(folder), "stride": 10}
+    whole, callbacks = _bar()
+    with pytest.warns(Warning):
+        recording.record_dataset(tmp_path / "whole", "g", 1, **kwargs, **callbacks)
+    assert whole["total"] > whole["done"]  # (the failed file's episodes after it failed)
+    calls.clear()
+    monkeypatch.setattr(windows, "_episode_windows",
+                        lambda *a, **k: failing(*a, interrupt=5, **k))  # fmt: skip
+    with pytest.raises(KeyboardInterrupt), pytest.warns(Warning):  # the second file's 2nd
+        recording.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs)
+    monkeypatch.setattr(windows, "_episode_windows", failing)
+    again, callbacks = _bar()
+    with pytest.warns(Warning):
+        recording.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs, **callbacks)
+    assert again == whole
+
+
 def test_a_recording_gone_on_with_counts_its_whole_bar(tmp_path, monkeypatch):
     """The progress bar of a recording that goes on after a break starts where it was: its
     total and its count at the end are those of a recording without a break (the files done
     before the break and the episodes of the file under way included)."""
     monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
     kwargs = {"source": str(_group_of_three(tmp_path)), "stride": 10}
-
-    def bar() -> tuple[dict, dict]:
-        counts = {"total": 0, "done": 0}
-
-        def planned(n: int) -> None:
-            counts["total"] += n
-
-        def progress(n: int) -> None:
-            counts["done"] += n
-
-        return counts, {"planned": planned, "progress": progress}
-
-    whole, callbacks = bar()
+    whole, callbacks = _bar()
     recording.record_dataset(tmp_path / "whole", "g", 1, **kwargs, **callbacks)
     per_file = [len(windows.scenario_episodes(f)[0])
                 for f in windows.group_files("g", kwargs["source"])[0]]  # fmt: skip
@@ -364,7 +402,7 @@ def test_a_recording_gone_on_with_counts_its_whole_bar(tmp_path, monkeypatch):
         _interrupt_at(m, per_file[0] + 2)  # the second file's second episode
         with pytest.raises(KeyboardInterrupt):
             recording.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs)
-    again, callbacks = bar()
+    again, callbacks = _bar()
     recording.record_dataset(tmp_path / "part", "g", 1, resume=True, **kwargs, **callbacks)
     assert again == whole
 
