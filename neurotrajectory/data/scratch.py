@@ -46,7 +46,8 @@ def grid_arrays(shapes: list[tuple], dtype, what: str | Path) -> list[np.ndarray
     a split): in memory, or, when together they would take more than :data:`MEMORY_SHARE`
     of the memory available, each mapped from a scratch file (:func:`scratch_folder`; the
     file has no name, so nothing is left behind however the process ends), with a warning
-    that says so. A scratch folder without room is named in a :class:`DatasetError`."""
+    that says so. A scratch folder missing, without room or not writable is named in a
+    :class:`DatasetError`."""
     size = sum(math.prod(shape) for shape in shapes) * np.dtype(dtype).itemsize
     available = memory_available()
     if available is None or size <= MEMORY_SHARE * available:
