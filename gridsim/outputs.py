@@ -91,6 +91,11 @@ def read_manifest(
     return doc
 
 
+def counted(count: int, noun: str) -> str:
+    """``count`` and ``noun``, plural unless it is 1: ``"1 epoch"``, ``"25 epochs"``."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
+
+
 def short_repr(value: Any) -> str:
     """``repr(value)``, cut to a readable length for an error message."""
     return reprlib.repr(value)

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.cli.flags import at_least, quiet_flag, scenario_flag
+from gridsim.outputs import counted
 from neurotrajectory.cli.flags import check_video, goal_flag, settings_flag
 from neurotrajectory.cli.heldout import report_heldout
 from neurotrajectory.cli.rollout import rollout
@@ -189,7 +190,7 @@ def front_table(out: Path, summary: dict) -> str:
         rows.append((("* " if k == knee else "  ") + name, m))
     if "warm_start" in summary:
         rows.append(("  warm start", summary["warm_start"]))
-    head = (f"{out}: {summary['generation'] + 1} generations; the front of {len(front)} "
+    head = (f"{out}: {counted(summary['generation'] + 1, 'generation')}; the front of {len(front)} "
             f"chosen on {summary['chosen_on']} (* the knee):")  # fmt: skip
     width = max(len(name) for name, _ in rows)
     lines = [head, f"  {'':<{width}}  {'l1':>10}  {'l2':>8}  {'l3':>9}  {'time lost':>9}"]

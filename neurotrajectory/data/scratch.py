@@ -63,8 +63,10 @@ def grid_arrays(shapes: list[tuple], dtype, what: str | Path) -> list[np.ndarray
                            f"{scratch} ({_gb(free)}): set {SCRATCH_ENV} to a folder with "
                            "room, or record with a larger --stride")  # fmt: skip
     arrays = [_scratch_array(shape, dtype, scratch, big) for shape in shapes]
-    warn_data(f"{big}: they are read into a scratch file in {scratch} (set {SCRATCH_ENV} to "
-              "choose another folder); batches read from it")  # fmt: skip
+    chosen = (f"{SCRATCH_ENV}" if os.environ.get(SCRATCH_ENV)
+              else f"set {SCRATCH_ENV} to choose another folder")  # fmt: skip
+    warn_data(f"{big}: they are read into a scratch file in {scratch} ({chosen}); batches "
+              "read from it")  # fmt: skip
     return arrays
 
 

@@ -31,6 +31,7 @@ from tqdm import tqdm
 
 from gridsim.errors import GridSimError
 from gridsim.outputs import (
+    counted,
     empty_folder,
     folder_lock,
     new_folder_problem,
@@ -845,8 +846,8 @@ class Run:
                      f"{PRETRAIN_EPISODE_SECONDS:g} s on {cfg.scenario}")  # fmt: skip
         windows, source, episodes = self._pretrain_windows()
         start = initial_genome(probe, initial_recipes(cfg.ga, cfg.seed)[0].init_seed)
-        self.say(f"warm start: fitting the network to {len(windows)} windows "
-                 f"({cfg.pretrain_epochs} epochs at most)")  # fmt: skip
+        self.say(f"warm start: fitting the network to {counted(len(windows), 'window')} "
+                 f"({counted(cfg.pretrain_epochs, 'epoch')} at most)")  # fmt: skip
 
         # a fit interrupted goes on from its last epoch; with DAgger rounds (several fits,
         # driving between them), a run interrupted in its warm start fits again from the start

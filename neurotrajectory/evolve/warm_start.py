@@ -42,14 +42,19 @@ class PretrainError(DatasetError):
     """The pre-training data does not fit the network."""
 
 
-def setpoint_mse(net: TrajectoryNet, windows: Windows, chunk: int = 256) -> float:
-    """Mean squared set-point error [m^2] of ``net`` on ``windows``."""
+def setpoint_mse(
+    net: TrajectoryNet, windows: Windows, chunk: int = 256, progress: str | None = None
+) -> float:
+    """Mean squared set-point error [m^2] of ``net`` on ``windows``; ``progress``: a bar of
+    that description over the windows (a pass over many takes minutes)."""
     total = 0.0
-    with torch.no_grad():
+    with torch.no_grad(), tqdm(total=len(windows), desc=progress, unit="window", leave=False,
+                               disable=progress is None) as bar:  # fmt: skip
         for start in range(0, len(windows), chunk):
             idx = np.arange(start, min(start + chunk, len(windows)))
             pred = net(*window_inputs(windows, idx))
             total += float(((pred - torch.from_numpy(windows.target[idx])) ** 2).sum())
+            bar.update(len(idx))
     return total / (len(windows) * windows.target.shape[1] * 2)
 
 
@@ -230,9 +235,13 @@ def pretrain_genome(
     torch.set_num_threads(1)
     try:
         set_genome(net, np.array(genome, dtype=np.float32, copy=True))  # params alias it
-        before = setpoint_mse(net, windows)
+
+        def measured(on: Windows, what: str) -> float:  # (with a bar: a pass may take minutes)
+            return setpoint_mse(net, on, progress=f"warm start: {what}" if progress else None)
+
+        before = measured(windows, "error before the fit")
         ridge = fit_skip(net, windows, held_out, weights) if net.cfg.skip else {}
-        scores = [setpoint_mse(net, held_out)] if held_out is not None else []
+        scores = [measured(held_out, "held-out error")] if held_out is not None else []
         best = get_genome(net).copy()
         opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
         target = torch.from_numpy(windows.target.astype(np.float32))
@@ -268,7 +277,7 @@ def pretrain_genome(
                 bar.update()
             net.eval()
             if held_out is not None:
-                scores.append(setpoint_mse(net, held_out))
+                scores.append(measured(held_out, "held-out error"))
                 if scores[-1] < min(scores[:-1]):
                     best = get_genome(net).copy()
             if checkpoint is not None:
@@ -279,7 +288,7 @@ def pretrain_genome(
         if held_out is None:
             best = get_genome(net)
         set_genome(net, best.copy())  # the parameters alias what they are set from
-        after = setpoint_mse(net, windows)
+        after = measured(windows, "error after the fit")
     finally:
         torch.set_num_threads(threads)
     stats = {"mse_before": before, "mse_after": after, "windows": len(windows), "epochs": epochs,
