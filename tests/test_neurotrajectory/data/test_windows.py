@@ -299,15 +299,12 @@ def _group_of_three(tmp_path: Path) -> Path:
     return folder
 
 
-def test_a_file_that_fails_after_a_break_is_skipped_whole(tmp_path, monkeypatch):
-    """A file interrupted part-way and then failing when the recording goes on is rolled
-    back to its start as recorded before the break: the dataset is the one an unbroken
-    recording makes, which skips that file."""
+def _failing_first_file(folder: Path):
+    """A stand-in for ``windows._episode_windows`` that fails on the third episode of the
+    group ``folder``'s first file (and is a Ctrl-C at the call ``interrupt``), and the list
+    its calls are counted in."""
     from gridsim.errors import ScenarioError
 
-    monkeypatch.setattr(storage, "SHARD_SIZE", 4)
-    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
-    folder = _group_of_three(tmp_path)
     files = windows.group_files("g", str(folder))[0]
     bad = (files[0], windows.scenario_episodes(files[0])[0][2].track)  # its third episode
     drive, calls = windows._episode_windows, []
@@ -320,6 +317,18 @@ def test_a_file_that_fails_after_a_break_is_skipped_whole(tmp_path, monkeypatch)
             raise ScenarioError("made up")
         return drive(env, seed, stride, track, *args, **kwargs)
 
+    return failing, calls
+
+
+def test_a_file_that_fails_after_a_break_is_skipped_whole(tmp_path, monkeypatch):
+    """A file interrupted part-way and then failing when the recording goes on is rolled
+    back to its start as recorded before the break: the dataset is the one an unbroken
+    recording makes, which skips that file."""
+    monkeypatch.setattr(storage, "SHARD_SIZE", 4)
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
+    folder = _group_of_three(tmp_path)
+    files = windows.group_files("g", str(folder))[0]
+    failing, calls = _failing_first_file(folder)
     monkeypatch.setattr(windows, "_episode_windows", failing)
     kwargs = {"source": str(folder), "stride": 5}
     with pytest.warns(Warning):
@@ -353,22 +362,9 @@ def _bar() -> tuple[dict, dict]:
 def test_a_recording_gone_on_after_a_failed_file_counts_the_bar_as_unbroken(tmp_path, monkeypatch):
     """A file that failed before the break counts in the resumed bar as in an unbroken
     recording: all its episodes planned, those driven before it failed done."""
-    from gridsim.errors import ScenarioError
-
     monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
     folder = _group_of_three(tmp_path)
-    files = windows.group_files("g", str(folder))[0]
-    bad = (files[0], windows.scenario_episodes(files[0])[0][2].track)  # its third episode
-    drive, calls = windows._episode_windows, []
-
-    def failing(env, seed, stride, track, *args, interrupt=None, **kwargs):
-        calls.append(1)
-        if len(calls) == interrupt:
-            raise KeyboardInterrupt
-        if (str(env.scenario.source), track) == bad:
-            raise ScenarioError("made up")
-        return drive(env, seed, stride, track, *args, **kwargs)
-
+    failing, calls = _failing_first_file(folder)
     monkeypatch.setattr(windows, "_episode_windows", failing)
     kwargs = {"source": str(folder), "stride": 10}
     whole, callbacks = _bar()
