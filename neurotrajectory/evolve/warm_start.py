@@ -241,26 +241,25 @@ def pretrain_genome(
 
         before = measured(windows, "error before the fit")
         ridge = fit_skip(net, windows, held_out, weights) if net.cfg.skip else {}
-        scores = [measured(held_out, "held-out error")] if held_out is not None else []
-        best = get_genome(net).copy()
         opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
-        target = torch.from_numpy(windows.target.astype(np.float32))
-        weight = None if weights is None else torch.from_numpy(weights.astype(np.float32))
-        rng = stream(seed, Salt.WARM_START_BATCHES)
-        batches = -(-len(windows) // batch_size)  # per epoch
-        bar = tqdm(total=epochs * batches, desc="warm start", unit="batch", leave=False,
-                   disable=not progress)  # fmt: skip
         done = None
         if checkpoint is not None:
             key = {"inputs": _fit_inputs(net, genome, windows, held_out, weights),
                    "epochs": epochs, "seed": seed, "batch_size": batch_size,
                    "learning_rate": learning_rate}  # fmt: skip
             done = _load_fit(checkpoint, key, net, opt, epochs)
-        if done is not None:
+        if done is not None:  # (its scores begin with the held-out error before the fit)
             first, scores, best = done
-            bar.update(first * batches)
         else:
             first = 0
+            scores = [measured(held_out, "held-out error")] if held_out is not None else []
+            best = get_genome(net).copy()
+        target = torch.from_numpy(windows.target.astype(np.float32))
+        weight = None if weights is None else torch.from_numpy(weights.astype(np.float32))
+        rng = stream(seed, Salt.WARM_START_BATCHES)
+        batches = -(-len(windows) // batch_size)  # per epoch
+        bar = tqdm(total=epochs * batches, initial=first * batches, desc="warm start",
+                   unit="batch", leave=False, disable=not progress)  # fmt: skip
         for epoch in range(epochs):
             order = rng.permutation(len(windows))  # (drawn for the epochs done before too)
             if epoch < first:

@@ -543,8 +543,12 @@ def test_an_interrupted_fit_goes_on_to_the_same_genome(windows_dir, tmp_path, mo
     assert saved.is_file()
     with monkeypatch.context() as m:
         calls = ctrl_c_at(m, warm_start, "_save_fit", 0)  # (counts the saves only)
+        passes = ctrl_c_at(m, warm_start, "setpoint_mse", 0)  # (and the passes)
         again, again_stats = pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
     assert [c[2] for c in calls] == [3, 4]  # epochs 1 and 2 were not fitted again
+    # before the fit, the held-out error after epochs 3 and 4, after the fit: the held-out
+    # error before the fit is among the scores saved, not measured again
+    assert len(passes) == 4
     np.testing.assert_array_equal(again, whole)
     assert again_stats == whole_stats
     assert not saved.exists()
