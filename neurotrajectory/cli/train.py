@@ -122,7 +122,7 @@ def kept_note(out: Path) -> str:
     except RunError as exc:  # interrupted while it was being written
         return f"{out} may not resume: {exc}"
     if done:
-        return f"{out} keeps its {done} finished generation{'s' * (done > 1)}; {resume}"
+        return f"{out} keeps its {counted(done, 'finished generation')}; {resume}"
     if (out / WARM_START_FILE).exists():
         return f"{out} keeps its warm start (not fitted again); {resume}"
     if (out / WARM_START_FIT_FILE).exists():

@@ -210,7 +210,7 @@ def _read_windows(
                     labels[j].append(value)
                     continue
                 if f.name == "grids" and f.name not in out[j]:  # (nearly all the memory)
-                    shapes = [(n, *value.shape[1:]) for n in sizes]
+                    shapes = [(size, *value.shape[1:]) for size in sizes]
                     for side, grids in zip(out, grid_arrays(shapes, value.dtype, folder),
                                            strict=True):  # fmt: skip
                         side["grids"] = grids
