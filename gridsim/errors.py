@@ -44,6 +44,15 @@ class UnfitEgoWarning(DataWarning):
     once). A caller that drives such tracks on purpose (``record``) says so once."""
 
 
+def flagged(flag: str, value: object, message: object) -> str:
+    """``"FLAG VALUE: MESSAGE"``, an error about a command-line flag's value; where the value
+    is a path that the message names already (an error about a file names it), ``"FLAG:
+    MESSAGE"``, so that the path is not said twice."""
+    said, text = str(value), str(message)
+    path_like = os.sep in said or os.path.splitext(said)[1] != ""
+    return f"{flag}: {text}" if path_like and said in text else f"{flag} {said}: {text}"
+
+
 #: Folders whose code is not where a user's call is (their frames are skipped by
 #: :func:`warn_data`): gridsim's own, and those that register themselves (neurotrajectory).
 _INTERNAL: list[str] = [os.path.dirname(__file__) + os.sep]

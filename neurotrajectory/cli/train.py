@@ -126,7 +126,7 @@ def kept_note(out: Path) -> str:
     if (out / WARM_START_FILE).exists():
         return f"{out} keeps its warm start (not fitted again); {resume}"
     if (out / WARM_START_FIT_FILE).exists():
-        return f"{out} keeps its warm start's fit after its last full epoch; {resume}"
+        return f"{out} keeps its warm start's fit as far as it got; {resume}"
     return f"{out} has no finished generation yet; {resume}"
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from pydantic import BeforeValidator, Field, model_validator
 from tqdm import tqdm
 
-from gridsim.errors import GridSimError
+from gridsim.errors import GridSimError, flagged
 from gridsim.outputs import (
     counted,
     empty_folder,
@@ -430,8 +430,9 @@ Made by `{command}` on {date}.
 - `history.json`: every generation's fitness, Pareto ranks, hypervolume, timing, and the
   knee's validation score (the learning curve)
 - `warm_start.npz`: the warm start's genome (runs with a warm start)
-- `warm_start_fit.pt`: the warm start's fit after its last full epoch, while it runs (an
-  interrupted fit goes on from it with `--resume`)
+- `warm_start_fit.pt`: the warm start's fit as far as it got, while it runs (saved after
+  each epoch, every minute within one and at Ctrl-C; an interrupted fit goes on from it
+  with `--resume`)
 - `best_knee.npz`: the best validated knee of any generation (runs with a warm start)
 - `front.npz`, `front.json`: the final Pareto front, weights and scores on the episodes it
   was chosen on
@@ -575,7 +576,7 @@ class Run:
         try:
             now = input_digest(self.config.scenario)
         except GridSimError as exc:
-            raise RunError(f"--scenario {self.config.scenario}: {exc}") from None
+            raise RunError(flagged("--scenario", self.config.scenario, exc)) from None
         differ = {
             "changed": sorted(f for f in kept.keys() & now.keys() if kept[f] != now[f]),
             "removed": sorted(kept.keys() - now.keys()),
@@ -849,7 +850,7 @@ class Run:
         self.say(f"warm start: fitting the network to {counted(len(windows), 'window')} "
                  f"({counted(cfg.pretrain_epochs, 'epoch')} at most)")  # fmt: skip
 
-        # a fit interrupted goes on from its last epoch; with DAgger rounds (several fits,
+        # a fit interrupted goes on from where it was saved; with DAgger rounds (several fits,
         # driving between them), a run interrupted in its warm start fits again from the start
         saved = None if cfg.dagger_rounds else self.out / WARM_START_FIT_FILE
 
@@ -1114,7 +1115,7 @@ def _checked(config: TrainConfig):
     try:
         load_collection(config.scenario)
     except GridSimError as exc:
-        raise RunError(f"--scenario {config.scenario}: {exc}") from None
+        raise RunError(flagged("--scenario", config.scenario, exc)) from None
     try:
         env = GridSimEnv(config.scenario, **config.overrides)
     except GridSimError as exc:
@@ -1124,7 +1125,7 @@ def _checked(config: TrainConfig):
     try:
         env.reset(seed=0)  # builds a world: the map, the traffic and its library
     except GridSimError as exc:
-        raise RunError(f"--scenario {config.scenario}: {exc}") from None
+        raise RunError(flagged("--scenario", config.scenario, exc)) from None
     probe = TrajectoryNet(net_config_for(env.cfg, config.net))
     _check_size(config, sum(p.numel() for p in probe.parameters()))
     windows = None
@@ -1193,7 +1194,7 @@ def _pretrain_data(folder: str):
     try:
         return load_dataset(folder).windows
     except DatasetError as exc:
-        raise RunError(f"--pretrain {folder}: {exc}") from None
+        raise RunError(flagged("--pretrain", folder, exc)) from None
 
 
 def _dagger_episodes(config: TrainConfig, windows) -> list:

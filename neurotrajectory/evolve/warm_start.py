@@ -14,15 +14,19 @@ on this machine (single-threaded torch).
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
-from dataclasses import fields
+import math
+import time
+from dataclasses import dataclass, fields
 from pathlib import Path
 
 import numpy as np
 import torch
 from tqdm import tqdm
 
+from gridsim import interrupts
 from gridsim.outputs import atomic_write
 from gridsim.seeding import Salt, stream
 from neurotrajectory.data.scratch import concat_windows
@@ -112,40 +116,64 @@ def fit_skip(
     return {"ridge_penalty": penalty, "ridge_validation_mse": score}
 
 
-def _save_fit(path: Path, key: dict, epochs: int, net, opt, scores: list, best) -> None:
-    """The fit after ``epochs`` epochs, for :func:`_load_fit` (written atomically)."""
+#: Seconds of fitting between saves of the fit inside an epoch (besides each epoch's end and
+#: an interrupt between batches): what a fit killed without notice loses at most.
+SAVE_SECONDS = 60.0
+
+
+@dataclass
+class _FitState:
+    """Where a fit stands: ``epochs`` full epochs and ``batch`` batches of the next done, the
+    held-out ``scores`` so far (from the error before the fit), the ``best`` genome, the error
+    ``before`` the fit on the fitted windows [m^2] (NaN: not known), and the network's
+    ``genome`` and the optimiser's ``optimizer`` state then."""
+
+    epochs: int
+    batch: int
+    scores: list
+    best: np.ndarray
+    before: float
+    genome: np.ndarray
+    optimizer: dict
+
+
+def _save_fit(path: Path, key: dict, state: _FitState) -> None:
+    """``state`` of the fit of ``key``'s inputs, for :func:`_read_fit` (written atomically)."""
 
     def write(tmp: str) -> None:  # tensors and plain values: loaded with weights_only
-        torch.save({"key": key, "epochs": epochs,
-                    "genome": torch.from_numpy(get_genome(net).copy()),
-                    "optimizer": opt.state_dict(), "scores": [float(v) for v in scores],
-                    "best": torch.from_numpy(np.array(best, dtype=np.float32, copy=True))},
-                   tmp)  # fmt: skip
+        torch.save({"key": key, "epochs": state.epochs, "batch": state.batch,
+                    "genome": torch.from_numpy(state.genome), "optimizer": state.optimizer,
+                    "scores": [float(v) for v in state.scores],
+                    "best": torch.from_numpy(np.array(state.best, dtype=np.float32, copy=True)),
+                    "before": float(state.before)}, tmp)  # fmt: skip
 
     atomic_write(path, write)
 
 
-def _load_fit(path: Path, key: dict, net, opt, epochs: int) -> tuple[int, list, np.ndarray] | None:
-    """``(epochs done, validation scores, best genome)`` of the fit saved in ``path``, with
-    ``net`` and ``opt`` set as they were then (only once every field was read and checked);
-    None if there is none, or one of other inputs or damaged (the fit then starts over)."""
+def _read_fit(path: Path, key: dict, size: int, epochs: int, batches: int) -> _FitState | None:
+    """The state of the fit saved in ``path`` (``size`` weights, ``epochs`` epochs of
+    ``batches`` batches), once every field was read and checked; None if there is none, or
+    one of other inputs or damaged (the fit then starts over). A file saved only at epochs'
+    ends, without the batch and the error before the fit, is read too."""
     if not path.is_file():
         return None
-    size = sum(p.numel() for p in net.parameters())
     try:
         saved = torch.load(path, weights_only=True)
         if saved["key"] != key:
             return None
-        done, scores = int(saved["epochs"]), [float(v) for v in saved["scores"]]
-        weights, best = saved["genome"].numpy().copy(), saved["best"].numpy().copy()
-        state = saved["optimizer"]
-        if not 0 < done <= epochs or weights.shape != (size,) or best.shape != (size,):
-            return None
+        state = _FitState(int(saved["epochs"]), int(saved.get("batch", 0)),
+                          [float(v) for v in saved["scores"]], saved["best"].numpy().copy(),
+                          float(saved.get("before", math.nan)), saved["genome"].numpy().copy(),
+                          saved["optimizer"])  # fmt: skip
     except Exception:  # noqa: BLE001 - a damaged file: the fit starts over
         return None
-    set_genome(net, weights)
-    opt.load_state_dict(state)
-    return done, scores, best
+    started = (state.epochs, state.batch) != (0, 0)
+    within = 0 <= state.epochs < epochs and 0 <= state.batch <= batches
+    if not started or not (within or (state.epochs, state.batch) == (epochs, 0)):
+        return None
+    if state.genome.shape != (size,) or state.best.shape != (size,):
+        return None
+    return state
 
 
 def _fit_inputs(net, genome, windows: Windows, held_out, weights) -> str:
@@ -208,8 +236,11 @@ def pretrain_genome(
     never validated on: the epoch is picked on the held-out tracks' human windows, and the
     visited windows of those tracks are left out. ``progress``: a bar over the batches of
     all epochs (with each epoch's validation error). ``checkpoint``: a file where the fit is
-    saved after each epoch, and from which a fit of the same inputs that was interrupted
-    goes on (to the same genome, bit for bit); removed when the fit ends."""
+    saved after each epoch, every :data:`SAVE_SECONDS` within one, and at a Ctrl-C between
+    batches (one arriving inside a batch, in a program that installed
+    :func:`gridsim.interrupts.deferred`, waits for the batch's end); a fit of the same inputs
+    that was interrupted goes on from there, to the same genome, bit for bit. Removed when
+    the fit ends."""
     problem = size_mismatch(net.cfg, windows)
     if problem:
         raise PretrainError(f"pre-training: {problem}")
@@ -239,51 +270,84 @@ def pretrain_genome(
         def measured(on: Windows, what: str) -> float:  # (with a bar: a pass may take minutes)
             return setpoint_mse(net, on, progress=f"warm start: {what}" if progress else None)
 
-        before = measured(windows, "error before the fit")
-        ridge = fit_skip(net, windows, held_out, weights) if net.cfg.skip else {}
-        opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
-        done = None
+        batches = -(-len(windows) // batch_size)  # per epoch
+        saved = None
         if checkpoint is not None:
             key = {"inputs": _fit_inputs(net, genome, windows, held_out, weights),
                    "epochs": epochs, "seed": seed, "batch_size": batch_size,
                    "learning_rate": learning_rate}  # fmt: skip
-            done = _load_fit(checkpoint, key, net, opt, epochs)
-        if done is not None:  # (its scores begin with the held-out error before the fit)
-            first, scores, best = done
+            size = sum(p.numel() for p in net.parameters())
+            saved = _read_fit(checkpoint, key, size, epochs, batches)
+        if saved is None or math.isnan(saved.before):
+            before = measured(windows, "error before the fit")
         else:
-            first = 0
+            before = saved.before
+        ridge = fit_skip(net, windows, held_out, weights) if net.cfg.skip else {}
+        opt = torch.optim.Adam(net.parameters(), lr=learning_rate)
+        if saved is not None:  # (its scores begin with the held-out error before the fit)
+            set_genome(net, saved.genome)
+            opt.load_state_dict(saved.optimizer)
+            state = dataclasses.replace(saved, before=before)
+        else:
             scores = [measured(held_out, "held-out error")] if held_out is not None else []
-            best = get_genome(net).copy()
+            state = _FitState(0, 0, scores, get_genome(net).copy(), before, None, {})
         target = torch.from_numpy(windows.target.astype(np.float32))
         weight = None if weights is None else torch.from_numpy(weights.astype(np.float32))
-        rng = stream(seed, Salt.WARM_START_BATCHES)
-        batches = -(-len(windows) // batch_size)  # per epoch
-        bar = tqdm(total=epochs * batches, initial=first * batches, desc="warm start",
-                   unit="batch", leave=False, disable=not progress)  # fmt: skip
-        for epoch in range(epochs):
-            order = rng.permutation(len(windows))  # (drawn for the epochs done before too)
-            if epoch < first:
-                continue
-            net.train()
-            bar.set_postfix(epoch=f"{epoch + 1}/{epochs}")
-            for start in range(0, len(order), batch_size):
-                idx = order[start : start + batch_size]
-                error = (net(*window_inputs(windows, idx)) - target[idx]) ** 2
-                loss = (error if weight is None else error * weight[idx, None, None]).mean()
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                bar.update()
-            net.eval()
-            if held_out is not None:
-                scores.append(measured(held_out, "held-out error"))
-                if scores[-1] < min(scores[:-1]):
-                    best = get_genome(net).copy()
+
+        def save() -> None:
             if checkpoint is not None:
-                _save_fit(checkpoint, key, epoch + 1, net, opt, scores, best)
-        bar.close()
+                state.genome, state.optimizer = get_genome(net).copy(), opt.state_dict()
+                _save_fit(checkpoint, key, state)
+
+        def fit_batch(idx: np.ndarray) -> None:
+            error = (net(*window_inputs(windows, idx)) - target[idx]) ** 2
+            loss = (error if weight is None else error * weight[idx, None, None]).mean()
+            opt.zero_grad()
+            loss.backward()
+            opt.step()
+
+        rng = stream(seed, Salt.WARM_START_BATCHES)
+        bar = tqdm(total=epochs * batches, initial=state.epochs * batches + state.batch,
+                   desc="warm start", unit="batch", leave=False, disable=not progress)  # fmt: skip
+        consistent, saved_at = True, time.monotonic()  # (not inside a batch's update)
+        try:
+            for epoch in range(epochs):
+                order = rng.permutation(len(windows))  # (drawn for the epochs done before too)
+                if epoch < state.epochs:
+                    continue
+                net.train()
+                bar.set_postfix(epoch=f"{epoch + 1}/{epochs}")
+                for batch in range(state.batch, batches):
+                    interrupts.enter()  # a Ctrl-C waits for the batch's end (then it is saved)
+                    try:
+                        consistent = False
+                        fit_batch(order[batch * batch_size : (batch + 1) * batch_size])
+                        state.batch, consistent = batch + 1, True
+                    finally:
+                        interrupts.leave()
+                    bar.update()
+                    if time.monotonic() - saved_at > SAVE_SECONDS:
+                        save()
+                        saved_at = time.monotonic()
+                net.eval()
+                score = measured(held_out, "held-out error") if held_out is not None else None
+                consistent = False  # (the epoch's end: one step for a save)
+                if score is not None:
+                    if score < min(state.scores):
+                        state.best = get_genome(net).copy()
+                    state.scores.append(score)
+                state.epochs, state.batch, consistent = epoch + 1, 0, True
+                save()
+                saved_at = time.monotonic()
+        except KeyboardInterrupt:  # saved where it stands, if not inside a batch's update
+            if consistent and (state.epochs, state.batch) != (0, 0):
+                save()
+            raise
+        finally:
+            bar.close()
         if checkpoint is not None:
             checkpoint.unlink(missing_ok=True)
+        best, scores = state.best, state.scores
         if held_out is None:
             best = get_genome(net)
         set_genome(net, best.copy())  # the parameters alias what they are set from

@@ -153,3 +153,19 @@ def test_subcommand_help_states_the_defaults():
 def sub_parser(parser: argparse.ArgumentParser, name: str) -> argparse.ArgumentParser:
     sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
     return sub.choices[name]
+
+
+def test_a_flag_error_says_a_path_once():
+    """An error about a flag's path that names the path itself does not get it again; other
+    values (a scenario name) stay beside their flag."""
+    from gridsim.errors import flagged
+
+    said = flagged("--scenario", "/tmp/x.yaml", "/tmp/x.yaml: invalid scenario")
+    assert said == "--scenario: /tmp/x.yaml: invalid scenario"
+    assert flagged("--pretrain", "data/hw", "data/hw is not a dataset") == \
+        "--pretrain: data/hw is not a dataset"  # fmt: skip
+    assert (
+        flagged("--scenario", "seamless", "seamless: bad road")
+        == "--scenario seamless: seamless: bad road"
+    )  # a name, not a path: kept
+    assert flagged("--pretrain", "data/hw", "no windows") == "--pretrain data/hw: no windows"

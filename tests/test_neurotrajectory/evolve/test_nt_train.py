@@ -788,7 +788,7 @@ def test_a_scenario_whose_world_cannot_be_built_is_refused_before_the_run(tmp_pa
     crowded.write_text("name: crowded\nroad: {type: seamless}\ntraffic: {participants: 500}\n")
     assert main(["train", *QUICK, "--scenario", str(crowded), "--out", str(tmp_path / "run")]) == 2
     err = capsys.readouterr().err
-    assert f"--scenario {crowded}: {crowded}: traffic.participants 500 is more than the" in err
+    assert f"--scenario: {crowded}: traffic.participants 500 is more than the" in err
     assert not (tmp_path / "run").exists()
 
 

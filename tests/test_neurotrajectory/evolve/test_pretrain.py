@@ -247,8 +247,10 @@ def test_evolve_scopes_are_checked():
 def test_a_missing_pretraining_dataset_is_a_clear_error(tmp_path, capsys):
     cfg = TrainConfig(preset="tiny", population=2, generations=1, episodes=1,
                       episode_seconds=2.0, pretrain=str(tmp_path / "nothing"))  # fmt: skip
-    with pytest.raises(RunError, match=r"--pretrain .*nothing.*no manifest.json"):
+    refused_as = r"--pretrain: .*nothing is not a dataset \(no manifest.json"
+    with pytest.raises(RunError, match=refused_as) as refused:
         Run.create(tmp_path / "run", cfg).train(progress=False)
+    assert str(refused.value).count(str(tmp_path / "nothing")) == 1  # the path, said once
     with pytest.raises(RunError, match="pretrain_epochs must be an integer >= 1, got 0"):
         TrainConfig(pretrain_epochs=0)
     assert not (tmp_path / "run").exists()  # refused before the run folder is made
@@ -527,7 +529,7 @@ def test_heldout_drives_a_finished_run_on_longer_unseen_episodes(windows_dir, tm
 
 def test_an_interrupted_fit_goes_on_to_the_same_genome(windows_dir, tmp_path, monkeypatch):
     """The warm start's fit is saved after each epoch: interrupted, the same fit goes on from
-    its last full epoch to the genome and scores of an unbroken one, bit for bit; a fit of
+    its last saved epoch to the genome and scores of an unbroken one, bit for bit; a fit of
     other inputs starts over; the file goes when the fit ends."""
     from neurotrajectory.evolve import warm_start
 
@@ -542,13 +544,13 @@ def test_an_interrupted_fit_goes_on_to_the_same_genome(windows_dir, tmp_path, mo
             pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
     assert saved.is_file()
     with monkeypatch.context() as m:
-        calls = ctrl_c_at(m, warm_start, "_save_fit", 0)  # (counts the saves only)
-        passes = ctrl_c_at(m, warm_start, "setpoint_mse", 0)  # (and the passes)
+        calls = _saves(m, warm_start)
+        passes = ctrl_c_at(m, warm_start, "setpoint_mse", 0)  # (counts the passes)
         again, again_stats = pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
-    assert [c[2] for c in calls] == [3, 4]  # epochs 1 and 2 were not fitted again
-    # before the fit, the held-out error after epochs 3 and 4, after the fit: the held-out
-    # error before the fit is among the scores saved, not measured again
-    assert len(passes) == 4
+    assert calls == [(3, 0), (4, 0)]  # epochs 1 and 2 were not fitted again
+    # the held-out error after epochs 3 and 4, after the fit: the errors before the fit (on
+    # the fitted windows and the held-out ones) were saved, not measured again
+    assert len(passes) == 3
     np.testing.assert_array_equal(again, whole)
     assert again_stats == whole_stats
     assert not saved.exists()
@@ -563,3 +565,74 @@ def test_an_interrupted_fit_goes_on_to_the_same_genome(windows_dir, tmp_path, mo
         other, _ = pretrain_genome(_tiny_net(), start, windows, checkpoint=saved, **other_kwargs)
         alone, _ = pretrain_genome(_tiny_net(), start, windows, **other_kwargs)
         np.testing.assert_array_equal(other, alone)
+
+
+def _saves(monkeypatch, warm_start) -> list:
+    """Records ``(epochs, batch)`` of every save of the warm start's fit."""
+    save, calls = warm_start._save_fit, []
+
+    def recorded(path, key, state):
+        calls.append((state.epochs, state.batch))
+        save(path, key, state)
+
+    monkeypatch.setattr(warm_start, "_save_fit", recorded)
+    return calls
+
+
+def test_a_fit_interrupted_inside_an_epoch_goes_on_from_its_batch(windows_dir, tmp_path,
+                                                                 monkeypatch):  # fmt: skip
+    """Saved within an epoch (here after every batch) and at Ctrl-C, a fit goes on from the
+    batch it reached, fits no batch twice, and ends at the genome and scores of an unbroken
+    fit, bit for bit."""
+    from neurotrajectory.evolve import warm_start
+
+    w = load_dataset(windows_dir).windows
+    start = initial_genome(_tiny_net(), 3)
+    kwargs = {"epochs": 2, "seed": 0, "learning_rate": 1e-2, "validation": 0.3, "batch_size": 2}
+    whole, whole_stats = pretrain_genome(_tiny_net(), start, w, **kwargs)
+    saved = tmp_path / "fit.pt"
+    monkeypatch.setattr(warm_start, "SAVE_SECONDS", 0.0)
+    with monkeypatch.context() as m:
+        first = _saves(m, warm_start)
+        ctrl_c_at(m, warm_start, "_save_fit", 3, after=True)  # the third batch's save
+        with pytest.raises(KeyboardInterrupt):
+            pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
+    assert first[:3] == [(0, 1), (0, 2), (0, 3)]
+    batches = -(-whole_stats["windows"] // 2)
+    with monkeypatch.context() as m:
+        calls = _saves(m, warm_start)
+        passes = ctrl_c_at(m, warm_start, "setpoint_mse", 0)
+        again, again_stats = pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
+    assert calls[0] == (0, 4) and len(calls) == 2 * batches + 2 - 3  # no batch twice
+    assert len(passes) == 3  # the held-out error after each epoch, the error after the fit
+    np.testing.assert_array_equal(again, whole)
+    assert again_stats == whole_stats
+    assert not saved.exists()
+
+
+def test_a_saved_fit_of_another_length_or_position_is_not_used(windows_dir, tmp_path):
+    """A fit file whose position lies outside the fit asked for (more epochs than it has, a
+    batch past the epoch's end) or that is damaged starts the fit over."""
+    from neurotrajectory.evolve import warm_start
+
+    w = load_dataset(windows_dir).windows
+    start = initial_genome(_tiny_net(), 3)
+    kwargs = {"epochs": 2, "seed": 0, "learning_rate": 1e-2, "validation": 0.3}
+    whole, _ = pretrain_genome(_tiny_net(), start, w, **kwargs)
+    saved = tmp_path / "fit.pt"
+    for epochs, batch in ((3, 0), (0, 10**6), (2, 1), (0, 0)):
+        net = _tiny_net()
+        key = {"inputs": "x"}
+        state = warm_start._FitState(epochs, batch, [1.0], initial_genome(net, 3), 1.0,
+                                     initial_genome(net, 3), {})  # fmt: skip
+        warm_start._save_fit(saved, key, state)
+        size = sum(p.numel() for p in net.parameters())
+        assert warm_start._read_fit(saved, key, size, 2, 100) is None, (epochs, batch)
+    state.epochs, state.batch = 1, 5
+    warm_start._save_fit(saved, key, state)
+    assert warm_start._read_fit(saved, key, size, 2, 100).batch == 5
+    assert warm_start._read_fit(saved, {"inputs": "y"}, size, 2, 100) is None
+    saved.write_bytes(b"damaged")
+    assert warm_start._read_fit(saved, key, size, 2, 100) is None
+    again, _ = pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
+    np.testing.assert_array_equal(again, whole)

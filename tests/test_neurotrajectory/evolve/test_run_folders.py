@@ -362,22 +362,43 @@ def test_record_interrupted_goes_on_when_run_again(tmp_path, monkeypatch, capsys
     assert {k: whole[k] for k in same} == {k: part[k] for k in same}
 
 
-def test_a_warm_start_interrupted_goes_on_from_its_last_epoch(tmp_path, monkeypatch, capsys):
-    """A warm start can fit for many minutes on a large dataset: Ctrl-C keeps the fit as of
-    its last full epoch, and --resume goes on from there to the warm start of an unbroken
-    run."""
+def test_a_warm_start_interrupted_goes_on_from_its_batch(tmp_path, monkeypatch, capsys):
+    """A warm start can fit for many minutes on a large dataset: a real Ctrl-C (SIGINT) inside
+    a batch of the first epoch waits for the batch's end, keeps the fit as far as it got, and
+    --resume goes on from there to the warm start of an unbroken run."""
+    import os
+    import signal
+
+    import torch
+
     from neurotrajectory.evolve import warm_start
 
     argv = [*QUICK, "--pretrain-episodes", "2", "--pretrain-epochs", "3", "--heldout", "0"]
     assert main(["train", *argv, "--out", str(tmp_path / "whole")]) == 0
-    save = warm_start._save_fit
-    ctrl_c_at(monkeypatch, warm_start, "_save_fit", 2, after=True)
+    inputs, batches, ctrl_c = warm_start.window_inputs, [], [3]
+
+    def ctrl_c_in_third_batch(*args):  # (the fit's batches run with gradients, passes without)
+        if torch.is_grad_enabled():
+            batches.append(1)
+            if len(batches) in ctrl_c:
+                os.kill(os.getpid(), signal.SIGINT)
+        return inputs(*args)
+
+    monkeypatch.setattr(warm_start, "window_inputs", ctrl_c_in_third_batch)
     run = tmp_path / "run"
     assert main(["train", *argv, "--out", str(run)]) == 130
-    assert "keeps its warm start's fit after its last full epoch; go on with: " \
+    assert "keeps its warm start's fit as far as it got; go on with: " \
         f"neurotrajectory train --resume {run}" in capsys.readouterr().err  # fmt: skip
-    monkeypatch.setattr(warm_start, "_save_fit", save)
+    whole = json.loads((tmp_path / "whole" / "pretrain.json").read_text())
+    per_epoch = -(-whole["windows"] // 32)  # batches of 32 windows
+    saved = torch.load(run / "warm_start_fit.pt", weights_only=True)
+    assert saved["batch"] > 0  # inside an epoch: the batch it arrived in, finished
+    assert saved["epochs"] * per_epoch + saved["batch"] == 3
+    batches.clear()
+    ctrl_c.clear()
     assert main(["train", "--resume", str(run), "--quiet"]) == 0
+    assert len(batches) == 3 * per_epoch - 3  # no batch fitted twice
     with np.load(tmp_path / "whole" / "warm_start.npz") as a, np.load(run / "warm_start.npz") as b:
         np.testing.assert_array_equal(a["genome"], b["genome"])
+    assert json.loads((run / "pretrain.json").read_text()) == whole
     assert not (run / "warm_start_fit.pt").exists()
