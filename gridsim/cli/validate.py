@@ -7,6 +7,7 @@ import argparse
 import warnings
 
 from gridsim.errors import DataWarning, GridSimError
+from gridsim.outputs import counted
 
 
 def add_parser(sub) -> None:
@@ -88,7 +89,7 @@ def execute(args: argparse.Namespace) -> int:
             continue
         if problems:
             failed += 1
-            print(f"{f}: {len(problems)} problem(s)")
+            print(f"{f}: {counted(len(problems), 'problem')}")
             print("\n".join(f"  - {p.strip().removeprefix('- ')}" for p in problems))
         else:
             usable.append((f, sc))

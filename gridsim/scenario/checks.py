@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from gridsim.outputs import counted
 from gridsim.road.base import StaticRoad
 from gridsim.scenario.schema import Scenario
 from gridsim.traffic.track import Track, ids_in_scene
@@ -192,7 +193,8 @@ class SceneReport:
     def refusal(self, source: str) -> str:
         """The error message refusing the scene of ``source`` for its :attr:`problems`."""
         lines = "\n".join(f"  - {p}" for p in self.problems)
-        return f"{source}: implausible {self.checked} ({len(self.problems)} problem(s)):\n{lines}"
+        found = counted(len(self.problems), "problem")
+        return f"{source}: implausible {self.checked} ({found}):\n{lines}"
 
 
 def _alone_in_time(tracks: list[Track], source: str) -> list[str]:

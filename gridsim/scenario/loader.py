@@ -17,6 +17,7 @@ import yaml
 from pydantic import ValidationError
 
 from gridsim.errors import ScenarioError, warn_data
+from gridsim.outputs import counted
 from gridsim.scenario.family import FAMILIES, family_defaults
 from gridsim.scenario.schema import Scenario, ScenarioConfig, Strict
 
@@ -188,7 +189,7 @@ def _did_you_mean(parts: list, family: str | None = None) -> str:
 
 
 def _format_validation(source: str, problems: list[str]) -> str:
-    return "\n".join([f"{source}: invalid scenario ({len(problems)} problem(s)):",
+    return "\n".join([f"{source}: invalid scenario ({counted(len(problems), 'problem')}):",
                       *(f"  - {p}" for p in problems)])  # fmt: skip
 
 
@@ -213,6 +214,9 @@ def _problems(err: ValidationError) -> list[tuple[tuple, str]]:
             said = "is missing" if tag is None else f"{tag!r} is no scenario family{hint}"
             out.append((("road", "type"), f"road.type {said}; the families: "
                                            f"{', '.join(FAMILIES)}"))  # fmt: skip
+            continue
+        if e["type"] == "missing":  # (pydantic's "Field required (got {...})": the section)
+            out.append((tuple(parts), f"{loc} is missing; it is required"))
             continue
         if e["type"] == "value_error" and isinstance(got, Mapping):  # across keys: no input
             for line in msg.splitlines():

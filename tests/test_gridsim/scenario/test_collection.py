@@ -117,13 +117,13 @@ def test_validate_and_scenarios_print_one_line_per_file(folder, capsys):
     (folder / "broken.yaml").write_text("name: x\nroad: {type: recorded}\n")
     assert main(["validate", str(folder)]) == 2
     out = capsys.readouterr().out
-    assert f"{folder / 'broken.yaml'}: invalid scenario (1 problem(s)):" in out
-    assert "road.map: Field required" in out and "2 of 3 scenario files OK" in out
+    assert f"{folder / 'broken.yaml'}: invalid scenario (1 problem):" in out
+    assert "road.map is missing; it is required" in out and "2 of 3 scenario files OK" in out
     bad = {"name": "bad", "road": {"type": "seamless"}, "sensor": {"rows": -3, "colour": 1}}
     (folder / "bad.yaml").write_text(yaml.safe_dump(bad))
     assert main(["validate", str(folder)]) == 2
     out = capsys.readouterr().out.splitlines()
-    at = out.index(f"{folder / 'bad.yaml'}: invalid scenario (2 problem(s)):")
+    at = out.index(f"{folder / 'bad.yaml'}: invalid scenario (2 problems):")
     assert out[at + 1].startswith("  - sensor.") and out[at + 2].startswith("  - sensor.")
     assert out[-1] == "2 of 4 scenario files OK"
 

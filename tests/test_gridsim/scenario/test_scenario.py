@@ -578,7 +578,7 @@ def test_validate_reports_every_problem_of_a_file_at_once(tmp_path, capsys):
                     "  v_min: 9\n  v_max: 3\nenv:\n  decision_period: 0.15\n")  # fmt: skip
     assert main(["validate", str(path)]) == 2
     err = capsys.readouterr().err
-    assert "invalid scenario (4 problem(s)):" in err
+    assert "invalid scenario (4 problems):" in err
     for line in (
         "  - traffic: v_max (3.0) must be >= v_min (9.0)\n",
         "  - ego.speed (30.0) must be <= ego.vehicle.v_max (20.0)\n",
@@ -588,5 +588,5 @@ def test_validate_reports_every_problem_of_a_file_at_once(tmp_path, capsys):
         assert line in err  # fmt: skip
     path.write_text("name: x\nroad:\n  type: seamless\nego:\n  speed: 30\n  vehicle:\n"
                     "    v_max: fast\n")  # fmt: skip
-    with pytest.raises(ScenarioError, match=r"\(1 problem\(s\)\):\n  - ego.vehicle.v_max: "):
+    with pytest.raises(ScenarioError, match=r"\(1 problem\):\n  - ego.vehicle.v_max: "):
         load_scenario(path)

@@ -58,7 +58,7 @@ def test_a_scene_mostly_off_its_map_is_refused_everywhere(tmp_path, capsys):
     assert code == 2
     assert "3 of its 4 tracks are implausible for this map or in the wrong units" in out
     assert "track far1 of scene crafted: 41 of its 41 positions (100%) are off" in out
-    refused = r"implausible recorded scene \(1 problem\(s\)\):\n.*3 of its 4 tracks"
+    refused = r"implausible recorded scene \(1 problem\):\n.*3 of its 4 tracks"
     with pytest.raises(DataError, match=refused):
         gym.make("GridSim-v0", scenario=str(path)).reset(seed=0)
 
