@@ -88,7 +88,7 @@ def execute(args: argparse.Namespace) -> int:
             manifest, tracks = record_dataset(
                 partial, name, args.episodes, args.seed, args.stride, args.episode_seconds,
                 source=source, goal_seconds=args.goal_seconds, split=split, resume=True,
-                log=lambda line: bar.write(f"record: {line}", file=sys.stderr),
+                log=lambda line: bar.write(f"neurotrajectory: {line}", file=sys.stderr),
                 **bar_callbacks(bar))  # fmt: skip
         except BaseException as exc:
             if interrupted(exc):
@@ -116,10 +116,10 @@ def _kept(partial: Path) -> str:
     kept = checkpoint_windows(partial)
     if kept is None:
         shutil.rmtree(partial, ignore_errors=True)
-        return (f"record: interrupted before its first checkpoint (one every "
+        return (f"neurotrajectory: interrupted before its first checkpoint (one every "
                 f"{CHECKPOINT_SECONDS:g} s): nothing is kept")  # fmt: skip
     windows, whole = kept
     of = " of the whole group (the split's side is copied at the end)" if whole else ""
-    return (f"record: the {windows} windows{of} recorded until the last checkpoint are kept "
-            f"in {partial}: the same command goes on from there (remove that folder to "
+    return (f"neurotrajectory: the {windows} windows{of} recorded until the last checkpoint are "
+            f"kept in {partial}: the same command goes on from there (remove that folder to "
             "start afresh)")  # fmt: skip
