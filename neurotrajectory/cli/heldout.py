@@ -82,9 +82,11 @@ def report_heldout(
             ("destination curve", report["destination curve"])]  # fmt: skip
     for name, r in rows:
         if r is not None:
-            print(f"  {name:<18} completed {r['completed']:4.0%}  progress {r['progress']:4.0%} "
-                  f"of the human's  mean l1 {r['l1']:8.0f} m^2  steering "
-                  f"{r['mean_steer_rate']:.2f} rad/s")  # fmt: skip
+            print(
+                f"  {name:<18} completed {r['completed']:4.0%}  progress {r['progress']:4.0%}"
+                f"  mean l1 {r['l1']:7.0f} m^2  steering {r['mean_steer_rate']:.2g} rad/s"
+            )
+    print("  (progress: of the human's path; steering: the mean |steering rate| a tick)")
     _print_failures(run, pick, report)
     paired = report.get("paired")
     if paired is None:

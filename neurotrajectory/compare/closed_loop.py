@@ -43,7 +43,7 @@ def drive_episodes(
     env = GridSimEnv(scenario, action_type=policy.action_type,
                      render_mode="rgb_array" if video else None,
                      simulation={"duration": seconds}, **more)  # fmt: skip
-    ticks, dt = env.cfg.ticks_per_decision, env.cfg.simulation.dt
+    dt = env.cfg.simulation.dt
     rows = []
     for k, seed in enumerate(seeds):
         episode, _ = record_episode(env, policy, video if k == 0 else None, seed=seed,
@@ -59,7 +59,9 @@ def drive_episodes(
             "collision": float(s["collision"]),
             "off_road": float(s["off_road"]), "seconds": s["simulated_s"],
             "mean_speed": s["mean_speed"],
-            "mean_steer_rate": float(fitness[1] / (episode.steps * ticks * dt)),
+            # l2 sums |steering rate| [rad/s] over the ticks: its mean a tick
+            "mean_steer_rate": float(fitness[1] * dt / s["simulated_s"]) if s["simulated_s"]
+                               else 0.0,
             "l1": float(fitness[0]), "l2": float(fitness[1]), "l3": float(fitness[2]),
         })  # fmt: skip
     return rows

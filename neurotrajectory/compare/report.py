@@ -111,7 +111,7 @@ def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
 #: Closed-loop columns written with fixed decimals, so that a column reads in one style
 #: (shares 1.00 beside 0.33, not 1 beside 0.333); the fitness sums take :func:`_number`.
 _LOOP_DECIMALS = {"completed": 2, "progress": 2, "collision": 2, "off_road": 2,
-                  "mean_speed": 2, "mean_steer_rate": 3}  # fmt: skip
+                  "mean_speed": 2, "mean_steer_rate": 4}  # fmt: skip
 
 
 def _loop_cell(key: str, v: float) -> str:

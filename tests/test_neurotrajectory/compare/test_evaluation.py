@@ -286,4 +286,21 @@ def test_closed_loop_figures_read_in_one_style():
     assert [_loop_cell("completed", v) for v in (1.0, 1 / 3, 0.0, -1e-12)] == [
         "1.00", "0.33", "0.00", "0.00"]  # fmt: skip
     assert [_loop_cell("mean_speed", v) for v in (8.0, 7.2233)] == ["8.00", "7.22"]
-    assert _loop_cell("mean_steer_rate", 0.0722) == "0.072" and _loop_cell("episodes", 3.0) == "3"
+    assert _loop_cell("mean_steer_rate", 0.00722) == "0.0072" and _loop_cell("episodes", 3.0) == "3"
+
+
+def test_the_mean_steering_rate_is_the_rate_applied():
+    """A policy that steers at 0.05 rad/s every tick has a mean steering rate of 0.05 rad/s
+    (l2 sums the rate over the ticks; it was once divided by the tick length again)."""
+    from neurotrajectory.compare.closed_loop import drive_episodes
+
+    class Steer:
+        action_type = "control"
+
+        def __call__(self, env, obs, info):
+            return np.array([0.0, 0.05], np.float32)
+
+    row = drive_episodes("seamless", Steer(), [3], 2.0)[0]
+    assert row["seconds"] == pytest.approx(2.0)
+    assert row["mean_steer_rate"] == pytest.approx(0.05, rel=1e-6)
+    assert row["l2"] == pytest.approx(0.05 * 20, rel=1e-6)  # 20 ticks of 0.1 s
