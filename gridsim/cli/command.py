@@ -138,13 +138,15 @@ def _show_warning(prog, shown: set, message, category, filename, lineno, file=No
                   line=None) -> None:  # fmt: skip
     """A :class:`DataWarning` as ``PROG: warning: MESSAGE``, once per command (the same data
     is often loaded twice: to check it, then to use it); anything else as Python shows it."""
+    from tqdm import tqdm  # (its write() puts the line above a progress bar, not on it)
+
     if issubclass(category, DataWarning):
         if str(message) not in shown:
             shown.add(str(message))
-            print(f"{prog}: warning: {message}", file=sys.stderr)
+            tqdm.write(f"{prog}: warning: {message}", file=sys.stderr)
     else:
-        print(warnings.formatwarning(message, category, filename, lineno, line), file=sys.stderr,
-              end="")  # fmt: skip
+        tqdm.write(warnings.formatwarning(message, category, filename, lineno, line),
+                   file=sys.stderr, end="")  # fmt: skip
 
 
 def _save_traceback(prog: str, command: str) -> Path:

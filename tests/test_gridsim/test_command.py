@@ -169,3 +169,21 @@ def test_a_flag_error_says_a_path_once():
         == "--scenario seamless: seamless: bad road"
     )  # a name, not a path: kept
     assert flagged("--pretrain", "data/hw", "no windows") == "--pretrain data/hw: no windows"
+
+
+def test_a_data_warning_under_a_progress_bar_starts_its_own_line(capsys):
+    """A warning that arrives while a command's progress bar is drawn clears the bar first
+    (it was glued to the bar's line: '...?episode/s]neurotrajectory: warning: ...')."""
+    import sys
+
+    from tqdm import tqdm
+
+    from gridsim.cli.command import _show_warning
+    from gridsim.errors import DataWarning
+
+    with tqdm(desc="record x", unit="episode", file=sys.stderr, mininterval=0) as bar:
+        bar.refresh()
+        _show_warning("neurotrajectory", set(), "a flawed track", DataWarning, "f", 1)
+    err = capsys.readouterr().err
+    before = err[: err.index("neurotrajectory: warning: a flawed track")]
+    assert before.endswith(("\r", "\n")) and "episode" in before
