@@ -42,13 +42,14 @@ from neurotrajectory.compare.front import NetPredictor, load_front, trained_trac
 from neurotrajectory.compare.methods import NT_BEST, NT_PICKED
 from neurotrajectory.compare.metrics import Accuracy, accuracy
 from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
-from neurotrajectory.data.recording import record_dataset
+from neurotrajectory.data.recording import input_stamps, record_dataset, stamp_changes
 from neurotrajectory.data.storage import check_new_folder, dataset_manifest, load_split
 from neurotrajectory.data.windows import (
     GROUPS,
     DatasetError,
     Windows,
     bar_callbacks,
+    group_files,
     group_scenarios,
 )
 from neurotrajectory.evolve.pareto import PICKS, pick_member
@@ -142,6 +143,10 @@ def _split_dataset(
                 f"{folder}: holds only the {manifest['split']['side']} side of a split "
                 "(record --split); evaluation needs the whole group's windows"
             )
+        problem = _other_files(manifest, group, cfg.sources.get(group))
+        if problem:
+            raise DatasetError(f"{folder}: {problem}: record it from the group's files (or leave "
+                               "out --data: evaluate records what it needs)")  # fmt: skip
         if manifest.get("goal_seconds") != cfg.goal_seconds:
             raise DatasetError(f"{folder}: recorded with goal_seconds "
                                f"{manifest.get('goal_seconds')}, the evaluation asks "
@@ -157,6 +162,34 @@ def _split_dataset(
                            source=cfg.sources.get(group), goal_seconds=cfg.goal_seconds,
                            **bar_callbacks(bar))  # fmt: skip
     return load_split(folder, cfg.test_fraction, cfg.seed)
+
+
+def _other_files(manifest: dict, group: str, source: str | None) -> str | None:
+    """Why the dataset of ``manifest`` does not hold the windows of the group ``group`` (the
+    scenario files ``source``; None: a built-in group), or None: it was recorded from other
+    scenarios (compared by file name, so that a folder may move), or from files whose
+    contents changed since (the manifest's ``inputs``, where it has them)."""
+
+    def names(paths) -> set[str]:
+        return {Path(str(p)).name for p in paths}
+
+    recorded = names(m.get("scenario", "") for m in manifest.get("scenarios", []))
+    skipped = names(s.get("file", "") for s in manifest.get("skipped", []))
+    files = names(group_files(group, source)[0])
+    if not recorded <= files or not files <= recorded | skipped:
+
+        def listed(found: set[str]) -> str:
+            return ", ".join(sorted(found)[:3]) + (", ..." if len(found) > 3 else "")
+
+        return (f"recorded from {listed(recorded)}, not from the files of the group {group} "
+                f"({listed(files)})")  # fmt: skip
+    stamps = manifest.get("inputs")
+    if isinstance(stamps, dict):
+        now = input_stamps(group, source)
+        if sorted(stamps.values()) != sorted(now.values()):
+            changes = stamp_changes(stamps, now) or "a file moved or renamed"
+            return f"recorded from files that have changed since ({changes})"
+    return None
 
 
 @dataclass(frozen=True)

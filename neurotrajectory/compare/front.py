@@ -231,16 +231,24 @@ def episode_env(
 
 def trained_tracks(config) -> set[str]:
     """The tracks a run of ``config`` trained on, as ``SCENE/ID`` names (as datasets label
-    their windows), whether the run named them so or by id alone (of every scene it has)."""
-    if not config.ego_tracks:
-        return set()
-    from gridsim.scenario.families.recorded import scene_of
+    their windows), whether the run named them so or by id alone (of every scene it has); a
+    run that named none drew its egos from every track of its recorded scenes that can be
+    the ego (or from the scene's own ``ego.track``)."""
+    from gridsim.scenario.families.recorded import ego_candidates, ego_track_ids, scene_of
     from gridsim.traffic.track import ids_in_scene
 
     out = set()
     for _, sc in _recorded(_scenes(config.scenario)):
         scene = scene_of(sc)
-        out |= {track_name(scene, t) for t in ids_in_scene(list(config.ego_tracks), scene)[0]}
+        if config.ego_tracks:
+            ids = ids_in_scene(list(config.ego_tracks), scene)[0]
+        else:
+            ids = ego_track_ids(sc, scene)
+            if ids == "random":
+                ids = [t.track_id for t in ego_candidates(sc)]
+            elif isinstance(ids, str):
+                ids = [ids]
+        out |= {track_name(scene, t) for t in ids}
     return out
 
 

@@ -4,7 +4,6 @@ and checkpoints from which an interrupted recording goes on (:class:`_Checkpoint
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
 import time
@@ -78,6 +77,7 @@ def record_dataset(
         check_test_fraction(test_fraction)
     spool = out / SPOOL if split else out
     state, writer, checkpoints = GroupProgress(), None, None
+    stamps = input_stamps(name, source)
     if resume:
         arguments = {"name": name, "source": None if source is None else str(source),
                      "episodes": int(episodes), "seed": int(seed),
@@ -86,7 +86,7 @@ def record_dataset(
                      "goal_seconds": None if goal_seconds is None else float(goal_seconds),
                      "split": list(split) if split else None, "format": FORMAT_VERSION,
                      "shard_size": storage.SHARD_SIZE, "versions": package_versions(),
-                     "files": _file_stamps(name, source)}  # fmt: skip
+                     "files": stamps}  # fmt: skip
         checkpoints = _Checkpoints(spool, arguments)
         found, why = checkpoints.load()
         other = out if split else out / SPOOL  # where one with(out) --split keeps its own
@@ -114,6 +114,7 @@ def record_dataset(
     manifest = record_group_into(writer, name, episodes, seed, stride, duration, progress,
                                   source, goal_seconds, planned, state,
                                   checkpoints)  # fmt: skip
+    manifest["inputs"] = stamps
     if split is None:
         done = writer.finish(manifest)
         if checkpoints is not None:
@@ -152,18 +153,17 @@ def _remove_all_but(folder: Path, keep: set[str]) -> None:
             shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
 
 
-def _file_stamps(name: str, source: str | None) -> list:
-    """``[path, digest of its contents]`` of the group's scenario files (built-in scenarios:
-    their names), so that a recording is not continued on files whose contents changed (the
-    files they refer to, maps and track libraries, are not looked at)."""
-    out = []
+def input_stamps(name: str, source: str | None) -> dict[str, str]:
+    """SHA-256 of every file a group's windows are recorded from, by path: its scenario files
+    and the maps and track libraries they name (:func:`~gridsim.scenario.collection.
+    input_digest`; built-in scenarios and data: none). A recording is not continued, and a
+    dataset not evaluated as the group, on files whose contents changed."""
+    from gridsim.scenario.collection import input_digest
+
+    stamps: dict[str, str] = {}
     for scenario in group_files(name, source)[0]:
-        path = Path(scenario)
-        if not path.is_file():
-            out.append([str(scenario)])
-            continue
-        out.append([str(scenario), hashlib.blake2b(path.read_bytes(), digest_size=16).hexdigest()])
-    return out
+        stamps |= input_digest(scenario)
+    return stamps
 
 
 class _Checkpoints:
@@ -258,12 +258,26 @@ def _differences(then: dict, now: dict) -> str:
         if old == new:
             continue
         if key == "files":
-            changed = [str(f[0]) for f in (new or []) if f not in (old or [])]
-            said.append(f"other contents of {', '.join(changed) or 'its scenario files'}")
+            said.append(f"other input files ({stamp_changes(old, new) or 'their contents'})")
         elif key == "versions":
             said.append(f"other versions ({old}, now {new})")
         else:
             said.append(f"{key} {old!r} (now {new!r})")
+    return "; ".join(said)
+
+
+def stamp_changes(then, now) -> str:
+    """The files whose :func:`input_stamps` differ between ``then`` and ``now``, in words
+    (``""``: none, or stamps of another form: a checkpoint of an older version)."""
+    if not isinstance(then, dict) or not isinstance(now, dict):
+        return ""
+    said = []
+    changed = [f for f in then.keys() & now.keys() if then[f] != now[f]]
+    removed, added = then.keys() - now.keys(), now.keys() - then.keys()
+    for what, files in (("changed", changed), ("removed", removed), ("added", added)):
+        if files:
+            shown = ", ".join(sorted(files)[:3]) + (", ..." if len(files) > 3 else "")
+            said.append(f"{what}: {shown}")
     return "; ".join(said)
 
 

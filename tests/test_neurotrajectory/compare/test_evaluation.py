@@ -304,3 +304,31 @@ def test_the_mean_steering_rate_is_the_rate_applied():
     assert row["seconds"] == pytest.approx(2.0)
     assert row["mean_steer_rate"] == pytest.approx(0.05, rel=1e-6)
     assert row["l2"] == pytest.approx(0.05 * 20, rel=1e-6)  # 20 ticks of 0.1 s
+
+
+def test_a_dataset_of_other_files_is_not_evaluated_as_the_group(tiny_run, data, tmp_path,
+                                                                capsys):  # fmt: skip
+    """``--data`` holds a dataset per group: one recorded from other scenarios, or from
+    files changed since, is refused, naming them (its windows were scored as the group's,
+    while the closed loop drove the group's own files)."""
+    import shutil
+
+    other = tmp_path / "other"
+    shutil.copytree(data / "urban", other / "seamless")  # urban's windows named seamless
+    args = ["--run", str(tiny_run), "--e2e-epochs", "1", "--closed-loop-episodes", "1", "--quiet"]
+    assert main(["evaluate", *args, "--data", str(other), "--groups", "seamless",
+                 "--out", str(tmp_path / "e1")]) == 2  # fmt: skip
+    err = capsys.readouterr().err
+    assert "recorded from lankershim_1_1, peachtree_4_8, not from the files of the group " \
+        "seamless (seamless)" in err  # fmt: skip
+    mine = tmp_path / "mine.yaml"
+    mine.write_text("name: mine\nroad: {type: seamless}\n")
+    assert main(["record", "--scenario", str(mine), "--name", "mine", "--episodes", "2",
+                 "--episode-seconds", "4", "--out", str(tmp_path / "d" / "mine"),
+                 "--quiet"]) == 0  # fmt: skip
+    mine.write_text("name: mine\nroad: {type: seamless, lanes: 2}\n")
+    assert main(["evaluate", *args, "--data", str(tmp_path / "d"), "--group", f"mine={mine}",
+                 "--out", str(tmp_path / "e2")]) == 2  # fmt: skip
+    assert f"recorded from files that have changed since (changed: {mine})" in \
+        capsys.readouterr().err  # fmt: skip
+    assert not (tmp_path / "e1").exists() and not (tmp_path / "e2").exists()

@@ -267,8 +267,37 @@ def test_a_scenario_file_changed_after_a_break_is_named(tmp_path, monkeypatch):
         with pytest.raises(KeyboardInterrupt):
             recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
     scenario.write_text("name: mine\nroad: {type: seamless}\nsensor: {rows: 128}\n")
-    with pytest.raises(WorkKept, match=f"made with other contents of {re.escape(str(scenario))}"):
+    with pytest.raises(
+        WorkKept, match=rf"made with other input files \(changed: {re.escape(str(scenario))}\)"
+    ):
         recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
+
+
+def test_a_track_library_changed_after_a_break_is_named(tmp_path, monkeypatch):
+    """The files a scenario names count too: a recording whose traffic library was edited
+    after the break is refused, naming the library (it went on with the old windows)."""
+    import shutil
+    from importlib import resources
+
+    from gridsim.errors import WorkKept
+
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
+    shipped = resources.files("gridsim").joinpath("data", "ngsim", "ngsim_trajectories.csv")
+    library = tmp_path / "tracks.csv"
+    shutil.copyfile(str(shipped), library)
+    scenario = tmp_path / "mine.yaml"
+    scenario.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [tracks.csv]}\n")
+    with monkeypatch.context() as m:
+        _interrupt_at(m, 2)
+        with pytest.raises(KeyboardInterrupt):
+            recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
+    library.write_text(library.read_text().replace("\n", "\n", 1) + "\n")  # one more line
+    with pytest.raises(
+        WorkKept, match=rf"other input files \(changed: {re.escape(str(library))}\)"
+    ):
+        recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
+    stamps = recording.input_stamps(str(scenario), None)
+    assert set(stamps) == {str(scenario), str(library)}
 
 
 def test_a_selection_reads_the_grids_it_is_asked_for_without_a_copy():

@@ -978,3 +978,8 @@ def test_a_run_s_training_tracks_are_named_as_datasets_name_them():
     bare = TrainConfig(scenario="us101_4_1,us101_3_3", ego_tracks=("399",))
     assert trained_tracks(bare) == {f"{scene}/399", f"{other}/399"}
     assert trained_tracks(TrainConfig(scenario="seamless")) == set()
+    # none named: the run drew its egos from every track that can be the ego
+    from gridsim.scenario.families.recorded import ego_candidates
+
+    fit = {f"{scene}/{t.track_id}" for t in ego_candidates(load_scenario("us101_4_1"))}
+    assert trained_tracks(TrainConfig(scenario="us101_4_1")) == fit and len(fit) > 10
