@@ -44,6 +44,24 @@ class UnfitEgoWarning(DataWarning):
     once). A caller that drives such tracks on purpose (``record``) says so once."""
 
 
+#: The first bytes of archives a text file may be handed in as, and what to do with each.
+_ARCHIVES = {b"\x1f\x8b": "gzip-compressed: decompress it first (gunzip)",
+             b"PK\x03\x04": "a zip archive: extract the file from it first",
+             b"BZh": "bzip2-compressed: decompress it first (bunzip2)",
+             b"\xfd7zXZ": "xz-compressed: decompress it first (unxz)"}  # fmt: skip
+
+
+def archive_problem(path: str | os.PathLike) -> str | None:
+    """What to do with ``path`` if it is a compressed file or archive rather than the text
+    file it is read as (told by its first bytes), or None."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(6)
+    except OSError:
+        return None
+    return next((said for magic, said in _ARCHIVES.items() if head.startswith(magic)), None)
+
+
 def flagged(flag: str, value: object, message: object) -> str:
     """``"FLAG VALUE: MESSAGE"``, an error about a command-line flag's value; where the value
     is a path that the message names already (an error about a file names it), ``"FLAG:

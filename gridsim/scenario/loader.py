@@ -16,7 +16,7 @@ import numpy as np
 import yaml
 from pydantic import ValidationError
 
-from gridsim.errors import ScenarioError, warn_data
+from gridsim.errors import ScenarioError, archive_problem, warn_data
 from gridsim.outputs import counted
 from gridsim.scenario.family import FAMILIES, family_defaults
 from gridsim.scenario.schema import Scenario, ScenarioConfig, Strict
@@ -507,7 +507,9 @@ def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
         try:
             return p.read_text(encoding="utf-8"), str(p), p.resolve().parent
         except (OSError, UnicodeDecodeError) as exc:
-            raise ScenarioError(f"{p}: cannot read scenario file ({exc})") from None
+            archive = archive_problem(p)
+            said = archive if archive else f"cannot read scenario file ({exc})"
+            raise ScenarioError(f"{p}: {said}") from None
     entry = resources.files("gridsim").joinpath(*_BUILTIN_DIR, f"{name_or_path}.yaml")
     if not entry.is_file():
         names = builtin_scenarios()

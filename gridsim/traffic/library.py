@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import DataError, warn_data
+from gridsim.errors import DataError, archive_problem, warn_data
 from gridsim.outputs import atomic_text, short_repr
 from gridsim.traffic.commonroad import read_tracks_commonroad
 from gridsim.traffic.track import Track
@@ -126,6 +126,9 @@ def read_tracks_csv(path: str | Path) -> list[Track]:
     try:
         return _parse_tracks_csv(path)
     except UnicodeDecodeError as exc:
+        archive = archive_problem(path)
+        if archive:
+            raise DataError(f"{path}: {archive}") from None
         raise DataError(
             f"{path}: not a UTF-8 text file (byte {exc.start}: {exc.reason}); save the CSV as UTF-8"
         ) from None
@@ -217,15 +220,28 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
            lines: list[int]) -> np.ndarray:  # fmt: skip
     """The numbers ``(rows, 7)`` of a block of CSV ``rows`` (at file ``lines``), or a
     :class:`DataError` naming the block's first bad row's first problem, as a row by row
-    reading finds it: a row cut short, a cell that is not a finite number, a negative speed
-    or a size not above 0."""
-    need = max(where) + 1
-    short = next((k for k, row in enumerate(rows) if len(row) < need), len(rows))
+    reading finds it: a row cut short or with values past the header's columns, an empty
+    scene or track id, a cell that is not a finite number, a negative speed or a size not
+    above 0."""
+    need, width = max(where) + 1, len(header)
+
+    def misshapen(row: list[str]) -> bool:  # (empty fields past the header: trailing commas)
+        return len(row) < need or (len(row) > width and any(f.strip() for f in row[width:]))
+
+    short = next((k for k, row in enumerate(rows) if misshapen(row)), len(rows))
     values = np.empty((short, len(_NUMERIC)))
     first_bad: list[tuple[int, int, str]] = []  # (row, column, message) of each column's
-    if short < len(rows):
+    if short < len(rows):  # a row cut short, or one whose values slid (not a trailing comma)
+        why = ("a line cut short?" if len(rows[short]) < need else
+               "a comma inside a text field that is not in quotes? its values would slide "
+               "into the wrong columns")  # fmt: skip
         first_bad.append((short, -1, f"{len(rows[short])} column(s), the header has "
-                                     f"{len(header)} (a line cut short?)"))  # fmt: skip
+                                     f"{width} ({why})"))  # fmt: skip
+    for c, name in enumerate(("scenario_id", "track_id")):
+        empty = next((k for k, row in enumerate(rows[:short]) if not row[where[c]].strip()), None)
+        if empty is not None:
+            first_bad.append((empty, -2 + c, f"column {name!r} is empty; every row names its "
+                                             "scene and track"))  # fmt: skip
     for c, name in enumerate(_NUMERIC):
         raw = [row[where[c + 2]] for row in rows[:short]]
         try:

@@ -59,6 +59,12 @@ def test_user_csv_loads(tmp_path):
         (["s,1,0,0,0,0,1,4.5,1.8"], HEADER, "no track with at least 2 states"),
         (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0,0,0,1,4.5"], HEADER,
          r"tracks.csv:3: 8 column\(s\), the header has 9 \(a line cut short\?\)"),
+        (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0,0,1,1,4.5,1.8,x"], HEADER,  # values slid right
+         r"tracks.csv:3: 10 column\(s\), the header has 9 \(a comma inside a text field"),
+        (["s,,0,0,0,0,1,4.5,1.8", "s,,0.1,0,0,0,1,4.5,1.8"], HEADER,
+         r"tracks.csv:2: column 'track_id' is empty"),
+        (["s,1,0,0,0,0,1,4.5,1.8", ",1,0.1,0,0,0,1,4.5,1.8"], HEADER,
+         r"tracks.csv:3: column 'scenario_id' is empty"),
         (["s,1,0,0,0,0,-1,4.5,1.8", "s,1,0.1,x,0,0,1,4.5,1.8"], HEADER,
          r"tracks.csv:2: speed_mps must be >= 0"),  # the first bad row's problem
         (["s,1,0,inf,0,0,1,4.5,1.8", "s,1,0.1,abc,0,0,1,4.5,1.8"], HEADER,
@@ -75,6 +81,31 @@ def test_user_csv_loads(tmp_path):
 def test_bad_csv_names_the_problem(tmp_path, rows, header, message):
     with pytest.raises(DataError, match=message):
         read_tracks_csv(write_csv(tmp_path, rows, header))
+
+
+def test_trailing_commas_are_no_columns(tmp_path):
+    """Empty fields past the header's columns (an export's trailing commas) are read."""
+    rows = [f"s,1,{k * 0.1:g},{k:g},0,0,10,4.5,1.8,," for k in range(3)]
+    (track,) = read_tracks_csv(write_csv(tmp_path, rows))
+    assert track.x.tolist() == [0.0, 1.0, 2.0]
+
+
+def test_a_compressed_file_is_named_as_such(tmp_path):
+    """A gzip file handed in as a CSV or a scenario says to decompress it first."""
+    import gzip
+
+    from gridsim.errors import ScenarioError
+    from gridsim.scenario.loader import load_scenario
+
+    plain = write_csv(tmp_path, ["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0.1,0,0,1,4.5,1.8"])
+    packed = tmp_path / "tracks.csv.gz"
+    packed.write_bytes(gzip.compress(plain.read_bytes()))
+    with pytest.raises(DataError, match=r"tracks.csv.gz: gzip-compressed: decompress it first"):
+        read_tracks_csv(packed)
+    scenario = tmp_path / "mine.yaml"
+    scenario.write_bytes(gzip.compress(b"name: mine\nroad: {type: seamless}\n" * 50))
+    with pytest.raises(ScenarioError, match=r"mine.yaml: gzip-compressed: decompress it first"):
+        load_scenario(scenario)
 
 
 def test_rows_given_twice_are_read_once_with_a_warning(tmp_path):
