@@ -2,12 +2,10 @@
 this one plans the 5 set-points along the ego's heading at the speed it keeps, a constant-
 velocity planner, and the video shows its plan beside the human's.
 
-    python examples/07_custom_policy.py [--quick] [--video out/constant_velocity.mp4]
+    python examples/07_custom_policy.py [--quick] [--video constant_velocity.mp4]
 """
 
 import argparse
-import tempfile
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -32,15 +30,17 @@ class ConstantVelocity:
 
 ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
 ap.add_argument("--quick", action="store_true", help="a short episode (for CI)")
-ap.add_argument("--video", default=None, help="where to write the video (.mp4 or .gif)")
+ap.add_argument(
+    "--video",
+    default="constant_velocity.mp4",
+    help="where to write the video (.mp4 or .gif; default: %(default)s)",
+)
 args = ap.parse_args()
 
 env = gym.make("GridSim-v0", scenario="seamless", render_mode="rgb_array")
-with tempfile.TemporaryDirectory() as tmp:
-    path = Path(args.video or f"{tmp}/constant_velocity.mp4")
-    episode, video = record_episode(env, ConstantVelocity(), path,
-                                    steps=20 if args.quick else 600, seed=0)  # fmt: skip
-    summary = episode.summary()
-    print(f"{summary['steps']} decisions, ended by {summary['ended_by']}, l1 "
-          f"{summary['fitness_sums']['l1']:.1f} m^2 from the human; video {video} "
-          f"({video.stat().st_size // 1024} kB)")  # fmt: skip
+episode, video = record_episode(env, ConstantVelocity(), args.video,
+                                steps=20 if args.quick else 600, seed=0)  # fmt: skip
+summary = episode.summary()
+print(f"{summary['steps']} decisions, ended by {summary['ended_by']}, l1 "
+      f"{summary['fitness_sums']['l1']:.1f} m^2 from the human; video {video} "
+      f"({video.stat().st_size // 1024} kB)")  # fmt: skip

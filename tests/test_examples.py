@@ -19,7 +19,7 @@ SAYS = {
     "03_sb3_ppo.py": "trained; a deterministic action per environment",
     "04_author_scenario.py": "busy_city: 35 participants at 2.77-8.33 m/s, 30 s",
     "05_commonroad_file.py": "the ego replays the human of track",
-    "06_train_and_evaluate.py": "warm_start",
+    "06_train_and_evaluate.py": "its warm start",
     "07_custom_policy.py": "decisions, ended by ",
 }
 

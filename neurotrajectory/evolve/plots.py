@@ -34,11 +34,16 @@ def plot_run(
     final: tuple | None = None,
     chosen_on: str = "",
     anchored: bool = False,
+    centre: bool = False,
+    warm_start: dict | None = None,
 ) -> list[Path]:
     """The run's plots. ``final``: ``(fitness, rank, violation)`` of the members the final
     front was chosen from (on ``chosen_on``, as ``front.json`` gives them); the front plot
     shows those, else the last generation's training scores. ``anchored``: individual 0 of
-    every generation is the warm start (or the evolution-strategies centre)."""
+    every generation is the warm start (or the evolution-strategies centre); ``centre``: the
+    member validated each generation is the evolution-strategies centre, not the knee;
+    ``warm_start``: the warm start's scores on ``chosen_on`` (``front.json``'s), drawn on the
+    final front."""
     folder = Path(out) / "plots"
     folder.mkdir(parents=True, exist_ok=True)
     gens = np.array([h["generation"] for h in history])
@@ -46,13 +51,17 @@ def plot_run(
     paths = []
 
     lost = [np.array(h.get("violation", np.zeros(len(h["fitness"])))) > 0 for h in history]
+    any_lost = any(gone.any() for gone in lost)
+    l1 = np.concatenate([f[:, 0] for f in fit])
+    # l1 may span decades (a member that lost an episode): a log scale, where it does
+    logged = not (l1.min() > 0 and l1.max() < 10 * l1.min())
     fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
     for k, ax in enumerate(axes):
         for g, f, gone in zip(gens, fit, lost, strict=True):
             ax.scatter(np.full((~gone).sum(), g), f[~gone, k], s=8, alpha=0.4, color="tab:blue",
                        label="a member" if g == gens[0] else None)  # fmt: skip
         ax.plot(gens, [np.median(f[:, k]) for f in fit], color="tab:red", label="median")
-        if k == 0:  # l1 spans decades; ticks at 1, 2 and 5 of each, written out
+        if k == 0 and logged:  # l1 spans decades; ticks at 1, 2 and 5 of each, written out
             ax.set_yscale("symlog")
             ax.yaxis.set_major_locator(SymmetricalLogLocator(base=10, linthresh=2, subs=(1, 2, 5)))
             ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
@@ -66,10 +75,12 @@ def plot_run(
             y = f[gone, k] if top is None else np.full(gone.sum(), top)
             ax.scatter(np.full(gone.sum(), g), y, s=14, marker="x", color="black", clip_on=False,
                        label="a member that lost an episode" + ("" if top is None else
-                             " (not drawn to scale)") if g == gens[0] else None)  # fmt: skip
+                             " (not drawn to scale)") if g == gens[0] and any_lost
+                             else None)  # fmt: skip
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_title(NAMES[k] + ("\n(log scale)" if k == 0 else ""), fontsize=9, pad=10)
+        ax.set_title(NAMES[k] + ("\n(log scale)" if k == 0 and logged else ""), fontsize=9,
+                     pad=10)  # fmt: skip
     fig.suptitle("every member of every generation, on that generation's training episodes "
                  "(drawn anew each generation)", fontsize=10)  # fmt: skip
     _legend_below(fig, axes[0], 3, 0.07)
@@ -82,6 +93,7 @@ def plot_run(
     else:
         last, rank, lost = np.asarray(final[0]), np.asarray(final[1]), np.asarray(final[2]) > 0
         title = f"the final front, chosen on {chosen_on} (front.json)"
+    warm = warm_start if final is not None else None  # (on the front's episodes only)
     front = np.flatnonzero(rank == 0)
     at = pick_member(last[front], "knee")
     knee = front[at]
@@ -98,9 +110,11 @@ def plot_run(
         ax.scatter(last[shown, i], last[shown, j], s=18, color="tab:red", label="Pareto front")
         # the axes span the members that completed every episode: a padded score (the
         # episode's remaining steps at the worst values) would squash them into a dot
-        if kept.any():
-            _span(ax, last[kept, i], "x")
-            _span(ax, last[kept, j], "y")
+        if kept.any():  # (and the warm start, if it completed every episode)
+            shown = last[kept] if warm is None or warm["violation"] > 0 else np.vstack(
+                [last[kept], [[warm["l1"], warm["l2"], warm["l3"]]]])  # fmt: skip
+            _span(ax, shown[:, i], "x")
+            _span(ax, shown[:, j], "y")
         if lost.any():
             (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
             ax.scatter(np.clip(last[lost, i], x0, x1), np.clip(last[lost, j], y0, y1), s=40,
@@ -110,6 +124,12 @@ def plot_run(
         ax.scatter(last[knee, i], last[knee, j], s=120, facecolors="none", edgecolors="tab:green",
                    linewidths=2, label=f"knee ({who}): l1 {k1:.4g}, l2 {k2:.3g}, "
                                        f"l3 {k3:.4g}")  # fmt: skip
+        if warm is not None:  # what evolution started from, on the same episodes
+            w = [warm["l1"], warm["l2"], warm["l3"]]
+            ax.scatter(w[i], w[j], s=140, marker="*", color="tab:orange", zorder=3,
+                       label=f"warm start: l1 {w[0]:.4g}, l2 {w[1]:.3g}, l3 {w[2]:.4g}"
+                             + (" (lost an episode)" if warm["violation"] > 0 else ""))  # fmt: skip
+
         ax.set_xlabel(NAMES[i], fontsize=8)
         ax.set_ylabel(NAMES[j], fontsize=8)
     fig.suptitle(title, fontsize=10)
@@ -117,7 +137,8 @@ def plot_run(
     paths.append(_save(fig, folder / "front.png"))
 
     paths.append(_hypervolume(folder / "hypervolume.png", history, anchored))
-    curve = learning_curve(folder / "learning_curve.png", history)
+    validated = "the centre of the generation" if centre else "knee of the generation"
+    curve = learning_curve(folder / "learning_curve.png", history, validated)
     return paths + ([curve] if curve else [])
 
 
@@ -143,9 +164,12 @@ def _hypervolume(path: Path, history: list[dict], anchored: bool) -> Path:
     return _save(fig, path)
 
 
-def learning_curve(path: Path, history: list[dict]) -> Path | None:
-    """Each generation's knee on the validation episodes (``knee_validation``), one panel per
-    objective, with the warm start on the same episodes as a line. The axes span the knees
+def learning_curve(
+    path: Path, history: list[dict], validated: str = "knee of the generation"
+) -> Path | None:
+    """Each generation's knee (or what ``validated`` says it is) on the validation episodes
+    (``knee_validation``), one panel per objective, with the warm start on the same episodes
+    as a line. The axes span the knees
     that completed every episode (and the warm start); a knee that lost episode time (a
     collision or leaving the road, its remaining steps counted at the worst values) is a
     cross at the worse edge (the top, the bottom for l3), a warm start that lost some a dotted
@@ -161,8 +185,7 @@ def learning_curve(path: Path, history: list[dict]) -> Path | None:
     for ax, key, name in zip(axes, ("l1", "l2", "l3"), NAMES, strict=True):
         y = np.array([v[key] for _, v in points], dtype=float)
         kept = np.where(lost, np.nan, y)
-        ax.plot(gens, kept, marker="o", ms=4, color="tab:blue",
-                label="knee of the generation")  # fmt: skip
+        ax.plot(gens, kept, marker="o", ms=4, color="tab:blue", label=validated)
         # the axes span what completed every episode: a padded score would flatten the rest
         _span(ax, np.append(kept[~lost], [] if warm is None or warm_lost else [warm[key]]))
         top = ax.get_ylim()[0 if key == "l3" else 1]  # the worse edge (l3 is maximised)

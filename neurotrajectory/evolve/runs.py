@@ -1021,7 +1021,8 @@ class Run:
             summary["best_knee"] = {"generation": best[0], "index": len(population) - 1}
         write_json(self.out / "front.json", summary)
         plot_run(self.out, history, (fitness, rank, violation), summary["chosen_on"],
-                 anchored=self.config.anchored)  # fmt: skip
+                 anchored=self.config.anchored, centre=self.config.es,
+                 warm_start=summary.get("warm_start"))  # fmt: skip
         return summary
 
     def plot(self) -> list[Path]:
@@ -1036,7 +1037,7 @@ class Run:
         if not history:
             raise RunError(f"{self.out}: no generation yet, nothing to plot")
         path = self.out / "front.json"
-        final, chosen_on = None, ""
+        final, chosen_on, warm = None, "", None
         if path.exists():
             try:
                 summary = json.loads(path.read_text())
@@ -1050,8 +1051,9 @@ class Run:
             if "candidates" not in summary:
                 chosen_on += " (its members only: the front predates the saved candidates)"
             if summary.get("generation") == history[-1]["generation"]:
-                final = (fitness, rank, violation)
-        return plot_run(self.out, history, final, chosen_on, anchored=self.config.anchored)
+                final, warm = (fitness, rank, violation), summary.get("warm_start")
+        return plot_run(self.out, history, final, chosen_on, anchored=self.config.anchored,
+                        centre=self.config.es, warm_start=warm)  # fmt: skip
 
 
 def _distinct(genomes: np.ndarray, members: np.ndarray) -> np.ndarray:

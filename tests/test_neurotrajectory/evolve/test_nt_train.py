@@ -781,6 +781,20 @@ def test_front_plot_marks_the_knee_and_lost_members(tmp_path, monkeypatch):
     plots.plot_run(tmp_path, history, (fitness, [0, 0, 1, 0], [0.0] * 4), "8 episodes")
     labels = figures[1].axes[0].get_legend_handles_labels()[1]
     assert "knee (member 2 of the front): l1 1.5, l2 1.5, l3 25" in labels
+    # the warm start on the front's episodes, and the centre validated (evolution strategies)
+    figures.clear()
+    warm = {"index": 0, "l1": 2.5, "l2": 0.5, "l3": 28.0, "violation": 0.0}
+    history[0] |= {"violation": [0.0] * 4, "knee_validation": {**warm, "l1": 2.0},
+                   "warm_start_validation": warm}  # fmt: skip
+    plots.plot_run(tmp_path, history, (fitness, [0, 0, 1, 0], [0.0] * 4), "8 episodes",
+                   centre=True, warm_start=warm)  # fmt: skip
+    objectives, front, _, curve = figures
+    labels = front.axes[0].get_legend_handles_labels()[1]
+    assert "warm start: l1 2.5, l2 0.5, l3 28" in labels
+    assert front.axes[0].get_xlim()[1] > 2.5  # the axes take it in
+    assert not any("lost" in x for x in objectives.axes[0].get_legend_handles_labels()[1])
+    assert objectives.axes[0].get_yscale() == "linear"  # within a decade: no log scale
+    assert "the centre of the generation" in curve.axes[0].get_legend_handles_labels()[1]
 
 
 def test_a_scenario_whose_world_cannot_be_built_is_refused_before_the_run(tmp_path, capsys):
