@@ -30,6 +30,7 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--out", required=True, help="JSON report to write")
     p.add_argument("--overwrite", action="store_true", help="replace --out if it exists")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=execute)
 
 
@@ -47,7 +48,7 @@ def execute(args: argparse.Namespace) -> int:
     # a report written into the run folder holds it, as train does (one writer at a time)
     with run_folder(args.run, resume=True) if inside else nullcontext():
         report_heldout(Run.open(args.run), args.episodes, args.seconds, args.pick, args.out,
-                 args.plan_smoothing)  # fmt: skip
+                       args.plan_smoothing, progress=not args.quiet)  # fmt: skip
     return 0
 
 
@@ -58,12 +59,14 @@ def report_heldout(
     pick: str = "knee",
     out=None,
     smoothing: float | None = None,
+    progress: bool = False,
 ) -> None:
     """Drive a front member on held-out episodes (``smoothing``: instead of the run's plan
-    smoothing); write ``out`` (default the run's ``heldout.json``), print a summary."""
+    smoothing; ``progress``: with a bar); write ``out`` (default the run's
+    ``heldout.json``), print a summary."""
     from neurotrajectory.compare.front import heldout
 
-    report = heldout(run.out, episodes, pick, seconds, smoothing)
+    report = heldout(run.out, episodes, pick, seconds, smoothing, progress)
     path = Path(out) if out else run.out / "heldout.json"
     path.parent.mkdir(parents=True, exist_ok=True)
     write_json(path, report)

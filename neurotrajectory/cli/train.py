@@ -156,7 +156,7 @@ def _train(args: argparse.Namespace, out: str, started: float) -> int:
         if heldout:
             run.say(f"driving the knee, its warm start and the destination curve on {heldout} "
                     "held-out episodes")  # fmt: skip
-            report_heldout(run, heldout)
+            report_heldout(run, heldout, progress=not args.quiet)
         if video:  # an episode no generation trained on
             run.say(f"filming the knee on a held-out episode: {video}")
             rollout(str(run.out), "knee", video, seed=run.config.heldout_seeds(1)[0], steps=None)

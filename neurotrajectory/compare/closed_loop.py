@@ -9,6 +9,7 @@ of the mean), collision, off-road, time driven [s], mean speed [m/s], mean steer
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -34,11 +35,12 @@ def drive_episodes(
     ego: dict | None = None,
     goal_seconds: float | None = None,
     label: str | None = None,
+    progress: Callable[[int], None] | None = None,
 ) -> list[dict]:
     """One row of statistics per episode of ``policy`` on ``scenario`` (episodes of
     ``seconds``, one per seed; ``ego`` overrides the scenario's ego section, ``goal_seconds``
     its ``env.goal_seconds``); with ``video``, the first episode is also exported there,
-    annotated with ``label`` as the driver's name."""
+    annotated with ``label`` as the driver's name. ``progress(1)`` after each episode."""
     more = ({"ego": ego} if ego else {}) | goal_overrides(goal_seconds)
     env = GridSimEnv(scenario, action_type=policy.action_type,
                      render_mode="rgb_array" if video else None,
@@ -64,6 +66,8 @@ def drive_episodes(
                                else 0.0,
             "l1": float(fitness[0]), "l2": float(fitness[1]), "l3": float(fitness[2]),
         })  # fmt: skip
+        if progress is not None:
+            progress(1)
     return rows
 
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from tqdm import tqdm
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.scenario.schema import Scenario
@@ -107,6 +108,7 @@ def heldout(
     pick: str = "knee",
     seconds: float | None = None,
     smoothing: float | None = None,
+    progress: bool = False,
 ) -> dict:
     """Closed-loop statistics of the picked front member on ``episodes`` episodes that no
     generation trained on (:meth:`~neurotrajectory.evolve.runs.TrainConfig.heldout_seeds`; on a
@@ -115,7 +117,8 @@ def heldout(
     (default: as long as the training episodes), beside the destination curve's and, if the
     run has one, its warm start's (``"warm_start"``: what evolution started from; ``"paired"``:
     the two compared on the episodes both complete, :func:`paired_l1`) on the same episodes,
-    all plans smoothed alike: as the run's, or by ``smoothing``."""
+    all plans smoothed alike: as the run's, or by ``smoothing``. ``progress``: a bar over the
+    episodes of all planners."""
     from neurotrajectory.compare.baselines.destination_curve import DestinationCurve
     from neurotrajectory.compare.closed_loop import drive_episodes, summarise
     from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
@@ -129,22 +132,27 @@ def heldout(
         tracks = _other_tracks(cfg.scenario, cfg.ego_tracks, scenes)[:episodes]
         names = _track_names(tracks, scenes)
     seeds = list(cfg.heldout_seeds(len(tracks) if tracks else episodes))
+    warm = load_warm_start(run, policy.keep)
+    planners = 2 if warm is None else 3
+    bar = tqdm(total=planners * len(seeds), desc="held-out episodes", unit="episode",
+               leave=False, disable=not progress)  # fmt: skip
 
     def drive(planner) -> list[dict]:
         if tracks is None:
             return drive_episodes(cfg.scenario, planner, seeds, seconds,
-                                  goal_seconds=cfg.goal_seconds)  # fmt: skip
+                                  goal_seconds=cfg.goal_seconds, progress=bar.update)  # fmt: skip
         return [{**row, "track": name}  # each held-out track once, on its own scene
                 for (ref, track), name, seed in zip(tracks, names, seeds, strict=True)
                 for row in drive_episodes(ref, planner, [seed], seconds, ego={"track": track},
-                                          goal_seconds=cfg.goal_seconds)]  # fmt: skip
+                                          goal_seconds=cfg.goal_seconds,
+                                          progress=bar.update)]  # fmt: skip
 
-    rows = drive(policy)
-    env = GridSimEnv(cfg.scenario, **cfg.overrides)
-    keep = policy.keep  # the curve's plans are smoothed as the member's
-    baseline = drive(TrajectoryPolicy(DestinationCurve(Setting.from_env(env)), keep))
-    warm = load_warm_start(run, keep)
-    started = None if warm is None else drive(warm)
+    with bar:
+        rows = drive(policy)
+        env = GridSimEnv(cfg.scenario, **cfg.overrides)
+        keep = policy.keep  # the curve's plans are smoothed as the member's
+        baseline = drive(TrajectoryPolicy(DestinationCurve(Setting.from_env(env)), keep))
+        started = None if warm is None else drive(warm)
     return {
         "member": member,
         "episode_seconds": seconds,

@@ -519,7 +519,11 @@ def test_heldout_drives_a_finished_run_on_longer_unseen_episodes(windows_dir, tm
     assert doc["episode_seconds"] == 3.0 and doc["seeds"] == seeds
     assert [e["seed"] for e in doc["episodes"]] == seeds
     assert all(e["seconds"] <= 3.0 + 1e-9 for e in doc["episodes"])
-    assert "knee member on 2 held-out episodes (3 s each)" in capsys.readouterr().out
+    said = capsys.readouterr()
+    assert "knee member on 2 held-out episodes (3 s each)" in said.out
+    assert "held-out episodes: " in said.err and "/6 [" in said.err  # a bar: 3 planners x 2
+    assert main([*cmd, str(report), "--overwrite", "--quiet"]) == 0
+    assert "held-out episodes: " not in capsys.readouterr().err
     for seconds, said in [("nan", "expected a finite number in (0, 3600], got 'nan'"),
                           ("1e6", "expected a finite number in (0, 3600], got '1e6'")]:  # fmt: skip
         with pytest.raises(SystemExit) as exit_:  # argparse refuses the value
