@@ -7,6 +7,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from tqdm import tqdm
+
 from gridsim.cli.flags import quiet_flag
 from neurotrajectory.cli.flags import goal_flag, run_flag, settings_flag
 from neurotrajectory.compare.baselines.end2end import TrainSettings
@@ -70,7 +72,11 @@ def execute(args: argparse.Namespace) -> int:
         end2end["epochs"] = args.epochs
     cfg = EvalConfig(**given, groups=tuple(groups), sources=sources,
                      end2end=TrainSettings(**end2end))  # fmt: skip
-    log = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr))
+
+    def log(message: str) -> None:
+        if not args.quiet:
+            tqdm.write(f"neurotrajectory: {message}", file=sys.stderr)
+
     group_runs = {}
     for item in args.group_run:
         group, sep, path = item.partition("=")
@@ -81,5 +87,11 @@ def execute(args: argparse.Namespace) -> int:
         group_runs[group] = path
     evaluate(args.run, args.out, cfg, data_dir=args.data, log=log, group_runs=group_runs,
              progress=not args.quiet)  # fmt: skip
-    print((Path(args.out) / "table2.md").read_text())
+    out = Path(args.out)
+    print((out / "table2.md").read_text())
+    written = sorted(p.name for p in out.iterdir() if p.is_file())
+    log(
+        f"wrote {out}: {', '.join(written)}"
+        + (f"; videos in {out / 'videos'}" if (out / "videos").is_dir() else "")
+    )
     return 0

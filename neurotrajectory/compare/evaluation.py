@@ -137,6 +137,13 @@ def _split_dataset(
     (:func:`~neurotrajectory.data.storage.load_split`)."""
     if data_dir is not None:
         folder = data_dir / group
+        if not (folder / "manifest.json").is_file():
+            source = cfg.sources.get(group, group)
+            raise DatasetError(f"--data {data_dir}: no dataset of the group {group} ({folder} "
+                               f"has no manifest.json): record it there (neurotrajectory record "
+                               f"--scenario {source}{'' if source == group else f' --name {group}'}"
+                               f" --out {folder}), evaluate only the groups recorded (--groups "
+                               "...), or leave out --data")  # fmt: skip
         manifest = dataset_manifest(folder)
         if "split" in manifest:
             raise DatasetError(

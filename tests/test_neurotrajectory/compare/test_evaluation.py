@@ -124,6 +124,10 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
             "--closed-loop-seconds", "2", "--videos", "--quiet"]  # fmt: skip
     assert main(args) == 0
     assert "closed loop" not in capsys.readouterr().err  # --quiet: no progress bars
+    assert main([*args[:-1], "--out", str(tmp_path / "loud")]) == 0
+    said = capsys.readouterr().err  # where everything went
+    assert f"neurotrajectory: wrote {tmp_path / 'loud'}: closed_loop.csv, eval_config.json" in said
+    assert f"videos in {tmp_path / 'loud' / 'videos'}" in said
     import imageio.v3 as iio
 
     videos = sorted(p.name for p in (out / "videos").iterdir())
@@ -200,7 +204,9 @@ def test_bad_input_gives_clear_errors(tiny_run, tmp_path, capsys):
     assert "unknown scenario 'nowhere'" in capsys.readouterr().err
     assert main(["evaluate", "--run", str(tiny_run), "--data", str(tmp_path / "none"),
                  "--out", str(tmp_path / "e2"), "--groups", "urban"]) == 2  # fmt: skip
-    assert "is not a dataset" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert f"--data {tmp_path / 'none'}: no dataset of the group urban" in said
+    assert "neurotrajectory record --scenario urban --out" in said and "--groups" in said
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "keep.txt").write_text("mine")
     assert main(["evaluate", "--run", str(tiny_run), "--out", str(tmp_path / "full")]) == 2
