@@ -20,6 +20,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from gridsim.errors import GridSimError, ScenarioError, warn_data
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import load_scenario
@@ -183,8 +185,10 @@ def repeated_recordings(pairs: list[tuple[Path, Scenario]]) -> list[tuple[Path, 
 
 
 def _recorded_tracks(pairs: list[tuple[Path, Scenario]]):
-    """``(file, scenario, scene, {track id: (samples, first time, x, y)})`` of each recorded
-    scenario of ``pairs`` (file, scenario): what tells its tracks from another recording's."""
+    """``(file, scenario, scene, {track id: digest of its samples and size})`` of each
+    recorded scenario of ``pairs`` (file, scenario): what tells its tracks from another
+    recording's (every sample counts: a copy with one glitch or one size changed is another
+    recording)."""
     from gridsim.scenario.families.recorded import recorded_scene, scene_of
     from gridsim.scenario.family import is_recorded
 
@@ -195,11 +199,18 @@ def _recorded_tracks(pairs: list[tuple[Path, Scenario]]):
                 path,
                 scenario,
                 scene_of(scenario),
-                {
-                    t.track_id: (len(t.t), float(t.t[0]), float(t.x[0]), float(t.y[0]))
-                    for t in tracks
-                },
+                {t.track_id: _track_digest(t) for t in tracks},
             )
+
+
+def _track_digest(track) -> bytes:
+    """A digest of a track's samples and size (as read: a file saved again with other line
+    ends or a BOM gives the same)."""
+    h = hashlib.blake2b(digest_size=16)
+    for values in (track.t, track.x, track.y, track.heading, track.speed,
+                   np.array([track.length, track.width])):  # fmt: skip
+        h.update(np.ascontiguousarray(values, dtype=np.float64).tobytes())
+    return h.digest()
 
 
 def report_skipped(

@@ -403,6 +403,14 @@ def test_other_recordings_of_a_scene_with_the_same_track_ids_are_named(tmp_path,
         load_collection(tmp_path)
     assert gridsim_main(["validate", str(tmp_path)]) == 0
     assert "track id(s) in common" in capsys.readouterr().out
+    # a copy with one sample moved 3 m (a glitch) is another recording, not the same one
+    lines = (tmp_path / "day1.csv").read_text().splitlines()
+    head, first = lines[0].split(","), lines[5].split(",")
+    first[head.index("x_m")] = f"{float(first[head.index('x_m')]) + 3.0:.4f}"
+    (tmp_path / "day2.csv").write_text("\n".join([*lines[:5], ",".join(first), *lines[6:]]))
+    with pytest.warns(DataWarning, match=r"with 1 track id\(s\) in common") as seen:
+        load_collection(tmp_path)
+    assert not any("replays the same recording" in str(w.message) for w in seen)
 
 
 def test_a_data_warning_points_at_the_users_line(tmp_path):
