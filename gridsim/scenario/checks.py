@@ -283,11 +283,18 @@ def _scene_checks(tracks: tuple[Track, ...], road: StaticRoad, source: str,
     scene (``record`` builds a world per ego track: a scene of N tracks checked per world
     cost N^2); ``need``: the planning horizon [s]."""
     flawed = flawed_tracks(tracks, road)
-    problems, warnings = _verdict(flawed, len(tracks), source,
-                                  "implausible for this map or in the wrong units (does the map "
-                                  "belong to the tracks? are time stamps in seconds and "
-                                  "positions in metres?)",
-                                  "kept as traffic, not offered as the ego")  # fmt: skip
+    problems, warnings = [], []
+    files: dict[str, list[Track]] = {}  # each file judged on its own tracks: one of another
+    for t in tracks:  # map beside a good one is refused, not diluted by its tracks
+        files.setdefault(t.source or source, []).append(t)
+    for file, mine in files.items():
+        ids = {t.track_id for t in mine}
+        found = _verdict({k: v for k, v in flawed.items() if k in ids}, len(mine), file,
+                         "implausible for this map or in the wrong units (does the map belong "
+                         "to the tracks? are time stamps in seconds and positions in metres?)",
+                         "kept as traffic, not offered as the ego")  # fmt: skip
+        problems += found[0]
+        warnings += found[1]
     longest = max(tracks, key=lambda t: t.duration)
     if longest.duration < need:
         problems.append(

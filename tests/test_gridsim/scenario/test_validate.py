@@ -63,6 +63,23 @@ def test_a_scene_mostly_off_its_map_is_refused_everywhere(tmp_path, capsys):
         gym.make("GridSim-v0", scenario=str(path)).reset(seed=0)
 
 
+def test_a_file_of_another_map_beside_a_good_one_is_refused(tmp_path, capsys):
+    """Each library file is judged on its own tracks: one whose tracks are all off the map is
+    refused even where a good file's tracks outnumber them (its tracks were kept as traffic,
+    3 of 7 flawed in the scene)."""
+    (tmp_path / "o").mkdir()
+    far = [track(f"far{k}", X + 500.0, np.full(41, 40.0 + 5 * k)) for k in range(3)]
+    write_scene(tmp_path / "o", far)  # o/tracks.csv: another map's tracks
+    good = [track(f"car{k}", X + 10.0 * k, np.full(41, -1.75)) for k in range(3)]
+    path = write_scene(tmp_path, [track("ego", X - 15.0, np.full(41, -1.75)), *good],
+                       traffic={"library": ["tracks.csv", "o/tracks.csv"]})  # fmt: skip
+    code, out = validate(capsys, path)
+    assert code == 2
+    assert f"{tmp_path / 'o' / 'tracks.csv'}: 3 of its 3 tracks are implausible for this " \
+        "map" in out  # fmt: skip
+    assert f"{tmp_path / 'tracks.csv'}: " not in out  # the good file is not named
+
+
 def test_time_in_steps_instead_of_seconds_is_caught(tmp_path, capsys):
     tr = track("ego", X, np.full(41, -1.75), dt=1.0)  # time stamps 0, 1, 2, ...: steps
     tr.speed[:] = 10.0  # the recorded speed is right
