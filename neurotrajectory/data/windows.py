@@ -39,7 +39,12 @@ from gridsim.scenario.collection import (
     report_skipped,
     scenario_files,
 )
-from gridsim.scenario.families.recorded import ego_candidates, recorded_scene, scene_of
+from gridsim.scenario.families.recorded import (
+    ego_candidates,
+    recorded_scene,
+    scene_of,
+    why_unfit,
+)
 from gridsim.scenario.family import family_of
 from gridsim.scenario.loader import load_scenario
 from gridsim.seeding import Salt, stream
@@ -232,11 +237,11 @@ def _say_unfit_egos(scenario, chosen: list, tracks: list, road) -> None:
     unfit = [t.track_id for t in chosen if t.track_id not in fit]
     if unfit:
         shown = ", ".join(unfit[:8]) + (f" and {len(unfit) - 8} more" if len(unfit) > 8 else "")
+        why = why_unfit(scenario, tracks, road, set(unfit))
         warn_data(
-            f"{scenario.source}: {len(unfit)} of the {len(chosen)} tracks driven as "
-            f"the ego are not ones a random ego is drawn from (a long vehicle, one "
-            f"overlapping another or grazing a road edge: `gridsim validate` names "
-            f"why): {shown}; they are driven as recorded all the same"
+            f"{scenario.source}: {len(unfit)} of the {len(chosen)} tracks driven as the ego are "
+            f"not ones a random ego is drawn from ({why}): {shown}; they are driven as "
+            "recorded all the same"
         )
 
 

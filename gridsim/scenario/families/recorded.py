@@ -95,10 +95,19 @@ def data_report(scenario: Scenario):
 
 
 def _scene_report(scenario: Scenario, road: StaticRoad, tracks: list[Track]):
-    """:func:`~gridsim.scenario.checks.scene_report`, and :func:`_unfit_ego_note` among its
-    warnings."""
+    """:func:`~gridsim.scenario.checks.scene_report`, and among its warnings
+    :func:`_unfit_ego_note` or, with a random ego, how many of the scene's tracks are not
+    drawn and why (``record`` drives them as the ego: a validation lists it)."""
     report = scene_report(scenario, road, tracks)
-    note = None if report.problems else _unfit_ego_note(scenario, road, tracks)
+    if report.problems:
+        return report
+    note = _unfit_ego_note(scenario, road, tracks)
+    if scenario.config.ego.track == "random":
+        fit = {t.track_id for t in ego_candidates(scenario, tracks, road)}
+        unfit = {t.track_id for t in tracks} - fit - report.flawed  # (flaws: warned each)
+        if unfit:
+            note = (f"{scenario.source}: {len(unfit)} of its {len(tracks)} tracks are not drawn "
+                    f"as a random ego ({why_unfit(scenario, tracks, road, unfit)})")  # fmt: skip
     return dataclasses.replace(report, warnings=(*report.warnings, note)) if note else report
 
 
@@ -214,7 +223,8 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
         which = "the listed tracks" if isinstance(wanted, list) else f"scene {scene!r}"
         verb = "have" if isinstance(wanted, list) else "has"
         raise ScenarioError(f"{scenario.source}: {which} {verb} no track to use as the ego "
-                            f"({_why_unfit(scenario, tracks, road, listed)})")  # fmt: skip
+                            f"(of {len(listed & {t.track_id for t in tracks})}: "
+                            f"{why_unfit(scenario, tracks, road, listed)})")  # fmt: skip
     return fit[int(rng.integers(len(fit)))]
 
 
@@ -235,19 +245,20 @@ def ego_track_ids(scenario: Scenario, scene: str | None = None) -> str | list[st
     return own[0] if isinstance(wanted, str) else own
 
 
-def _why_unfit(scenario: Scenario, tracks, road: StaticRoad, listed: set[str]) -> str:
-    """Why each of the ``listed`` tracks cannot be the ego, counted by reason."""
+def why_unfit(scenario: Scenario, tracks, road: StaticRoad, listed: set[str]) -> str:
+    """Why each of the ``listed`` tracks cannot be the ego, counted by reason ("3 of a vehicle
+    longer than 6 m, 1 overlapping ...")."""
     mine = [t for t in tracks if t.track_id in listed]
     if not mine:
         return "none listed"
     counts = {
         why: sum(map(test, mine)) for why, test in _unfit_tests(scenario, tracks, road).items()
     }
-    said = f"of {len(mine)}: " + ", ".join(f"{n} {why}" for why, n in counts.items() if n)
-    lengths = np.array([t.length for t in mine])
-    if np.median(lengths) > scenario.config.traffic.max_vehicle_length:  # most: another unit
-        said += (f"; their median length is {np.median(lengths):.3g} m: are sizes in metres "
-                 "(not feet)?")  # fmt: skip
+    said = ", ".join(f"{n} {why}" for why, n in counts.items() if n)
+    lengths = np.array([t.length for t in tracks])  # the scene's: most long is another unit
+    if np.median(lengths) > scenario.config.traffic.max_vehicle_length:
+        said += (f"; the scene's median vehicle length is {np.median(lengths):.3g} m: are sizes "
+                 "in metres (not feet)?")  # fmt: skip
     return said
 
 

@@ -1,6 +1,8 @@
 """Plausibility checks of recorded scenes (``gridsim validate``): crafted mistakes are named
 with the file, the track and the numbers; the shipped scenes pass."""
 
+import warnings
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -268,3 +270,15 @@ def test_a_library_folder_skips_the_files_it_cannot_read(tmp_path):
     path.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [days]}\n")
     with pytest.raises(DataError, match=r"traffic.library: none of its 2 files can be read"):
         library_for(load_scenario(path))
+
+
+def test_validate_says_how_many_tracks_a_random_ego_is_not_drawn_from(capsys):
+    """`record` drives every track as the ego, trucks too, and warns of those a random ego is
+    not drawn from: validate counts them with the reasons (it said only OK)."""
+    code, out = validate(capsys, "us101_3_3")
+    assert code == 0
+    assert "builtin:us101_3_3: 2 of its 12 tracks are not drawn as a random ego (2 of a " \
+        "vehicle longer than 6 m)" in out  # fmt: skip
+    with warnings.catch_warnings():  # gym.make does not warn of it
+        warnings.simplefilter("error", DataWarning)
+        gym.make("GridSim-v0", scenario="us101_3_3").reset(seed=0)

@@ -158,7 +158,7 @@ def test_vehicles_sized_in_feet_get_a_hint(tmp_path):
     tracks = [replace(crafted(name, np.linspace(x, x + 30.0, 31), np.full(31, 1.75)),
                       length=14.8, width=5.9)  # 4.5 x 1.8 m in feet
               for name, x in (("ego", 20.0), ("other", 80.0))]  # fmt: skip
-    with pytest.raises(GridSimError, match=r"median length is 14.8 m: are sizes in metres"):
+    with pytest.raises(GridSimError, match=r"median vehicle length is 14.8 m: are sizes in metres"):
         GridSimEnv(str(write_scene(tmp_path, tracks, ego={"track": "random"}))).reset(seed=0)
 
 
