@@ -877,10 +877,13 @@ class Run:
             stats |= {"dagger": rounds, "dagger_weight": cfg.dagger_weight}
         if "validation_mse" in stats:
             best = stats["best_epoch"]
-            alone = ": the ridge fit of the read-outs alone" if best == 0 else ""
+            epochs = len(stats["validation_mse"]) - 1
+            kept = (f"epoch {best} of {epochs} kept" if best else "the ridge fit of the "
+                    f"read-outs alone kept: none of the {epochs} epochs of gradient descent "
+                    "predicted the held-out tracks better")  # fmt: skip
             self.say(f"warm start: validation MSE {stats['validation_mse'][best]:.4g} m^2 on "
-                     f"{stats['validation_windows']} windows of held-out tracks (epoch {best}"
-                     f"{alone}; pretrain.json)")  # fmt: skip
+                     f"{stats['validation_windows']} windows of held-out tracks ({kept}; "
+                     "pretrain.json)")  # fmt: skip
         write_json(self.out / "pretrain.json", {**source, **stats})
         write_npz(self.out / WARM_START_FILE, genome=base,
                   net=np.array(json.dumps(self.net_config.to_dict())))  # fmt: skip

@@ -270,6 +270,28 @@ def test_pretraining_data_of_another_grid_size_is_refused_before_the_run(windows
     assert not (tmp_path / "run").exists()
 
 
+def test_the_warm_start_says_which_epoch_it_kept(windows_dir, tmp_path, capsys):
+    """The line after the fit says which epoch of how many was kept, or that none beat the
+    ridge fit of the read-outs alone (epoch 0: every epoch was discarded)."""
+    import re
+
+    args = ["train", "--preset", "tiny", "--population", "2", "--generations", "1",
+            "--episodes", "1", "--episode-seconds", "2", "--pretrain", str(windows_dir),
+            "--pretrain-epochs", "2", "--validation-episodes", "0", "--heldout", "0",
+            "--out", str(tmp_path / "run")]  # fmt: skip
+    assert main(args) == 0
+    said = capsys.readouterr().err
+    best = json.loads((tmp_path / "run" / "pretrain.json").read_text())["best_epoch"]
+    kept = (
+        f"epoch {best} of 2 kept"
+        if best
+        else "the ridge fit of the read-outs alone kept: "
+        "none of the 2 epochs of gradient descent predicted the held-out tracks better"
+    )
+    assert re.search(r"warm start: validation MSE \S+ m\^2 on \d+ windows of held-out tracks "
+                     rf"\({re.escape(kept)}; pretrain.json\)", said), said  # fmt: skip
+
+
 def test_a_run_can_record_its_own_warm_start(tmp_path, capsys):
     out = tmp_path / "run"
     args = ["train", "--preset", "tiny", "--population", "4", "--generations", "1",
