@@ -76,7 +76,7 @@ def rollout(
         print(f"neurotrajectory: note: --steps {steps} is more than the episode's "
               f"{episode} decisions ({env.cfg.simulation.duration:g} s; --seconds makes it "
               f"longer): the episode ends at {episode}", file=sys.stderr)  # fmt: skip
-    label = f"NeuroTrajectory, {pick} member {member['index']} of {Path(run_dir).name}"
+    label = f"NeuroTrajectory, {pick} member {member['member']} of {Path(run_dir).name}"
     driven, path = record_episode(env, policy, video, min(steps or episode, episode), seed=seed,
                                   overlay=overlay, label=label)  # fmt: skip
     s = driven.summary()
@@ -86,7 +86,7 @@ def rollout(
              "destination reached": "reaching the destination", "time limit": "its time limit",
              "steps limit": "the --steps limit"}[s["ended_by"]]  # fmt: skip
     on = f", track {track}" if track else ""
-    print(f"{pick} member {member['index']}, seed {seed}{on}: {s['steps']} decisions, "
+    print(f"{pick} member {member['member']}, seed {seed}{on}: {s['steps']} decisions, "
           f"{s['simulated_s']:.1f} s, {s['distance_m']:.0f} m at {s['mean_speed']:.1f} m/s, "
           f"ended by {ended}\n"
           f"  fitness sums: l1 {f['l1']:.4g} m^2, l2 {f['l2']:.3g} rad/s, l3 {f['l3']:.4g} m/s\n"

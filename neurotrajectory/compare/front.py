@@ -92,9 +92,9 @@ def load_front_member(
     ``smoothing``), and that member's fitness."""
     run, fitness, _, nets = load_front(run_dir)
     k = pick_member(fitness, pick)
-    member = {
+    member = {  # "member": its place in the front, as front.json's "member" says it
         "pick": pick,
-        "index": k,
+        "member": k,
         "l1": float(fitness[k, 0]),
         "l2": float(fitness[k, 1]),
         "l3": float(fitness[k, 2]),

@@ -993,15 +993,18 @@ class Run:
         summary = {
             "generation": gen,
             "chosen_on": f"{len(seeds)} validation episodes" if seeds else "the last generation",
+            # "member": its place in the front (as train prints it, rollout --pick and
+            # heldout.json name it); "index": its place among the candidates
             "front": [
                 {
+                    "member": k,
                     "index": int(i),
                     "l1": float(fitness[i, 0]),
                     "l2": float(fitness[i, 1]),
                     "l3": float(fitness[i, 2]),
                     "violation": float(violation[i]),
                 }
-                for i in members
+                for k, i in enumerate(members)
             ],  # fmt: skip
             # per generation, the hypervolume plot's and the progress bar's figure
             "hypervolume": self._hypervolumes(),

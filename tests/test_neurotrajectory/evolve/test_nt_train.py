@@ -757,6 +757,12 @@ def test_rollout_drives_a_held_out_episode_as_heldout_did(finished_run, tmp_path
                      overlay=False, seconds=report["episode_seconds"])  # fmt: skip
     assert driven["simulated_s"] == pytest.approx(row["seconds"]) and row["seconds"] > 4.0
     assert driven["fitness_sums"]["l1"] == pytest.approx(row["l1"], rel=1e-12)
+    # the member is named alike in front.json and heldout.json: its place in the front
+    front = json.loads((finished_run / "front.json").read_text())["front"]
+    assert [m["member"] for m in front] == list(range(len(front)))
+    knee = front[report["member"]["member"]]
+    assert (knee["l1"], knee["l2"], knee["l3"]) == tuple(report["member"][k] for k in
+                                                         ("l1", "l2", "l3"))  # fmt: skip
 
 
 def test_front_plot_marks_the_knee_and_lost_members(tmp_path, monkeypatch):
