@@ -20,7 +20,10 @@ speed, mean steering rate and the episode fitness vector ``[l1, l2, l3]``.
 
 from __future__ import annotations
 
+import json
 import re
+import shutil
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -30,8 +33,8 @@ import numpy as np
 from pydantic import Field, model_validator
 from tqdm import tqdm
 
-from gridsim.errors import warn_data
-from gridsim.outputs import new_folder, write_json
+from gridsim.errors import WorkKept, warn_data
+from gridsim.outputs import LOCK_NAME, empty_folder, interrupted, new_folder, write_json
 from gridsim.policies import Reference
 from gridsim.scenario.schema import MAX_DURATION
 from gridsim.seeding import Salt, stream
@@ -161,13 +164,20 @@ def _split_dataset(
                                "--goal-seconds")  # fmt: skip
     else:
         folder = out / "data" / group
+        if (folder / "manifest.json").is_file():  # recorded before a break: if still the same
+            problem = _other_files(dataset_manifest(folder), group, cfg.sources.get(group))
+            if problem is None:
+                return load_split(folder, cfg.test_fraction, cfg.seed)
+            log(f"{group}: recording again: the windows kept were {problem}")
+            shutil.rmtree(folder)
         log(f"{group}: recording windows")
         with tqdm(desc=f"record {group}", unit="episode", leave=False,
                   disable=not progress) as bar:  # fmt: skip
-            # written as recorded, then read back
+            # written as recorded, then read back; with checkpoints from which the same
+            # command goes on if it is interrupted
             record_dataset(folder, group, cfg.episodes, cfg.seed, duration=cfg.episode_seconds,
                            source=cfg.sources.get(group), goal_seconds=cfg.goal_seconds,
-                           **bar_callbacks(bar))  # fmt: skip
+                           resume=True, log=log, **bar_callbacks(bar))  # fmt: skip
     return load_split(folder, cfg.test_fraction, cfg.seed)
 
 
@@ -334,18 +344,67 @@ def evaluate(
                                f"destination {said}; evaluate it with the same --goal-seconds "
                                "(or train a run for this setting)")  # fmt: skip
     data_dir = Path(data_dir) if data_dir is not None else None
-    with new_folder(out) as partial:  # out appears, whole, when everything is written
-        write_json(partial / "eval_config.json",
-                   {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
-                    **cfg.as_dict()})  # fmt: skip
+    settings = {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
+                **cfg.as_dict()}  # fmt: skip
+    # out appears, whole, when everything is written; interrupted, the hidden folder keeps
+    # the windows recorded, and the same command goes on with them
+    with new_folder(out, resumable=True) as partial:
+        _go_on_or_start(partial, json.loads(json.dumps(settings)), log)
+        write_json(partial / "eval_config.json", settings)
         results = []
-        for group in cfg.groups:
-            t0 = time.perf_counter()
-            data = _split_dataset(group, cfg, data_dir, partial, log, progress)
-            result = _evaluate_group(group, data, fronts[group], cfg, partial, log, progress)
-            del data  # (the next group's windows are read without these)
-            results.append(result)
-            log(f"{group}: done in {time.perf_counter() - t0:.0f} s; RMSE "
-                + ", ".join(f"{k} {v.rmse:.2f}" for k, v in result.accuracy.items()))  # fmt: skip
+        try:
+            for group in cfg.groups:
+                t0 = time.perf_counter()
+                data = _split_dataset(group, cfg, data_dir, partial, log, progress)
+                result = _evaluate_group(group, data, fronts[group], cfg, partial, log, progress)
+                del data  # (the next group's windows are read without these)
+                results.append(result)
+                rmse = ", ".join(f"{k} {v.rmse:.2f}" for k, v in result.accuracy.items())
+                log(f"{group}: done in {time.perf_counter() - t0:.0f} s; RMSE {rmse}")
+        except BaseException as exc:
+            if interrupted(exc):
+                _say_kept(partial)
+            raise
         write_report(results, partial, {g: f.info(cfg.pick) for g, f in fronts.items()})
     return results
+
+
+def _go_on_or_start(partial: Path, settings: dict, log) -> None:
+    """Keep what an interrupted evaluation of the same ``settings`` left in ``partial`` (the
+    windows it recorded, ``data/``; the rest is made again), or refuse one of other settings
+    (:class:`~gridsim.errors.WorkKept`, naming them), or clear what a killed one left."""
+    config = partial / "eval_config.json"
+    if not config.is_file():
+        empty_folder(partial)
+        return
+    try:
+        then = json.loads(config.read_text())
+    except (OSError, ValueError):
+        then = None
+    if then != settings:
+        differ = sorted(k for k in set(settings) | set(then or {})
+                        if (then or {}).get(k) != settings.get(k))  # fmt: skip
+        raise WorkKept(f"{partial} holds an interrupted evaluation of other settings "
+                       f"({', '.join(differ) or 'unreadable'}): give the arguments it was made "
+                       f"with to go on with its recorded windows, or remove {partial} to start "
+                       "afresh")  # fmt: skip
+    kept = sorted(p.name for p in (partial / "data").glob("*") if p.is_dir())
+    for p in partial.iterdir():
+        if p.name not in ("data", LOCK_NAME, "eval_config.json"):
+            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
+    if kept:
+        log(f"going on with the interrupted evaluation in {partial}: the windows recorded "
+            f"of {', '.join(kept)} are kept")  # fmt: skip
+
+
+def _say_kept(partial: Path) -> None:
+    """What an interrupted evaluation leaves in ``partial`` for the same command to go on
+    with (nothing, and ``partial`` is removed, if it recorded no window)."""
+    if not any((partial / "data").glob("*")):
+        shutil.rmtree(partial, ignore_errors=True)
+        return
+    print(
+        f"neurotrajectory: the windows recorded so far are kept in {partial}: the same "
+        "command goes on with them (remove that folder to start afresh)",
+        file=sys.stderr,
+    )

@@ -196,6 +196,39 @@ def test_evaluation_is_deterministic(tiny_run, tmp_path):
     assert (tmp_path / "a" / "data" / "seamless" / "manifest.json").is_file()
 
 
+def test_an_interrupted_evaluation_goes_on_with_the_windows_it_recorded(
+    tiny_run, tmp_path, monkeypatch, capsys
+):
+    """Ctrl-C after a group's windows are recorded keeps them; the same command goes on with
+    them (records nothing again) to the tables of an unbroken evaluation; other settings are
+    refused while the interrupted one is kept."""
+    from breaks import ctrl_c_at
+
+    from neurotrajectory.compare import evaluation
+
+    args = ["evaluate", "--run", str(tiny_run), "--groups", "seamless", "--episodes", "2",
+            "--episode-seconds", "4", "--e2e-epochs", "1", "--closed-loop-episodes", "0",
+            "--quiet"]  # fmt: skip
+    assert main([*args, "--out", str(tmp_path / "whole")]) == 0
+    out, partial = tmp_path / "eval", tmp_path / ".eval.partial"
+    with monkeypatch.context() as m:  # after the windows, before End2End is trained
+        ctrl_c_at(m, evaluation, "_evaluate_group", 1)
+        assert main([*args, "--out", str(out)]) == 130
+    assert f"the windows recorded so far are kept in {partial}" in capsys.readouterr().err
+    assert (partial / "data" / "seamless" / "manifest.json").is_file() and not out.exists()
+    other = [*args]
+    other[other.index("--e2e-epochs") + 1] = "2"
+    assert main([*other, "--out", str(out)]) == 2
+    assert "holds an interrupted evaluation of other settings (end2end)" in \
+        capsys.readouterr().err  # fmt: skip
+    with monkeypatch.context() as m:
+        recorded = ctrl_c_at(m, evaluation, "record_dataset", 0)  # (counts the recordings)
+        assert main([*args, "--out", str(out)]) == 0
+    assert recorded == [] and not partial.exists()
+    same = [(d / "table2.csv").read_text() for d in (tmp_path / "whole", out)]
+    assert same[0] == same[1]
+
+
 def test_bad_input_gives_clear_errors(tiny_run, tmp_path, capsys):
     assert main(["evaluate", "--run", str(tmp_path), "--out", str(tmp_path / "e")]) == 2
     assert "not a run directory" in capsys.readouterr().err
