@@ -16,6 +16,7 @@ def add_parser(sub) -> None:
 
 
 def execute(args: argparse.Namespace) -> int:
+    from gridsim.outputs import counted
     from gridsim.scenario.collection import scenario_files, usable_files
     from gridsim.scenario.loader import builtin_scenarios, load_scenario
 
@@ -29,7 +30,24 @@ def execute(args: argparse.Namespace) -> int:
     scenarios = ([load_scenario(args.path)] if scenario_files(args.path) is None
                  else usable_files(args.path, read_data=False)[0])  # fmt: skip
     for sc in scenarios:
-        print(f"{sc.source}: {sc.name} ({sc.config.road.type}) {sc.config.description}")
-    print(f"gridsim: {len(scenarios)} scenario(s) listed; `gridsim validate {args.path}` reads "
+        print(f"{sc.source}: {sc.name} ({sc.config.road.type}{_scene(sc)}) "
+              f"{sc.config.description}")  # fmt: skip
+    print(f"gridsim: {counted(len(scenarios), 'scenario')} listed; `gridsim validate "
+          f"{args.path}` reads "
           "their maps and recordings and checks them", file=sys.stderr)  # fmt: skip
     return 0
+
+
+def _scene(sc) -> str:
+    """``", scene SCENE"`` of a recorded scenario (the id ``ego.track``'s ``SCENE/ID`` names
+    and datasets label windows with; only the map's head is read), else ``""``."""
+    from gridsim.errors import GridSimError
+    from gridsim.scenario.families.recorded import scene_of
+    from gridsim.scenario.family import is_recorded
+
+    if not is_recorded(sc):
+        return ""
+    try:
+        return f", scene {scene_of(sc)}"
+    except (GridSimError, OSError):  # (a map that does not read: validate names why)
+        return ", scene unknown"

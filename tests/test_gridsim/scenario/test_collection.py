@@ -111,6 +111,7 @@ def test_validate_and_scenarios_print_one_line_per_file(folder, capsys):
     assert main(["scenarios", str(folder)]) == 0
     out = capsys.readouterr().out.splitlines()
     assert len(out) == 2 and out[0].startswith(str(folder / "straight_2018b.xml"))
+    assert "(recorded, scene " in out[0]  # the id ego.track's SCENE/ID names
     assert main(["validate", str(folder)]) == 0
     out = capsys.readouterr().out.splitlines()
     assert out[-1] == "2 of 2 scenario files OK" and len(out) == 3
