@@ -129,7 +129,7 @@ def record_episode(
     made with ``render_mode="rgb_array"``; one frame per step (plus the first) is written at
     the environment's real rate, with ``overlay`` (the default) annotated
     (:mod:`gridsim.render.annotations`: ``label`` for the driver, by default the policy's
-    name (a named function's or its class's, none for a lambda), or ``label(env)`` (e.g. to
+    name (:func:`policy_name`), or ``label(env)`` (e.g. to
     name the scene a collection drew), time, speed, the fitness so far, how the episode
     ended, a colour legend, a scale bar); ``on_step(env, info)`` after every step. Returns
     the episode and the video's path (``None`` without one)."""
@@ -181,13 +181,13 @@ def record_rollout(
     return video, episode.infos
 
 
-def policy_name(policy: Policy) -> str | None:
+def policy_name(policy: Policy) -> str:
     """What a video calls the driver ``policy``: a function's or method's name, else its
-    class's; None for a lambda or a ``functools.partial`` (they name nothing)."""
+    class's; a ``functools.partial`` its function's; "a lambda policy" for a lambda."""
     if isinstance(policy, functools.partial):
-        return None
+        return policy_name(policy.func)
     name = getattr(policy, "__name__", None) or type(policy).__name__
-    return None if name == "<lambda>" else name
+    return "a lambda policy" if name == "<lambda>" else name
 
 
 def _frame(env, info: dict, overlay: bool, label: str | None, fitness: np.ndarray) -> np.ndarray:

@@ -60,9 +60,12 @@ class Caption:
     ended: str | None = None
 
     @classmethod
-    def from_info(cls, info: dict, label: str | None, fitness: np.ndarray | None) -> Caption:
-        """The caption of a GridSim-v0 step's ``info`` (its time, pose and how it ended)."""
+    def from_info(cls, info: dict, label: str | None, fitness: np.ndarray | None,
+                  timed_out: bool = False) -> Caption:  # fmt: skip
+        """The caption of a GridSim-v0 step's ``info`` (its time, pose and how it ended;
+        ``timed_out``: it reached its time limit)."""
         ended = next((text for key, text in _ENDINGS if info.get(key)), None)
+        ended = ended or ("its time limit" if timed_out else None)
         return cls(label, float(info["time"]), float(info["pose"][3]), fitness, ended)
 
     def lines(self) -> list[str]:
@@ -162,7 +165,9 @@ def annotate_env_frame(env, frame: np.ndarray, info: dict, label: str | None,
                        fitness: np.ndarray) -> np.ndarray:  # fmt: skip
     """:func:`annotate` a GridSim-v0 ``frame`` (of ``env``, wrapped or not) with the caption of
     its step's ``info`` and the ``fitness`` summed so far, at the env renderer's scale."""
-    renderer = env.unwrapped.renderer
-    caption = Caption.from_info(info, label, fitness)
+    u = env.unwrapped
+    renderer = u.renderer
+    timed_out = u.world is not None and u.world.time >= u.time_limit - 1e-9  # (as step says)
+    caption = Caption.from_info(info, label, fitness, timed_out)
     return annotate(frame, caption, renderer.view.pixels_per_metre, renderer.view.inset_size,
                     renderer.ego_row(env.unwrapped.world))  # fmt: skip

@@ -1,6 +1,7 @@
 """Headless rendering and video export."""
 
 import contextlib
+import functools
 import io
 import json
 import tempfile
@@ -74,7 +75,31 @@ def test_frames_say_how_the_episode_ended_and_videos_who_drives():
         return info["reference_setpoints"]
 
     assert policy_name(my_planner) == "my_planner" and policy_name(Reference()) == "Reference"
-    assert policy_name(lambda env, obs, info: None) is None
+    assert policy_name(lambda env, obs, info: None) == "a lambda policy"
+    assert policy_name(functools.partial(my_planner)) == "my_planner"
+    # an episode that reached its time limit says so on its last frame
+    assert Caption.from_info(info, None, None, timed_out=True).ended == "its time limit"
+    from gridsim.render.annotations import annotate_env_frame
+
+    short = gym.make(ENV_ID, render_mode="rgb_array", simulation={"duration": 0.3})
+    u = short.unwrapped
+
+    def with_and_without_ending(info):
+        frame, fitness = short.render(), np.zeros(3)
+        plain = annotate(frame.copy(), Caption.from_info(info, None, fitness),
+                         u.renderer.view.pixels_per_metre, u.renderer.view.inset_size,
+                         u.renderer.ego_row(u.world))  # fmt: skip
+        return annotate_env_frame(short, frame.copy(), info, None, fitness), plain
+
+    _, info = short.reset(seed=0)
+    marked, plain = with_and_without_ending(info)
+    assert np.array_equal(marked, plain)  # the first frame: no ending
+    for _ in range(3):
+        _, _, terminated, truncated, info = short.step(short.unwrapped.reference_in_grid(
+            short.unwrapped.world.time + u.cfg.env.setpoint_times))  # fmt: skip
+    assert truncated and not terminated
+    marked, plain = with_and_without_ending(info)
+    assert not np.array_equal(marked, plain)  # the banner
 
 
 def test_the_grid_inset_outlines_the_ego_where_the_grid_has_it():
