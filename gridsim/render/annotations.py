@@ -65,7 +65,7 @@ class Caption:
         """The caption of a GridSim-v0 step's ``info`` (its time, pose and how it ended;
         ``timed_out``: it reached its time limit)."""
         ended = next((text for key, text in _ENDINGS if info.get(key)), None)
-        ended = ended or ("its time limit" if timed_out else None)
+        ended = ended or ("time limit" if timed_out else None)
         return cls(label, float(info["time"]), float(info["pose"][3]), fitness, ended)
 
     def lines(self) -> list[str]:

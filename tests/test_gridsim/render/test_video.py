@@ -78,7 +78,7 @@ def test_frames_say_how_the_episode_ended_and_videos_who_drives():
     assert policy_name(lambda env, obs, info: None) == "a lambda policy"
     assert policy_name(functools.partial(my_planner)) == "my_planner"
     # an episode that reached its time limit says so on its last frame
-    assert Caption.from_info(info, None, None, timed_out=True).ended == "its time limit"
+    assert Caption.from_info(info, None, None, timed_out=True).ended == "time limit"
     from gridsim.render.annotations import annotate_env_frame
 
     short = gym.make(ENV_ID, render_mode="rgb_array", simulation={"duration": 0.3})
