@@ -4,6 +4,7 @@ seed into independent streams, and the human profiles of generated traffic."""
 
 from __future__ import annotations
 
+import dataclasses
 import glob
 import hashlib
 import time
@@ -226,7 +227,7 @@ def synthetic_tracks(scenario: Scenario) -> list[Track]:
     flawed: :func:`library_data_report`; its problems refuse the scenario, its warnings are
     shown)."""
     tracks = _profile_tracks(scenario)
-    report = library_report(tracks, scenario.source)
+    report = library_data_report(scenario, tracks)
     if report.problems:
         raise DataError(report.refusal(scenario.source))
     if report.warnings:  # shown once per message and place (Python's default filter)
@@ -234,24 +235,48 @@ def synthetic_tracks(scenario: Scenario) -> list[Track]:
     return [t for t in tracks if t.track_id not in report.flawed] if report.flawed else tracks
 
 
-def library_data_report(scenario: Scenario) -> SceneReport:
+def library_data_report(scenario: Scenario, tracks: list[Track] | None = None) -> SceneReport:
     """The plausibility report of the library tracks a generated road takes its speed
-    profiles from (:func:`~gridsim.scenario.checks.library_report`)."""
-    return library_report(_profile_tracks(scenario), scenario.source)
+    profiles from (:func:`~gridsim.scenario.checks.library_report`; ``tracks``: them, if
+    already selected), with a warning when their sizes look like feet (a raised
+    ``traffic.max_vehicle_length`` lets them through)."""
+    tracks = _profile_tracks(scenario) if tracks is None else tracks
+    report = library_report(tracks, scenario.source)
+    hint = _feet_hint(tracks)
+    if hint:
+        said = f"{scenario.source}: traffic.library: {hint}"
+        report = dataclasses.replace(report, warnings=(*report.warnings, said))
+    return report
 
 
 def _profile_tracks(scenario: Scenario) -> list[Track]:
     """The library's tracks >= 2 s long and not longer than the limit."""
     t = scenario.config.traffic
-    tracks = library_for(scenario).select(
-        min_duration=MIN_TRACK_SECONDS, max_length=t.max_vehicle_length
-    )
+    library = library_for(scenario)
+    tracks = library.select(min_duration=MIN_TRACK_SECONDS, max_length=t.max_vehicle_length)
     if not tracks:
         raise ScenarioError(
             f"{scenario.source}: traffic.library has no track of >= 2 s and <= "
             f"{t.max_vehicle_length} m (traffic.max_vehicle_length)"
+            + (f"; {hint}" if (hint := _feet_hint(library.select())) else "")
         )
     return tracks
+
+
+#: m: a library whose median vehicle is longer than this is in feet, not metres (a car is
+#: about 4.5 m, 15 ft long)
+FEET_LENGTH = 9.0
+
+
+def _feet_hint(tracks: list[Track]) -> str:
+    """A hint that the sizes of ``tracks`` are in feet, if their median length says so."""
+    lengths = [t.length for t in tracks]
+    if lengths and float(np.median(lengths)) > FEET_LENGTH:
+        return (
+            f"the median vehicle length is {np.median(lengths):.3g} m: are sizes and "
+            "positions in metres (not feet)?"
+        )
+    return ""
 
 
 def road_lane_width(scenario: Scenario) -> float:

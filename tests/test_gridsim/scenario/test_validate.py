@@ -282,3 +282,30 @@ def test_validate_says_how_many_tracks_a_random_ego_is_not_drawn_from(capsys):
     with warnings.catch_warnings():  # gym.make does not warn of it
         warnings.simplefilter("error", DataWarning)
         gym.make("GridSim-v0", scenario="us101_3_3").reset(seed=0)
+
+
+def test_a_generated_roads_library_in_feet_is_named(tmp_path, capsys):
+    """Sizes and positions in feet: no track is short enough for the default length limit
+    (the error says why), and a limit raised to let them in gets a warning (cars 15 m long
+    otherwise drove silently)."""
+    import csv
+    from importlib import resources
+
+    source = resources.files("gridsim").joinpath("data", "ngsim", "ngsim_trajectories.csv")
+    rows = list(csv.DictReader(source.read_text().splitlines()))
+    feet = ("x_m", "y_m", "speed_mps", "length_m", "width_m")
+    with (tmp_path / "feet.csv").open("w", newline="") as fh:
+        out = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        out.writeheader()
+        out.writerows({**r, **{k: f"{float(r[k]) * 3.28084:.4f}" for k in feet}} for r in rows)
+    path = tmp_path / "mine.yaml"
+    path.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [feet.csv]}\n")
+    code, out = validate(capsys, path)
+    assert code == 2 and "the median vehicle length is 16 m: are sizes and positions in " \
+        "metres (not feet)?" in out  # fmt: skip
+    path.write_text("name: mine\nroad: {type: seamless}\n"
+                    "traffic: {library: [feet.csv], max_vehicle_length: 25}\n")  # fmt: skip
+    code, out = validate(capsys, path)
+    assert code == 0 and "traffic.library: the median vehicle length is" in out
+    with pytest.warns(DataWarning, match="are sizes and positions in metres"):
+        gym.make("GridSim-v0", scenario=str(path)).reset(seed=0)
