@@ -24,7 +24,8 @@ def add_parser(sub) -> None:
                    help="video to write (.mp4 or .gif; default %(default)s, replacing a file "
                    "there once the video is complete)")  # fmt: skip
     overlay_flag(p)
-    seed_flag(p)
+    seed_flag(p, "episode seed (default: the run's first held-out episode, which train "
+              "--video films; an even seed is one its generations trained on)", default=None)
     p.add_argument(
         "--steps",
         type=at_least(1),
@@ -45,7 +46,12 @@ def add_parser(sub) -> None:
 
 def execute(args: argparse.Namespace) -> int:
     check_video(args.video)
-    rollout(args.run, args.pick, args.video, args.seed, args.steps, args.overlay, args.seconds,
+    seed = args.seed
+    if seed is None:  # an episode no generation trained on
+        from neurotrajectory.evolve.runs import Run
+
+        seed = Run.open(args.run).config.heldout_seeds(1)[0]
+    rollout(args.run, args.pick, args.video, seed, args.steps, args.overlay, args.seconds,
             args.track, args.plan_smoothing)  # fmt: skip
     return 0
 

@@ -297,7 +297,8 @@ def test_train_and_rollout_commands(tmp_path, capsys):
         )
         assert (tmp_path / f"{pick}.gif").exists()
         printed = capsys.readouterr().out
-        assert f"{pick} member " in printed and ", seed 0: 5 decisions, " in printed
+        first = Run.open(out).config.heldout_seeds(1)[0]  # (by default: not trained on)
+        assert f"{pick} member " in printed and f", seed {first}: 5 decisions, " in printed
         assert "  fitness sums: l1 " in printed and f"  video: {video}" in printed
 
 
