@@ -184,7 +184,7 @@ def front_table(out: Path, summary: dict) -> str:
     best = summary.get("best_knee", {}).get("index")
     rows = []
     for k, m in enumerate(front):  # numbered as rollout --pick and front.npz number them
-        name = f"member {k}" + (f" (the best validated, of generation "
+        name = f"member {k}" + (f" (best validated, generation "
                                 f"{summary['best_knee']['generation']})"
                                 if m["index"] == best else "")  # fmt: skip
         rows.append((("* " if k == knee else "  ") + name, m))
@@ -196,6 +196,6 @@ def front_table(out: Path, summary: dict) -> str:
     lines = [head, f"  {'':<{width}}  {'l1':>10}  {'l2':>8}  {'l3':>9}  {'time lost':>9}"]
     lines += [f"  {name:<{width}}  {m['l1']:10.1f}  {m['l2']:8.3f}  {m['l3']:9.1f}  "
               f"{m['violation']:9.1%}" for name, m in rows]  # fmt: skip
-    lines.append("  (mean episode sums of the fitness vector: l1 and l2 lower, l3 higher is "
-                 "better; front.json holds them)")  # fmt: skip
+    lines.append("  (mean episode sums of the fitness vector, l1 and l2 lower and l3 higher "
+                 "better: front.json)")  # fmt: skip
     return "\n".join(lines)
