@@ -31,6 +31,9 @@ MAX_OFF_MAP = 0.2
 #: A scene whose tracks are flawed in more than this share is refused (below it, the flawed
 #: tracks are kept as traffic and not offered as the ego).
 MAX_FLAWED_SHARE = 0.5
+#: A file of a scene of several is refused on its own (most of its tracks flawed) only with
+#: at least this many flawed tracks: one odd track in a file of its own is kept as traffic.
+MIN_FLAWED_FILE = 3
 #: Speeds implied by positions and time stamps must agree with the recorded speeds within this
 #: factor (median over moving samples): time in steps of 0.1 s instead of seconds gives 0.1.
 SPEED_RATIO = 2.0
@@ -283,18 +286,20 @@ def _scene_checks(tracks: tuple[Track, ...], road: StaticRoad, source: str,
     scene (``record`` builds a world per ego track: a scene of N tracks checked per world
     cost N^2); ``need``: the planning horizon [s]."""
     flawed = flawed_tracks(tracks, road)
-    problems, warnings = [], []
-    files: dict[str, list[Track]] = {}  # each file judged on its own tracks: one of another
-    for t in tracks:  # map beside a good one is refused, not diluted by its tracks
-        files.setdefault(t.source or source, []).append(t)
-    for file, mine in files.items():
+    what = ("implausible for this map or in the wrong units (does the map belong to the "
+            "tracks? are time stamps in seconds and positions in metres?)")  # fmt: skip
+    problems, warnings = _verdict(flawed, len(tracks), source, what,
+                                  "kept as traffic, not offered as the ego")  # fmt: skip
+    files: dict[str, list[Track]] = {}  # a file of another map beside good ones: refused
+    for t in tracks:  # too, not diluted by their tracks (a few flawed tracks of a small file
+        files.setdefault(t.source or source, []).append(t)  # are kept as traffic)
+    for file, mine in files.items() if not problems and len(files) > 1 else ():
         ids = {t.track_id for t in mine}
-        found = _verdict({k: v for k, v in flawed.items() if k in ids}, len(mine), file,
-                         "implausible for this map or in the wrong units (does the map belong "
-                         "to the tracks? are time stamps in seconds and positions in metres?)",
-                         "kept as traffic, not offered as the ego")  # fmt: skip
-        problems += found[0]
-        warnings += found[1]
+        own = {k: v for k, v in flawed.items() if k in ids}
+        if len(own) >= MIN_FLAWED_FILE:
+            problems += _verdict(own, len(mine), file, what, "")[0]
+    if problems:  # (the tracks' lines are in the refusal)
+        warnings = []
     longest = max(tracks, key=lambda t: t.duration)
     if longest.duration < need:
         problems.append(

@@ -80,6 +80,10 @@ def test_a_file_of_another_map_beside_a_good_one_is_refused(tmp_path, capsys):
     assert f"{tmp_path / 'o' / 'tracks.csv'}: 3 of its 3 tracks are implausible for this " \
         "map" in out  # fmt: skip
     assert f"{tmp_path / 'tracks.csv'}: " not in out  # the good file is not named
+    # one odd track in a file of its own (a library of one CSV per vehicle) is kept as traffic
+    write_scene(tmp_path / "o", far[:1])
+    code, out = validate(capsys, path)
+    assert code == 0 and "track far0 of scene crafted: 41 of its 41 positions" in out
 
 
 def test_time_in_steps_instead_of_seconds_is_caught(tmp_path, capsys):
