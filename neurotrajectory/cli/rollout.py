@@ -24,8 +24,12 @@ def add_parser(sub) -> None:
                    help="video to write (.mp4 or .gif; default %(default)s, replacing a file "
                    "there once the video is complete)")  # fmt: skip
     overlay_flag(p)
-    seed_flag(p, "episode seed (default: the run's first held-out episode, which train "
-              "--video films; an even seed is one its generations trained on)", default=None)
+    seed_flag(
+        p,
+        "episode seed (default: the run's first held-out episode, which train "
+        "--video films; an even seed is one its generations trained on)",
+        default=None,
+    )
     p.add_argument(
         "--steps",
         type=at_least(1),

@@ -36,6 +36,7 @@ from tqdm import tqdm
 from gridsim.errors import WorkKept, warn_data
 from gridsim.outputs import LOCK_NAME, empty_folder, interrupted, new_folder, write_json
 from gridsim.policies import Reference
+from gridsim.scenario.collection import scenario_files
 from gridsim.scenario.schema import MAX_DURATION
 from gridsim.seeding import Salt, stream
 from neurotrajectory.compare import methods
@@ -45,14 +46,13 @@ from neurotrajectory.compare.front import NetPredictor, load_front, trained_trac
 from neurotrajectory.compare.methods import NT_BEST, NT_PICKED
 from neurotrajectory.compare.metrics import Accuracy, accuracy
 from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
-from neurotrajectory.data.recording import input_stamps, record_dataset, stamp_changes
+from neurotrajectory.data.recording import group_inputs, record_dataset, same_inputs, stamp_changes
 from neurotrajectory.data.storage import check_new_folder, dataset_manifest, load_split
 from neurotrajectory.data.windows import (
     GROUPS,
     DatasetError,
     Windows,
     bar_callbacks,
-    group_files,
     group_scenarios,
 )
 from neurotrajectory.evolve.pareto import PICKS, pick_member
@@ -175,9 +175,20 @@ def _split_dataset(
                   disable=not progress) as bar:  # fmt: skip
             # written as recorded, then read back; with checkpoints from which the same
             # command goes on if it is interrupted
-            record_dataset(folder, group, cfg.episodes, cfg.seed, duration=cfg.episode_seconds,
-                           source=cfg.sources.get(group), goal_seconds=cfg.goal_seconds,
-                           resume=True, log=log, **bar_callbacks(bar))  # fmt: skip
+            def record() -> None:
+                record_dataset(folder, group, cfg.episodes, cfg.seed,
+                               duration=cfg.episode_seconds, source=cfg.sources.get(group),
+                               goal_seconds=cfg.goal_seconds, resume=True, log=log,
+                               **bar_callbacks(bar))  # fmt: skip
+
+            try:
+                record()
+            except WorkKept as exc:  # (the settings are the same: its files changed)
+                log(f"{group}: recording again: {exc}")
+                shutil.rmtree(folder)
+                bar.reset()
+                bar.total = None  # (the files planned again count it anew)
+                record()
     return load_split(folder, cfg.test_fraction, cfg.seed)
 
 
@@ -192,7 +203,11 @@ def _other_files(manifest: dict, group: str, source: str | None) -> str | None:
 
     recorded = names(m.get("scenario", "") for m in manifest.get("scenarios", []))
     skipped = names(s.get("file", "") for s in manifest.get("skipped", []))
-    files = names(group_files(group, source)[0])
+    if source is None and group in GROUPS:
+        files = names(GROUPS[group])
+    else:  # every file of the folder or glob, usable or not (nothing is built)
+        ref = group if source is None else source
+        files = names(scenario_files(ref) or [ref])
     if not recorded <= files or not files <= recorded | skipped:
 
         def listed(found: set[str]) -> str:
@@ -202,8 +217,8 @@ def _other_files(manifest: dict, group: str, source: str | None) -> str | None:
                 f"({listed(files)})")  # fmt: skip
     stamps = manifest.get("inputs")
     if isinstance(stamps, dict):
-        now = input_stamps(group, source)
-        if sorted(stamps.values()) != sorted(now.values()):
+        now = group_inputs(group, source)
+        if not same_inputs(stamps, now):
             changes = stamp_changes(stamps, now) or "a file moved or renamed"
             return f"recorded from files that have changed since ({changes})"
     return None

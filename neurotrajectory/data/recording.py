@@ -5,6 +5,7 @@ and checkpoints from which an interrupted recording goes on (:class:`_Checkpoint
 from __future__ import annotations
 
 import json
+import os
 import shutil
 import time
 from collections.abc import Callable
@@ -25,10 +26,10 @@ from neurotrajectory.data.storage import (
 )
 from neurotrajectory.data.windows import (
     FORMAT_VERSION,
+    GROUPS,
     DatasetError,
     GroupProgress,
     check_test_fraction,
-    group_files,
     held_out_tracks,
     package_versions,
     record_group_into,
@@ -77,7 +78,7 @@ def record_dataset(
         check_test_fraction(test_fraction)
     spool = out / SPOOL if split else out
     state, writer, checkpoints = GroupProgress(), None, None
-    stamps = input_stamps(name, source)
+    stamps = group_inputs(name, source)
     if resume:
         arguments = {"name": name, "source": None if source is None else str(source),
                      "episodes": int(episodes), "seed": int(seed),
@@ -153,17 +154,26 @@ def _remove_all_but(folder: Path, keep: set[str]) -> None:
             shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
 
 
-def input_stamps(name: str, source: str | None) -> dict[str, str]:
-    """SHA-256 of every file a group's windows are recorded from, by path: its scenario files
-    and the maps and track libraries they name (:func:`~gridsim.scenario.collection.
-    input_digest`; built-in scenarios and data: none). A recording is not continued, and a
-    dataset not evaluated as the group, on files whose contents changed."""
+def group_inputs(name: str, source: str | None) -> dict[str, str]:
+    """SHA-256 of every file a group's windows are recorded from, by resolved path: its
+    scenario files (of a folder or glob, usable or not) and the maps and track libraries they
+    name, each hashed once, nothing built (:func:`~gridsim.scenario.collection.input_digest`;
+    built-in scenarios and data: none). A recording is not continued, and a dataset not
+    evaluated as the group, on files whose contents changed."""
     from gridsim.scenario.collection import input_digest
 
-    stamps: dict[str, str] = {}
-    for scenario in group_files(name, source)[0]:
-        stamps |= input_digest(scenario)
-    return stamps
+    if source is None and name in GROUPS:
+        return {}
+    stamps = input_digest(name if source is None else source)
+    return {os.path.realpath(f): digest for f, digest in stamps.items()}
+
+
+def same_inputs(then, now) -> bool:
+    """Whether :func:`group_inputs` ``then`` and ``now`` name files of the same contents (their
+    paths may differ: a project moved)."""
+    if not isinstance(then, dict) or not isinstance(now, dict):
+        return then == now
+    return sorted(then.values()) == sorted(now.values())
 
 
 class _Checkpoints:
@@ -216,8 +226,9 @@ class _Checkpoints:
             return None, None
         try:
             doc = json.loads(self.path.read_text())
-            if doc["arguments"] != self.arguments:
-                return None, f"was made with {_differences(doc['arguments'], self.arguments)}"
+            then = doc["arguments"]
+            if _differences(then, self.arguments):
+                return None, f"was made with {_differences(then, self.arguments)}"
             state = GroupProgress(**doc["state"])
             if not all(isinstance(getattr(state, k), int)
                        for k in ("scenario", "episode", "windows")):  # fmt: skip
@@ -255,9 +266,11 @@ def _differences(then: dict, now: dict) -> str:
     said = []
     for key in sorted(set(then) | set(now)):
         old, new = then.get(key), now.get(key)
-        if old == new:
+        if old == new or (key == "files" and same_inputs(old, new)):
             continue
-        if key == "files":
+        if key == "files" and not isinstance(old, dict):
+            said.append("input files hashed by an older version (its scenario files only)")
+        elif key == "files":
             said.append(f"other input files ({stamp_changes(old, new) or 'their contents'})")
         elif key == "versions":
             said.append(f"other versions ({old}, now {new})")
@@ -267,7 +280,7 @@ def _differences(then: dict, now: dict) -> str:
 
 
 def stamp_changes(then, now) -> str:
-    """The files whose :func:`input_stamps` differ between ``then`` and ``now``, in words
+    """The files whose :func:`group_inputs` differ between ``then`` and ``now``, in words
     (``""``: none, or stamps of another form: a checkpoint of an older version)."""
     if not isinstance(then, dict) or not isinstance(now, dict):
         return ""

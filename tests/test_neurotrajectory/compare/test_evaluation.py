@@ -3,6 +3,7 @@
 import csv
 import json
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -227,6 +228,37 @@ def test_an_interrupted_evaluation_goes_on_with_the_windows_it_recorded(
     assert recorded == [] and not partial.exists()
     same = [(d / "table2.csv").read_text() for d in (tmp_path / "whole", out)]
     assert same[0] == same[1]
+
+
+def test_an_evaluation_interrupted_while_recording_goes_on_or_records_again(
+    tiny_run, tmp_path, monkeypatch, capsys
+):
+    """Ctrl-C while a group's windows are recorded keeps record's checkpoint; the same command
+    goes on from it, and a group whose scenario file changed meanwhile is recorded again
+    (record alone would refuse it: its arguments are the same)."""
+    from breaks import ctrl_c_at
+
+    from neurotrajectory.data import recording, windows
+
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
+    mine = tmp_path / "mine.yaml"
+    mine.write_text("name: mine\nroad: {type: seamless}\n")
+    args = ["evaluate", "--run", str(tiny_run), "--group", f"mine={mine}", "--episodes", "3",
+            "--episode-seconds", "4", "--e2e-epochs", "1",
+            "--closed-loop-episodes", "0"]  # fmt: skip
+    out = tmp_path / "eval"
+    for edit in (False, True):
+        with monkeypatch.context() as m:
+            ctrl_c_at(m, windows, "_episode_windows", 2)  # inside the second episode
+            assert main([*args, "--quiet", "--out", str(out)]) == 130
+        assert (tmp_path / ".eval.partial" / "data" / "mine" / "progress.json").is_file()
+        if edit:
+            mine.write_text("name: mine\nroad: {type: seamless, lanes: 2}\n")
+        assert main([*args, "--out", str(out)]) == 0
+        said = capsys.readouterr().err
+        assert ("mine: recording again: " in said) == edit, said
+        assert ("going on with the interrupted recording" in said) != edit
+        shutil.rmtree(out)
 
 
 def test_bad_input_gives_clear_errors(tiny_run, tmp_path, capsys):

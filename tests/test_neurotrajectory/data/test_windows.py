@@ -298,7 +298,7 @@ def test_a_track_library_changed_after_a_break_is_named(tmp_path, monkeypatch):
         WorkKept, match=rf"other input files \(changed: {re.escape(str(library))}\)"
     ):
         recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
-    stamps = recording.input_stamps(str(scenario), None)
+    stamps = recording.group_inputs(str(scenario), None)
     assert set(stamps) == {str(scenario), str(library)}
 
 
