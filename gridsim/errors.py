@@ -7,6 +7,7 @@ range). Catch :class:`GridSimError` to handle any of them.
 from __future__ import annotations
 
 import os
+import re
 import sys
 import warnings
 
@@ -67,8 +68,9 @@ def flagged(flag: str, value: object, message: object) -> str:
     is a path that the message names already (an error about a file names it), ``"FLAG:
     MESSAGE"``, so that the path is not said twice."""
     said, text = str(value), str(message)
-    path_like = os.sep in said or os.path.splitext(said)[1] != ""
-    return f"{flag}: {text}" if path_like and said in text else f"{flag} {said}: {text}"
+    path_like = os.sep in said or os.path.splitext(said)[1] != "" or os.path.exists(said)
+    named = re.search(rf"(^|[\s(]){re.escape(said)}($|[\s:),])", text)  # the path, whole
+    return f"{flag}: {text}" if path_like and named else f"{flag} {said}: {text}"
 
 
 #: Folders whose code is not where a user's call is (their frames are skipped by

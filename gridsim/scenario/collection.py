@@ -168,7 +168,7 @@ def shared_track_names(pairs: list[tuple[Path, Scenario]]) -> list[tuple[Path, P
 
 def repeated_recordings(pairs: list[tuple[Path, Scenario]]) -> list[tuple[Path, Path, str]]:
     """``(first file, repeating file, scene)`` for each recorded scenario of ``pairs`` (file,
-    scenario) that replays the same tracks (ids, first states, lengths) with the same
+    scenario) that replays the same tracks (ids, and every sample and size) with the same
     ``ego.track`` as an earlier one: copies of a recording under other names (a CSV saved
     again with a BOM or other line ends)."""
     seen: dict[tuple, Path] = {}
@@ -176,7 +176,7 @@ def repeated_recordings(pairs: list[tuple[Path, Scenario]]) -> list[tuple[Path, 
     for path, scenario, scene, tracks in _recorded_tracks(pairs):
         ego = scenario.config.ego.track
         key = (scene, ego if isinstance(ego, str) else tuple(ego),
-               tuple(sorted((tid, *first) for tid, first in tracks.items())))  # fmt: skip
+               tuple(sorted(tracks.items())))  # fmt: skip
         if key in seen:
             out.append((seen[key], path, scene))
         else:
@@ -291,6 +291,22 @@ def input_digest(ref: str | Path, overrides: Mapping[str, Any] | None = None) ->
     package = Path(__file__).resolve().parents[1]  # gridsim's own data: installed, not input
     return {str(f): _sha256(f) for f in sorted(set(found), key=str)
             if f.is_file() and not f.resolve().is_relative_to(package)}  # fmt: skip
+
+
+def input_changes(then, now) -> str:
+    """The files whose :func:`input_digest` differ between ``then`` and ``now`` (path ->
+    digest), in words: ``"changed: A; removed: B"`` (``""``: none, or digests of another
+    form, as an older version kept them)."""
+    if not isinstance(then, dict) or not isinstance(now, dict):
+        return ""
+    said = []
+    changed = [f for f in then.keys() & now.keys() if then[f] != now[f]]
+    removed, added = then.keys() - now.keys(), now.keys() - then.keys()
+    for what, files in (("changed", changed), ("removed", removed), ("added", added)):
+        if files:
+            shown = ", ".join(sorted(files)[:3]) + (", ..." if len(files) > 3 else "")
+            said.append(f"{what}: {shown}")
+    return "; ".join(said)
 
 
 def _sha256(path: Path) -> str:

@@ -263,15 +263,15 @@ def _profile_tracks(scenario: Scenario) -> list[Track]:
     return tracks
 
 
-#: m: a library whose median vehicle is longer than this is in feet, not metres (a car is
-#: about 4.5 m, 15 ft long)
-FEET_LENGTH = 9.0
+#: m: a library whose median vehicle is longer and wider than these is in feet, not metres
+#: (a car is about 4.5 x 1.8 m, 15 x 6 ft; a truck in metres is not 3 m wide)
+FEET_LENGTH, FEET_WIDTH = 9.0, 3.0
 
 
 def _feet_hint(tracks: list[Track]) -> str:
-    """A hint that the sizes of ``tracks`` are in feet, if their median length says so."""
-    lengths = [t.length for t in tracks]
-    if lengths and float(np.median(lengths)) > FEET_LENGTH:
+    """A hint that the sizes of ``tracks`` are in feet, if their median size says so."""
+    lengths, widths = [t.length for t in tracks], [t.width for t in tracks]
+    if lengths and np.median(lengths) > FEET_LENGTH and np.median(widths) > FEET_WIDTH:
         return (
             f"the median vehicle length is {np.median(lengths):.3g} m: are sizes and "
             "positions in metres (not feet)?"

@@ -36,7 +36,7 @@ from tqdm import tqdm
 from gridsim.errors import WorkKept, warn_data
 from gridsim.outputs import LOCK_NAME, empty_folder, interrupted, new_folder, write_json
 from gridsim.policies import Reference
-from gridsim.scenario.collection import scenario_files
+from gridsim.scenario.collection import input_changes, scenario_files
 from gridsim.scenario.schema import MAX_DURATION
 from gridsim.seeding import Salt, stream
 from neurotrajectory.compare import methods
@@ -46,7 +46,7 @@ from neurotrajectory.compare.front import NetPredictor, load_front, trained_trac
 from neurotrajectory.compare.methods import NT_BEST, NT_PICKED
 from neurotrajectory.compare.metrics import Accuracy, accuracy
 from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
-from neurotrajectory.data.recording import group_inputs, record_dataset, same_inputs, stamp_changes
+from neurotrajectory.data.recording import group_inputs, record_dataset, same_inputs
 from neurotrajectory.data.storage import check_new_folder, dataset_manifest, load_split
 from neurotrajectory.data.windows import (
     GROUPS,
@@ -142,11 +142,14 @@ def _split_dataset(
         folder = data_dir / group
         if not (folder / "manifest.json").is_file():
             source = cfg.sources.get(group, group)
+            named = "" if source == group else f" --name {group}"
+            goal = "" if cfg.goal_seconds is None else f" --goal-seconds {cfg.goal_seconds:g}"
             raise DatasetError(f"--data {data_dir}: no dataset of the group {group} ({folder} "
                                f"has no manifest.json): record it there (neurotrajectory record "
-                               f"--scenario {source}{'' if source == group else f' --name {group}'}"
-                               f" --out {folder}), evaluate only the groups recorded (--groups "
-                               "...), or leave out --data")  # fmt: skip
+                               f"--scenario {source}{named} --episodes {cfg.episodes} "
+                               f"--episode-seconds {cfg.episode_seconds:g} --seed {cfg.seed}"
+                               f"{goal} --out {folder}), evaluate only the groups recorded "
+                               "(--groups ...), or leave out --data")  # fmt: skip
         manifest = dataset_manifest(folder)
         if "split" in manifest:
             raise DatasetError(
@@ -219,7 +222,7 @@ def _other_files(manifest: dict, group: str, source: str | None) -> str | None:
     if isinstance(stamps, dict):
         now = group_inputs(group, source)
         if not same_inputs(stamps, now):
-            changes = stamp_changes(stamps, now) or "a file moved or renamed"
+            changes = input_changes(stamps, now) or "a file moved or renamed"
             return f"recorded from files that have changed since ({changes})"
     return None
 
@@ -360,7 +363,7 @@ def evaluate(
                                "(or train a run for this setting)")  # fmt: skip
     data_dir = Path(data_dir) if data_dir is not None else None
     settings = {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
-                **cfg.as_dict()}  # fmt: skip
+                **cfg.as_dict(), "data": None if data_dir is None else str(data_dir)}  # fmt: skip
     # out appears, whole, when everything is written; interrupted, the hidden folder keeps
     # the windows recorded, and the same command goes on with them
     with new_folder(out, resumable=True) as partial:
@@ -397,8 +400,8 @@ def _go_on_or_start(partial: Path, settings: dict, log) -> None:
     except (OSError, ValueError):
         then = None
     if then != settings:
-        differ = sorted(k for k in set(settings) | set(then or {})
-                        if (then or {}).get(k) != settings.get(k))  # fmt: skip
+        differ = ["unreadable"] if not isinstance(then, dict) else sorted(
+            k for k in set(settings) | set(then) if then.get(k) != settings.get(k))  # fmt: skip
         raise WorkKept(f"{partial} holds an interrupted evaluation of other settings "
                        f"({', '.join(differ) or 'unreadable'}): give the arguments it was made "
                        f"with to go on with its recorded windows, or remove {partial} to start "

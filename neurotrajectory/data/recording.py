@@ -16,6 +16,7 @@ import numpy as np
 
 from gridsim.errors import WorkKept
 from gridsim.outputs import LOCK_NAME, empty_folder, write_json
+from gridsim.scenario.collection import input_changes
 from neurotrajectory.data import storage
 from neurotrajectory.data.storage import (
     ShardWriter,
@@ -271,26 +272,11 @@ def _differences(then: dict, now: dict) -> str:
         if key == "files" and not isinstance(old, dict):
             said.append("input files hashed by an older version (its scenario files only)")
         elif key == "files":
-            said.append(f"other input files ({stamp_changes(old, new) or 'their contents'})")
+            said.append(f"other input files ({input_changes(old, new) or 'their contents'})")
         elif key == "versions":
             said.append(f"other versions ({old}, now {new})")
         else:
             said.append(f"{key} {old!r} (now {new!r})")
-    return "; ".join(said)
-
-
-def stamp_changes(then, now) -> str:
-    """The files whose :func:`group_inputs` differ between ``then`` and ``now``, in words
-    (``""``: none, or stamps of another form: a checkpoint of an older version)."""
-    if not isinstance(then, dict) or not isinstance(now, dict):
-        return ""
-    said = []
-    changed = [f for f in then.keys() & now.keys() if then[f] != now[f]]
-    removed, added = then.keys() - now.keys(), now.keys() - then.keys()
-    for what, files in (("changed", changed), ("removed", removed), ("added", added)):
-        if files:
-            shown = ", ".join(sorted(files)[:3]) + (", ..." if len(files) > 3 else "")
-            said.append(f"{what}: {shown}")
     return "; ".join(said)
 
 

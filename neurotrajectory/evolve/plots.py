@@ -124,11 +124,15 @@ def plot_run(
         ax.scatter(last[knee, i], last[knee, j], s=120, facecolors="none", edgecolors="tab:green",
                    linewidths=2, label=f"knee ({who}): l1 {k1:.4g}, l2 {k2:.3g}, "
                                        f"l3 {k3:.4g}")  # fmt: skip
-        if warm is not None:  # what evolution started from, on the same episodes
-            w = [warm["l1"], warm["l2"], warm["l3"]]
-            ax.scatter(w[i], w[j], s=140, marker="*", color="tab:orange", zorder=3,
+        if warm is not None:  # what evolution started from, on the same episodes (if it
+            w = [warm["l1"], warm["l2"], warm["l3"]]  # lost one: at the edge, as members)
+            lost_too = warm["violation"] > 0
+            (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+            at = (np.clip(w[i], x0, x1), np.clip(w[j], y0, y1)) if lost_too else (w[i], w[j])
+            ax.scatter(*at, s=140, marker="*", color="tab:orange", zorder=3, clip_on=False,
                        label=f"warm start: l1 {w[0]:.4g}, l2 {w[1]:.3g}, l3 {w[2]:.4g}"
-                             + (" (lost an episode)" if warm["violation"] > 0 else ""))  # fmt: skip
+                             + (" (lost an episode; at the edge, not to scale)" if lost_too
+                                else ""))  # fmt: skip
 
         ax.set_xlabel(NAMES[i], fontsize=8)
         ax.set_ylabel(NAMES[j], fontsize=8)

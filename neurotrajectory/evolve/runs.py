@@ -571,19 +571,14 @@ class Run:
                 raise TypeError(f"'files' is a {type(kept).__name__}, not a mapping")
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise RunError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
-        from gridsim.scenario.collection import input_digest
+        from gridsim.scenario.collection import input_changes, input_digest
 
         try:
             now = input_digest(self.config.scenario)
         except GridSimError as exc:
             raise RunError(flagged("--scenario", self.config.scenario, exc)) from None
-        differ = {
-            "changed": sorted(f for f in kept.keys() & now.keys() if kept[f] != now[f]),
-            "removed": sorted(kept.keys() - now.keys()),
-            "added": sorted(now.keys() - kept.keys()),
-        }
-        if any(differ.values()):
-            what = "; ".join(f"{k}: {', '.join(v)}" for k, v in differ.items() if v)
+        what = input_changes(kept, now)
+        if what:
             raise RunError(f"{self.out}: the files of --scenario {self.config.scenario} are not "
                            f"those the run began with ({what}): its next generations would "
                            "train on other data. Restore them, or start a new run with "
@@ -878,9 +873,14 @@ class Run:
         if "validation_mse" in stats:
             best = stats["best_epoch"]
             epochs = len(stats["validation_mse"]) - 1
-            kept = (f"epoch {best} of {epochs} kept" if best else "the ridge fit of the "
-                    f"read-outs alone kept: none of the {epochs} epochs of gradient descent "
-                    "predicted the held-out tracks better")  # fmt: skip
+            start = (
+                "the ridge fit of the read-outs alone"
+                if "ridge_penalty" in stats
+                else "the network it started from"
+            )  # (--no-skip: no ridge fit)
+            kept = (f"epoch {best} of {epochs} kept" if best else f"{start} kept: none of the "
+                    f"{epochs} epochs of gradient descent predicted the held-out tracks "
+                    "better")  # fmt: skip
             self.say(f"warm start: validation MSE {stats['validation_mse'][best]:.4g} m^2 on "
                      f"{stats['validation_windows']} windows of held-out tracks ({kept}; "
                      "pretrain.json)")  # fmt: skip

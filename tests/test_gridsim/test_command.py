@@ -169,6 +169,8 @@ def test_a_flag_error_says_a_path_once():
         == "--scenario seamless: seamless: bad road"
     )  # a name, not a path: kept
     assert flagged("--pretrain", "data/hw", "no windows") == "--pretrain data/hw: no windows"
+    # another file whose name ends in the value's: not the value
+    assert flagged("--scenario", "a.yaml", "data.yaml: bad") == "--scenario a.yaml: data.yaml: bad"
 
 
 def test_a_data_warning_under_a_progress_bar_starts_its_own_line(capsys):

@@ -313,3 +313,17 @@ def test_a_generated_roads_library_in_feet_is_named(tmp_path, capsys):
     assert code == 0 and "traffic.library: the median vehicle length is" in out
     with pytest.warns(DataWarning, match="are sizes and positions in metres"):
         gym.make("GridSim-v0", scenario=str(path)).reset(seed=0)
+
+
+def test_trucks_in_metres_are_not_taken_for_feet():
+    """The feet hint needs vehicles both too long and too wide for metres: a library of trucks
+    (12 x 2.5 m) is not asked whether it is in feet; 15 x 6 (feet for 4.5 x 1.8 m) is."""
+    import dataclasses
+
+    from gridsim.scenario.parts import _feet_hint
+
+    car = track("c", X, np.full(41, -1.75))
+    trucks = [dataclasses.replace(car, track_id=f"t{k}", length=12.0, width=2.5) for k in range(3)]
+    assert _feet_hint(trucks) == ""
+    feet = [dataclasses.replace(car, track_id=f"f{k}", length=14.8, width=5.9) for k in range(3)]
+    assert "(not feet)?" in _feet_hint(feet)

@@ -271,7 +271,8 @@ def test_bad_input_gives_clear_errors(tiny_run, tmp_path, capsys):
                  "--out", str(tmp_path / "e2"), "--groups", "urban"]) == 2  # fmt: skip
     said = capsys.readouterr().err
     assert f"--data {tmp_path / 'none'}: no dataset of the group urban" in said
-    assert "neurotrajectory record --scenario urban --out" in said and "--groups" in said
+    hint = "neurotrajectory record --scenario urban --episodes 8 --episode-seconds 30 --seed 0"
+    assert f"{hint} --out" in said and "--groups" in said
     (tmp_path / "full").mkdir()
     (tmp_path / "full" / "keep.txt").write_text("mine")
     assert main(["evaluate", "--run", str(tiny_run), "--out", str(tmp_path / "full")]) == 2
