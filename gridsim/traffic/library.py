@@ -224,24 +224,29 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
     scene or track id, a cell that is not a finite number, a negative speed or a size not
     above 0."""
     need, width = max(where) + 1, len(header)
+    scene, track = where[0], where[1]
 
-    def misshapen(row: list[str]) -> bool:  # (empty fields past the header: trailing commas)
-        return len(row) < need or (len(row) > width and any(f.strip() for f in row[width:]))
+    def bad(row: list[str]) -> bool:  # cut short, values slid (not trailing commas), no id
+        return (len(row) < need or not row[scene] or not row[track] or len(row) > width
+                and any(f.strip() for f in row[width:]) or row[scene].isspace()
+                or row[track].isspace())  # fmt: skip
 
-    short = next((k for k, row in enumerate(rows) if misshapen(row)), len(rows))
+    short = next((k for k, row in enumerate(rows) if bad(row)), len(rows))
     values = np.empty((short, len(_NUMERIC)))
     first_bad: list[tuple[int, int, str]] = []  # (row, column, message) of each column's
-    if short < len(rows):  # a row cut short, or one whose values slid (not a trailing comma)
-        why = ("a line cut short?" if len(rows[short]) < need else
-               "a comma inside a text field that is not in quotes? its values would slide "
-               "into the wrong columns")  # fmt: skip
-        first_bad.append((short, -1, f"{len(rows[short])} column(s), the header has "
-                                     f"{width} ({why})"))  # fmt: skip
-    for c, name in enumerate(("scenario_id", "track_id")):
-        empty = next((k for k, row in enumerate(rows[:short]) if not row[where[c]].strip()), None)
-        if empty is not None:
-            first_bad.append((empty, -2 + c, f"column {name!r} is empty; every row names its "
-                                             "scene and track"))  # fmt: skip
+    if short < len(rows):
+        row = rows[short]
+        if len(row) < need:
+            why = f"{len(row)} column(s), the header has {width} (a line cut short?)"
+        elif len(row) > width and any(f.strip() for f in row[width:]):
+            why = (
+                f"{len(row)} column(s), the header has {width} (a comma inside a text field "
+                "that is not in quotes? its values would slide into the wrong columns)"
+            )
+        else:
+            name = "scenario_id" if not row[scene].strip() else "track_id"
+            why = f"column {name!r} is empty; every row names its scene and track"
+        first_bad.append((short, -1, why))
     for c, name in enumerate(_NUMERIC):
         raw = [row[where[c + 2]] for row in rows[:short]]
         try:
