@@ -251,18 +251,24 @@ def test_a_recording_of_other_arguments_is_refused_and_kept(tmp_path, monkeypatc
     assert not (tmp_path / "d" / "progress.json").exists()
 
 
+def _record_interrupted(tmp_path, monkeypatch, scenario) -> None:
+    """A recording of 3 episodes of ``scenario`` into ``tmp_path / "d"``, interrupted in its
+    second (checkpoints after every episode from now on)."""
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
+    with monkeypatch.context() as m:
+        _interrupt_at(m, 2)
+        with pytest.raises(KeyboardInterrupt):
+            recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
+
+
 def test_a_scenario_file_changed_after_a_break_is_named(tmp_path, monkeypatch):
     """A scenario file written again with the same contents goes on; other contents are
     named."""
     from gridsim.errors import WorkKept
 
-    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
     scenario = tmp_path / "mine.yaml"
     scenario.write_text("name: mine\nroad: {type: seamless}\n")
-    with monkeypatch.context() as m:
-        _interrupt_at(m, 2)
-        with pytest.raises(KeyboardInterrupt):
-            recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
+    _record_interrupted(tmp_path, monkeypatch, scenario)
     scenario.write_text("name: mine\nroad: {type: seamless}\n")  # the same, written again
     with monkeypatch.context() as m:
         _interrupt_at(m, 1)
@@ -283,17 +289,13 @@ def test_a_track_library_changed_after_a_break_is_named(tmp_path, monkeypatch):
 
     from gridsim.errors import WorkKept
 
-    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
     shipped = resources.files("gridsim").joinpath("data", "ngsim", "ngsim_trajectories.csv")
     library = tmp_path / "tracks.csv"
     shutil.copyfile(str(shipped), library)
     scenario = tmp_path / "mine.yaml"
     scenario.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [tracks.csv]}\n")
-    with monkeypatch.context() as m:
-        _interrupt_at(m, 2)
-        with pytest.raises(KeyboardInterrupt):
-            recording.record_dataset(tmp_path / "d", str(scenario), 3, duration=3.0, resume=True)
-    library.write_text(library.read_text().replace("\n", "\n", 1) + "\n")  # one more line
+    _record_interrupted(tmp_path, monkeypatch, scenario)
+    library.write_text(library.read_text() + "\n")  # an empty line more: other contents
     with pytest.raises(
         WorkKept, match=rf"other input files \(changed: {re.escape(str(library))}\)"
     ):
