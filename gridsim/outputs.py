@@ -91,6 +91,29 @@ def read_manifest(
     return doc
 
 
+#: s between a progress bar's redraws where its stream is not a terminal (a log file, a
+#: pipe): a line every half minute in the log, not a redraw every tenth of a second
+LOG_INTERVAL = 30.0
+
+
+def progress_bar(*args: Any, **kwargs: Any):
+    """A tqdm progress bar (its arguments), on stderr unless ``file`` says otherwise; where
+    that stream is not a terminal it is redrawn every :data:`LOG_INTERVAL` seconds at most."""
+    import sys
+
+    from tqdm import tqdm
+
+    stream = kwargs.get("file") or sys.stderr
+    try:
+        terminal = stream.isatty()
+    except (AttributeError, ValueError):  # (a closed or odd stream)
+        terminal = False
+    if not terminal:
+        kwargs.setdefault("mininterval", LOG_INTERVAL)
+        kwargs.setdefault("maxinterval", LOG_INTERVAL)
+    return tqdm(*args, **kwargs)
+
+
 def counted(count: int, noun: str) -> str:
     """``count`` and ``noun``, plural unless it is 1: ``"1 epoch"``, ``"25 epochs"``."""
     return f"{count} {noun}{'' if count == 1 else 's'}"

@@ -35,8 +35,7 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     """Drive ``seconds`` of simulated time; write ``grids.npz`` (uint8 ``(T, H, W)`` grids and
     their times), a few colour grid PNGs (``grid_TICK.png``, named by their tick),
     ``topdown.png`` (last frame) and ``summary.json`` into ``out``. Returns the summary."""
-    from tqdm import tqdm
-
+    from gridsim.outputs import progress_bar
     from gridsim.scenario.build import build_sensor, build_world
     from gridsim.scenario.collection import load_collection, pick
     from gridsim.scenario.schema import MAX_DURATION, MAX_TICKS
@@ -63,7 +62,7 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     times = np.empty(steps)
     start = world.ego[:2].copy()
     distance, collisions, off_road = 0.0, 0, 0
-    for k in tqdm(range(steps), desc=f"drive {sc.name}", unit="tick", disable=not progress):
+    for k in progress_bar(range(steps), desc=f"drive {sc.name}", unit="tick", disable=not progress):
         prev = world.ego[:2].copy()
         result = world.tick(*driver(world))
         distance += float(np.hypot(*(world.ego[:2] - prev)))

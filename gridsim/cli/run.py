@@ -47,9 +47,8 @@ def run_policy(
 ) -> dict:
     """Run ``policy`` for up to ``steps`` decisions; optionally write a video. Returns a
     summary: distance driven, collisions, off-road, fitness sums and the episode outcome."""
-    from tqdm import tqdm
-
     from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.outputs import progress_bar
     from gridsim.video import record_episode, video_problem
 
     if policy not in POLICIES:
@@ -63,7 +62,9 @@ def run_policy(
         scenario, render_mode="rgb_array" if video else None, action_type=pol.action_type
     )
     env.action_space.seed(seed)
-    bar = tqdm(total=steps, desc=f"{policy} on {scenario}", unit="step", disable=not progress)
+    bar = progress_bar(
+        total=steps, desc=f"{policy} on {scenario}", unit="step", disable=not progress
+    )
 
     def stepped(env, info) -> None:  # (a collection's scene is drawn at the reset)
         bar.set_description(f"{policy} on {env.scenario.name}", refresh=False)

@@ -58,8 +58,7 @@ def add_parser(sub) -> None:
 
 
 def execute(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
+    from gridsim.outputs import progress_bar
     from neurotrajectory.data.recording import record_dataset
     from neurotrajectory.data.windows import bar_callbacks, check_group
 
@@ -82,7 +81,7 @@ def execute(args: argparse.Namespace) -> int:
     # checkpoints from which the same command goes on if it is interrupted
     with (
         new_folder(args.out, resumable=True) as partial,
-        tqdm(desc=f"record {name}", unit="episode", disable=args.quiet) as bar,
+        progress_bar(desc=f"record {name}", unit="episode", disable=args.quiet) as bar,
     ):
         try:
             manifest, tracks = record_dataset(

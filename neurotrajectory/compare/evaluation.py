@@ -31,10 +31,16 @@ from typing import Annotated, ClassVar
 
 import numpy as np
 from pydantic import Field, model_validator
-from tqdm import tqdm
 
 from gridsim.errors import WorkKept, warn_data
-from gridsim.outputs import LOCK_NAME, empty_folder, interrupted, new_folder, write_json
+from gridsim.outputs import (
+    LOCK_NAME,
+    empty_folder,
+    interrupted,
+    new_folder,
+    progress_bar,
+    write_json,
+)
 from gridsim.policies import Reference
 from gridsim.scenario.collection import input_changes, scenario_files
 from gridsim.scenario.schema import MAX_DURATION
@@ -174,7 +180,7 @@ def _split_dataset(
             log(f"{group}: recording again: the windows kept were {problem}")
             shutil.rmtree(folder)
         log(f"{group}: recording windows")
-        with tqdm(desc=f"record {group}", unit="episode", leave=False,
+        with progress_bar(desc=f"record {group}", unit="episode", leave=False,
                   disable=not progress) as bar:  # fmt: skip
             # written as recorded, then read back; with checkpoints from which the same
             # command goes on if it is interrupted
@@ -288,7 +294,7 @@ def _evaluate_group(
     )
     to_score = [*compared.items(), *((f"member {k}", NetPredictor(n))
                                     for k, n in enumerate(front.nets))]  # fmt: skip
-    scored = tqdm(to_score, desc=f"score {group}", unit="method", leave=False,
+    scored = progress_bar(to_score, desc=f"score {group}", unit="method", leave=False,
                   disable=not progress)  # fmt: skip
     scores, members = {}, []
     for name, m in scored:
@@ -310,8 +316,13 @@ def _evaluate_group(
         policies |= {End2End.name: CommandPolicy(e2e), NT_PICKED: TrajectoryPolicy(nt, keep)}
         rng = stream(cfg.seed, Salt.CLOSED_LOOP_EPISODES)
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
-        bar = tqdm(policies.items(), desc=f"closed loop {group} ({len(seeds)} episodes each)",
-                   unit="method", leave=False, disable=not progress)  # fmt: skip
+        bar = progress_bar(
+            policies.items(),
+            unit="method",
+            leave=False,
+            disable=not progress,
+            desc=f"closed loop {group} ({len(seeds)} episodes each)",
+        )
         scenarios = group_scenarios(group, cfg.sources.get(group))
         for name, policy in bar:
             slug = name.lower().replace(" ", "-")

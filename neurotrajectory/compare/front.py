@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.outputs import progress_bar
 from gridsim.scenario.schema import Scenario
 from gridsim.traffic.track import track_name
 from neurotrajectory.data.windows import goal_overrides, has_recorded
@@ -134,7 +134,7 @@ def heldout(
     seeds = list(cfg.heldout_seeds(len(tracks) if tracks else episodes))
     warm = load_warm_start(run, policy.keep)
     planners = 2 if warm is None else 3
-    bar = tqdm(total=planners * len(seeds), desc="held-out episodes", unit="episode",
+    bar = progress_bar(total=planners * len(seeds), desc="held-out episodes", unit="episode",
                leave=False, disable=not progress)  # fmt: skip
 
     def drive(planner) -> list[dict]:

@@ -36,6 +36,7 @@ from gridsim.outputs import (
     folder_lock,
     new_folder_problem,
     output_problem,
+    progress_bar,
     read_manifest,
     write_json,
     write_npz,
@@ -708,9 +709,9 @@ class Run:
         if first.parents is not None:
             backend.load(first.parents)
         backend.advance(first.recipes)
-        bar = tqdm(range(first.generation, cfg.generations), desc="generations", unit="gen",
-                   disable=not progress, initial=first.generation,
-                   total=cfg.generations)  # fmt: skip
+        bar = progress_bar(range(first.generation, cfg.generations), desc="generations",
+                           unit="gen", disable=not progress, initial=first.generation,
+                           total=cfg.generations)  # fmt: skip
         for done, gen in enumerate(bar, start=1):
             t0 = time.perf_counter()
             fitness, stats = backend.evaluate(cfg.population, cfg.episode_seeds(gen))

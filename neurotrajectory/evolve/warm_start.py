@@ -24,10 +24,9 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from gridsim import interrupts
-from gridsim.outputs import atomic_write
+from gridsim.outputs import atomic_write, progress_bar
 from gridsim.seeding import Salt, stream
 from neurotrajectory.data.scratch import concat_windows
 from neurotrajectory.data.windows import DatasetError, GridRows, Windows, split_rows
@@ -52,8 +51,8 @@ def setpoint_mse(
     """Mean squared set-point error [m^2] of ``net`` on ``windows``; ``progress``: a bar of
     that description over the windows (a pass over many takes minutes)."""
     total = 0.0
-    with torch.no_grad(), tqdm(total=len(windows), desc=progress, unit="window", leave=False,
-                               disable=progress is None) as bar:  # fmt: skip
+    with torch.no_grad(), progress_bar(total=len(windows), desc=progress, unit="window",
+                                       leave=False, disable=progress is None) as bar:  # fmt: skip
         for start in range(0, len(windows), chunk):
             idx = np.arange(start, min(start + chunk, len(windows)))
             pred = net(*window_inputs(windows, idx))
@@ -307,7 +306,7 @@ def pretrain_genome(
             opt.step()
 
         rng = stream(seed, Salt.WARM_START_BATCHES)
-        bar = tqdm(total=epochs * batches, initial=state.epochs * batches + state.batch,
+        bar = progress_bar(total=epochs * batches, initial=state.epochs * batches + state.batch,
                    desc="warm start", unit="batch", leave=False, disable=not progress)  # fmt: skip
         consistent, saved_at = True, time.monotonic()  # (not inside a batch's update)
         try:

@@ -111,3 +111,24 @@ def test_a_folder_that_may_not_be_searched_is_named(tmp_path, monkeypatch):
     assert output_problem(tmp_path / "locked" / "x.json", directory=False) == (
         f"{tmp_path / 'locked'} is not accessible (Permission denied)"
     )
+
+
+def test_progress_bars_in_a_log_are_redrawn_every_half_minute():
+    """A bar whose stream is not a terminal (a log file, a pipe) redraws at most every
+    LOG_INTERVAL seconds (a 2-minute train wrote 23 kB of redraws into a log); on a terminal
+    as tqdm does."""
+    import io
+
+    from gridsim.outputs import LOG_INTERVAL, progress_bar
+
+    class Terminal(io.StringIO):
+        def isatty(self) -> bool:
+            return True
+
+    log, terminal = io.StringIO(), Terminal()
+    with progress_bar(total=3, file=log) as bar, progress_bar(total=3, file=terminal) as live:
+        assert bar.mininterval == LOG_INTERVAL == 30.0 and live.mininterval == 0.1
+        for _ in range(3):
+            bar.update()
+            live.update()
+    assert "3/3" in log.getvalue() and "3/3" in terminal.getvalue()  # the last state, at the end

@@ -20,10 +20,9 @@ import numpy as np
 import torch
 from pydantic import Field
 from torch import nn
-from tqdm import tqdm
 
 from gridsim import libm
-from gridsim.outputs import write_json
+from gridsim.outputs import progress_bar, write_json
 from neurotrajectory.compare.predictors import Setting, observation_batch
 from neurotrajectory.data.commands import (
     LONGITUDINAL,
@@ -102,7 +101,7 @@ class End2End:
         rng = np.random.default_rng(settings.seed)
         net.train()
         per_epoch = -(-len(windows) // settings.batch_size)
-        bar = tqdm(total=settings.epochs * per_epoch, desc="train End2End", unit="batch",
+        bar = progress_bar(total=settings.epochs * per_epoch, desc="train End2End", unit="batch",
                    leave=False, disable=not progress)  # fmt: skip
         for epoch in range(settings.epochs):
             order = rng.permutation(len(windows))
