@@ -99,7 +99,7 @@ def report_heldout(
               "their l1 is not compared")  # fmt: skip
     elif paired["l1_change"] is not None:
         print(f"  on the {paired['episodes']} {which} both the {pick} member and its warm start "
-              f"complete: mean l1 {paired['l1']:.1f} against {paired['other_l1']:.1f} m^2 "
+              f"complete:\n    mean l1 {paired['l1']:.1f} against {paired['other_l1']:.1f} m^2 "
               f"({paired['l1_change']:+.1%}), lower on {paired['better']} of them")  # fmt: skip
 
 
