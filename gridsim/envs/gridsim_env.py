@@ -334,8 +334,14 @@ class GridSimEnv(gym.Env):
 
     # -- rendering ----------------------------------------------------------------------------
     def render(self):
-        if self.render_mode != "rgb_array" or self.world is None:
+        """The top-down frame of now, RGB ``(H, W, 3)`` uint8 (``render_mode="rgb_array"``);
+        without a render mode None, with gymnasium's warning."""
+        if self.render_mode != "rgb_array":
+            gym.logger.warn("render() without a render mode draws nothing: make the env with "
+                            'render_mode="rgb_array", e.g. gym.make("GridSim-v0", '
+                            'render_mode="rgb_array")')  # fmt: skip
             return None
+        self._current_world("render")
         # After a step, the last plan beside the human's set-points it was scored against
         # (l1 sums their squared distances: a plan that matches them covers them), before
         # the first step the human's next set-points.

@@ -380,6 +380,17 @@ def test_human_rendering_is_refused_with_the_alternatives():
         assert "'rgb_array'" in message and "--video" in message
 
 
+def test_render_says_what_it_needs():
+    """render() before reset() is refused like the other calls; without a render mode it
+    returns None with gymnasium's warning saying how to get frames (it was silent)."""
+    with pytest.raises(RuntimeError, match=r"call reset\(\) before render\(\)"):
+        GridSimEnv(render_mode="rgb_array").render()
+    env = GridSimEnv(**SHORT)
+    env.reset(seed=0)
+    with pytest.warns(UserWarning, match='render_mode="rgb_array"'):
+        assert env.render() is None
+
+
 def test_step_after_termination_is_refused_until_reset():
     env = GridSimEnv(action_type="control", **SHORT)
     env.reset(seed=0)
