@@ -329,7 +329,7 @@ def _evaluate_group(
             per = [closed_loop(sc, policy, seeds, cfg.closed_loop_seconds,
                                 out / "videos" / f"{group}-{Path(sc).stem}-{slug}.mp4"
                                 if cfg.videos else None, cfg.goal_seconds,
-                                label=f"{name}, {group}")
+                                label=_video_label(name, group, sc))
                    for sc in scenarios]  # fmt: skip
             loop[name] = {k: float(np.mean([p[k] for p in per]))
                           for k in per[0] if k != "per_episode"}  # fmt: skip
@@ -396,6 +396,13 @@ def evaluate(
             raise
         write_report(results, partial, {g: f.info(cfg.pick) for g, f in fronts.items()})
     return results
+
+
+def _video_label(method: str, group: str, scenario: str) -> str:
+    """Who drives an evaluation video, and where: ``"End2End, urban (lankershim_1_1)"``; a
+    group of one scenario of its name is named once."""
+    stem = Path(scenario).stem
+    return f"{method}, {group}" + ("" if stem == group else f" ({stem})")
 
 
 def _go_on_or_start(partial: Path, settings: dict, log) -> None:

@@ -404,3 +404,12 @@ def test_a_dataset_of_other_files_is_not_evaluated_as_the_group(tiny_run, data, 
     assert f"recorded from files that have changed since (changed: {mine})" in \
         capsys.readouterr().err  # fmt: skip
     assert not (tmp_path / "e1").exists() and not (tmp_path / "e2").exists()
+
+
+def test_an_evaluation_video_names_its_scene():
+    """A group of several scenes says which one a video drives (it said the group only)."""
+    from neurotrajectory.compare.evaluation import _video_label
+
+    assert _video_label("End2End", "urban", "lankershim_1_1") == "End2End, urban (lankershim_1_1)"
+    assert _video_label("DWA", "seamless", "seamless") == "DWA, seamless"
+    assert _video_label("DWA", "mine", "my/scenes/a.yaml") == "DWA, mine (a)"
