@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import csv
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -236,7 +237,14 @@ def _fig9(results, methods, out: Path) -> Path:
                       ha="right", fontsize=7)  # fmt: skip
         ax.set_title(GROUP_TITLES.get(r.group, r.group), fontsize=9)
     axes[0, 0].set_ylabel("per-window RMSE [m]")
-    fig.tight_layout()
+    said = textwrap.wrap(
+        "box: the middle half of the held-out windows, orange line: the "
+        "median, whiskers: to 1.5 box lengths (farther windows not drawn); "
+        "NT: NeuroTrajectory",
+        70 * len(results),
+    )  # (a narrow figure: lines)
+    fig.text(0.5, 0.005, "\n".join(said), ha="center", va="bottom", fontsize=7)
+    fig.tight_layout(rect=(0, 0.04 * len(said), 1, 1))
     path = out / "fig9_window_rmse.png"
     fig.savefig(path, dpi=110)
     plt.close(fig)
