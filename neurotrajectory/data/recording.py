@@ -58,6 +58,7 @@ def record_dataset(
     split: tuple[str, float] | None = None,
     resume: bool = False,
     log: Callable[[str], None] | None = None,
+    files: Callable[[int], None] | None = None,
 ) -> tuple[dict, int]:
     """:func:`record_group` written into the dataset folder ``out`` (new or empty) as the
     windows come, so that memory holds about one shard whatever the dataset's size; with
@@ -114,8 +115,8 @@ def record_dataset(
     if checkpoints is not None:
         checkpoints.follow(writer, state)
     manifest = record_group_into(writer, name, episodes, seed, stride, duration, progress,
-                                  source, goal_seconds, planned, state,
-                                  checkpoints)  # fmt: skip
+                                  source, goal_seconds, planned, state, checkpoints,
+                                  files)  # fmt: skip
     manifest["inputs"] = stamps
     if split is None:
         done = writer.finish(manifest)

@@ -31,6 +31,7 @@ from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError, ScenarioError, UnfitEgoWarning, warn_data
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
+from gridsim.outputs import counted
 from gridsim.policies import Reference
 from gridsim.scenario.checks import flawed_tracks
 from gridsim.scenario.collection import (
@@ -526,16 +527,29 @@ def group_files(
 
 
 def bar_callbacks(bar) -> dict:
-    """``progress`` and ``planned`` for :func:`record_group` and
+    """``progress``, ``planned`` and ``files`` for :func:`record_group` and
     :func:`~neurotrajectory.data.recording.record_dataset` that drive the progress bar ``bar``
-    (tqdm): one step per episode, the total growing by each file's episodes as they are
-    planned."""
+    (tqdm): one step per episode; its total (the episodes of every file) is shown once the
+    last file is planned, and until then how many files are still to plan (a total that grew
+    file by file made the percentage go back: 87 % 20/23, then 79 % 23/29)."""
+    known = {"episodes": 0, "files": None}  # planned so far; files still to plan (None: ?)
+
+    def show() -> None:
+        left = known["files"]
+        bar.total = known["episodes"] if not left else None
+        bar.set_postfix_str(f"{counted(left, 'file')} still to plan" if left else "")
 
     def planned(count: int) -> None:
-        bar.total = (bar.total or 0) + count
-        bar.refresh()
+        known["episodes"] += count
+        if known["files"]:
+            known["files"] -= 1
+        show()
 
-    return {"progress": bar.update, "planned": planned}
+    def files(count: int) -> None:
+        known["files"] = count
+        show()
+
+    return {"progress": bar.update, "planned": planned, "files": files}
 
 
 def record_group(
@@ -548,6 +562,7 @@ def record_group(
     source: str | None = None,
     goal_seconds: float | None = None,
     planned: Callable[[int], None] | None = None,
+    files: Callable[[int], None] | None = None,
 ) -> Dataset:
     """Windows of a scenario group (see :func:`group_scenarios`: of :data:`GROUPS`, or the
     usable files of the folder or glob ``source``), or of one scenario, in memory
@@ -555,10 +570,11 @@ def record_group(
     ``stride`` defaults to every decision on recorded scenes, every fifth elsewhere. Of a
     group of several files, a file that gives no window is skipped and named in a warning;
     it and the files that do not load are listed in the manifest's ``skipped``; the group
-    fails only when none gives any."""
+    fails only when none gives any. ``planned(n)``: a file's ``n`` episodes are planned (0
+    for a file skipped before); ``files(n)``: ``n`` files are to plan, once at the start."""
     sink = _Collected()
     manifest = record_group_into(sink, name, episodes, seed, stride, duration, progress,
-                                  source, goal_seconds, planned)  # fmt: skip
+                                  source, goal_seconds, planned, files=files)  # fmt: skip
     return Dataset(Windows.concat(sink.parts), manifest)
 
 
@@ -594,6 +610,7 @@ def record_group_into(
     planned: Callable[[int], None] | None,
     state: GroupProgress | None = None,
     recorded: Callable[[bool], None] | None = None,
+    files: Callable[[int], None] | None = None,
 ) -> dict:
     """:func:`record_group`, each episode's windows given to ``sink`` as they come (a failed
     file's rolled back: ``sink.mark()``, ``sink.rollback(mark)``); returns the manifest.
@@ -606,6 +623,8 @@ def record_group_into(
         planned(state.episodes_planned)  # scenarios done
     if progress is not None and state.episodes_done:
         progress(state.episodes_done)
+    if files is not None:
+        files(len(scenarios) - state.scenario)
     for i, scenario in enumerate(scenarios[state.scenario :], state.scenario):
         s = stride or (RECORDED_STRIDE if replays[scenario] else GENERATED_STRIDE)
         if state.mark is None:  # the file begins now (not one gone on with part-way)
@@ -616,10 +635,10 @@ def record_group_into(
             if recorded is not None:
                 recorded(False)
 
-        plan = [0]  # the file's episodes, as planned
+        plan = [0, False]  # the file's episodes, as planned, and whether they were
 
         def planned_file(count: int, plan: list = plan) -> None:
-            plan[0] = count
+            plan[0], plan[1] = count, True
             if planned is not None:
                 planned(count)
 
@@ -632,6 +651,8 @@ def record_group_into(
             if len(scenarios) == 1:
                 raise
             state.skipped.append([scenario, str(exc)])
+            if not plan[1] and planned is not None:  # (skipped before its plan: none)
+                planned(0)
         else:
             state.metas.append(meta)
         state.episodes_planned += plan[0]

@@ -470,3 +470,25 @@ def test_the_dataset_folder_s_functions_are_still_found_where_they_were():
     assert load_dataset is storage.load_dataset
     with pytest.raises(AttributeError, match="has no attribute 'nothing'"):
         windows.nothing  # noqa: B018
+
+
+def test_a_groups_bar_shows_its_total_once_every_file_is_planned():
+    """Of a group of several files, the bar's total waits for the last file's plan (it grew
+    file by file: 87 % 20/23, then 79 % 23/29 on urban), saying how many are still to plan."""
+    import io
+
+    from tqdm import tqdm
+
+    bar = tqdm(file=io.StringIO())
+    callbacks = windows.bar_callbacks(bar)
+    seen = []
+
+    def planned(count: int) -> None:
+        callbacks["planned"](count)
+        seen.append((bar.n, bar.total, bar.postfix))
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        windows.record_group("urban", 1, stride=40, **{**callbacks, "planned": planned})
+    assert seen == [(0, None, "1 file still to plan"), (23, 29, "")]  # lankershim, peachtree
+    assert bar.n == 29
