@@ -138,10 +138,12 @@ def _contents(folder: Path) -> list[Path]:
     return [p for p in folder.iterdir() if p.name != LOCK_NAME]
 
 
-def empty_folder(folder: str | Path) -> None:
-    """Remove everything ``folder`` holds but its lock file (folders and their contents;
-    links, not what they point to)."""
+def empty_folder(folder: str | Path, keep: tuple[str, ...] = ()) -> None:
+    """Remove everything ``folder`` holds but its lock file and the names ``keep`` (folders
+    and their contents; links, not what they point to)."""
     for p in _contents(Path(folder)):
+        if p.name in keep:
+            continue
         if p.is_dir() and not p.is_symlink():
             shutil.rmtree(p)
         else:

@@ -293,6 +293,14 @@ def input_digest(ref: str | Path, overrides: Mapping[str, Any] | None = None) ->
             if f.is_file() and not f.resolve().is_relative_to(package)}  # fmt: skip
 
 
+def same_inputs(then, now) -> bool:
+    """Whether :func:`input_digest` ``then`` and ``now`` (path -> digest) name files of the same
+    contents (their paths may differ: a project moved)."""
+    if not isinstance(then, dict) or not isinstance(now, dict):
+        return then == now
+    return sorted(then.values()) == sorted(now.values())
+
+
 def input_changes(then, now) -> str:
     """The files whose :func:`input_digest` differ between ``then`` and ``now`` (path ->
     digest), in words: ``"changed: A; removed: B"`` (``""``: none, or digests of another

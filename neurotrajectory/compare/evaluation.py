@@ -34,7 +34,6 @@ from pydantic import Field, model_validator
 
 from gridsim.errors import WorkKept, warn_data
 from gridsim.outputs import (
-    LOCK_NAME,
     empty_folder,
     interrupted,
     new_folder,
@@ -42,7 +41,7 @@ from gridsim.outputs import (
     write_json,
 )
 from gridsim.policies import Reference
-from gridsim.scenario.collection import input_changes, scenario_files
+from gridsim.scenario.collection import input_changes, same_inputs, scenario_files
 from gridsim.scenario.schema import MAX_DURATION
 from gridsim.seeding import Salt, stream
 from neurotrajectory.compare import methods
@@ -52,7 +51,7 @@ from neurotrajectory.compare.front import NetPredictor, load_front, trained_trac
 from neurotrajectory.compare.methods import NT_BEST, NT_PICKED
 from neurotrajectory.compare.metrics import Accuracy, accuracy
 from neurotrajectory.compare.predictors import Setting, TrajectoryPolicy
-from neurotrajectory.data.recording import group_inputs, record_dataset, same_inputs
+from neurotrajectory.data.recording import group_inputs, record_dataset
 from neurotrajectory.data.storage import check_new_folder, dataset_manifest, load_split
 from neurotrajectory.data.windows import (
     GROUPS,
@@ -181,7 +180,7 @@ def _split_dataset(
             shutil.rmtree(folder)
         log(f"{group}: recording windows")
         with progress_bar(desc=f"record {group}", unit="episode", leave=False,
-                  disable=not progress) as bar:  # fmt: skip
+                          disable=not progress) as bar:  # fmt: skip
             # written as recorded, then read back; with checkpoints from which the same
             # command goes on if it is interrupted
             def record() -> None:
@@ -295,7 +294,7 @@ def _evaluate_group(
     to_score = [*compared.items(), *((f"member {k}", NetPredictor(n))
                                     for k, n in enumerate(front.nets))]  # fmt: skip
     scored = progress_bar(to_score, desc=f"score {group}", unit="method", leave=False,
-                  disable=not progress)  # fmt: skip
+                          disable=not progress)  # fmt: skip
     scores, members = {}, []
     for name, m in scored:
         scored.set_postfix(method=name)
@@ -421,13 +420,11 @@ def _go_on_or_start(partial: Path, settings: dict, log) -> None:
         differ = ["unreadable"] if not isinstance(then, dict) else sorted(
             k for k in set(settings) | set(then) if then.get(k) != settings.get(k))  # fmt: skip
         raise WorkKept(f"{partial} holds an interrupted evaluation of other settings "
-                       f"({', '.join(differ) or 'unreadable'}): give the arguments it was made "
+                       f"({', '.join(differ)}): give the arguments it was made "
                        f"with to go on with its recorded windows, or remove {partial} to start "
                        "afresh")  # fmt: skip
     kept = sorted(p.name for p in (partial / "data").glob("*") if p.is_dir())
-    for p in partial.iterdir():
-        if p.name not in ("data", LOCK_NAME, "eval_config.json"):
-            shutil.rmtree(p) if p.is_dir() and not p.is_symlink() else p.unlink()
+    empty_folder(partial, keep=("data", "eval_config.json"))
     if kept:
         log(f"going on with the interrupted evaluation in {partial}: the windows recorded "
             f"of {', '.join(kept)} are kept")  # fmt: skip

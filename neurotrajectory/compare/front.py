@@ -135,7 +135,7 @@ def heldout(
     warm = load_warm_start(run, policy.keep)
     planners = 2 if warm is None else 3
     bar = progress_bar(total=planners * len(seeds), desc="held-out episodes", unit="episode",
-               leave=False, disable=not progress)  # fmt: skip
+                       leave=False, disable=not progress)  # fmt: skip
 
     def drive(planner) -> list[dict]:
         if tracks is None:

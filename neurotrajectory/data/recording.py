@@ -16,7 +16,7 @@ import numpy as np
 
 from gridsim.errors import WorkKept
 from gridsim.outputs import LOCK_NAME, empty_folder, write_json
-from gridsim.scenario.collection import input_changes
+from gridsim.scenario.collection import input_changes, same_inputs
 from neurotrajectory.data import storage
 from neurotrajectory.data.storage import (
     ShardWriter,
@@ -170,14 +170,6 @@ def group_inputs(name: str, source: str | None) -> dict[str, str]:
     return {os.path.realpath(f): digest for f, digest in stamps.items()}
 
 
-def same_inputs(then, now) -> bool:
-    """Whether :func:`group_inputs` ``then`` and ``now`` name files of the same contents (their
-    paths may differ: a project moved)."""
-    if not isinstance(then, dict) or not isinstance(now, dict):
-        return then == now
-    return sorted(then.values()) == sorted(now.values())
-
-
 class _Checkpoints:
     """:func:`record_dataset`'s checkpoints in the folder it writes shards into, for an
     interrupted recording to go on: ``progress.json`` (the arguments, how far the group is,
@@ -228,9 +220,9 @@ class _Checkpoints:
             return None, None
         try:
             doc = json.loads(self.path.read_text())
-            then = doc["arguments"]
-            if _differences(then, self.arguments):
-                return None, f"was made with {_differences(then, self.arguments)}"
+            differ = _differences(doc["arguments"], self.arguments)
+            if differ:
+                return None, f"was made with {differ}"
             state = GroupProgress(**doc["state"])
             if not all(isinstance(getattr(state, k), int)
                        for k in ("scenario", "episode", "windows")):  # fmt: skip

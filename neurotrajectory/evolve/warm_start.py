@@ -307,7 +307,8 @@ def pretrain_genome(
 
         rng = stream(seed, Salt.WARM_START_BATCHES)
         bar = progress_bar(total=epochs * batches, initial=state.epochs * batches + state.batch,
-                   desc="warm start", unit="batch", leave=False, disable=not progress)  # fmt: skip
+                           desc="warm start", unit="batch", leave=False,
+                           disable=not progress)  # fmt: skip
         consistent, saved_at = True, time.monotonic()  # (not inside a batch's update)
         try:
             for epoch in range(epochs):

@@ -101,8 +101,8 @@ class End2End:
         rng = np.random.default_rng(settings.seed)
         net.train()
         per_epoch = -(-len(windows) // settings.batch_size)
-        bar = progress_bar(total=settings.epochs * per_epoch, desc="train End2End", unit="batch",
-                   leave=False, disable=not progress)  # fmt: skip
+        bar = progress_bar(total=settings.epochs * per_epoch, desc="train End2End",
+                           unit="batch", leave=False, disable=not progress)  # fmt: skip
         for epoch in range(settings.epochs):
             order = rng.permutation(len(windows))
             total = 0.0
