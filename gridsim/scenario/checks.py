@@ -127,6 +127,23 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
     return out
 
 
+#: m: tracks whose median vehicle is longer and wider than these are in feet, not metres (a
+#: car is about 4.5 x 1.8 m, 15 x 6 ft; a truck in metres is not 3 m wide)
+FEET_LENGTH, FEET_WIDTH = 9.0, 3.0
+
+
+def feet_hint(tracks: list[Track], whose: str = "the") -> str:
+    """A hint that the sizes (and so the positions) of ``tracks`` are in feet, if their median
+    size says so; "" if not. ``whose`` starts it ("the scene's median vehicle length ...")."""
+    lengths, widths = [t.length for t in tracks], [t.width for t in tracks]
+    if lengths and np.median(lengths) > FEET_LENGTH and np.median(widths) > FEET_WIDTH:
+        return (
+            f"{whose} median vehicle length is {np.median(lengths):.3g} m: are sizes and "
+            "positions in metres (not feet)?"
+        )
+    return ""
+
+
 #: Implied over recorded speed, when a unit is wrong, and what to say: speeds in km/h or
 #: mph, positions in feet (with speeds in m/s).
 _UNIT_RATIOS = (

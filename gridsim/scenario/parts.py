@@ -15,7 +15,7 @@ import numpy as np
 
 from gridsim.errors import DataError, ScenarioError, warn_data
 from gridsim.road.polyline import Polyline
-from gridsim.scenario.checks import SceneReport, library_report
+from gridsim.scenario.checks import SceneReport, feet_hint, library_report
 from gridsim.scenario.family import is_recorded
 from gridsim.scenario.schema import MAX_WHEELBASE_SHARE, Scenario, VehicleConfig
 from gridsim.traffic.library import TrajectoryLibrary
@@ -242,7 +242,7 @@ def library_data_report(scenario: Scenario, tracks: list[Track] | None = None) -
     ``traffic.max_vehicle_length`` lets them through)."""
     tracks = _profile_tracks(scenario) if tracks is None else tracks
     report = library_report(tracks, scenario.source)
-    hint = _feet_hint(tracks)
+    hint = feet_hint(tracks)
     if hint:
         said = f"{scenario.source}: traffic.library: {hint}"
         report = dataclasses.replace(report, warnings=(*report.warnings, said))
@@ -258,25 +258,9 @@ def _profile_tracks(scenario: Scenario) -> list[Track]:
         raise ScenarioError(
             f"{scenario.source}: traffic.library has no track of >= 2 s and <= "
             f"{t.max_vehicle_length} m (traffic.max_vehicle_length)"
-            + (f"; {hint}" if (hint := _feet_hint(library.select())) else "")
+            + (f"; {hint}" if (hint := feet_hint(library.select())) else "")
         )
     return tracks
-
-
-#: m: a library whose median vehicle is longer and wider than these is in feet, not metres
-#: (a car is about 4.5 x 1.8 m, 15 x 6 ft; a truck in metres is not 3 m wide)
-FEET_LENGTH, FEET_WIDTH = 9.0, 3.0
-
-
-def _feet_hint(tracks: list[Track]) -> str:
-    """A hint that the sizes of ``tracks`` are in feet, if their median size says so."""
-    lengths, widths = [t.length for t in tracks], [t.width for t in tracks]
-    if lengths and np.median(lengths) > FEET_LENGTH and np.median(widths) > FEET_WIDTH:
-        return (
-            f"the median vehicle length is {np.median(lengths):.3g} m: are sizes and "
-            "positions in metres (not feet)?"
-        )
-    return ""
 
 
 def road_lane_width(scenario: Scenario) -> float:

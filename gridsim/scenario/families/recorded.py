@@ -15,7 +15,7 @@ from gridsim.errors import DataError, ScenarioError, UnfitEgoWarning, warn_data
 from gridsim.road.base import StaticRoad
 from gridsim.road.lanelet import load_lanelet_road
 from gridsim.road.polyline import Polyline
-from gridsim.scenario.checks import flawed_tracks, scene_report
+from gridsim.scenario.checks import feet_hint, flawed_tracks, scene_report
 from gridsim.scenario.family import Family, register_family
 from gridsim.scenario.parts import (
     MIN_TRACK_SECONDS,
@@ -255,11 +255,8 @@ def why_unfit(scenario: Scenario, tracks, road: StaticRoad, listed: set[str]) ->
         why: sum(map(test, mine)) for why, test in _unfit_tests(scenario, tracks, road).items()
     }
     said = ", ".join(f"{n} {why}" for why, n in counts.items() if n)
-    lengths = np.array([t.length for t in tracks])  # the scene's: most long is another unit
-    if np.median(lengths) > scenario.config.traffic.max_vehicle_length:
-        said += (f"; the scene's median vehicle length is {np.median(lengths):.3g} m: are sizes "
-                 "in metres (not feet)?")  # fmt: skip
-    return said
+    hint = feet_hint(tracks, "the scene's")  # not only the listed ones': feet are a file's unit
+    return f"{said}; {hint}" if hint else said
 
 
 def initial_steering(track: Track, params: BicycleParams) -> float:

@@ -320,10 +320,10 @@ def test_trucks_in_metres_are_not_taken_for_feet():
     (12 x 2.5 m) is not asked whether it is in feet; 15 x 6 (feet for 4.5 x 1.8 m) is."""
     import dataclasses
 
-    from gridsim.scenario.parts import _feet_hint
+    from gridsim.scenario.checks import feet_hint
 
     car = track("c", X, np.full(41, -1.75))
     trucks = [dataclasses.replace(car, track_id=f"t{k}", length=12.0, width=2.5) for k in range(3)]
-    assert _feet_hint(trucks) == ""
+    assert feet_hint(trucks) == ""
     feet = [dataclasses.replace(car, track_id=f"f{k}", length=14.8, width=5.9) for k in range(3)]
-    assert "(not feet)?" in _feet_hint(feet)
+    assert "(not feet)?" in feet_hint(feet)

@@ -158,8 +158,27 @@ def test_vehicles_sized_in_feet_get_a_hint(tmp_path):
     tracks = [replace(crafted(name, np.linspace(x, x + 30.0, 31), np.full(31, 1.75)),
                       length=14.8, width=5.9)  # 4.5 x 1.8 m in feet
               for name, x in (("ego", 20.0), ("other", 80.0))]  # fmt: skip
-    with pytest.raises(GridSimError, match=r"median vehicle length is 14.8 m: are sizes in metres"):
+    hint = r"the scene.s median vehicle length is 14.8 m: are sizes and positions in metres"
+    with pytest.raises(GridSimError, match=hint):
         GridSimEnv(str(write_scene(tmp_path, tracks, ego={"track": "random"}))).reset(seed=0)
+
+
+def test_a_scene_of_trucks_in_metres_is_not_asked_about_feet(tmp_path):
+    """Trucks (12 x 2.5 m) are longer than a random ego may be, but not wide enough for feet:
+    the refusal says why they are unfit and does not ask about units (it did before 2026-11-27,
+    when the scene's median length alone decided)."""
+    from dataclasses import replace
+
+    from scenes import track as crafted
+
+    from gridsim.errors import GridSimError
+
+    tracks = [replace(crafted(name, np.linspace(x, x + 30.0, 31), np.full(31, 1.75)),
+                      length=12.0, width=2.5)
+              for name, x in (("ego", 20.0), ("other", 80.0))]  # fmt: skip
+    with pytest.raises(GridSimError, match=r"vehicle longer than 6 m") as refused:
+        GridSimEnv(str(write_scene(tmp_path, tracks, ego={"track": "random"}))).reset(seed=0)
+    assert "feet" not in str(refused.value)
 
 
 def test_a_scene_s_tables_made_once_are_those_made_track_by_track():
