@@ -119,6 +119,19 @@ def counted(count: int, noun: str) -> str:
     return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
+def rounded(data: Any, digits: int = 4) -> Any:
+    """``data`` (JSON-like: dicts, lists, numbers) with every float rounded to ``digits``
+    significant digits, for printing; files keep full precision. ``159.2723388671875`` ->
+    ``159.3``, ``1.05e-11`` -> ``1.054e-11``."""
+    if isinstance(data, float):
+        return float(f"{data:.{digits}g}")
+    if isinstance(data, dict):
+        return {key: rounded(value, digits) for key, value in data.items()}
+    if isinstance(data, (list, tuple)):
+        return [rounded(value, digits) for value in data]
+    return data
+
+
 def short_repr(value: Any) -> str:
     """``repr(value)``, cut to a readable length for an error message."""
     return reprlib.repr(value)

@@ -10,7 +10,7 @@ import numpy as np
 
 from gridsim.cli.flags import quiet_flag, scenario_flag, seed_flag
 from gridsim.errors import GridSimError, OutputError
-from gridsim.outputs import new_folder, new_folder_problem, write_json, write_npz
+from gridsim.outputs import new_folder, new_folder_problem, rounded, write_json, write_npz
 
 
 def add_parser(sub) -> None:
@@ -27,7 +27,7 @@ def add_parser(sub) -> None:
 
 def execute(args: argparse.Namespace) -> int:
     summary = drive(args.scenario, args.seconds, args.seed, Path(args.out), progress=not args.quiet)
-    print(json.dumps(summary, indent=2))
+    print(json.dumps(rounded(summary), indent=2))
     return 0
 
 

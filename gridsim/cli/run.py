@@ -7,6 +7,7 @@ import json
 
 from gridsim.cli.flags import at_least, overlay_flag, quiet_flag, scenario_flag, seed_flag
 from gridsim.errors import GridSimError
+from gridsim.outputs import rounded
 from gridsim.policies import POLICIES
 
 
@@ -32,7 +33,7 @@ def execute(args: argparse.Namespace) -> int:
         args.scenario, args.policy, args.steps, args.seed, video=args.video,
         progress=not args.quiet, overlay=args.overlay,
     )  # fmt: skip
-    print(json.dumps(summary, indent=2))
+    print(json.dumps(rounded(summary), indent=2))
     return 0
 
 

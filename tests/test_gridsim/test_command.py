@@ -189,3 +189,20 @@ def test_a_data_warning_under_a_progress_bar_starts_its_own_line(capsys):
     err = capsys.readouterr().err
     before = err[: err.index("neurotrajectory: warning: a flawed track")]
     assert before.endswith(("\r", "\n")) and "episode" in before
+
+
+def test_run_prints_its_summary_rounded(capsys):
+    """``gridsim run`` prints four significant digits (it printed ``159.2723388671875``);
+    the rounding keeps ints, booleans and strings, and a tiny float stays a float."""
+    import json
+
+    from gridsim.cli import main
+    from gridsim.outputs import rounded
+
+    assert rounded({"a": [159.2723388671875, 1.0535299195535419e-11], "n": 3, "b": True}) == {
+        "a": [159.3, 1.054e-11], "n": 3, "b": True}  # fmt: skip
+    assert main(["run", "--scenario", "seamless", "--steps", "5", "--quiet"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["steps"] == 5 and summary["collision"] is False
+    figures = [summary["mean_speed"], *summary["fitness_sums"].values()]
+    assert all(x == float(f"{x:.4g}") for x in figures)
