@@ -35,6 +35,7 @@ from gridsim.envs.observations import OBSERVATION_TYPES
 from gridsim.envs.vector_guard import refuse_scalar_reward_vectorization
 from gridsim.errors import ScenarioError
 from gridsim.frames import EGO_FEATURES, grid_rotation, grid_to_world, world_to_grid
+from gridsim.outputs import short_repr
 from gridsim.render.topdown import PLAN_COLOUR, REFERENCE_COLOUR, TopDownRenderer
 from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
@@ -89,9 +90,10 @@ class GridSimEnv(gym.Env):
         self.scenario = self.scenarios[0]
         if render_mode not in (None, "rgb_array"):
             raise ValueError(
-                f"render_mode must be None or 'rgb_array', got {render_mode!r}: GridSim never "
-                "opens a window; render 'rgb_array' frames with env.render() or export a video "
-                "(gridsim.video.record_rollout, `gridsim run --video out.mp4`)"
+                f"render_mode must be None or 'rgb_array' (or gym.make's 'rgb_array_list'), got "
+                f"{render_mode!r}: GridSim never opens a window; render 'rgb_array' frames with "
+                "env.render() or export a video (gridsim.video.record_rollout, `gridsim run "
+                "--video out.mp4`)"
             )
         if action_type not in ACTION_TYPES:
             raise ValueError(
@@ -145,8 +147,10 @@ class GridSimEnv(gym.Env):
             interrupts.leave()
 
     def _reset(self, seed: int | None, options: dict | None):
+        replay = _replayed_episode(options)
         super().reset(seed=seed)
-        episode_seed = int(self.np_random.integers(2**31 - 1))
+        drawn = int(self.np_random.integers(2**31 - 1))  # (drawn always: the stream goes on alike)
+        episode_seed = drawn if replay is None else replay
         self.episode_seed = episode_seed
         if len(self.scenarios) > 1:
             self.scenario = pick(self.scenarios, episode_seed)
@@ -363,6 +367,29 @@ ENV_OPTIONS = ("scenario", "render_mode", "action_type", "observation_type")
 VECTOR_ENV_OPTIONS = ("num_envs", "asynchronous", "autoreset_mode", "context")
 
 
+#: ``reset(options=...)`` keys.
+RESET_OPTIONS = ("episode_seed",)
+
+
+def _replayed_episode(options: dict | None) -> int | None:
+    """The ``episode_seed`` of ``reset(options={"episode_seed": S})`` (an ``info`` of an
+    earlier episode: the same episode again), checked; None without it."""
+    options = options or {}
+    for key in options:
+        if key not in RESET_OPTIONS:
+            raise ValueError(f"reset() has no option {key!r}; its options: "
+                             f"{', '.join(RESET_OPTIONS)}")  # fmt: skip
+    value = options.get("episode_seed")
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise ValueError(f"reset(options={{'episode_seed': ...}}) takes an int (an info's "
+                         f"'episode_seed'), got {short_repr(value)}")  # fmt: skip
+    if not 0 <= value < 2**31 - 1:
+        raise ValueError(f"episode_seed must be in [0, 2**31 - 1), got {value}")
+    return int(value)
+
+
 def _refuse_unknown_options(overrides: dict) -> None:
     """A :class:`ScenarioError` for a keyword that is neither a scenario section nor an option
     of the env, with the closest spelling of either."""
@@ -376,16 +403,24 @@ def _refuse_unknown_options(overrides: dict) -> None:
             continue
         known = ENV_OPTIONS + VECTOR_ENV_OPTIONS + sections
         close = difflib.get_close_matches(key, known, n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        raise ScenarioError(f"GridSim-v0 has no option {key!r}{hint} Its options: "
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        if key == "seed":
+            hint = " (an episode's seed is reset(seed=...)'s)"
+        raise ScenarioError(f"GridSim-v0 has no option {key!r}{hint}. Its options: "
                             f"{', '.join(ENV_OPTIONS)} (make_vec: {', '.join(VECTOR_ENV_OPTIONS)});"
                             f" scenario sections to override: {', '.join(sections)}")  # fmt: skip
 
 
-def make_env(**kwargs: Any) -> GridSimEnv:
+def make_env(**kwargs: Any) -> gym.Env:
     """The entry point of ``gym.make("GridSim-v0", ...)`` (and of ``gym.make_vec``'s
-    ``"sync"``/``"async"`` modes, which it refuses when they cannot hold the reward vector)."""
+    ``"sync"``/``"async"`` modes, which it refuses when they cannot hold the reward vector).
+    ``render_mode="rgb_array_list"`` is the env in ``"rgb_array"`` under gymnasium's
+    ``RenderCollection`` (``render()`` returns the frames since the last call)."""
     refuse_scalar_reward_vectorization()
+    if kwargs.get("render_mode") == "rgb_array_list":
+        from gymnasium.wrappers import RenderCollection
+
+        return RenderCollection(GridSimEnv(**{**kwargs, "render_mode": "rgb_array"}))
     return GridSimEnv(**kwargs)
 
 

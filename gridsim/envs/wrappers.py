@@ -48,6 +48,32 @@ def make_scalar_env(weights: Sequence[float] = DEFAULT_WEIGHTS, **kwargs) -> Lin
     return LinearScalarization(make_env(**kwargs), weights)
 
 
+#: The signs that make every objective maximised: ``[-l1, -l2, l3]``.
+MAXIMISED_SIGNS = np.array([-1.0, -1.0, 1.0], np.float32)
+
+
+class MaximisedObjectives(gym.RewardWrapper):
+    """The reward vector ``[-l1, -l2, l3]``: every objective maximised, as MO-Gymnasium and
+    MORL libraries (MORL-Baselines' Pareto filters, hypervolumes) assume; GridSim-v0's own
+    ``[l1, l2, l3]`` minimises l1 and l2. ``reward_space`` is ``Box([-inf, -inf, 0], [0, 0,
+    inf])``; the paper's vector is still in ``info["fitness"]``."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        own = env.get_wrapper_attr("reward_space")
+        low, high = own.low * MAXIMISED_SIGNS + 0.0, own.high * MAXIMISED_SIGNS + 0.0  # (no -0)
+        self.reward_space = gym.spaces.Box(np.minimum(low, high), np.maximum(low, high),
+                                           dtype=np.float32)  # fmt: skip
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        info = {**info, "fitness": np.asarray(reward, dtype=np.float32)}
+        return obs, self.reward(reward), terminated, truncated, info
+
+    def reward(self, reward) -> np.ndarray:
+        return np.asarray(reward, np.float32) * MAXIMISED_SIGNS + np.float32(0.0)  # (no -0)
+
+
 class PlanSmoothing(gym.ActionWrapper):
     """Steps GridSim-v0 (trajectory action) with each action blended with the plan before it:
     ``keep`` is the share of the previous plan kept (see :mod:`gridsim.envs.plan_smoothing`).

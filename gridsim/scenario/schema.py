@@ -12,7 +12,8 @@ from types import UnionType
 from typing import TYPE_CHECKING, Annotated, Any, Literal, Union, get_args, get_origin
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic_core import InitErrorDetails, PydanticCustomError
 
 from gridsim.frames import setpoint_times
 from gridsim.sensors.occupancy import GridSpec
@@ -60,14 +61,18 @@ class Strict(BaseModel):
     def _numbers_are_numbers(cls, data: Any) -> Any:
         if not isinstance(data, dict):
             return data
+        wrong = []  # (located at the key, env.horizon, as pydantic's own errors are)
         for name, value in data.items():
             field = cls.model_fields.get(name)
             # (other text fails pydantic's own check, which names the key)
             coerced = isinstance(value, bool) or (isinstance(value, str) and is_number(value))
             if field is not None and coerced and _is_number_type(field.annotation):
-                what = "a YAML yes/no/true/false is a boolean" if isinstance(value, bool) else (
-                    "text; write the number without quotes")  # fmt: skip
-                raise ValueError(f"{name} expects a number, got {value!r} ({what})")
+                what = "a YAML yes/no/true/false, which is a boolean" if isinstance(
+                    value, bool) else "text: write it without quotes"  # fmt: skip
+                said = PydanticCustomError("value_error", f"expects a number, not {what}")
+                wrong.append(InitErrorDetails(type=said, loc=(name,), input=value))
+        if wrong:
+            raise ValidationError.from_exception_data(cls.__name__, wrong)
         return data
 
 

@@ -240,6 +240,26 @@ def test_scalarised_wrapper():
         LinearScalarization(make(), weights=(1.0, 2.0))
 
 
+def test_maximised_objectives_flip_the_minimised_ones():
+    """MORL libraries maximise every objective: the wrapper's reward is ``[-l1, -l2, l3]`` of
+    the very step (the same episode unwrapped, bit for bit), inside its own reward_space."""
+    from gridsim.envs.wrappers import MaximisedObjectives
+
+    plain, flipped = make(), MaximisedObjectives(make())
+    plain.reset(seed=3)
+    flipped.reset(seed=3)
+    rng = np.random.default_rng(0)
+    for _ in range(5):
+        action = plain.action_space.low + rng.random(plain.action_space.shape) * (
+            plain.action_space.high - plain.action_space.low)  # fmt: skip
+        r = plain.step(action)[1]
+        _, m, _, _, info = flipped.step(action)
+        assert m.dtype == np.float32 and np.array_equal(info["fitness"], r)
+        assert np.array_equal(m, np.array([-r[0], -r[1], r[2]], np.float32))
+        assert flipped.reward_space.contains(m) and r[0] > 0
+    assert flipped.reward_space.high[0] == 0 and flipped.reward_space.low[2] == 0
+
+
 def test_vector_envs():
     venv = gym.vector.SyncVectorEnv([lambda: LinearScalarization(make()) for _ in range(2)])
     try:
@@ -378,6 +398,22 @@ def test_human_rendering_is_refused_with_the_alternatives():
         message = str(info.value)
         assert "got 'human'" in message and "never opens a window" in message
         assert "'rgb_array'" in message and "--video" in message
+
+
+def test_rgb_array_list_collects_the_frames_through_make():
+    """gym.make's "rgb_array_list" (gymnasium's RenderCollection over "rgb_array"): render()
+    returns every frame since the last call, the reset's included, each the env's own."""
+    env = gym.make(ENV_ID, render_mode="rgb_array_list", **SHORT)
+    single = gym.make(ENV_ID, render_mode="rgb_array", **SHORT)
+    env.reset(seed=0)
+    single.reset(seed=0)
+    action = np.zeros(env.action_space.shape, np.float32) + env.action_space.low
+    for _ in range(2):
+        env.step(action)
+        single.step(action)
+    frames = env.render()
+    assert len(frames) == 3 and env.render() == []
+    assert np.array_equal(frames[-1], single.render())
 
 
 def test_render_says_what_it_needs():
@@ -632,5 +668,47 @@ def test_a_misspelt_option_is_named_with_its_closest_spelling(kwargs, meant):
     from gridsim.errors import ScenarioError
 
     (key,) = kwargs
-    with pytest.raises(ScenarioError, match=f"no option '{key}'; did you mean '{meant}'"):
+    with pytest.raises(
+        ScenarioError, match=rf"no option '{key}' \(did you mean '{meant}'\?\)\. Its"
+    ):
         gym.make("GridSim-v0", **kwargs)
+
+
+def test_a_seed_given_to_make_says_where_seeds_go():
+    from gridsim.errors import ScenarioError
+
+    with pytest.raises(ScenarioError, match=r"no option 'seed' \(an episode's seed is reset\(seed"):
+        gym.make("GridSim-v0", seed=3)
+
+
+def test_an_episode_is_replayed_from_its_info_episode_seed():
+    """``info["episode_seed"]`` of an unseeded episode rebuilds it: ``reset(options=
+    {"episode_seed": S})`` in another env gives the same observations and steps, bit for bit
+    (``reset(seed=S)`` does not: the reset seed seeds the stream the episode seed is drawn
+    from). The option leaves the stream as a plain reset would, and bad options are refused
+    without touching the env's episode."""
+    first = gym.make("GridSim-v0")
+    first.reset(seed=5)
+    _, info = first.reset()  # unseeded, after a seeded one
+    wanted = info["episode_seed"]
+    first.action_space.seed(1)
+    actions = [first.action_space.sample() for _ in range(4)]
+    steps = [first.step(a) for a in actions]
+    again = gym.make("GridSim-v0")
+    obs, info2 = again.reset(options={"episode_seed": wanted})
+    assert info2["episode_seed"] == wanted
+    for a, (obs1, r1, *_rest) in zip(actions, steps, strict=True):
+        obs2, r2, *_ = again.step(a)
+        assert all(np.array_equal(obs1[k], obs2[k]) for k in obs1)
+        assert np.array_equal(r1, r2)
+    # the stream goes on as after a plain reset: the next unseeded episode is the same
+    plain, replayed = gym.make("GridSim-v0"), gym.make("GridSim-v0")
+    plain.reset(seed=9)
+    replayed.reset(seed=9, options={"episode_seed": wanted})
+    assert plain.reset()[1]["episode_seed"] == replayed.reset()[1]["episode_seed"]
+    before = again.unwrapped.world.time
+    for bad, said in (({"episode_seed": 1.5}, "takes an int"), ({"episode_sed": 3}, "no option"),
+                      ({"episode_seed": -1}, r"must be in \[0, 2\*\*31 - 1\)")):  # fmt: skip
+        with pytest.raises(ValueError, match=said):
+            again.reset(options=bad)
+    assert again.unwrapped.world.time == before

@@ -100,13 +100,15 @@ def test_malformed_yaml_names_file_and_line(tmp_path):
         # values pydantic would quietly convert
         (
             {"road": {"type": "seamless", "lanes": True}},
-            r"road: lanes expects a number, got True \(a YAML yes/no/true/false is a boolean\)",
+            r"road\.lanes: expects a number, not a YAML yes/no/true/false, which is a boolean "
+            r"\(got True\)",
         ),
         (
             {"traffic": {"participants": "12"}},
-            r"traffic: participants expects a number, got '12' \(text; write the number",
+            r"traffic\.participants: expects a number, not text: write it without quotes "
+            r"\(got '12'\)",
         ),
-        ({"simulation": {"duration": "10"}}, r"simulation: duration expects a number, got '10'"),
+        ({"simulation": {"duration": "10"}}, r"simulation\.duration: expects a number, not text"),
         (
             {"road": {"type": "seamless", "lanes": 12}},
             r"road\.lanes: Input should be less than or equal to 8 \(got 12\)",
