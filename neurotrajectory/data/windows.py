@@ -42,6 +42,7 @@ from gridsim.scenario.collection import (
 )
 from gridsim.scenario.families.recorded import (
     ego_candidates,
+    ego_track_ids,
     recorded_scene,
     scene_of,
     why_unfit,
@@ -197,7 +198,8 @@ def scenario_episodes(
     goal_seconds: float | None = None,
 ) -> tuple[list[PlannedEpisode], dict]:
     """The episodes of ``scenario`` to record and their provenance. On a recorded scene, every
-    track (or the ids in ``tracks``) that lasts the planning horizon and is not flawed
+    track (or the ids in ``tracks``, else those the scenario's ``ego.track`` names) that lasts
+    the planning horizon and is not flawed
     (:func:`gridsim.scenario.checks.flawed_tracks`: kept as traffic only) is driven once as
     the ego for its recorded duration (``episodes`` and ``seed`` do not apply); elsewhere
     ``episodes`` episodes with seeds drawn from ``seed`` (or the episode ``seeds`` given),
@@ -209,6 +211,8 @@ def scenario_episodes(
         scene = scene_of(base)
         road, scene_tracks = recorded_scene(base)
         flawed = flawed_tracks(tuple(scene_tracks), road)
+        if tracks is None and (own := ego_track_ids(base, scene)) != "random":
+            tracks = [own] if isinstance(own, str) else own  # the scenario's own choice
         wanted = None if tracks is None else {str(t) for t in tracks}
         need = base.config.env.horizon_time
         chosen = [t for t in scene_tracks if (wanted is None or t.track_id in wanted)

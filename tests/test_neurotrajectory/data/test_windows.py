@@ -57,6 +57,20 @@ def test_tracks_a_random_ego_is_not_drawn_from_are_named_once():
     )  # why, not "validate names why"
 
 
+def test_a_scenario_that_names_its_ego_tracks_records_only_them(tmp_path):
+    """``record`` of a recorded scene whose YAML lists ``ego.track`` drives those tracks (it
+    drove every track of the scene, without a word); one id alone is one episode."""
+    path = tmp_path / "mine.yaml"
+    head = "name: mine\nroad: {type: recorded, map: builtin:USA_US101-3_3_T-1}\n"
+    path.write_text(head + 'ego: {track: ["363", "376", "388"]}\n')
+    planned, about = scenario_episodes(str(path))
+    assert [p.track.rsplit("/", 1)[1] for p in planned] == ["363", "376", "388"]
+    assert about["tracks"] == 3
+    path.write_text(head + "ego: {track: 399}\n")
+    assert [p.track for p in scenario_episodes(str(path))[0]] == ["USA_US101-3_3_T-1/399"]
+    assert len(scenario_episodes("us101_3_3")[0]) == 12  # (ego.track: random) every track
+
+
 def _windows(n: int, first: int = 0, track: str = "s/1") -> windows.Windows:
     """``n`` made-up windows, told apart by their values (``first`` on)."""
     rng = np.random.default_rng(first)
