@@ -9,7 +9,8 @@ seed (:func:`pick`). Its scenarios must agree on what fixes the spaces and the t
 Real collections hold files that cannot be used (a scene with no track to drive, impossible
 data): they are skipped, every one named with its reason in one
 :class:`~gridsim.errors.DataWarning` (:func:`usable_files`); a collection fails only when no
-file is usable.
+file is usable, or when a YAML scenario file of it does not load (a key misspelt, a value out
+of range: the author's mistake, not the data's, would drop the scenario without a word).
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from gridsim.errors import GridSimError, ScenarioError, warn_data
+from gridsim.outputs import counted
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.parts import matching_files
@@ -113,16 +115,27 @@ def usable_files(
     files = scenario_files(ref)
     if files is None:
         raise ScenarioError(f"{ref}: not a folder or a glob pattern of scenario files")
-    scenarios, skipped = [], []
+    scenarios, skipped, mistakes = [], [], []
     for f in files:
         try:
             sc = load_scenario(f, overrides, shared=True)  # (an override read by some only)
+        except GridSimError as exc:  # a YAML's is the author's mistake, an XML's its data's
+            (mistakes if f.suffix.lower() in _YAML else skipped).append((f, str(exc)))
+            continue
+        try:
             if read_data:
                 build_world(sc, seed=0)  # resolves maps and libraries, checks the recorded data
         except GridSimError as exc:
             skipped.append((f, str(exc)))
             continue
         scenarios.append(sc)
+    if mistakes:
+        raise ScenarioError(
+            f"{ref}: {counted(len(mistakes), 'scenario file')} of the collection "
+            f"{'does' if len(mistakes) == 1 else 'do'} not load (a collection skips files whose "
+            "recorded data cannot be used, not a scenario's mistakes):\n"
+            + skipped_lines(mistakes)
+        )
     report_skipped(str(ref), skipped, len(files), bool(scenarios))
     if not read_data:
         return scenarios, skipped
