@@ -37,12 +37,18 @@ if TYPE_CHECKING:
     RoadConfig = Any
 
 
+def _bare(annotation: Any) -> Any:
+    """``annotation`` without ``Annotated[...]``'s constraints."""
+    return get_args(annotation)[0] if get_origin(annotation) is Annotated else annotation
+
+
 def _is_number_type(annotation: Any) -> bool:
     """Whether a field of ``annotation`` holds a number (``int``, ``float``, or one of them or
     None)."""
+    annotation = _bare(annotation)  # (inside a union: ``Seed | None``)
     if annotation in (int, float):
         return True
-    args = [a for a in get_args(annotation) if a is not type(None)]
+    args = [_bare(a) for a in get_args(annotation) if a is not type(None)]
     return (
         get_origin(annotation) in (Union, UnionType)
         and bool(args)

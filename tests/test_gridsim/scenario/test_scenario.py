@@ -109,6 +109,8 @@ def test_malformed_yaml_names_file_and_line(tmp_path):
             r"\(got '12'\)",
         ),
         ({"simulation": {"duration": "10"}}, r"simulation\.duration: expects a number, not text"),
+        # an optional constrained number (Seed | None) too: 'yes' was seed 1
+        ({"road": {"type": "seamless", "seed": True}}, r"road\.seed: expects a number, not a YAML"),
         (
             {"road": {"type": "seamless", "lanes": 12}},
             r"road\.lanes: Input should be less than or equal to 8 \(got 12\)",
