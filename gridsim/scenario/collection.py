@@ -133,8 +133,7 @@ def usable_files(
         raise ScenarioError(
             f"{ref}: {counted(len(mistakes), 'scenario file')} of the collection "
             f"{'does' if len(mistakes) == 1 else 'do'} not load (a collection skips files whose "
-            "recorded data cannot be used, not a scenario's mistakes):\n"
-            + skipped_lines(mistakes)
+            "recorded data cannot be used, not a scenario's mistakes):\n" + skipped_lines(mistakes)
         )
     report_skipped(str(ref), skipped, len(files), bool(scenarios))
     if not read_data:

@@ -10,6 +10,7 @@ counter-clockwise from +x. Tracks are keyed by ``(scenario_id, track_id)``.
 from __future__ import annotations
 
 import csv
+import difflib
 from importlib import resources
 from pathlib import Path
 
@@ -149,8 +150,12 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
         if missing:
             raise DataError(f"{path}: missing column(s) {missing}; required: "
                             f"{list(REQUIRED_COLUMNS)}{_header_hint(header)}")  # fmt: skip
-        # a name given twice: its last column (as csv.DictReader reads it)
-        where = [len(header) - 1 - header[::-1].index(c) for c in REQUIRED_COLUMNS]
+        twice = [c for c in REQUIRED_COLUMNS if header.count(c) > 1]
+        if twice:  # (which one holds the values? a column pasted twice, or one misnamed)
+            cols = ", ".join(str(k + 1) for k, h in enumerate(header) if h == twice[0])
+            raise DataError(f"{path}: column {twice[0]!r} appears {header.count(twice[0])} "
+                            f"times in the header (columns {cols}); name each once")  # fmt: skip
+        where = [header.index(c) for c in REQUIRED_COLUMNS]
         index: dict[tuple[str, str], int] = {}  # track -> its number, in order of first row
         blocks, groups, at, rows, lines = [], [], [], [], []
 
@@ -338,6 +343,14 @@ def _header_hint(header: list[str]) -> str:
             return f" (the header is separated by {name}; separate columns with commas)"
     if {h.strip().lower() for h in header} >= set(REQUIRED_COLUMNS):
         return " (column names are lower case, without spaces)"
+    extra = [h for h in header if h not in REQUIRED_COLUMNS]
+    close = [
+        (h, m[0])
+        for h in extra  # (a misspelt name: speed_mph)
+        if (m := difflib.get_close_matches(h, REQUIRED_COLUMNS, n=1, cutoff=0.75))
+    ]
+    if close:
+        return " (" + "; ".join(f"is {h!r} meant to be {m!r}?" for h, m in close[:3]) + ")"
     return ""
 
 

@@ -108,6 +108,19 @@ def test_a_compressed_file_is_named_as_such(tmp_path):
         load_scenario(scenario)
 
 
+def test_a_header_with_a_column_twice_or_misspelt_is_named(tmp_path):
+    """A required column named twice was read from its last copy ("column 'speed_mps' is not
+    a number: 'car'"); it is refused, naming the columns. A misspelt name gets a guess."""
+    rows = ["s,1,0,0,0,0,1,4.5,1.8,car"]
+    with pytest.raises(DataError, match=r"column 'speed_mps' appears 2 times in the header "
+                       r"\(columns 7, 10\); name each once"):  # fmt: skip
+        read_tracks_csv(write_csv(tmp_path, rows, HEADER + ",speed_mps"))
+    misspelt = HEADER.replace("speed_mps", "speed_mph")
+    with pytest.raises(DataError, match=r"missing column\(s\) \['speed_mps'\].*\(is "
+                       r"'speed_mph' meant to be 'speed_mps'\?\)"):  # fmt: skip
+        read_tracks_csv(write_csv(tmp_path, rows[:1], misspelt))
+
+
 def test_rows_given_twice_are_read_once_with_a_warning(tmp_path):
     """An export that repeats rows (exactly) is read, not refused as a whole: each row once,
     and a warning says how many and where the first is."""
