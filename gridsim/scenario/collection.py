@@ -70,7 +70,8 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     else:
         return None
     if not files:
-        raise ScenarioError(f"{text}: no scenario files ({', '.join(SUFFIXES)}) in it")
+        what = "in it" if path.is_dir() else "match the pattern"
+        raise ScenarioError(f"{text}: no scenario files ({', '.join(SUFFIXES)}) {what}")
     return sorted(files)
 
 

@@ -368,6 +368,12 @@ def _check_mapping(doc: Any, source: str) -> None:
         raise ScenarioError(f"{source}: all top-level keys must be strings")
 
 
+def _file_key(source: str) -> str:
+    """``source`` (a path as given, or ``builtin:NAME``) as one name per file: a file's
+    absolute path, ``builtin:NAME`` as it is (to compare and to show ``extends`` chains)."""
+    return source if source.startswith("builtin:") else str(Path(source).resolve())
+
+
 def _extended(doc: Mapping[str, Any], source: str, base_dir: Path | None,
               chain: tuple[str, ...] = ()) -> dict[str, Any]:  # fmt: skip
     """``doc`` merged over the scenario its ``extends:`` names (a built-in name, or a YAML
@@ -387,16 +393,18 @@ def _extended(doc: Mapping[str, Any], source: str, base_dir: Path | None,
     target = ref
     if base_dir is not None and (Path(ref).suffix in (".yaml", ".yml") or "/" in ref):
         target = str(base_dir / ref)
+    first = chain[0] if chain else source  # (named first: the file the user gave)
     if len(chain) >= MAX_EXTENDS:
-        raise ScenarioError(f"{source}: extends goes through more than {MAX_EXTENDS} files: "
-                            f"{' -> '.join(chain)}")  # fmt: skip
+        raise ScenarioError(f"{first}: extends goes through more than {MAX_EXTENDS} files: "
+                            f"{' -> '.join(map(_file_key, (*chain, source)))} -> ...")  # fmt: skip
     try:
         text, parent_source, parent_dir = _read(target)
     except ScenarioError as exc:
         raise ScenarioError(f"{source}: extends {ref!r}: {exc}") from None
-    if parent_source in (*chain, source):
-        raise ScenarioError(f"{source}: extends goes round in a circle: "
-                            f"{' -> '.join((*chain, source, parent_source))}")  # fmt: skip
+    steps = [_file_key(s) for s in (*chain, source, parent_source)]
+    if steps[-1] in steps[:-1]:
+        raise ScenarioError(f"{first}: extends goes round in a circle: "
+                            f"{' -> '.join(steps)}")  # fmt: skip
     parent = _parse_yaml(text, parent_source)
     _check_mapping(parent, parent_source)
     parent = _extended(parent, parent_source, parent_dir, (*chain, source))

@@ -29,8 +29,11 @@ def test_folder_and_glob_list_their_scenario_files(folder):
     assert [f.name for f in scenario_files(folder)] == names
     assert [f.name for f in scenario_files(str(folder / "*2018b.xml"))] == names[:1]
     assert scenario_files("seamless") is None
-    with pytest.raises(ScenarioError, match="no scenario files"):
+    with pytest.raises(ScenarioError, match=r"no scenario files .* match the pattern"):
         scenario_files(folder / "nothing-*.yaml")
+    (folder / "empty").mkdir()
+    with pytest.raises(ScenarioError, match=r"no scenario files .* in it"):
+        scenario_files(folder / "empty")
 
 
 def test_a_comma_separated_list_is_a_collection_in_its_order(folder):

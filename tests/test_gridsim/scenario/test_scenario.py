@@ -569,9 +569,22 @@ def test_an_extends_chain_is_bounded(tmp_path):
     for k in range(12):
         (tmp_path / f"s{k}.yaml").write_text(f"extends: s{k + 1}.yaml\nname: s{k}\n")
     (tmp_path / "s12.yaml").write_text("extends: seamless\nname: s12\n")
-    with pytest.raises(ScenarioError, match="extends goes through more than 8 files"):
+    with pytest.raises(ScenarioError, match="extends goes through more than 8 files") as err:
         load_scenario(tmp_path / "s0.yaml")
+    assert str(err.value).startswith(f"{tmp_path / 's0.yaml'}: ")  # the file given, not s8
     assert load_scenario(tmp_path / "s6.yaml").config.name == "s6"
+
+
+def test_an_extends_circle_given_by_a_relative_path_is_named_once_round(tmp_path, monkeypatch):
+    """A relative path and the absolute ones ``extends`` resolves name the same file: the
+    circle is found at its first return, shown in absolute paths, under the file given."""
+    (tmp_path / "a.yaml").write_text("extends: b.yaml\nname: a\n")
+    (tmp_path / "b.yaml").write_text("extends: a.yaml\nname: b\n")
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ScenarioError) as err:
+        load_scenario("a.yaml")
+    a, b = tmp_path / "a.yaml", tmp_path / "b.yaml"
+    assert str(err.value) == f"a.yaml: extends goes round in a circle: {a} -> {b} -> {a}"
 
 
 def test_validate_reports_every_problem_of_a_file_at_once(tmp_path, capsys):
