@@ -44,6 +44,7 @@ def execute(args: argparse.Namespace) -> int:
     from gridsim.errors import DataError
     from gridsim.scenario.collection import (
         check_agreement,
+        check_track_scenes,
         repeated_recordings,
         scenario_files,
         shared_names_message,
@@ -57,6 +58,7 @@ def execute(args: argparse.Namespace) -> int:
                            f"of {len(files)}: give one file")  # fmt: skip
     if files is None:  # one file: its problems are the error
         sc, summary, report = _report(args.path)
+        check_track_scenes([sc])
         if report.problems:
             raise DataError(report.refusal(args.path))
         said = f"{args.path}: OK ({summary})" + _warning_lines(report.warnings)
@@ -103,6 +105,7 @@ def execute(args: argparse.Namespace) -> int:
     try:  # and they run together as one collection
         if usable:
             check_agreement(args.path, [sc for _, sc in usable])
+            check_track_scenes([sc for _, sc in usable])
     except GridSimError as exc:
         print(f"{exc} (run them apart, or make them agree)")
         return 2

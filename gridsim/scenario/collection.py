@@ -279,9 +279,12 @@ def load_usable(
     (``(file, reason)``, named in a warning already)."""
     files = scenario_files(ref)
     if files is None:
-        return [(str(ref), load_scenario(ref, overrides))], []
+        one = load_scenario(ref, overrides)
+        check_track_scenes([one])
+        return [(str(ref), one)], []
     scenarios, skipped = usable_files(ref, overrides)
     check_agreement(ref, scenarios)
+    check_track_scenes(scenarios)
     gone = {f for f, _ in skipped}
     return list(zip([str(f) for f in files if f not in gone], scenarios, strict=True)), skipped
 
@@ -336,6 +339,27 @@ def _sha256(path: Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
+
+
+def check_track_scenes(scenarios: list[Scenario]) -> None:
+    """A :class:`ScenarioError` for an ``ego.track`` name ``SCENE/ID`` whose scene is none of
+    the recorded ``scenarios``' (a collection's scenes share one list, so a name of another
+    scene is kept; one of no scene is a misspelt scene, and was dropped without a word)."""
+    from gridsim.scenario.families.recorded import scene_of
+    from gridsim.scenario.family import family_of
+    from gridsim.traffic.track import track_name
+
+    recorded = [sc for sc in scenarios if family_of(sc).recorded]
+    prefixes = tuple({track_name(scene_of(sc), "") for sc in recorded})
+    for sc in recorded:
+        wanted = sc.config.ego.track
+        names = [wanted] if isinstance(wanted, str) else list(wanted)
+        odd = [n for n in names if "/" in n and not n.startswith(prefixes)]
+        if odd:
+            scenes = ", ".join(sorted(p.rstrip("/") for p in prefixes))
+            raise ScenarioError(f"{sc.source}: ego.track names {counted(len(odd), 'track')} of "
+                                f"no scene here: {', '.join(odd[:5])}; the scene(s): {scenes} "
+                                "(a track is ID, or SCENE/ID)")  # fmt: skip
 
 
 def check_agreement(ref: str | Path, scenarios: list[Scenario]) -> None:

@@ -431,3 +431,26 @@ def test_a_data_warning_points_at_the_users_line(tmp_path):
         gym.make("GridSim-v0", scenario=str(path))  # the line the warning names
     (said,) = [w for w in caught if issubclass(w.category, DataWarning)]
     assert said.filename == __file__ and "ego.track not used" in str(said.message)
+
+
+def test_an_ego_track_of_no_scene_is_refused_one_of_another_scene_kept(tmp_path):
+    """A collection's scenes share one ego.track list, so a SCENE/ID of another of its scenes
+    is kept; a SCENE/ID of no scene (a misspelt scene: 'USA_US101-3_3/363') was dropped
+    without a word, and is refused, alone or in a collection, by the env and by validate."""
+    from gridsim.cli import main
+
+    head = "road: {type: recorded, map: builtin:USA_US101-3_3_T-1}\n"
+    typo = tmp_path / "typo.yaml"
+    typo.write_text("name: t\n" + head + 'ego: {track: [USA_US101-3_3/363, "376"]}\n')
+    said = r"ego.track names 1 track of no scene here: USA_US101-3_3/363; the scene\(s\): USA_US1"
+    with pytest.raises(ScenarioError, match=said):
+        gym.make(ENV_ID, scenario=str(typo))
+    assert main(["validate", str(typo)]) == 2
+    shared = ' ego: {track: ["USA_US101-3_3_T-1/363", "USA_US101-4_1_T-1/381"]}\n'
+    (tmp_path / "both").mkdir()
+    (tmp_path / "both" / "a.yaml").write_text("name: a\n" + head + shared.strip() + "\n")
+    (tmp_path / "both" / "b.yaml").write_text(
+        "name: b\nroad: {type: recorded, map: builtin:USA_US101-4_1_T-1}\n" + shared.strip() + "\n"
+    )
+    env = gym.make(ENV_ID, scenario=str(tmp_path / "both"))  # not refused
+    assert [sc.name for sc in env.unwrapped.scenarios] == ["a", "b"]
