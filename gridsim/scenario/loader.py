@@ -139,19 +139,21 @@ def builtin_scenarios() -> dict[str, str]:
     return {k: (v[0] if v else "") for k, v in out.items()}
 
 
+def _models(annotation: Any) -> list[type]:
+    """The :class:`Strict` models a field of ``annotation`` holds (in a list or union too)."""
+    if isinstance(annotation, type) and issubclass(annotation, Strict):
+        return [annotation]
+    return [m for arg in typing.get_args(annotation) for m in _models(arg)]
+
+
 def _known_paths() -> list[str]:
     """Every key path the schema knows (``traffic.participants``, ``road.lanes``, ...)."""
     out: set[str] = set()
 
-    def models(tp) -> list[type]:
-        if isinstance(tp, type) and issubclass(tp, Strict):
-            return [tp]
-        return [m for arg in typing.get_args(tp) for m in models(arg)]
-
     def walk(model: type, prefix: str) -> None:
         for name, f in model.model_fields.items():
             out.add(prefix + name)
-            for sub in models(f.annotation):
+            for sub in _models(f.annotation):
                 walk(sub, f"{prefix}{name}.")
 
     walk(ScenarioConfig, "")
@@ -225,8 +227,32 @@ def _problems(err: ValidationError) -> list[tuple[tuple, str]]:
         shown = repr(got) if not isinstance(got, Mapping) else "{...}"
         if len(shown) > 60:
             shown = shown[:57] + "..."
-        out.append((tuple(parts), f"{loc}: {msg} (got {shown})"))
+        what = _description(parts, family) if e["type"] in _RANGE_ERRORS else None
+        if what and what.startswith("[") and what.endswith("]"):
+            what = f"unit: {what[1:-1]}"
+        out.append((tuple(parts), f"{loc}: {msg} (got {shown})" + (f"; {what}" if what else "")))
     return out
+
+
+#: pydantic's errors of a number out of its range: they are shown with the key's description
+#: (its unit: "simulation.dt: ... less than or equal to 1 (got 100); simulation time step [s]").
+_RANGE_ERRORS = ("greater_than", "greater_than_equal", "less_than", "less_than_equal")
+
+
+def _description(parts: list, family: str | None) -> str | None:
+    """The schema's description of the key at ``parts`` (``road`` keys: of ``family``)."""
+    model: Any = ScenarioConfig
+    parts = [p for p in parts if not isinstance(p, int)]  # (a list's items: sensor.mounts.0.x)
+    for k, part in enumerate(parts):
+        if k == 1 and parts[0] == "road" and family in FAMILIES:
+            model = FAMILIES[family].config
+        fields = getattr(model, "model_fields", {})
+        if part not in fields:
+            return None
+        if k == len(parts) - 1:
+            return fields[part].description
+        model = next(iter(_models(fields[part].annotation)), None)
+    return None
 
 
 def _validate(doc: dict[str, Any], source: str) -> ScenarioConfig:

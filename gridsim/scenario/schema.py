@@ -112,13 +112,13 @@ class VehicleConfig(Strict):
     """The ego vehicle's geometry and limits: :class:`BicycleParams`' defaults, but a scenario
     ego's top speed (20 m/s) and its steering limits in degrees (35 deg, 45 deg/s)."""
 
-    length: Annotated[float, Field(gt=0, le=25)] = BicycleParams.length
-    width: Annotated[float, Field(gt=0, le=4)] = BicycleParams.width
-    wheelbase: Annotated[float, Field(gt=0, le=10)] = BicycleParams.wheelbase
-    v_min: Annotated[float, Field(ge=0, le=100)] = BicycleParams.v_min
-    v_max: Annotated[float, Field(gt=0, le=100)] = 20.0
-    a_max: Annotated[float, Field(gt=0, le=20)] = BicycleParams.a_max
-    b_max: Annotated[float, Field(gt=0, le=20)] = BicycleParams.b_max
+    length: Annotated[float, Field(gt=0, le=25, description="[m]")] = BicycleParams.length
+    width: Annotated[float, Field(gt=0, le=4, description="[m]")] = BicycleParams.width
+    wheelbase: Annotated[float, Field(gt=0, le=10, description="[m]")] = BicycleParams.wheelbase
+    v_min: Annotated[float, Field(ge=0, le=100, description="[m/s]")] = BicycleParams.v_min
+    v_max: Annotated[float, Field(gt=0, le=100, description="[m/s]")] = 20.0
+    a_max: Annotated[float, Field(gt=0, le=20, description="[m/s^2]")] = BicycleParams.a_max
+    b_max: Annotated[float, Field(gt=0, le=20, description="braking [m/s^2]")] = BicycleParams.b_max
     max_steer_deg: Annotated[float, Field(gt=0, lt=90)] = 35.0
     max_steer_rate_deg: Annotated[float, Field(gt=0, le=360)] = 45.0
 
@@ -142,8 +142,8 @@ def _not_radians(name: str, value: float, least: float) -> None:
 
 
 class MountConfig(Strict):
-    x: Annotated[float, Field(ge=-20, le=20, allow_inf_nan=False)] = 0.0
-    y: Annotated[float, Field(ge=-10, le=10, allow_inf_nan=False)] = 0.0
+    x: Annotated[float, Field(ge=-20, le=20, allow_inf_nan=False, description="[m]")] = 0.0
+    y: Annotated[float, Field(ge=-10, le=10, allow_inf_nan=False, description="[m]")] = 0.0
     yaw_deg: Annotated[float, Field(ge=-180, le=180)] = 0.0
     fov_deg: Annotated[float, Field(gt=0, le=360)] = 360.0
 
@@ -158,9 +158,9 @@ class SensorConfig(Strict):
 
     rows: Annotated[int, Field(ge=8, le=1024)] = GridSpec.rows
     cols: Annotated[int, Field(ge=8, le=1024)] = GridSpec.cols
-    cell_size: Annotated[float, Field(gt=0, le=5)] = GridSpec.cell_size
+    cell_size: Annotated[float, Field(gt=0, le=5, description="[m]")] = GridSpec.cell_size
     orientation: Literal["north_up", "heading_up"] = GridSpec.orientation
-    max_range: Annotated[float, Field(gt=0, le=500)] = GridSpec.max_range
+    max_range: Annotated[float, Field(gt=0, le=500, description="[m]")] = GridSpec.max_range
     rays: Annotated[int, Field(ge=8, le=8192)] = GridSpec.rays
     hit_depth: Annotated[float, Field(ge=0, le=10)] = GridSpec.hit_depth
     ray_step: Annotated[float, Field(ge=0.1, le=2.0, description="ray sample spacing [cells]")] = (
@@ -176,9 +176,9 @@ MAX_TRAFFIC_SPEED = 70.0
 
 class TrafficConfig(Strict):
     participants: Annotated[int, Field(ge=0, le=5000)] = 10
-    v_min: NonNegFloat = 4.16
-    v_max: PositiveFloat = 13.88
-    a_max: PositiveFloat = 2.0
+    v_min: Annotated[NonNegFloat, Field(description="[m/s]")] = 4.16
+    v_max: Annotated[PositiveFloat, Field(description="[m/s]")] = 13.88
+    a_max: Annotated[PositiveFloat, Field(description="[m/s^2]")] = 2.0
     max_vehicle_length: Annotated[float, Field(gt=2, le=25)] = 6.0
     library: Annotated[
         list[str],
@@ -211,7 +211,7 @@ class TrafficConfig(Strict):
 
 class EgoConfig(Strict):
     lane: Annotated[int, Field(ge=0, le=7)] = 1
-    speed: NonNegFloat = 8.0
+    speed: Annotated[NonNegFloat, Field(description="initial speed [m/s]")] = 8.0
     track: Annotated[
         str | list[Annotated[str, Field(min_length=1)]],
         Field(
@@ -246,7 +246,7 @@ class EnvConfig(Strict):
         tuple[NonNegFloat, PositiveFloat] | None,
         Field(description="[v_min, v_max] counted by l3 [m/s]; default: the traffic bounds"),
     ] = None
-    destination_tolerance: Annotated[float, Field(gt=0, le=50)] = 2.0
+    destination_tolerance: Annotated[float, Field(gt=0, le=50, description="[m]")] = 2.0
     goal_seconds: Annotated[
         float | None,
         Field(gt=0, le=30, description="how far ahead the observed destination lies [s]: "

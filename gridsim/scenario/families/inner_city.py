@@ -33,12 +33,14 @@ class CityRoadConfig(Strict):
     seed: Seed | None = 0
     blocks_x: Annotated[int, Field(ge=1, le=40)] = CityParams.blocks_x
     blocks_y: Annotated[int, Field(ge=1, le=40)] = CityParams.blocks_y
-    block_size: Annotated[float, Field(ge=20, le=500)] = CityParams.block_size
-    jitter: Annotated[float, Field(ge=0, le=50)] = CityParams.jitter
+    block_size: Annotated[float, Field(ge=20, le=500, description="[m]")] = CityParams.block_size
+    jitter: Annotated[float, Field(ge=0, le=50, description="[m]")] = CityParams.jitter
     lanes_per_direction: Annotated[int, Field(ge=1, le=4)] = CityParams.lanes_per_direction
-    lane_width: Annotated[float, Field(ge=2, le=6)] = CityParams.lane_width
-    turn_radius: Annotated[float, Field(ge=3, le=50)] = CityParams.turn_radius
-    turn_probability: Annotated[float, Field(ge=0, le=1)] = CityParams.turn_probability
+    lane_width: Annotated[float, Field(ge=2, le=6, description="[m]")] = CityParams.lane_width
+    turn_radius: Annotated[float, Field(ge=3, le=50, description="[m]")] = CityParams.turn_radius
+    turn_probability: Annotated[
+        float, Field(ge=0, le=1, description="a probability, 0-1 (not per cent)")
+    ] = CityParams.turn_probability
 
     @model_validator(mode="after")
     def _jitter(self) -> CityRoadConfig:

@@ -33,9 +33,11 @@ class SeamlessRoadConfig(Strict):
     type: Literal["seamless"]
     seed: Seed | None = None
     lanes: Annotated[int, Field(ge=1, le=8)] = SeamlessParams.lanes
-    lane_width: Annotated[float, Field(ge=2, le=6)] = SeamlessParams.lane_width
-    straight_fraction: Annotated[float, Field(ge=0, lt=1)] = SeamlessParams.straight_fraction
-    mean_curve_angle_deg: Annotated[float, Field(gt=0, le=120)] = (
+    lane_width: Annotated[float, Field(ge=2, le=6, description="[m]")] = SeamlessParams.lane_width
+    straight_fraction: Annotated[
+        float, Field(ge=0, lt=1, description="the straight share of the road, 0-1 (not per cent)")
+    ] = SeamlessParams.straight_fraction
+    mean_curve_angle_deg: Annotated[float, Field(gt=0, le=120, description="[deg]")] = (
         SeamlessParams.mean_curve_angle_deg
     )
     curve_radius: tuple[PositiveFloat, PositiveFloat] = SeamlessParams.curve_radius

@@ -109,6 +109,14 @@ def test_malformed_yaml_names_file_and_line(tmp_path):
             r"\(got '12'\)",
         ),
         ({"simulation": {"duration": "10"}}, r"simulation\.duration: expects a number, not text"),
+        # a number out of range is shown with its unit (100 ms for dt, per cent for a share)
+        (
+            {"simulation": {"dt": 100}},
+            r"simulation\.dt: .* equal to 1 \(got 100\); simulation time step \[s\]",
+        ),
+        ({"road": {"type": "seamless", "lane_width": 350}}, r"\(got 350\); unit: m$"),
+        ({"road": {"type": "seamless", "straight_fraction": 60}}, r"0-1 \(not per cent\)"),
+        ({"sensor": {"mounts": [{"x": 100}]}}, r"sensor\.mounts\.0\.x: .*; unit: m$"),
         # an optional constrained number (Seed | None) too: 'yes' was seed 1
         ({"road": {"type": "seamless", "seed": True}}, r"road\.seed: expects a number, not a YAML"),
         (
