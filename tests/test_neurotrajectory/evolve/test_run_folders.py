@@ -321,12 +321,12 @@ def test_a_skipped_file_is_named_once_by_train_and_its_workers(tmp_path, capfd):
     scenes.mkdir()
     source = resources.files("gridsim").joinpath("data", "scenarios", "us101_4_1.yaml")
     (scenes / "us101_4_1.yaml").write_text(source.read_text())
-    (scenes / "bad.yaml").write_text("name: [broken\n")
+    (scenes / "bad.xml").write_text('<?xml version="1.0"?><commonRoad')  # cut short
     flags = [*QUICK[:-1], "--scenario", str(scenes), "--heldout", "0", "--quiet",
              "--backend", "processes", "--workers", "2"]  # fmt: skip
     assert main(["train", *flags, "--out", str(tmp_path / "run")]) == 0
     err = capfd.readouterr().err
-    assert err.count("bad.yaml: malformed YAML") == 1
+    assert err.count("bad.xml: not well-formed XML") == 1
     assert err.startswith("neurotrajectory: warning: ") and "DataWarning" not in err
 
 
