@@ -44,7 +44,7 @@ class Family:
     - ``data_report``: ``scenario -> SceneReport``, the plausibility of its recorded data
       (:mod:`gridsim.scenario.checks`), or None for a family without data;
     - ``ignores``: the keys (``section.key``) of the other sections its worlds never read,
-      and why (a file that sets one is warned about: the key has no effect).
+      each with why (a file that sets one is warned about: the key has no effect).
     """
 
     config: type[Strict]
@@ -52,7 +52,7 @@ class Family:
     defaults: Mapping[str, Any] = field(default_factory=dict)
     recorded: bool = False
     data_report: Callable[[Scenario], SceneReport] | None = None
-    ignores: tuple[tuple[str, ...], str] = ((), "")
+    ignores: Mapping[str, str] = field(default_factory=dict)
 
     @property
     def tag(self) -> str:

@@ -344,10 +344,12 @@ def parse_scenario(
     doc = deep_merge(family_defaults(family), doc)
     scenario = Scenario(_validate(doc, source), source, base_dir)
     if unused:
-        why = FAMILIES[family].ignores[1]
-        warn_data(
-            f"{source}: {', '.join(unused)} not used by road type {family!r} ({why}); ignored"
-        )
+        ignores, by_why = FAMILIES[family].ignores, {}
+        for key in unused:
+            by_why.setdefault(ignores[key], []).append(key)
+        said = "; ".join(f"{', '.join(keys)} not used by road type {family!r} ({why})"
+                         for why, keys in by_why.items())  # fmt: skip
+        warn_data(f"{source}: {said}; ignored")
     return scenario
 
 
@@ -358,7 +360,7 @@ def _unused_keys(doc: Mapping[str, Any], family: Any) -> list[str]:
     --resolved``) states every key at its default."""
     if not isinstance(family, str) or family not in FAMILIES:
         return []
-    keys = [key.split(".") for key in FAMILIES[family].ignores[0]]
+    keys = [key.split(".") for key in FAMILIES[family].ignores]
     fields, own = ScenarioConfig.model_fields, family_defaults(family)
 
     def default(a: str, b: str) -> Any:  # the family's, else the schema's

@@ -103,6 +103,6 @@ FAMILY = register_family(Family(
         "ego": {"speed": 5.0, "vehicle": {"v_max": 8.33}},
     },
     data_report=library_data_report,
-    ignores=(("ego.track", "ego.lane"), "the ego starts on a route of the street network; "
-             "only recorded scenes have tracks"),
+    ignores={"ego.track": "only recorded scenes have tracks",
+             "ego.lane": "the ego starts on a route of the street network"},
 ))  # fmt: skip

@@ -324,8 +324,8 @@ FAMILY = register_family(Family(
     },
     recorded=True,
     data_report=data_report,
-    ignores=(("traffic.participants", "traffic.window", "traffic.v_min", "traffic.v_max",
-              "traffic.a_max", "ego.lane", "ego.speed"),
-             "recorded scenes take their traffic, lanes and the ego's start from the "
-             "recording"),
+    ignores=dict.fromkeys(("traffic.participants", "traffic.window", "traffic.v_min",
+                           "traffic.v_max", "traffic.a_max", "ego.lane", "ego.speed"),
+                          "recorded scenes take their traffic, lanes and the ego's start from "
+                          "the recording"),
 ))  # fmt: skip

@@ -100,5 +100,5 @@ FAMILY = register_family(Family(
     SeamlessRoadConfig,
     build,
     data_report=library_data_report,
-    ignores=(("ego.track",), "only recorded scenes have tracks"),
+    ignores={"ego.track": "only recorded scenes have tracks"},
 ))  # fmt: skip

@@ -292,8 +292,11 @@ def test_keys_that_the_road_type_does_not_use_are_named():
     )
     with pytest.warns(DataWarning, match=said):
         load_scenario("us101_4_1", {"ego": {"speed": 20}, "traffic": {"v_max": 30}})
-    with pytest.warns(DataWarning, match=r"ego.lane not used by road type 'inner_city'"):
+    lane = r"ego.lane not used by road type 'inner_city' \(the ego starts on a route of the "
+    with pytest.warns(DataWarning, match=lane + r"street network\); ignored$"):  # (not: tracks)
         load_scenario("inner_city", {"ego": {"lane": 0}})
+    with pytest.warns(DataWarning, match=r"ego.track not used .* have tracks\); ego.lane not"):
+        load_scenario("inner_city", {"ego": {"lane": 0, "track": "5"}})
     import warnings
 
     with warnings.catch_warnings():
