@@ -441,6 +441,8 @@ def _extended(doc: Mapping[str, Any], source: str, base_dir: Path | None,
         raise ScenarioError(f"{source}: a scenario that extends {ref!r} needs a name of its own "
                             f"(name: ...); it would be listed, recorded and reported as "
                             f"{parent.get('name')!r}")  # fmt: skip
+    if "description" not in own and parent.get("description"):  # (it describes the parent)
+        own["description"] = f"extends {parent.get('name')}: {parent['description']}"
     return deep_merge(absolute_paths(parent, parent_dir), own)
 
 

@@ -532,8 +532,8 @@ def test_a_scenario_extends_a_built_in_or_another_file(tmp_path, library):
     busy = load_scenario(tmp_path / "sub" / "busy.yaml").config
     base = load_scenario("inner_city").config
     assert busy.traffic.participants == 40 and busy.road == base.road
-    assert busy.model_dump(exclude={"name", "traffic"}) == base.model_dump(
-        exclude={"name", "traffic"}
+    assert busy.model_dump(exclude={"name", "description", "traffic"}) == base.model_dump(
+        exclude={"name", "description", "traffic"}
     )
     busier = load_scenario(tmp_path / "busier.yaml").config
     assert busier.name == "busier" and busier.simulation.duration == 20
@@ -571,6 +571,17 @@ def test_bad_extends_are_named(tmp_path, files, message):
         (tmp_path / name).write_text(text)
     with pytest.raises(ScenarioError, match=message):
         load_scenario(tmp_path / "a.yaml")
+
+
+def test_an_extending_scenario_does_not_pass_for_its_parent(tmp_path):
+    """Without a description of its own, a scenario that extends another says so (it was
+    listed with the parent's, "GridSim Table I, inner-city column"); its own is kept."""
+    (tmp_path / "busy.yaml").write_text("extends: inner_city\nname: busy\n")
+    parent = load_scenario("inner_city").config.description
+    assert load_scenario(tmp_path / "busy.yaml").config.description == (
+        f"extends inner_city: {parent}")  # fmt: skip
+    (tmp_path / "mine.yaml").write_text("extends: busy.yaml\nname: mine\ndescription: Mine.\n")
+    assert load_scenario(tmp_path / "mine.yaml").config.description == "Mine."
 
 
 def test_an_extends_chain_is_bounded(tmp_path):
