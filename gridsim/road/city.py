@@ -102,7 +102,10 @@ class CityRoad(StaticRoad):
             n = np.array([-u[1], u[0]])
             polygons.append(np.array([pa - half * n, pb - half * n, pb + half * n, pa + half * n]))
             inset = half + 1.0
-            markings.append(np.array([pa + inset * u, pb - inset * u]))
+            markings.append(np.array([pa + inset * u, pb - inset * u]))  # the centre line
+            for k in range(1, p.lanes_per_direction):  # between lanes of one direction
+                for side in (-k * p.lane_width * n, k * p.lane_width * n):
+                    markings.append(np.array([pa + inset * u + side, pb - inset * u + side]))
             for k in range(p.lanes_per_direction):
                 off = (k + 0.5) * p.lane_width
                 lanes.append(Lane(Polyline(np.array([pa - off * n, pb - off * n])), p.lane_width))
