@@ -359,3 +359,18 @@ def test_degenerate_lanelets_are_refused(tmp_path, left, right, message):
                    f"<rightBound>{bound(right)}</rightBound></lanelet></commonRoad>")  # fmt: skip
     with pytest.raises(DataError, match=f"deg.xml: {message}"):
         load_lanelet_road(bad)
+
+
+def test_city_lanes_of_one_direction_are_divided_by_lines():
+    """Each street has its centre line and, with L lanes per direction, L - 1 lines on each
+    side between them, a lane width apart and parallel to the street."""
+    one = CityRoad(CityParams(blocks_x=2, blocks_y=2, jitter=0.0), seed=0)
+    two = CityRoad(CityParams(blocks_x=2, blocks_y=2, jitter=0.0, lanes_per_direction=2), seed=0)
+    centre = np.array([0.0, 0.0])
+    lines_one = one.lane_markings(centre, 1e6)
+    lines_two = two.lane_markings(centre, 1e6)
+    assert len(lines_two) == 3 * len(lines_one) == 3 * len(one.edges)
+    mid, left = lines_two[0], lines_two[1]
+    assert np.allclose(np.hypot(*(left - mid).T), two.params.lane_width)
+    (ax, ay), (bx, by) = mid[1] - mid[0], left[1] - left[0]
+    assert abs(ax * by - ay * bx) < 1e-6  # parallel
