@@ -479,13 +479,19 @@ def commonroad_defaults() -> dict[str, Any]:
     })  # fmt: skip
 
 
+def _where(path: Path) -> str:
+    """``path`` as given, and where it was looked for if relative ("x.yaml (looked for as
+    /home/me/x.yaml)")."""
+    return str(path) if path.is_absolute() else f"{path} (looked for as {path.resolve()})"
+
+
 def commonroad_scenario(
     path: Path, overrides: Mapping[str, Any] | None = None, shared: bool = False
 ) -> Scenario:
     """A CommonRoad scenario file as it is: its lanelet map and its dynamic obstacles, one
     of them the ego (drawn from the seed), with :func:`commonroad_defaults` and ``overrides``."""
     if not path.is_file():
-        raise ScenarioError(f"scenario file not found: {path}")
+        raise ScenarioError(f"scenario file not found: {_where(path)}")
     doc = deep_merge(
         commonroad_defaults(),
         {
@@ -539,7 +545,7 @@ def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
                             "traffic.library)")  # fmt: skip
     if looks_like_path:
         if not p.exists():
-            raise ScenarioError(f"scenario file not found: {p}")
+            raise ScenarioError(f"scenario file not found: {_where(p)}")
         if not p.is_file():
             raise ScenarioError(f"{p}: not a regular file (a scenario is a .yaml or .xml file)")
         try:

@@ -77,9 +77,16 @@ def test_unknown_name_lists_the_builtins():
         load_scenario("seamles")
 
 
-def test_missing_file():
-    with pytest.raises(ScenarioError, match="scenario file not found: nowhere/x.yaml"):
+def test_missing_file(tmp_path, monkeypatch):
+    """A relative path says where it was looked for (the working folder may not be the one
+    the user thinks)."""
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(ScenarioError) as err:
         load_scenario("nowhere/x.yaml")
+    wanted = (
+        f"scenario file not found: nowhere/x.yaml (looked for as {tmp_path / 'nowhere/x.yaml'})"
+    )
+    assert str(err.value) == wanted
 
 
 def test_malformed_yaml_names_file_and_line(tmp_path):
