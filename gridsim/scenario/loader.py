@@ -217,6 +217,12 @@ def _problems(err: ValidationError) -> list[tuple[tuple, str]]:
             out.append((("road", "type"), f"road.type {said}; the families: "
                                            f"{', '.join(FAMILIES)}"))  # fmt: skip
             continue
+        if e["type"] == "missing" and parts and isinstance(parts[-1], int):  # a short list
+            whole = ".".join(str(p) for p in parts[:-1])
+            what = _description(parts[:-1], family)
+            out.append((tuple(parts[:-1]), f"{whole}: too few values (no item {parts[-1] + 1})"
+                        + (f"; {what}" if what else "")))  # fmt: skip
+            continue
         if e["type"] == "missing":  # (pydantic's "Field required (got {...})": the section)
             out.append((tuple(parts), f"{loc} is missing; it is required"))
             continue
