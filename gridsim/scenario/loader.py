@@ -234,7 +234,7 @@ def _problems(err: ValidationError) -> list[tuple[tuple, str]]:
         if len(shown) > 60:
             shown = shown[:57] + "..."
         what = _description(parts, family) if e["type"] in _RANGE_ERRORS else None
-        if what and what.startswith("[") and what.endswith("]"):
+        if what and re.fullmatch(r"\[[^\[\]]*\]", what):  # a bare unit: "[m/s]"
             what = f"unit: {what[1:-1]}"
         out.append((tuple(parts), f"{loc}: {msg} (got {shown})" + (f"; {what}" if what else "")))
     return out

@@ -124,6 +124,11 @@ def test_malformed_yaml_names_file_and_line(tmp_path):
         ({"road": {"type": "seamless", "lane_width": 350}}, r"\(got 350\); unit: m$"),
         ({"road": {"type": "seamless", "straight_fraction": 60}}, r"0-1 \(not per cent\)"),
         ({"sensor": {"mounts": [{"x": 100}]}}, r"sensor\.mounts\.0\.x: .*; unit: m$"),
+        # a description that is more than a unit is shown whole (not "unit: behind, ahead] ...")
+        (
+            {"traffic": {"window": [10, 160]}},
+            r"traffic\.window\.0: .* \(got 10\); \[behind, ahead\] metres of road",
+        ),
         # a list one value short is said so, with what its values are ("window.1 is missing")
         (
             {"traffic": {"window": [160]}},
