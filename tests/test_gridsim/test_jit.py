@@ -88,6 +88,20 @@ def test_gridsim_compile_readies_every_kernel_of_the_built_in_scenarios(capsys):
     assert compiled_kernels()["compiled"] == before
 
 
+def test_gridsim_compile_calls_the_kernels_only_a_yielding_shadow_driver_meets():
+    """The paths' look-ahead of a shadow human that gives way (``table_kernels.frenet``) is
+    met rarely, so the compile drive of a few steps missed it, and an installed simulator
+    compiled it mid-run ("compiling the simulator's kernels ..." on inner-city seeds 0-19):
+    ``gridsim compile`` calls it itself (a fresh process: the kernel has its signature)."""
+    code = ("from gridsim.cli.compile import compile_kernels\n"
+            "from gridsim.traffic import table_kernels\n"
+            "compile_kernels(report=lambda line: None)\n"
+            "print(len(table_kernels.frenet.signatures))")  # fmt: skip
+    run = subprocess.run([sys.executable, "-W", "ignore", "-c", code], capture_output=True,
+                         text=True, check=True)  # fmt: skip
+    assert run.stdout.split()[-1] == "1"
+
+
 def _package(root):
     """A toy package: a kernel module using a jitable function and a constant of two other
     modules, an unrelated module, and cached kernels in two ``__pycache__`` folders."""
