@@ -46,7 +46,7 @@ def execute(args: argparse.Namespace) -> int:
                        "to replace it")  # fmt: skip
     inside = Path(args.out).resolve().is_relative_to(Path(args.run).resolve())
     # a report written into the run folder holds it, as train does (one writer at a time)
-    with run_folder(args.run, resume=True) if inside else nullcontext():
+    with run_folder(args.run, resume=True, flag="--run") if inside else nullcontext():
         report_heldout(Run.open(args.run), args.episodes, args.seconds, args.pick, args.out,
                        args.plan_smoothing, progress=not args.quiet)  # fmt: skip
     return 0

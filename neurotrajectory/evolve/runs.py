@@ -1074,26 +1074,28 @@ def _distinct(genomes: np.ndarray, members: np.ndarray) -> np.ndarray:
 
 
 @contextmanager
-def run_folder(out: str | Path, resume: bool) -> Iterator[Path]:
+def run_folder(out: str | Path, resume: bool, flag: str | None = None) -> Iterator[Path]:
     """Hold the run folder ``out`` while the block writes it: one process at a time
     (:func:`~gridsim.outputs.folder_lock`; a second one is refused, naming the first). For a
     new run (not ``resume``), ``out`` must be new or empty, and if the block fails before a
     generation is complete, what it wrote is removed again (the folder too, if it made it),
     so that the corrected command can run in the same ``--out``; later the run stays, to be
     resumed (from the first complete generation on, or from the warm start once it is saved,
-    which can take minutes to fit)."""
+    which can take minutes to fit). ``flag``: the command's flag that named ``out``, for its
+    errors (default ``--resume`` or ``--out``)."""
+    flag = flag or ("--resume" if resume else "--out")
     out = Path(out)
     if resume:  # a run folder, not one the lock would make
         read_manifest(out, "config.json", "run directory", RunError, (1, FORMAT_VERSION))
         if problem := output_problem(out, directory=True):
-            raise RunError(f"--resume {out}: {problem}: a run goes on in its own folder (copy "
+            raise RunError(f"{flag} {out}: {problem}: a run goes on in its own folder (copy "
                            "it somewhere writable and resume the copy)")  # fmt: skip
     else:
         problem = new_folder_problem(out, hint=f"use --resume {out} or another --out")
         if problem:
-            raise RunError(f"--out {out}: {problem}")
+            raise RunError(f"{flag} {out}: {problem}")
     existed = out.exists()
-    with folder_lock(out, "--resume" if resume else "--out"):
+    with folder_lock(out, flag):
         if resume:  # a write a killed process left half done (a checkpoint's can take GBs)
             for stale in out.glob(".*.tmp"):
                 stale.unlink(missing_ok=True)

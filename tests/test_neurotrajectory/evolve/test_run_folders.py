@@ -96,7 +96,8 @@ def test_heldout_into_a_run_being_trained_is_refused(tmp_path, capsys):
     with folder_lock(run):  # another process training it
         args = ["heldout", "--run", str(run), "--episodes", "1"]
         assert main([*args, "--out", str(run / "heldout.json"), "--overwrite"]) == 2
-        assert f"{run}: in use by another process (pid " in capsys.readouterr().err
+        # (named by heldout's own flag: it has no --resume)
+        assert f"--run {run}: in use by another process (pid " in capsys.readouterr().err
         assert main([*args, "--out", str(tmp_path / "elsewhere.json")]) == 0
     # a report is not replaced unless asked: the run's own is named as such
     assert main([*args, "--out", str(run / "heldout.json")]) == 0
