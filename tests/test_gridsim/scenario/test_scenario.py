@@ -643,3 +643,19 @@ def test_validate_reports_every_problem_of_a_file_at_once(tmp_path, capsys):
                     "    v_max: fast\n")  # fmt: skip
     with pytest.raises(ScenarioError, match=r"\(1 problem\):\n  - ego.vehicle.v_max: "):
         load_scenario(path)
+
+
+def test_generated_traffic_faster_than_40_m_s_is_warned_about():
+    """50 m/s (a km/h slip for 50 km/h?) is legal but said: the human reference an ego
+    follows collides more above 40 m/s. Recorded scenes, which ignore traffic.v_max, and the
+    built-in scenarios say nothing."""
+    import warnings
+
+    from gridsim.errors import DataWarning
+
+    with pytest.warns(DataWarning, match=r"traffic.v_max 50 m/s is 180 km/h: speeds are in m/s"):
+        load_scenario("seamless", {"traffic": {"v_max": 50}})
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)
+        for name in ("seamless", "inner_city"):
+            load_scenario(name, {"traffic": {"v_max": 40}})
