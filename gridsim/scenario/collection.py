@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from gridsim.errors import GridSimError, ScenarioError, warn_data
+from gridsim.errors import DataError, GridSimError, ScenarioError, warn_data
 from gridsim.outputs import counted
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import load_scenario
@@ -111,8 +111,13 @@ def usable_files(
     """``(scenarios, skipped)``: the files of the folder or glob ``ref`` that load and build
     a world (with ``overrides``), and ``(file, reason)`` for every other one. A
     :class:`~gridsim.errors.DataWarning` names the skipped files; a :class:`ScenarioError`
-    names them all if none is usable. Without ``read_data`` only the scenario files are
-    checked: their maps and recordings are not read (a listing of a folder of large CSVs)."""
+    names them all if none is usable. A YAML file (or a built-in name of a list) that fails
+    otherwise than by its recorded
+    data (a :class:`~gridsim.errors.DataError`: impossible values, no track to drive) is its
+    author's mistake (a misspelt key, a library file not found, an ego track not in the
+    scene): a :class:`ScenarioError` names every such file. Without ``read_data`` only the
+    scenario files are checked: their maps and recordings are not read (a listing of a
+    folder of large CSVs)."""
     files = scenario_files(ref)
     if files is None:
         raise ScenarioError(f"{ref}: not a folder or a glob pattern of scenario files")
@@ -120,14 +125,12 @@ def usable_files(
     for f in files:
         try:
             sc = load_scenario(f, overrides, shared=True)  # (an override read by some only)
-        except GridSimError as exc:  # a YAML's is the author's mistake, an XML's its data's
-            (mistakes if f.suffix.lower() in _YAML else skipped).append((f, str(exc)))
-            continue
-        try:
             if read_data:
                 build_world(sc, seed=0)  # resolves maps and libraries, checks the recorded data
         except GridSimError as exc:
-            skipped.append((f, str(exc)))
+            # an XML file is data as it is; a YAML file or a name given is the author's
+            mistake = f.suffix.lower() != ".xml" and not isinstance(exc, DataError)
+            (mistakes if mistake else skipped).append((f, str(exc)))
             continue
         scenarios.append(sc)
     if mistakes:
@@ -284,7 +287,7 @@ def load_usable(
         return [(str(ref), one)], []
     scenarios, skipped = usable_files(ref, overrides)
     check_agreement(ref, scenarios)
-    check_track_scenes(scenarios)
+    check_track_scenes(scenarios, some_skipped=bool(skipped))
     gone = {f for f, _ in skipped}
     return list(zip([str(f) for f in files if f not in gone], scenarios, strict=True)), skipped
 
@@ -341,10 +344,12 @@ def _sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
-def check_track_scenes(scenarios: list[Scenario]) -> None:
+def check_track_scenes(scenarios: list[Scenario], some_skipped: bool = False) -> None:
     """A :class:`ScenarioError` for an ``ego.track`` name ``SCENE/ID`` whose scene is none of
     the recorded ``scenarios``' (a collection's scenes share one list, so a name of another
-    scene is kept; one of no scene is a misspelt scene, and was dropped without a word)."""
+    scene is kept; one of no scene is a misspelt scene, and was dropped without a word). When
+    files of the collection were skipped (``some_skipped``), the scene may be a skipped
+    file's: a :class:`~gridsim.errors.DataWarning` says so instead."""
     from gridsim.scenario.families.recorded import scene_of
     from gridsim.scenario.family import family_of
     from gridsim.traffic.track import track_name
@@ -357,9 +362,13 @@ def check_track_scenes(scenarios: list[Scenario]) -> None:
         odd = [n for n in names if "/" in n and not n.startswith(prefixes)]
         if odd:
             scenes = ", ".join(sorted(p.rstrip("/") for p in prefixes))
-            raise ScenarioError(f"{sc.source}: ego.track names {counted(len(odd), 'track')} of "
-                                f"no scene here: {', '.join(odd[:5])}; the scene(s): {scenes} "
-                                "(a track is ID, or SCENE/ID)")  # fmt: skip
+            said = (f"{sc.source}: ego.track names {counted(len(odd), 'track')} of no scene "
+                    f"here: {', '.join(odd[:5])}; the scene(s): {scenes} (a track is ID, or "
+                    "SCENE/ID)")  # fmt: skip
+            if some_skipped:
+                warn_data(f"{said}; they may be of a skipped file's scene: not driven")
+                continue
+            raise ScenarioError(said)
 
 
 def check_agreement(ref: str | Path, scenarios: list[Scenario]) -> None:

@@ -211,12 +211,23 @@ def scenario_episodes(
         scene = scene_of(base)
         road, scene_tracks = recorded_scene(base)
         flawed = flawed_tracks(tuple(scene_tracks), road)
-        if tracks is None and (own := ego_track_ids(base, scene)) != "random":
-            tracks = [own] if isinstance(own, str) else own  # the scenario's own choice
+        named = tracks is None and (own := ego_track_ids(base, scene)) != "random"
+        if named:  # the scenario's own choice: each id must be the scene's, and be driven
+            tracks = [own] if isinstance(own, str) else own
+            missing = sorted(set(tracks) - {t.track_id for t in scene_tracks})
+            if missing:
+                shown = ", ".join(missing[:10])
+                raise ScenarioError(f"{base.source}: ego.track names {len(missing)} track(s) "
+                                    f"not in scene {scene!r}: {shown}")  # fmt: skip
         wanted = None if tracks is None else {str(t) for t in tracks}
         need = base.config.env.horizon_time
         chosen = [t for t in scene_tracks if (wanted is None or t.track_id in wanted)
                   and t.duration >= need and t.track_id not in flawed]  # fmt: skip
+        if named and len(chosen) < len(wanted):
+            left = sorted(wanted - {t.track_id for t in chosen})
+            warn_data(f"{base.source}: {len(left)} of the tracks ego.track names are not "
+                      f"recorded: {', '.join(left[:10])} (shorter than the {need:g} s horizon, "
+                      "or flawed: `gridsim validate` says which)")  # fmt: skip
         _say_unfit_egos(base, chosen, scene_tracks, road)
         out = [PlannedEpisode(track_name(scene, t.track_id), 0,
                        {"ego": {"track": t.track_id},

@@ -222,7 +222,7 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
     if not fit:
         which = "the listed tracks" if isinstance(wanted, list) else f"scene {scene!r}"
         verb = "have" if isinstance(wanted, list) else "has"
-        raise ScenarioError(f"{scenario.source}: {which} {verb} no track to use as the ego "
+        raise DataError(f"{scenario.source}: {which} {verb} no track to use as the ego "
                             f"(of {len(listed & {t.track_id for t in tracks})}: "
                             f"{why_unfit(scenario, tracks, road, listed)})")  # fmt: skip
     return fit[int(rng.integers(len(fit)))]

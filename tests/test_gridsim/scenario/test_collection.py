@@ -457,3 +457,31 @@ def test_an_ego_track_of_no_scene_is_refused_one_of_another_scene_kept(tmp_path)
     )
     env = gym.make(ENV_ID, scenario=str(tmp_path / "both"))  # not refused
     assert [sc.name for sc in env.unwrapped.scenarios] == ["a", "b"]
+
+
+def test_a_yaml_mistake_found_building_the_world_refuses_too_data_problems_are_skipped(folder):
+    """A library file not found or an ego track not in the scene (raised while the world is
+    built) are the author's mistakes as much as a misspelt key; a misspelt built-in name in a
+    list too ('seamless,nosuch' trained on seamless alone). A recorded scene with no track to
+    drive is its data's: skipped, as before."""
+    (folder / "lib.yaml").write_text("name: lib\nroad: {type: seamless}\n"
+                                     "traffic: {library: nosuch.csv}\n")  # fmt: skip
+    with pytest.raises(ScenarioError, match=r"lib.yaml: traffic.library: file not found"):
+        gym.make(ENV_ID, scenario=str(folder))
+    (folder / "lib.yaml").unlink()
+    with pytest.raises(ScenarioError, match=r"nosuch: unknown scenario 'nosuch'"):
+        load_collection("seamless,nosuch")
+    add_unusable_files(folder)  # no_tracks.xml and others: data, skipped
+    with pytest.warns(DataWarning, match="skipped 3 of 5"):
+        gym.make(ENV_ID, scenario=str(folder))
+
+
+def test_a_track_of_a_skipped_file_s_scene_is_warned_about_not_refused(folder):
+    """A collection whose file of scene X was skipped (its data) may name X's tracks: the
+    refusal of a scene that is nowhere would stop a run over one bad file."""
+    (folder / "truncated.xml").write_text((COMMONROAD / "straight_2018b.xml").read_text()[:500])
+    (folder / "mine.yaml").write_text(
+        "name: mine\nroad: {type: recorded, map: builtin:USA_US101-4_1_T-1}\n"
+        'ego: {track: ["USA_US101-4_1_T-1/381", "Gone-1_1/3"]}\n')  # fmt: skip
+    with pytest.warns(DataWarning, match=r"Gone-1_1/3.*may be of a skipped file's scene"):
+        load_collection(str(folder), {"ego": {"vehicle": {"v_max": 25.0}}})

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from breaks import ctrl_c_at
 
-from gridsim.errors import DataWarning
+from gridsim.errors import DataWarning, ScenarioError
 from gridsim.outputs import write_npz
 from neurotrajectory.data import recording, storage, windows
 from neurotrajectory.data.windows import drive_windows, scenario_episodes
@@ -69,6 +69,10 @@ def test_a_scenario_that_names_its_ego_tracks_records_only_them(tmp_path):
     path.write_text(head + "ego: {track: 399}\n")
     assert [p.track for p in scenario_episodes(str(path))[0]] == ["USA_US101-3_3_T-1/399"]
     assert len(scenario_episodes("us101_3_3")[0]) == 12  # (ego.track: random) every track
+    # an id not in the scene is refused (it gave 0 episodes and "no windows were recorded")
+    path.write_text(head + 'ego: {track: ["363", "99999"]}\n')
+    with pytest.raises(ScenarioError, match=r"names 1 track\(s\) not in scene .*: 99999"):
+        scenario_episodes(str(path))
 
 
 def _windows(n: int, first: int = 0, track: str = "s/1") -> windows.Windows:
