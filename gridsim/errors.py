@@ -20,6 +20,11 @@ class ScenarioError(GridSimError, ValueError):
     """A scenario (YAML file, name or override) is invalid."""
 
 
+class UnselectedScene(ScenarioError):
+    """A recorded scene that the ``ego.track`` list, shared by a collection's scenes, names no
+    track of: a collection skips it (alone, it is refused)."""
+
+
 class DataError(GridSimError, ValueError):
     """A data file (trajectory CSV, CommonRoad XML) is missing, malformed or inconsistent."""
 

@@ -23,7 +23,7 @@ from typing import Any
 
 import numpy as np
 
-from gridsim.errors import DataError, GridSimError, ScenarioError, warn_data
+from gridsim.errors import DataError, GridSimError, ScenarioError, UnselectedScene, warn_data
 from gridsim.outputs import counted
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import load_scenario
@@ -129,7 +129,9 @@ def usable_files(
                 build_world(sc, seed=0)  # resolves maps and libraries, checks the recorded data
         except GridSimError as exc:
             # an XML file is data as it is; a YAML file or a name given is the author's
-            mistake = f.suffix.lower() != ".xml" and not isinstance(exc, DataError)
+            mistake = f.suffix.lower() != ".xml" and not isinstance(
+                exc, (DataError, UnselectedScene)
+            )  # (a scene the shared ego.track skips)
             (mistakes if mistake else skipped).append((f, str(exc)))
             continue
         scenarios.append(sc)

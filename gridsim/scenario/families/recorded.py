@@ -11,7 +11,7 @@ import numpy as np
 from pydantic import Field
 
 from gridsim import libm
-from gridsim.errors import DataError, ScenarioError, UnfitEgoWarning, warn_data
+from gridsim.errors import DataError, ScenarioError, UnfitEgoWarning, UnselectedScene, warn_data
 from gridsim.road.base import StaticRoad
 from gridsim.road.lanelet import load_lanelet_road
 from gridsim.road.polyline import Polyline
@@ -239,7 +239,7 @@ def ego_track_ids(scenario: Scenario, scene: str | None = None) -> str | list[st
     scene = scene_of(scenario) if scene is None else scene
     own, foreign = ids_in_scene([wanted] if isinstance(wanted, str) else wanted, scene)
     if foreign and not own:
-        raise ScenarioError(f"{scenario.source}: ego.track names no track of scene {scene!r}, "
+        raise UnselectedScene(f"{scenario.source}: ego.track names no track of scene {scene!r}, "
                             f"only of other scenes: {', '.join(foreign[:5])}"
                             + (" ..." if len(foreign) > 5 else ""))  # fmt: skip
     return own[0] if isinstance(wanted, str) else own
