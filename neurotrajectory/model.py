@@ -25,6 +25,8 @@ numbers. Both read-outs start at 0.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict, astuple, dataclass
 
 import numpy as np
@@ -711,6 +713,19 @@ class PopulationNet:
         return self.head(params, torch.stack(slots, dim=2), ego, dest)
 
 
+@contextmanager
+def one_thread() -> Iterator[None]:
+    """Run the block's torch work on one thread (the thread count put back after): the same
+    arithmetic, so the same bits, whatever the machine's cores or the caller's setting (a
+    worker process sets 1; a command's own process has as many as cores). Also a decorator."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(threads)
+
+
 class NetPolicy:
     """A trained network as a GridSim-v0 policy (trajectory action), its plans smoothed by
     ``smoothing`` (default: the network's ``cfg.smoothing``; see :class:`PlanSmoother`)."""
@@ -724,6 +739,7 @@ class NetPolicy:
         self.smoother = PlanSmoother(self.keep) if self.keep > 0 else None
 
     @torch.no_grad()
+    @one_thread()
     def __call__(self, env, obs, info):
         plan = self.net(*observation_tensors(obs))[0].numpy()
         return plan if self.smoother is None else self.smoother(env, plan)

@@ -22,6 +22,7 @@ from neurotrajectory.model import (
     NetConfig,
     NetPolicy,
     TrajectoryNet,
+    one_thread,
     size_mismatch,
     window_inputs,
 )
@@ -35,6 +36,7 @@ class NetPredictor:
         self.name = name
 
     @torch.no_grad()
+    @one_thread()
     def predict(self, batch, chunk: int = 128) -> np.ndarray:
         problem = size_mismatch(self.net.cfg, batch)
         if problem:

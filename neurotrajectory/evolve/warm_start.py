@@ -34,6 +34,7 @@ from neurotrajectory.evolve.genome import get_genome, set_genome
 from neurotrajectory.model import (
     TrajectoryNet,
     kinematic_features,
+    one_thread,
     prior_setpoints,
     size_mismatch,
     to_ego_frame,
@@ -261,9 +262,7 @@ def pretrain_genome(
             visited = visited.take(np.flatnonzero(~np.isin(visited.track, held_out.track)))
         weights = visited_weights(len(windows), len(visited), visited_share)
         windows = concat_windows([windows, visited], "the warm start's windows")
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
+    with one_thread():
         set_genome(net, np.array(genome, dtype=np.float32, copy=True))  # params alias it
 
         def measured(on: Windows, what: str) -> float:  # (with a bar: a pass may take minutes)
@@ -352,8 +351,6 @@ def pretrain_genome(
             best = get_genome(net)
         set_genome(net, best.copy())  # the parameters alias what they are set from
         after = measured(windows, "error after the fit")
-    finally:
-        torch.set_num_threads(threads)
     stats = {"mse_before": before, "mse_after": after, "windows": len(windows), "epochs": epochs,
              **ridge}  # fmt: skip
     if held_out is not None:

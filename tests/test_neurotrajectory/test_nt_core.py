@@ -232,3 +232,42 @@ def test_block_means_are_avg_pool_bit_for_bit(p):
     if p > 1:
         with pytest.raises(ValueError, match=f"do not split into blocks of {p} x {p}"):
             block_means(frames[:, 1:], p)
+
+
+def test_networks_drive_and_predict_on_one_thread_whatever_the_caller_set():
+    """Closed-loop results changed with torch's thread count (a command's own process has as
+    many as cores, a worker 1: heldout.json differed between backends and machines in the
+    last digits): a policy, a predictor and End2End compute on one thread, then put the
+    caller's count back."""
+    from neurotrajectory.compare.front import NetPredictor
+    from neurotrajectory.model import NetPolicy, one_thread
+
+    seen = []
+    net = TrajectoryNet(PRESETS["tiny"])
+    forward = net.forward
+    net.forward = lambda *a: (seen.append(torch.get_num_threads()), forward(*a))[1]
+    before = torch.get_num_threads()
+    torch.set_num_threads(2)
+    try:
+        cfg = net.cfg
+        obs = {"grids": np.zeros((cfg.history, cfg.grid_size, cfg.grid_size), np.uint8),
+               "ego": np.zeros(6, np.float32), "destination": np.ones(2, np.float32)}  # fmt: skip
+        NetPolicy(net, smoothing=0.0)(None, obs, {})
+        assert seen == [1] and torch.get_num_threads() == 2
+
+        class Batch:  # what window_inputs reads
+            grids = obs["grids"][None]
+            ego = obs["ego"][None]
+            destination = obs["destination"][None]
+            target = np.zeros((1, cfg.horizon, 2), np.float32)
+
+            def __len__(self):
+                return 1
+
+        NetPredictor(net).predict(Batch())
+        assert seen == [1, 1] and torch.get_num_threads() == 2
+        with one_thread():
+            assert torch.get_num_threads() == 1
+        assert torch.get_num_threads() == 2
+    finally:
+        torch.set_num_threads(before)

@@ -32,7 +32,7 @@ from neurotrajectory.data.commands import (
     steer_angles,
 )
 from neurotrajectory.data.windows import Windows
-from neurotrajectory.model import PRESETS, GridEncoder, NetConfig, window_inputs
+from neurotrajectory.model import PRESETS, GridEncoder, NetConfig, one_thread, window_inputs
 from neurotrajectory.settings import Integer, Real, Seed, Settings
 
 
@@ -75,6 +75,7 @@ class End2End:
         self.class_accel = np.asarray(class_accel, float)
 
     @classmethod
+    @one_thread()  # (the same bits on any machine; see neurotrajectory.model.one_thread)
     def train(
         cls,
         windows: Windows,
@@ -123,6 +124,7 @@ class End2End:
         return cls(net, setting, accel)
 
     @torch.no_grad()
+    @one_thread()
     def commands(self, batch: Windows, chunk: int = 256) -> tuple[np.ndarray, np.ndarray]:
         """Predicted (steering class ``(N,)``, longitudinal class ``(N,)``)."""
         steer, lon = [], []
