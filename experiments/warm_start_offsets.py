@@ -46,6 +46,9 @@ def main() -> None:
     policy = load_warm_start(run)
     if policy is None or not cfg.ego_tracks:
         raise SystemExit(f"{args.run}: needs a warm-started run on recorded scenes")
+    if policy.net.cfg.frame != "ego" or policy.net.cfg.max_correction is not None:
+        raise SystemExit(f"{args.run}: the offsets are along and across the heading only for a "
+                         "network whose residual is in the ego frame, unbounded")  # fmt: skip
     branches = policy.net.branches
     bias, times = branches.head_bias.detach().clone(), policy.net.times.clone()
     train = []

@@ -6,6 +6,7 @@ from __future__ import annotations
 import errno
 import fcntl
 import json
+import math
 import os
 import reprlib
 import shutil
@@ -123,8 +124,9 @@ def rounded(data: Any, digits: int = 4) -> Any:
     """``data`` (JSON-like: dicts, lists, numbers) with every float rounded to ``digits``
     significant digits, for printing; files keep full precision. ``159.2723388671875`` ->
     ``159.3``, ``1.05e-11`` -> ``1.054e-11``."""
-    if isinstance(data, float):
-        return float(f"{data:.{digits}g}")
+    if isinstance(data, float):  # (whole digits are kept: 12345.6 -> 12346.0, not 12350.0)
+        whole = len(str(int(abs(data)))) if math.isfinite(data) and abs(data) >= 1 else 0
+        return round(data, max(0, digits - whole)) if whole else float(f"{data:.{digits}g}")
     if isinstance(data, dict):
         return {key: rounded(value, digits) for key, value in data.items()}
     if isinstance(data, (list, tuple)):

@@ -14,7 +14,28 @@ from gridsim.envs.plan_smoothing import PlanSmoother
 DEFAULT_WEIGHTS = (-0.01, -0.5, 0.1)
 
 
-class LinearScalarization(gym.RewardWrapper):
+class _FitnessReward(gym.RewardWrapper):
+    """A reward made from GridSim-v0's fitness vector ``[l1, l2, l3]``, which stays in
+    ``info["fitness"]`` (the innermost such wrapper's: the paper's vector). Refuses an env
+    whose reward is not that vector (one of these wrappers already under it)."""
+
+    def __init__(self, env: gym.Env) -> None:
+        super().__init__(env)
+        inner = env
+        while isinstance(inner, gym.Wrapper):
+            if isinstance(inner, _FitnessReward):
+                mine, under = type(self).__name__, type(inner).__name__
+                raise ValueError(f"{mine} takes the fitness vector [l1, l2, l3], but {under} "
+                                 "is already under it: use one")  # fmt: skip
+            inner = inner.env
+
+    def step(self, action):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        info = {**info, "fitness": np.asarray(reward, dtype=np.float32)}
+        return obs, self.reward(reward), terminated, truncated, info
+
+
+class LinearScalarization(_FitnessReward):
     """Scalar reward ``w . [l1, l2, l3]`` for single-objective RL libraries.
 
     Use negative weights for the minimised objectives (l1, l2) and a positive one for l3.
@@ -27,11 +48,6 @@ class LinearScalarization(gym.RewardWrapper):
         if w.shape != (3,) or not np.all(np.isfinite(w)):
             raise ValueError(f"weights must be 3 finite numbers for [l1, l2, l3], got {weights!r}")
         self.weights = w
-
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        info = {**info, "fitness": np.asarray(reward, dtype=np.float32)}
-        return obs, self.reward(reward), terminated, truncated, info
 
     def reward(self, reward) -> float:
         return float(np.dot(self.weights, reward))
@@ -52,7 +68,7 @@ def make_scalar_env(weights: Sequence[float] = DEFAULT_WEIGHTS, **kwargs) -> Lin
 MAXIMISED_SIGNS = np.array([-1.0, -1.0, 1.0], np.float32)
 
 
-class MaximisedObjectives(gym.RewardWrapper):
+class MaximisedObjectives(_FitnessReward):
     """The reward vector ``[-l1, -l2, l3]``: every objective maximised, as MO-Gymnasium and
     MORL libraries (MORL-Baselines' Pareto filters, hypervolumes) assume; GridSim-v0's own
     ``[l1, l2, l3]`` minimises l1 and l2. ``reward_space`` is ``Box([-inf, -inf, 0], [0, 0,
@@ -64,11 +80,6 @@ class MaximisedObjectives(gym.RewardWrapper):
         low, high = own.low * MAXIMISED_SIGNS + 0.0, own.high * MAXIMISED_SIGNS + 0.0  # (no -0)
         self.reward_space = gym.spaces.Box(np.minimum(low, high), np.maximum(low, high),
                                            dtype=np.float32)  # fmt: skip
-
-    def step(self, action):
-        obs, reward, terminated, truncated, info = self.env.step(action)
-        info = {**info, "fitness": np.asarray(reward, dtype=np.float32)}
-        return obs, self.reward(reward), terminated, truncated, info
 
     def reward(self, reward) -> np.ndarray:
         return np.asarray(reward, np.float32) * MAXIMISED_SIGNS + np.float32(0.0)  # (no -0)

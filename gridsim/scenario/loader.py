@@ -465,7 +465,8 @@ def _extended(doc: Mapping[str, Any], source: str, base_dir: Path | None,
                             f"(name: ...); it would be listed, recorded and reported as "
                             f"{parent.get('name')!r}")  # fmt: skip
     if "description" not in own and parent.get("description"):  # (it describes the parent)
-        own["description"] = f"extends {parent.get('name')}: {parent['description']}"
+        words = re.sub(r"^extends [^:]*: ", "", str(parent["description"]))  # (once, in a chain)
+        own["description"] = f"extends {parent.get('name')}: {words}"
     return deep_merge(absolute_paths(parent, parent_dir), own)
 
 

@@ -201,6 +201,7 @@ def test_run_prints_its_summary_rounded(capsys):
 
     assert rounded({"a": [159.2723388671875, 1.0535299195535419e-11], "n": 3, "b": True}) == {
         "a": [159.3, 1.054e-11], "n": 3, "b": True}  # fmt: skip
+    assert rounded([12345.6, -7.96361, 0.0]) == [12346.0, -7.964, 0.0]  # whole digits kept
     assert main(["run", "--scenario", "seamless", "--steps", "5", "--quiet"]) == 0
     summary = json.loads(capsys.readouterr().out)
     assert summary["steps"] == 5 and summary["collision"] is False

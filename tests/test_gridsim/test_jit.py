@@ -88,6 +88,7 @@ def test_gridsim_compile_readies_every_kernel_of_the_built_in_scenarios(capsys):
     assert compiled_kernels()["compiled"] == before
 
 
+@pytest.mark.slow  # (a subprocess)
 def test_gridsim_compile_calls_the_kernels_only_a_yielding_shadow_driver_meets():
     """The paths' look-ahead of a shadow human that gives way (``table_kernels.frenet``) is
     met rarely, so the compile drive of a few steps missed it, and an installed simulator

@@ -258,6 +258,11 @@ def test_maximised_objectives_flip_the_minimised_ones():
         assert np.array_equal(m, np.array([-r[0], -r[1], r[2]], np.float32))
         assert flipped.reward_space.contains(m) and r[0] > 0
     assert flipped.reward_space.high[0] == 0 and flipped.reward_space.low[2] == 0
+    # over or under the scalarisation, the vector is gone: refused (it gave [s, s, -s])
+    for stacked in (lambda: MaximisedObjectives(LinearScalarization(make())),
+                    lambda: LinearScalarization(MaximisedObjectives(make()))):  # fmt: skip
+        with pytest.raises(ValueError, match=r"takes the fitness vector .* is already under it"):
+            stacked()
 
 
 def test_vector_envs():

@@ -599,6 +599,8 @@ def test_an_extending_scenario_does_not_pass_for_its_parent(tmp_path):
         f"extends inner_city: {parent}")  # fmt: skip
     (tmp_path / "mine.yaml").write_text("extends: busy.yaml\nname: mine\ndescription: Mine.\n")
     assert load_scenario(tmp_path / "mine.yaml").config.description == "Mine."
+    (tmp_path / "more.yaml").write_text("extends: busy.yaml\nname: more\n")  # not piled up
+    assert load_scenario(tmp_path / "more.yaml").config.description == f"extends busy: {parent}"
 
 
 def test_an_extends_chain_is_bounded(tmp_path):
