@@ -151,8 +151,19 @@ def _train(args: argparse.Namespace, out: str, started: float) -> int:
         if heldout and (problem := heldout_problem(run.config)):
             print(f"neurotrajectory: note: no held-out report: {problem}", file=sys.stderr)
             heldout = 0
+        front_before = _read_bytes(run.out / "front.json")
         summary = run.train(progress=not args.quiet)
         print(front_table(run.out, summary))
+        stale = run.out / "heldout.json"
+        if (
+            not heldout
+            and stale.exists()
+            and front_before not in (None, _read_bytes(run.out / "front.json"))
+        ):  # (an extended run's: another front)
+            stale.unlink()
+            print(f"neurotrajectory: removed {stale}: it was of the front before; "
+                  f"`neurotrajectory heldout --run {run.out} --out {stale}` drives this one",
+                  file=sys.stderr)  # fmt: skip
         if heldout:
             run.say(f"driving the knee, its warm start and the destination curve on {heldout} "
                     "held-out episodes")  # fmt: skip
@@ -163,6 +174,14 @@ def _train(args: argparse.Namespace, out: str, started: float) -> int:
     minutes, seconds = divmod(round(time.perf_counter() - started), 60)
     print(f"done in {minutes} min {seconds} s")
     return 0
+
+
+def _read_bytes(path: Path) -> bytes | None:
+    """The file's bytes, or None if it cannot be read."""
+    try:
+        return path.read_bytes()
+    except OSError:
+        return None
 
 
 def _after_flags(args: argparse.Namespace) -> dict:

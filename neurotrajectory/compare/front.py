@@ -10,6 +10,7 @@ import numpy as np
 import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.errors import warn_data
 from gridsim.outputs import progress_bar
 from gridsim.scenario.schema import Scenario
 from gridsim.traffic.track import track_name
@@ -63,8 +64,24 @@ def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[T
         raise RunError(f"{path}: unreadable front ({type(exc).__name__}: {exc}); "
                        f"`neurotrajectory train --resume {run.out}` chooses it again from the "
                        "last generation") from None  # fmt: skip
+    _say_if_unfinished(run)
     cfg = scenario_net_config(run.config.scenario, run.config.overrides, base)
     return run, fitness, genomes, [_net(cfg, genome, path) for genome in genomes]
+
+
+def _say_if_unfinished(run: Run) -> None:
+    """A :class:`~gridsim.errors.DataWarning` when the run's front is of fewer generations
+    than it is set to train (``train --resume RUN --generations N`` stopped before its end:
+    the front is the one chosen before, and results of it are not the longer run's)."""
+    try:
+        chosen = json.loads((run.out / "front.json").read_text())["generation"] + 1
+    except (OSError, ValueError, KeyError, TypeError):
+        return  # (an older run's front.json: nothing to compare)
+    if chosen < run.config.generations:
+        warn_data(f"{run.out}: its front was chosen after generation {chosen}, but the run is "
+                  f"set to {run.config.generations} (extended, and stopped before its end): "
+                  f"this is the earlier front; `neurotrajectory train --resume {run.out}` "
+                  "finishes the run")  # fmt: skip
 
 
 def _net(cfg: NetConfig, genome: np.ndarray, path: Path) -> TrajectoryNet:

@@ -3,6 +3,7 @@ was, a resumed run keeps every setting and refuses another run's checkpoint."""
 
 import json
 import shutil
+import warnings
 
 import numpy as np
 import pytest
@@ -403,3 +404,39 @@ def test_a_warm_start_interrupted_goes_on_from_its_batch(tmp_path, monkeypatch, 
         np.testing.assert_array_equal(a["genome"], b["genome"])
     assert json.loads((run / "pretrain.json").read_text()) == whole
     assert not (run / "warm_start_fit.pt").exists()
+
+
+def test_the_front_of_an_extension_stopped_before_its_end_is_said_to_be_the_earlier(tmp_path):
+    """train --resume RUN --generations N, stopped before its end, keeps the front chosen
+    before; rollout, heldout and evaluate used it without a word (table2.md then named the
+    run's N generations). Loading it warns, with the command that finishes the run."""
+    from gridsim.errors import DataWarning
+    from neurotrajectory.compare.front import load_front
+
+    run = tmp_path / "run"
+    Run.create(run, TrainConfig(generations=1, **TINY)).train(progress=False)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)
+        load_front(run)  # a finished run: nothing said
+    config = json.loads((run / "config.json").read_text())
+    config["train"]["generations"] = 3  # what an extension stopped at generation 2 leaves
+    (run / "config.json").write_text(json.dumps(config))
+    with pytest.warns(DataWarning, match=r"chosen after generation 1, but the run is set to 3 "
+                      r".*`neurotrajectory train --resume .*run` finishes"):  # fmt: skip
+        load_front(run)
+
+
+def test_an_extension_without_a_held_out_drive_removes_the_earlier_front_s_report(tmp_path, capsys):
+    """--heldout 0 carried over to an extension left heldout.json naming a knee of the front
+    before; it is removed, saying how to drive the new one. A resume that chose the same
+    front again keeps it."""
+    run = tmp_path / "run"
+    flags = [*QUICK[:-1], "--heldout", "1", "--validation-episodes", "1"]
+    assert main(["train", *flags, "--out", str(run)]) == 0
+    report = (run / "heldout.json").read_bytes()
+    assert main(["train", "--resume", str(run), "--heldout", "0"]) == 0  # the same front
+    assert (run / "heldout.json").read_bytes() == report
+    capsys.readouterr()
+    assert main(["train", "--resume", str(run), "--generations", "2", "--heldout", "0"]) == 0
+    assert not (run / "heldout.json").exists()
+    assert f"removed {run / 'heldout.json'}: it was of the front before" in capsys.readouterr().err
