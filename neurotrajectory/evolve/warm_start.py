@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import io
 import json
 import math
 import time
@@ -140,12 +141,16 @@ class _FitState:
 def _save_fit(path: Path, key: dict, state: _FitState) -> None:
     """``state`` of the fit of ``key``'s inputs, for :func:`_read_fit` (written atomically)."""
 
-    def write(tmp: str) -> None:  # tensors and plain values: loaded with weights_only
-        torch.save({"key": key, "epochs": state.epochs, "batch": state.batch,
-                    "genome": torch.from_numpy(state.genome), "optimizer": state.optimizer,
-                    "scores": [float(v) for v in state.scores],
-                    "best": torch.from_numpy(np.array(state.best, dtype=np.float32, copy=True)),
-                    "before": float(state.before)}, tmp)  # fmt: skip
+    buffer = io.BytesIO()  # tensors and plain values: loaded with weights_only
+    torch.save({"key": key, "epochs": state.epochs, "batch": state.batch,
+                "genome": torch.from_numpy(state.genome), "optimizer": state.optimizer,
+                "scores": [float(v) for v in state.scores],
+                "best": torch.from_numpy(np.array(state.best, dtype=np.float32, copy=True)),
+                "before": float(state.before)}, buffer)  # fmt: skip
+
+    def write(tmp: str) -> None:  # (written by Python: a full disk is an OSError, said as
+        with open(tmp, "wb") as fh:  # such; torch.save's own writer raised a RuntimeError)
+            fh.write(buffer.getbuffer())
 
     atomic_write(path, write)
 
