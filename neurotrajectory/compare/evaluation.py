@@ -374,6 +374,8 @@ def evaluate(
     data_dir = Path(data_dir) if data_dir is not None else None
     settings = {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
                 **cfg.as_dict(), "data": None if data_dir is None else str(data_dir)}  # fmt: skip
+    if data_dir is not None:  # the windows are the datasets' (their manifests say how made)
+        settings.update(episodes=None, episode_seconds=None)
     # out appears, whole, when everything is written; interrupted, the hidden folder keeps
     # the windows recorded, and the same command goes on with them
     with new_folder(out, resumable=True) as partial:

@@ -138,6 +138,10 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
                  "fig8_rmse_per_setpoint.png", "fig9_window_rmse.png", "eval_config.json",
                  "models/end2end-urban/end2end.pt"):  # fmt: skip
         assert (out / name).stat().st_size > 0, name
+    # the windows are the datasets': no recording settings of evaluate's own are claimed
+    settings = json.loads((out / "eval_config.json").read_text())
+    assert settings["data"] == str(data) and settings["episodes"] is None
+    assert settings["episode_seconds"] is None
     rows = _table(out / "table2.csv")
     methods = {r["method"] for r in rows}
     assert {
