@@ -56,6 +56,20 @@ def _is_number_type(annotation: Any) -> bool:
     )
 
 
+def _number_items(annotation: Any, value: Any, name: str) -> list[tuple[tuple, Any]]:
+    """``((name, index), item)`` of a list ``value`` of the field ``name`` that holds a
+    tuple or list of numbers (``traffic.window``, ``env.speed_range``); none otherwise."""
+    union = get_origin(annotation) in (Union, UnionType)  # (``tuple[...] | None``)
+    kinds = [_bare(a) for a in get_args(annotation) if a is not type(None)] if union else [
+        _bare(annotation)]  # fmt: skip
+    for kind in kinds:
+        if get_origin(kind) in (tuple, list) and isinstance(value, (list, tuple)):
+            args = [a for a in get_args(kind) if a is not Ellipsis]
+            if args and all(_is_number_type(a) for a in args):
+                return [((name, k), item) for k, item in enumerate(value)]
+    return []
+
+
 class Strict(BaseModel):
     """A block of a scenario file: unknown keys are errors, and a number key takes numbers
     only (pydantic would read ``yes`` as 1 and ``"12"`` as 12)."""
@@ -70,13 +84,17 @@ class Strict(BaseModel):
         wrong = []  # (located at the key, env.horizon, as pydantic's own errors are)
         for name, value in data.items():
             field = cls.model_fields.get(name)
-            # (other text fails pydantic's own check, which names the key)
-            coerced = isinstance(value, bool) or (isinstance(value, str) and is_number(value))
-            if field is not None and coerced and _is_number_type(field.annotation):
-                what = "a YAML yes/no/true/false, which is a boolean" if isinstance(
-                    value, bool) else "text: write it without quotes"  # fmt: skip
-                said = PydanticCustomError("value_error", f"expects a number, not {what}")
-                wrong.append(InitErrorDetails(type=said, loc=(name,), input=value))
+            if field is None:
+                continue
+            items = [((name,), value)] if _is_number_type(field.annotation) else (
+                _number_items(field.annotation, value, name))  # fmt: skip
+            for loc, item in items:
+                # (other text fails pydantic's own check, which names the key)
+                if isinstance(item, bool) or (isinstance(item, str) and is_number(item)):
+                    what = "a YAML yes/no/true/false, which is a boolean" if isinstance(
+                        item, bool) else "text: write it without quotes"  # fmt: skip
+                    said = PydanticCustomError("value_error", f"expects a number, not {what}")
+                    wrong.append(InitErrorDetails(type=said, loc=loc, input=item))
         if wrong:
             raise ValidationError.from_exception_data(cls.__name__, wrong)
         return data

@@ -134,6 +134,12 @@ def test_malformed_yaml_names_file_and_line(tmp_path):
             {"traffic": {"window": [160]}},
             r"traffic\.window: too few values \(no item 2\); \[behind, ahead\] metres",
         ),
+        # items of a list of numbers too ('80' was 80 m, yes a 1 m curve radius)
+        ({"traffic": {"window": ["80", 160]}}, r"traffic\.window\.0: expects a number, not text"),
+        (
+            {"road": {"type": "seamless", "curve_radius": [True, 50]}},
+            r"road\.curve_radius\.0: expects a number, not a YAML yes/no",
+        ),
         # an optional constrained number (Seed | None) too: 'yes' was seed 1
         ({"road": {"type": "seamless", "seed": True}}, r"road\.seed: expects a number, not a YAML"),
         (
