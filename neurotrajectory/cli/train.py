@@ -202,10 +202,14 @@ def front_table(out: Path, summary: dict) -> str:
     knee = pick_member(fitness, "knee")
     best = summary.get("best_knee", {}).get("index")
     rows = []
+    scores = ("l1", "l2", "l3", "violation")
+    warm = summary.get("warm_start")
     for k, m in enumerate(front):  # numbered as rollout --pick and front.npz number them
         name = f"member {k}" + (f" (best validated, generation "
                                 f"{summary['best_knee']['generation']})"
                                 if m["index"] == best else "")  # fmt: skip
+        if warm is not None and all(m[s] == warm[s] for s in scores):
+            name += " (= the warm start)"  # (the same scores on the same episodes)
         rows.append((("* " if k == knee else "  ") + name, m))
     if "warm_start" in summary:
         rows.append(("  warm start", summary["warm_start"]))

@@ -22,7 +22,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from gridsim.outputs import atomic_text, write_json, write_text  # noqa: E402
+from gridsim.outputs import atomic_text, counted, write_json, write_text  # noqa: E402
 from neurotrajectory.compare.methods import NT_PICKED  # noqa: E402
 from neurotrajectory.compare.metrics import SUMMARY_KEYS  # noqa: E402
 
@@ -89,8 +89,9 @@ def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
             vals = [f"{getattr(a, k):.2f}" for k in SUMMARY_KEYS]
             lines.append("| " + " | ".join([r.group, m, str(a.count), *vals, per]) + " |")
     lines += ["", "Ground truth: " + "; ".join(
-        f"{r.group}: {r.source}, {r.test_windows} test windows from {r.test_tracks} tracks, "
-        f"{r.train_windows} train windows" for r in results) + "."]  # fmt: skip
+        f"{r.group}: {r.source}, {r.test_windows} test windows from "
+        f"{counted(r.test_tracks, 'track')}, {r.train_windows} train windows"
+        for r in results) + "."]  # fmt: skip
     lines += ["Simulator groups use human speed and lane-change profiles replayed in GridSim; "
               "real groups are the recorded NGSIM drivers themselves.", ""]  # fmt: skip
     lines += [f"**Not held out:** {not_held_out(r.group, r.trained_test_tracks, r.test_tracks)}.\n"

@@ -1004,3 +1004,17 @@ def test_a_run_s_training_tracks_are_named_as_datasets_name_them():
 
     fit = {f"{scene}/{t.track_id}" for t in ego_candidates(load_scenario("us101_4_1"))}
     assert trained_tracks(TrainConfig(scenario="us101_4_1")) == fit and len(fit) > 10
+
+
+def test_the_front_table_says_which_member_is_the_warm_start():
+    """A front member scoring exactly as the warm start on the same episodes is it (anchored
+    selection keeps it): the table said so nowhere, two identical rows."""
+    from neurotrajectory.cli.train import front_table
+
+    warm = {"l1": 51.4, "l2": 0.2, "l3": 900.0, "violation": 0.0}
+    summary = {"generation": 2, "chosen_on": "8 validation episodes", "warm_start": warm,
+               "front": [{**warm, "index": 0}, {"l1": 49.5, "l2": 0.25, "l3": 905.0,
+                                                "violation": 0.0, "index": 3}]}  # fmt: skip
+    lines = front_table(Path("run"), summary).splitlines()
+    assert "member 0 (= the warm start)" in lines[2] and "member 1  " in lines[3]
+    assert "warm start" not in lines[3]
