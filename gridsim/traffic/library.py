@@ -335,6 +335,10 @@ def is_number(text: str) -> bool:
     return True
 
 
+#: Unit suffixes of column names: ``speed_mph`` for ``speed_mps`` is another unit, not a typo.
+_UNIT_SUFFIXES = {"s", "ms", "m", "ft", "mps", "mph", "kmh", "kph", "fps", "rad", "deg"}
+
+
 def _header_hint(header: list[str]) -> str:
     """Why a header may lack the columns: another separator, or other letter case."""
     line = ",".join(header)
@@ -343,15 +347,16 @@ def _header_hint(header: list[str]) -> str:
             return f" (the header is separated by {name}; separate columns with commas)"
     if {h.strip().lower() for h in header} >= set(REQUIRED_COLUMNS):
         return " (column names are lower case, without spaces)"
+    missing = [c for c in REQUIRED_COLUMNS if c not in header]
     extra = [h for h in header if h not in REQUIRED_COLUMNS]
-    close = [
-        (h, m[0])
-        for h in extra  # (a misspelt name: speed_mph)
-        if (m := difflib.get_close_matches(h, REQUIRED_COLUMNS, n=1, cutoff=0.75))
-    ]
-    if close:
-        return " (" + "; ".join(f"is {h!r} meant to be {m!r}?" for h, m in close[:3]) + ")"
-    return ""
+    guesses = []  # (a misspelt name, or another unit's: speed_mph for speed_mps)
+    for column in missing:
+        if close := difflib.get_close_matches(column, extra, n=1, cutoff=0.75):
+            units = {close[0].rsplit("_", 1)[-1], column.rsplit("_", 1)[-1]}
+            other = len(units) == 2 and units <= _UNIT_SUFFIXES
+            guesses.append(f"is {close[0]!r} meant to be {column!r}"
+                           + (", its values converted?" if other else "?"))  # fmt: skip
+    return f" ({'; '.join(guesses[:3])})" if guesses else ""
 
 
 def write_tracks_csv(tracks: list[Track], path: str | Path) -> Path:

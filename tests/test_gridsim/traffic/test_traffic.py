@@ -115,10 +115,17 @@ def test_a_header_with_a_column_twice_or_misspelt_is_named(tmp_path):
     with pytest.raises(DataError, match=r"column 'speed_mps' appears 2 times in the header "
                        r"\(columns 7, 10\); name each once"):  # fmt: skip
         read_tracks_csv(write_csv(tmp_path, rows, HEADER + ",speed_mps"))
-    misspelt = HEADER.replace("speed_mps", "speed_mph")
-    with pytest.raises(DataError, match=r"missing column\(s\) \['speed_mps'\].*\(is "
-                       r"'speed_mph' meant to be 'speed_mps'\?\)"):  # fmt: skip
-        read_tracks_csv(write_csv(tmp_path, rows[:1], misspelt))
+    other_unit = HEADER.replace("speed_mps", "speed_mph")
+    guess = r"\(is 'speed_mph' meant to be 'speed_mps', its values converted\?\)"
+    with pytest.raises(DataError, match=r"missing column\(s\) \['speed_mps'\].*" + guess):
+        read_tracks_csv(write_csv(tmp_path, rows[:1], other_unit))
+    with pytest.raises(DataError, match=r"\(is 'trackid' meant to be 'track_id'\?\)"):
+        read_tracks_csv(write_csv(tmp_path, rows[:1], HEADER.replace("track_id", "trackid")))
+    # a guess only for a missing column: an extra 'speed_mps_raw' beside all is no typo
+    no_heading = HEADER.replace(",heading_rad", "") + ",speed_mps_raw"
+    with pytest.raises(DataError) as err:
+        read_tracks_csv(write_csv(tmp_path, rows[:1], no_heading))
+    assert "meant to be" not in str(err.value)
 
 
 def test_rows_given_twice_are_read_once_with_a_warning(tmp_path):
