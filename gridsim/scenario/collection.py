@@ -75,6 +75,21 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     return sorted(files)
 
 
+def absolute_ref(ref: str) -> str:
+    """``ref`` (a scenario reference: a built-in name, a file, folder or glob, or a
+    comma-separated list of them) with every item that is a path made absolute, built-in
+    names as they are: what a run keeps, so that it finds its files from any folder."""
+    text = str(ref)
+    items = text.split(",") if ("," in text and not Path(text).exists()) else [text]
+    out = []
+    for item in (i.strip() for i in items):
+        path = Path(item)
+        is_path = (path.exists() or any(c in item for c in "*?[") or "/" in item
+                   or path.suffix.lower() in SUFFIXES)  # fmt: skip
+        out.append(os.path.abspath(item) if is_path else item)
+    return ",".join(out)
+
+
 def _listed_files(text: str) -> list[Path]:
     """The scenarios of a comma-separated list, each item's files in turn (a built-in name
     or a file as itself); a :class:`ScenarioError` for an empty or repeated item."""

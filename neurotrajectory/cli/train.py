@@ -9,6 +9,7 @@ tell a flag given from one not given."""
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -17,6 +18,7 @@ import numpy as np
 
 from gridsim.cli.flags import at_least, quiet_flag, scenario_flag
 from gridsim.outputs import counted
+from gridsim.scenario.collection import absolute_ref
 from neurotrajectory.cli.flags import check_video, goal_flag, settings_flag
 from neurotrajectory.cli.heldout import report_heldout
 from neurotrajectory.cli.rollout import rollout
@@ -141,6 +143,10 @@ def _train(args: argparse.Namespace, out: str, started: float) -> int:
             # fields (the activation from the preset, the selection from the warm start)
             defaults = TrainConfig.defaults()
             given = _train_flags(args)
+            if given.get("scenario"):  # files by absolute paths: resumed from any folder
+                given["scenario"] = absolute_ref(given["scenario"])
+            if given.get("pretrain"):
+                given["pretrain"] = os.path.abspath(given["pretrain"])
             config = TrainConfig(**{k: (v if v is not None else defaults[k])
                                     for k, v in given.items()})  # fmt: skip
             if args.dagger_labels is not None and not config.dagger_rounds:

@@ -362,7 +362,7 @@ QUICK = ["--preset", "tiny", "--population", "4", "--generations", "1", "--episo
             ["--episode-seconds", "5000"],
             ["argument --episode-seconds: expected a finite number in (0, 3600], got '5000'"],
         ),
-        (["--pretrain", "no-such-data"], ["--pretrain no-such-data", "not a dataset"]),
+        (["--pretrain", "no-such-data"], ["--pretrain", "no-such-data is not a dataset"]),
         (["--pretrain-episodes", "2", "--scenario", "us101_3_3"], ["replays a recorded scene"]),
         (["--video", "knee.avi"], ["--video knee.avi: unsupported extension '.avi'"]),
         (["--video", "knee"], ["--video knee: unsupported extension '(none)'; use .mp4 or .gif"]),

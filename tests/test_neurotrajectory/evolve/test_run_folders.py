@@ -440,3 +440,23 @@ def test_an_extension_without_a_held_out_drive_removes_the_earlier_front_s_repor
     assert main(["train", "--resume", str(run), "--generations", "2", "--heldout", "0"]) == 0
     assert not (run / "heldout.json").exists()
     assert f"removed {run / 'heldout.json'}: it was of the front before" in capsys.readouterr().err
+
+
+def test_a_run_made_from_relative_paths_resumes_from_any_folder(tmp_path, monkeypatch):
+    """train --scenario scen/s.yaml kept the path as typed: resumed from another folder, the
+    run refused its own scenario as removed, and rollout and heldout did not find it. A new
+    run keeps its files by absolute paths (built-in names as they are)."""
+    from importlib import resources
+
+    work = tmp_path / "work"
+    (work / "scen").mkdir(parents=True)
+    source = resources.files("gridsim").joinpath("data", "scenarios", "seamless.yaml")
+    (work / "scen" / "s.yaml").write_text(source.read_text().replace("name: seamless",
+                                                                     "name: mine"))  # fmt: skip
+    monkeypatch.chdir(work)
+    assert main(["train", *QUICK, "--scenario", "scen/s.yaml", "--heldout", "0",
+                 "--out", "runs/r"]) == 0  # fmt: skip
+    assert Run.open(work / "runs" / "r").config.scenario == str(work / "scen" / "s.yaml")
+    monkeypatch.chdir(tmp_path)
+    assert main(["train", "--resume", str(work / "runs" / "r"), "--generations", "2",
+                 "--quiet"]) == 0  # fmt: skip
