@@ -58,9 +58,9 @@ def execute(args: argparse.Namespace) -> int:
                            f"of {len(files)}: give one file")  # fmt: skip
     if files is None:  # one file: its problems are the error
         sc, summary, report = _report(args.path)
-        check_track_scenes([sc])
         if report.problems:
             raise DataError(report.refusal(args.path))
+        check_track_scenes([sc])
         said = f"{args.path}: OK ({summary})" + _warning_lines(report.warnings)
         if not args.resolved:
             print(said)
@@ -105,9 +105,13 @@ def execute(args: argparse.Namespace) -> int:
     try:  # and they run together as one collection
         if usable:
             check_agreement(args.path, [sc for _, sc in usable])
-            check_track_scenes([sc for _, sc in usable])
     except GridSimError as exc:
         print(f"{exc} (run them apart, or make them agree)")
+        return 2
+    try:  # (a file's own mistake, said on its own)
+        check_track_scenes([sc for _, sc in usable], some_skipped=bool(failed))
+    except GridSimError as exc:
+        print(exc)
         return 2
     return 2 if failed else 0
 
