@@ -99,7 +99,8 @@ LOG_INTERVAL = 30.0
 
 def progress_bar(*args: Any, **kwargs: Any):
     """A tqdm progress bar (its arguments), on stderr unless ``file`` says otherwise; where
-    that stream is not a terminal it is redrawn every :data:`LOG_INTERVAL` seconds at most."""
+    that stream is not a terminal it is first drawn after :data:`LOG_INTERVAL` seconds and
+    redrawn every :data:`LOG_INTERVAL` seconds at most."""
     import sys
 
     from tqdm import tqdm
@@ -109,10 +110,15 @@ def progress_bar(*args: Any, **kwargs: Any):
         terminal = stream.isatty()
     except (AttributeError, ValueError):  # (a closed or odd stream)
         terminal = False
-    if not terminal:
+    if not terminal:  # (and a bar done sooner is not drawn at all: no line per short bar)
         kwargs.setdefault("mininterval", LOG_INTERVAL)
         kwargs.setdefault("maxinterval", LOG_INTERVAL)
-    return tqdm(*args, **kwargs)
+        kwargs.setdefault("delay", LOG_INTERVAL)
+    bar = tqdm(*args, **kwargs)
+    if not terminal:  # a new postfix waits for the next redraw (each forced one, every epoch)
+        postfix = bar.set_postfix
+        bar.set_postfix = lambda *a, refresh=True, **k: postfix(*a, refresh=False, **k)
+    return bar
 
 
 def counted(count: int, noun: str) -> str:
