@@ -526,7 +526,12 @@ def test_a_dagger_weight_without_rounds_is_refused_before_the_run(tmp_path, caps
     assert not out.exists()
 
 
-def test_heldout_drives_a_finished_run_on_longer_unseen_episodes(windows_dir, tmp_path, capsys):
+def test_heldout_drives_a_finished_run_on_longer_unseen_episodes(
+    windows_dir, tmp_path, capsys, monkeypatch
+):
+    from gridsim import outputs
+
+    monkeypatch.setattr(outputs, "LOG_INTERVAL", 0.0)  # bars drawn at once, as on a terminal
     out = tmp_path / "run"
     args = ["train", "--preset", "tiny", "--population", "2", "--generations", "1",
             "--episodes", "1", "--episode-seconds", "2", "--pretrain", str(windows_dir),
