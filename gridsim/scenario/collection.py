@@ -26,7 +26,7 @@ import numpy as np
 from gridsim.errors import DataError, GridSimError, ScenarioError, UnselectedScene, warn_data
 from gridsim.outputs import counted
 from gridsim.scenario.build import build_world
-from gridsim.scenario.loader import load_scenario
+from gridsim.scenario.loader import load_scenario, names_a_file
 from gridsim.scenario.parts import matching_files
 from gridsim.scenario.schema import Scenario
 from gridsim.seeding import Salt, stream
@@ -63,7 +63,7 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
                 "files that are not read (a folder is read without its subfolders; "
                 f"for all, give the glob {globs})"
             )
-    elif "," in text and not path.exists():
+    elif _is_list(text):
         return _listed_files(text)
     elif any(c in text for c in "*?["):
         files = matching_files(text, SUFFIXES)
@@ -75,19 +75,19 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     return sorted(files)
 
 
+def _is_list(text: str) -> bool:
+    """Whether ``text`` is a comma-separated list of scenarios (not a path with a comma)."""
+    return "," in text and not Path(text).exists()
+
+
 def absolute_ref(ref: str) -> str:
     """``ref`` (a scenario reference: a built-in name, a file, folder or glob, or a
     comma-separated list of them) with every item that is a path made absolute, built-in
     names as they are: what a run keeps, so that it finds its files from any folder."""
     text = str(ref)
-    items = text.split(",") if ("," in text and not Path(text).exists()) else [text]
-    out = []
-    for item in (i.strip() for i in items):
-        path = Path(item)
-        is_path = (path.exists() or any(c in item for c in "*?[") or "/" in item
-                   or path.suffix.lower() in SUFFIXES)  # fmt: skip
-        out.append(os.path.abspath(item) if is_path else item)
-    return ",".join(out)
+    items = [i.strip() for i in text.split(",")] if _is_list(text) else [text]
+    return ",".join(os.path.abspath(item) if is_collection(item) or names_a_file(item) else item
+                    for item in items)  # fmt: skip
 
 
 def _listed_files(text: str) -> list[Path]:
@@ -110,8 +110,7 @@ def is_collection(ref: str | Path) -> bool:
     """Whether ``ref`` names a folder, a glob pattern or a comma-separated list (not a check
     that it has files)."""
     text = str(ref)
-    path = Path(text)
-    return path.is_dir() or any(c in text for c in "*?[") or ("," in text and not path.exists())
+    return Path(text).is_dir() or any(c in text for c in "*?[") or _is_list(text)
 
 
 def _get(doc: dict, key: str) -> Any:
@@ -368,10 +367,10 @@ def check_track_scenes(scenarios: list[Scenario], some_skipped: bool = False) ->
     files of the collection were skipped (``some_skipped``), the scene may be a skipped
     file's: a :class:`~gridsim.errors.DataWarning` says so instead."""
     from gridsim.scenario.families.recorded import scene_of
-    from gridsim.scenario.family import family_of
+    from gridsim.scenario.family import is_recorded
     from gridsim.traffic.track import track_name
 
-    recorded = [sc for sc in scenarios if family_of(sc).recorded]
+    recorded = [sc for sc in scenarios if is_recorded(sc)]
     prefixes = tuple({track_name(scene_of(sc), "") for sc in recorded})
     for sc in recorded:
         wanted = sc.config.ego.track

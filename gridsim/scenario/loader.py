@@ -551,13 +551,20 @@ def _parse_yaml(text: str, source: str) -> Any:
         raise ScenarioError(f"{source}: malformed YAML{where}: {problem}") from None
 
 
+def names_a_file(ref: str | Path) -> bool:
+    """Whether the scenario reference ``ref`` is read as a file (a YAML or CommonRoad XML
+    suffix, or a path of folders), not looked up as a built-in name."""
+    p = Path(ref)
+    return p.suffix in (".yaml", ".yml") or p.suffix.lower() == ".xml" or len(p.parts) > 1
+
+
 def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
     if not isinstance(name_or_path, str | os.PathLike):
         raise ScenarioError(f"scenario must be a built-in name, a YAML or XML path, a folder or "
                             f"glob of them, or a Scenario, got "
                             f"{name_or_path!r} ({type(name_or_path).__name__})")  # fmt: skip
     p = Path(name_or_path)
-    looks_like_path = p.suffix in (".yaml", ".yml") or len(p.parts) > 1
+    looks_like_path = names_a_file(p)
     if p.is_dir():
         raise ScenarioError(
             f"{p} is a folder: a scenario collection, not one scenario file (gym.make and the "

@@ -42,27 +42,25 @@ def _bare(annotation: Any) -> Any:
     return get_args(annotation)[0] if get_origin(annotation) is Annotated else annotation
 
 
+def _members(annotation: Any) -> list[Any]:
+    """What a field of ``annotation`` may hold: a union's members but None (``Seed | None``),
+    else the annotation itself; each without ``Annotated[...]``'s constraints."""
+    if get_origin(annotation) in (Union, UnionType):
+        return [_bare(a) for a in get_args(annotation) if a is not type(None)]
+    return [_bare(annotation)]
+
+
 def _is_number_type(annotation: Any) -> bool:
     """Whether a field of ``annotation`` holds a number (``int``, ``float``, or one of them or
     None)."""
-    annotation = _bare(annotation)  # (inside a union: ``Seed | None``)
-    if annotation in (int, float):
-        return True
-    args = [_bare(a) for a in get_args(annotation) if a is not type(None)]
-    return (
-        get_origin(annotation) in (Union, UnionType)
-        and bool(args)
-        and all(a in (int, float) for a in args)
-    )
+    members = _members(annotation)
+    return bool(members) and all(m in (int, float) for m in members)
 
 
 def _number_items(annotation: Any, value: Any, name: str) -> list[tuple[tuple, Any]]:
     """``((name, index), item)`` of a list ``value`` of the field ``name`` that holds a
     tuple or list of numbers (``traffic.window``, ``env.speed_range``); none otherwise."""
-    union = get_origin(annotation) in (Union, UnionType)  # (``tuple[...] | None``)
-    kinds = [_bare(a) for a in get_args(annotation) if a is not type(None)] if union else [
-        _bare(annotation)]  # fmt: skip
-    for kind in kinds:
+    for kind in _members(annotation):
         if get_origin(kind) in (tuple, list) and isinstance(value, (list, tuple)):
             args = [a for a in get_args(kind) if a is not Ellipsis]
             if args and all(_is_number_type(a) for a in args):

@@ -149,7 +149,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
         missing = [c for c in REQUIRED_COLUMNS if c not in header]
         if missing:
             raise DataError(f"{path}: missing column(s) {missing}; required: "
-                            f"{list(REQUIRED_COLUMNS)}{_header_hint(header)}")  # fmt: skip
+                            f"{list(REQUIRED_COLUMNS)}{_header_hint(header, missing)}")  # fmt: skip
         twice = [c for c in REQUIRED_COLUMNS if header.count(c) > 1]
         if twice:  # (which one holds the values? a column pasted twice, or one misnamed)
             cols = ", ".join(str(k + 1) for k, h in enumerate(header) if h == twice[0])
@@ -230,27 +230,26 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
     above 0."""
     need, width = max(where) + 1, len(header)
     scene, track = where[0], where[1]
+    empty = "column {!r} is empty; every row names its scene and track"
 
-    def bad(row: list[str]) -> bool:  # cut short, values slid (not trailing commas), no id
-        return (len(row) < need or not row[scene] or not row[track] or len(row) > width
-                and any(f.strip() for f in row[width:]) or row[scene].isspace()
-                or row[track].isspace())  # fmt: skip
+    def problem(row: list[str]) -> str | None:  # cut short, values slid (not trailing commas)
+        if len(row) < need:
+            return f"{len(row)} column(s), the header has {width} (a line cut short?)"
+        if len(row) > width and any(f.strip() for f in row[width:]):
+            return (f"{len(row)} column(s), the header has {width} (a comma inside a text "
+                    "field that is not in quotes? its values would slide into the wrong "
+                    "columns)")  # fmt: skip
+        if not row[scene] or row[scene].isspace():
+            return empty.format("scenario_id")
+        if not row[track] or row[track].isspace():
+            return empty.format("track_id")
+        return None
 
-    short = next((k for k, row in enumerate(rows) if bad(row)), len(rows))
+    short, why = next(((k, said) for k, row in enumerate(rows) if (said := problem(row))),
+                      (len(rows), None))  # fmt: skip
     values = np.empty((short, len(_NUMERIC)))
     first_bad: list[tuple[int, int, str]] = []  # (row, column, message) of each column's
-    if short < len(rows):
-        row = rows[short]
-        if len(row) < need:
-            why = f"{len(row)} column(s), the header has {width} (a line cut short?)"
-        elif len(row) > width and any(f.strip() for f in row[width:]):
-            why = (
-                f"{len(row)} column(s), the header has {width} (a comma inside a text field "
-                "that is not in quotes? its values would slide into the wrong columns)"
-            )
-        else:
-            name = "scenario_id" if not row[scene].strip() else "track_id"
-            why = f"column {name!r} is empty; every row names its scene and track"
+    if why is not None:
         first_bad.append((short, -1, why))
     for c, name in enumerate(_NUMERIC):
         raw = [row[where[c + 2]] for row in rows[:short]]
@@ -339,15 +338,15 @@ def is_number(text: str) -> bool:
 _UNIT_SUFFIXES = {"s", "ms", "m", "ft", "mps", "mph", "kmh", "kph", "fps", "rad", "deg"}
 
 
-def _header_hint(header: list[str]) -> str:
-    """Why a header may lack the columns: another separator, or other letter case."""
+def _header_hint(header: list[str], missing: list[str]) -> str:
+    """Why a header may lack the ``missing`` columns: another separator, other letter case, a
+    misspelt name or another unit's."""
     line = ",".join(header)
     for sep, name in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
         if sep in line:
             return f" (the header is separated by {name}; separate columns with commas)"
     if {h.strip().lower() for h in header} >= set(REQUIRED_COLUMNS):
         return " (column names are lower case, without spaces)"
-    missing = [c for c in REQUIRED_COLUMNS if c not in header]
     extra = [h for h in header if h not in REQUIRED_COLUMNS]
     guesses = []  # (a misspelt name, or another unit's: speed_mph for speed_mps)
     for column in missing:

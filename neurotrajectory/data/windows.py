@@ -41,6 +41,7 @@ from gridsim.scenario.collection import (
     scenario_files,
 )
 from gridsim.scenario.families.recorded import (
+    checked_ego_tracks,
     ego_candidates,
     ego_track_ids,
     recorded_scene,
@@ -213,12 +214,7 @@ def scenario_episodes(
         flawed = flawed_tracks(tuple(scene_tracks), road)
         named = tracks is None and (own := ego_track_ids(base, scene)) != "random"
         if named:  # the scenario's own choice: each id must be the scene's, and be driven
-            tracks = [own] if isinstance(own, str) else own
-            missing = sorted(set(tracks) - {t.track_id for t in scene_tracks})
-            if missing:
-                shown = ", ".join(missing[:10])
-                raise ScenarioError(f"{base.source}: ego.track names {len(missing)} track(s) "
-                                    f"not in scene {scene!r}: {shown}")  # fmt: skip
+            tracks = checked_ego_tracks(base, scene_tracks, own, scene)
         wanted = None if tracks is None else {str(t) for t in tracks}
         need = base.config.env.horizon_time
         chosen = [t for t in scene_tracks if (wanted is None or t.track_id in wanted)

@@ -202,30 +202,41 @@ def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:
     a list of ids."""
     scene = scene_of(scenario)
     wanted = ego_track_ids(scenario, scene)
-    if isinstance(wanted, str) and wanted != "random":
-        match = [t for t in tracks if t.track_id == wanted]
-        if not match:
-            ids = ", ".join(t.track_id for t in tracks)
-            raise ScenarioError(
-                f"{scenario.source}: ego.track {wanted!r} is not in scene {scene!r}; tracks: {ids}"
-            )
-        return match[0]
-    if isinstance(wanted, list):
-        missing = sorted(set(wanted) - {t.track_id for t in tracks})
-        if missing:
-            raise ScenarioError(
-                f"{scenario.source}: ego.track lists {len(missing)} track(s) not in scene "
-                f"{scene!r}: {', '.join(missing[:10])}"
-            )
-    listed = set(wanted) if isinstance(wanted, list) else {t.track_id for t in tracks}
+    named = checked_ego_tracks(scenario, tracks, wanted, scene)
+    if isinstance(wanted, str) and named:  # one id: that track, fit or not
+        return next(t for t in tracks if t.track_id == wanted)
+    listed = set(named) if named is not None else {t.track_id for t in tracks}
     fit = [t for t in ego_candidates(scenario, tracks, road) if t.track_id in listed]
     if not fit:
         which = "the listed tracks" if isinstance(wanted, list) else f"scene {scene!r}"
         verb = "have" if isinstance(wanted, list) else "has"
         raise DataError(f"{scenario.source}: {which} {verb} no track to use as the ego "
-                            f"(of {len(listed & {t.track_id for t in tracks})}: "
-                            f"{why_unfit(scenario, tracks, road, listed)})")  # fmt: skip
+                        f"(of {len(listed & {t.track_id for t in tracks})}: "
+                        f"{why_unfit(scenario, tracks, road, listed)})")  # fmt: skip
     return fit[int(rng.integers(len(fit)))]
+
+
+def checked_ego_tracks(scenario: Scenario, tracks, wanted: str | list[str],
+                       scene: str) -> list[str] | None:  # fmt: skip
+    """The ids ``wanted`` (:func:`ego_track_ids`) as a list, each one of ``tracks`` (the
+    scene's), or a :class:`ScenarioError` naming those that are not; None for ``"random"``."""
+    if wanted == "random":
+        return None
+    have = {t.track_id for t in tracks}
+    if isinstance(wanted, str):
+        if wanted not in have:
+            ids = ", ".join(t.track_id for t in tracks)
+            raise ScenarioError(
+                f"{scenario.source}: ego.track {wanted!r} is not in scene {scene!r}; tracks: {ids}"
+            )
+        return [wanted]
+    missing = sorted(set(wanted) - have)
+    if missing:
+        raise ScenarioError(
+            f"{scenario.source}: ego.track lists {len(missing)} track(s) not in scene "
+            f"{scene!r}: {', '.join(missing[:10])}"
+        )
+    return list(wanted)
 
 
 def ego_track_ids(scenario: Scenario, scene: str | None = None) -> str | list[str]:
@@ -239,9 +250,9 @@ def ego_track_ids(scenario: Scenario, scene: str | None = None) -> str | list[st
     scene = scene_of(scenario) if scene is None else scene
     own, foreign = ids_in_scene([wanted] if isinstance(wanted, str) else wanted, scene)
     if foreign and not own:
-        raise UnselectedScene(f"{scenario.source}: ego.track names no track of scene {scene!r}, "
-                            f"only of other scenes: {', '.join(foreign[:5])}"
-                            + (" ..." if len(foreign) > 5 else ""))  # fmt: skip
+        raise UnselectedScene(f"{scenario.source}: ego.track names no track of scene "
+                              f"{scene!r}, only of other scenes: {', '.join(foreign[:5])}"
+                              + (" ..." if len(foreign) > 5 else ""))  # fmt: skip
     return own[0] if isinstance(wanted, str) else own
 
 

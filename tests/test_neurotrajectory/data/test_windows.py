@@ -71,7 +71,7 @@ def test_a_scenario_that_names_its_ego_tracks_records_only_them(tmp_path):
     assert len(scenario_episodes("us101_3_3")[0]) == 12  # (ego.track: random) every track
     # an id not in the scene is refused (it gave 0 episodes and "no windows were recorded")
     path.write_text(head + 'ego: {track: ["363", "99999"]}\n')
-    with pytest.raises(ScenarioError, match=r"names 1 track\(s\) not in scene .*: 99999"):
+    with pytest.raises(ScenarioError, match=r"lists 1 track\(s\) not in scene .*: 99999"):
         scenario_episodes(str(path))
 
 
