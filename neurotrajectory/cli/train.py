@@ -13,6 +13,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +30,7 @@ from neurotrajectory.evolve.runs import (
     WARM_START_FIT_FILE,
     Run,
     RunError,
+    SettingsClash,
     TrainConfig,
     run_folder,
 )
@@ -36,9 +38,46 @@ from neurotrajectory.evolve.runs import (
 DEFAULT_OUT = "runs/default"
 
 
+#: The flag of each :class:`TrainConfig` field declared with :func:`config_flag`, and the
+#: value it stores when it takes none (None: it takes a value).
+_FLAGS: dict[str, tuple[str, Any]] = {}
+
+
 def config_flag(parser: argparse.ArgumentParser, flag: str, **kwargs) -> None:
     """``flag`` for its :class:`TrainConfig` field (:func:`settings_flag`)."""
+    _FLAGS[kwargs.get("dest", flag.lstrip("-").replace("-", "_"))] = (flag, kwargs.get("const"))
     settings_flag(parser, TrainConfig, flag, **kwargs)
+
+
+def flag_of(field: str) -> str:
+    """The ``train`` flag that sets the :class:`TrainConfig` ``field``."""
+    return _FLAGS.get(field, ("--" + field.replace("_", "-"), None))[0]
+
+
+def clash_message(exc: SettingsClash) -> str:
+    """Why ``train --resume`` refuses flags that would change the run's results, in the
+    flags' own words."""
+    parts = []
+    for field, (has, asked) in exc.clash.items():
+        flag, const = _FLAGS.get(field, (flag_of(field), None))
+        if const is not None:  # a flag that takes no value
+            parts.append(f"{flag} (the run began without it)")
+        else:
+            parts.append(f"{flag} {_shown(asked)} (the run has {_shown(has)})")
+    may = ", ".join(flag_of(f) for f in TrainConfig.RESUMABLE)
+    return (f"{exc.out}: cannot resume with {'; '.join(parts)}: "
+            f"{'it' if len(parts) == 1 else 'they'} would change the run's results. Leave "
+            f"{'it' if len(parts) == 1 else 'them'} out to resume (a resume may change "
+            f"{may}), or start a new run with another --out")  # fmt: skip
+
+
+def _shown(value: Any) -> str:
+    """A setting as it is given on the command line."""
+    if value is None:
+        return "none"
+    if isinstance(value, tuple | list):
+        return " ".join(_shown(v) for v in value) or "none"
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def add_parser(sub) -> None:
@@ -134,19 +173,22 @@ def kept_note(out: Path) -> str:
 
 def _train(args: argparse.Namespace, out: str, started: float) -> int:
     with run_folder(out, resume=bool(args.resume)):  # one writer; a failure early undoes
+        given = _train_flags(args)
+        if given.get("scenario"):  # files by absolute paths: resumed from any folder
+            given["scenario"] = absolute_ref(given["scenario"])
+        if given.get("pretrain"):
+            given["pretrain"] = os.path.abspath(given["pretrain"])
         if args.resume:
             # flags that would change the run's results are refused unless they match it
-            run = Run.open(out, **_train_flags(args), **_after_flags(args))
+            try:
+                run = Run.open(out, **given, **_after_flags(args))
+            except SettingsClash as exc:
+                raise RunError(clash_message(exc)) from None
             run.check_inputs()  # the same data as when it began
         else:
             # the fields' own defaults: None where TrainConfig resolves one from the other
             # fields (the activation from the preset, the selection from the warm start)
             defaults = TrainConfig.defaults()
-            given = _train_flags(args)
-            if given.get("scenario"):  # files by absolute paths: resumed from any folder
-                given["scenario"] = absolute_ref(given["scenario"])
-            if given.get("pretrain"):
-                given["pretrain"] = os.path.abspath(given["pretrain"])
             config = TrainConfig(**{k: (v if v is not None else defaults[k])
                                     for k, v in given.items()})  # fmt: skip
             if args.dagger_labels is not None and not config.dagger_rounds:

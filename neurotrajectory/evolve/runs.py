@@ -111,6 +111,17 @@ class RunError(RuntimeError):
     """A run directory is missing, corrupt or incompatible with the requested run."""
 
 
+class SettingsClash(RunError):
+    """:meth:`Run.open` was asked for settings that would change the run's results:
+    ``clash`` maps each such :class:`TrainConfig` field to ``(the run's value, the value
+    asked)`` (a command line names its flags instead)."""
+
+    def __init__(self, out: Path, clash: dict[str, tuple[Any, Any]]) -> None:
+        self.out, self.clash = out, clash
+        detail = ", ".join(f"{k}: run has {a!r}, asked {b!r}" for k, (a, b) in clash.items())
+        super().__init__(f"{out}: cannot resume with a different configuration ({detail})")
+
+
 #: The largest mutation step accepted (``sigma``): larger ones overflow the network's
 #: weights (the recipes use 0.02 to 0.1).
 MAX_SIGMA = 10.0
@@ -287,33 +298,32 @@ class TrainConfig(Settings):
         warm = bool(self.pretrain or self.pretrain_episodes)
         problems = []
         if self.pretrain and self.pretrain_episodes:
-            problems.append("give either pretrain (a dataset) or pretrain_episodes, not both")
+            problems.append("give either --pretrain (a dataset) or --pretrain-episodes, not both")
         if self.dagger_rounds and not warm:
-            problems.append("dagger_rounds refit the warm start: give pretrain or "
-                            "pretrain_episodes")  # fmt: skip
+            problems.append("--dagger-rounds refit the warm start: give --pretrain or "
+                            "--pretrain-episodes")  # fmt: skip
         if self.dagger_weight is not None and not self.dagger_rounds:
-            problems.append(f"dagger_weight {self.dagger_weight:g} weighs the DAgger rounds' "
-                            "windows: give dagger_rounds >= 1")  # fmt: skip
+            problems.append(f"--dagger-weight {self.dagger_weight:g} weighs the DAgger rounds' "
+                            "windows: give --dagger-rounds >= 1")  # fmt: skip
         if self.pretrain_episodes == 1 and self.pretrain_validation > 0:
-            problems.append("pretrain_episodes 1 leaves no episode to validate the warm start "
-                            "on: record >= 2 or set pretrain_validation to 0")  # fmt: skip
+            problems.append("--pretrain-episodes 1 leaves no episode to validate the warm start "
+                            "on: record >= 2 or set --pretrain-validation 0")  # fmt: skip
         if self.validation_tracks and self.ego_tracks and not self.held_tracks:
-            problems.append(f"validation_tracks {self.validation_tracks:g} needs a scene with "
+            problems.append(f"--validation-tracks {self.validation_tracks:g} needs a scene with "
                             "at least 2 training tracks to split, got "
                             f"{list(self.ego_tracks)}")  # fmt: skip
         if self.validation_tracks and not self.validation_episodes:
             problems.append(
-                f"validation_tracks {self.validation_tracks:g} holds tracks out "
-                "for the validation episodes: give validation_episodes >= 1"
+                f"--validation-tracks {self.validation_tracks:g} holds tracks out "
+                "for the validation episodes: give --validation-episodes >= 1"
             )
         if self.evolve != "all" and not warm:
-            problems.append(f"evolve {self.evolve!r} keeps the warm start's encoder: give "
-                            "--pretrain or --pretrain-episodes (TrainConfig.pretrain / "
-                            "pretrain_episodes), or evolve 'all'")  # fmt: skip
+            problems.append(f"--evolve {self.evolve} keeps the warm start's encoder: give "
+                            "--pretrain or --pretrain-episodes, or --evolve all")  # fmt: skip
         if self.anchored and not warm:
-            problems.append(f"selection {self.selection!r} starts from the warm start and "
+            problems.append(f"--selection {self.selection} starts from the warm start and "
                             "keeps a member no worse than it: give --pretrain or "
-                            "--pretrain-episodes, or selection 'pareto'")  # fmt: skip
+                            "--pretrain-episodes, or --selection pareto")  # fmt: skip
         if self.max_correction is not None:
             try:
                 checked_max_correction(self.max_correction, self.frame)
@@ -541,8 +551,7 @@ class Run:
             if v is not None and k not in TrainConfig.RESUMABLE and getattr(stored, k) != v
         }
         if clash:
-            detail = ", ".join(f"{k}: run has {a!r}, asked {b!r}" for k, (a, b) in clash.items())
-            raise RunError(f"{out}: cannot resume with a different configuration ({detail})")
+            raise SettingsClash(out, clash)
         allowed = {k: v for k, v in changes.items() if v is not None and k in TrainConfig.RESUMABLE}
         config = stored.replace(**allowed)
         kept = doc.get("after") if isinstance(doc.get("after"), dict) else {}

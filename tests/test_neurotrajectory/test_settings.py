@@ -53,8 +53,8 @@ def test_every_problem_is_reported_at_once_and_checks_across_fields_follow():
     with pytest.raises(RunError) as info:
         TrainConfig(dagger_rounds=1, evolve="head")
     said = str(info.value)
-    assert said.startswith("2 problems: dagger_rounds refit the warm start")
-    assert "; evolve 'head' keeps the warm start's encoder" in said
+    assert said.startswith("2 problems: --dagger-rounds refit the warm start")
+    assert "; --evolve head keeps the warm start's encoder" in said
 
 
 def test_numbers_are_strict_but_take_numpy_scalars_and_keep_what_was_given():

@@ -530,6 +530,22 @@ _OTHER_VALUES = {
 _COMMAND_FLAGS = {"--help", "--out", "--resume", "--video", "--heldout", "--quiet"}
 
 
+def test_resume_takes_the_relative_paths_the_run_began_with(tmp_path, capsys, monkeypatch):
+    """The flags a run began with, given again with --resume from the same folder, are its
+    own: its scenario file and dataset are kept by absolute paths, the flags' relative ones
+    are compared as such (only the one flag that differs is refused, by its flag)."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "scen.yaml").write_text("extends: seamless\nname: mine\n")
+    config = TrainConfig(preset="tiny", scenario=str(tmp_path / "scen.yaml"))
+    run = Run.create(tmp_path / "run", config)
+    argv = ["train", "--resume", "run", "--scenario", "scen.yaml", "--episodes", "3", "--quiet"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert "cannot resume with --episodes 3 (the run has 2): it would change" in err
+    assert "--scenario" not in err
+    assert run.config.episodes == 2
+
+
 def test_resume_applies_or_refuses_every_training_flag(tmp_path, capsys):
     from neurotrajectory.cli import build_parser
 
@@ -546,7 +562,10 @@ def test_resume_applies_or_refuses_every_training_flag(tmp_path, capsys):
         argv = ["train", "--resume", str(run.out), flag, *given, "--quiet"]
         assert main(argv) == 2, flag
         err = capsys.readouterr().err
-        assert f"cannot resume with a different configuration ({dest[flag]}: run has" in err
+        assert f"cannot resume with {flag}" in err  # named by its flag
+        assert "would change the run's results" in err
+        if "_" in dest[flag]:  # not by its internal field
+            assert dest[flag] not in err.replace(str(run.out), "")
         assert (run.out / "config.json").read_text() == before  # nothing changed
     resumable = {dest[f]: _OTHER_VALUES[f] for f in _OTHER_VALUES
                  if dest[f] in TrainConfig.RESUMABLE}  # fmt: skip

@@ -220,7 +220,7 @@ def test_a_run_without_a_warm_start_has_no_warm_start_entry(tmp_path):
 
 
 def test_anchored_selection_needs_a_warm_start_and_old_runs_read_as_pareto(tmp_path, capsys):
-    with pytest.raises(RunError, match="selection 'anchored' starts from the warm start"):
+    with pytest.raises(RunError, match="--selection anchored starts from the warm start"):
         TrainConfig(selection="anchored")
     with pytest.raises(RunError, match="unknown selection 'best'; choose from"):
         TrainConfig(selection="best")

@@ -170,7 +170,7 @@ def test_the_epoch_kept_is_the_one_that_predicts_held_out_tracks_best(windows_di
     with pytest.raises(PretrainError, match="needs windows of >= 2 tracks"):
         one = w.take(np.flatnonzero(w.track == w.track[0]))
         pretrain_genome(_tiny_net(), start, one, epochs=1, seed=0, validation=0.2)
-    with pytest.raises(RunError, match="pretrain_episodes 1 leaves no episode"):
+    with pytest.raises(RunError, match="--pretrain-episodes 1 leaves no episode"):
         TrainConfig(pretrain_episodes=1)
 
 
@@ -234,7 +234,7 @@ def test_evolving_the_head_keeps_the_warm_started_encoder(windows_dir, tmp_path,
 def test_evolve_scopes_are_checked():
     with pytest.raises(RunError, match=r"unknown evolve scope 'cnn'; choose from \['all', "):
         TrainConfig(pretrain_episodes=2, evolve="cnn")
-    with pytest.raises(RunError, match="evolve 'head' keeps the warm start's encoder: give "
+    with pytest.raises(RunError, match="--evolve head keeps the warm start's encoder: give "
                                        "--pretrain or --pretrain-episodes"):  # fmt: skip
         TrainConfig(evolve="head")
     with pytest.raises(ValueError, match=r"the network has no parameters \['nope'\]"):
@@ -303,7 +303,7 @@ def test_a_run_can_record_its_own_warm_start(tmp_path, capsys):
     seeds = Run.open(out).config.pretrain_seeds
     assert stats["recorded_episodes"] == list(seeds) and all(s % 2 == 0 for s in seeds)
     assert stats["windows"] > 0 and stats["epochs"] == 1  # (fitting: tested above)
-    with pytest.raises(RunError, match="either pretrain .* or pretrain_episodes"):
+    with pytest.raises(RunError, match="either --pretrain .* or --pretrain-episodes"):
         TrainConfig(pretrain="data", pretrain_episodes=3)
     recorded = TrainConfig(scenario="us101_3_3", preset="tiny", population=2, generations=1,
                            pretrain_episodes=2)  # fmt: skip
@@ -311,7 +311,7 @@ def test_a_run_can_record_its_own_warm_start(tmp_path, capsys):
         Run.create(tmp_path / "rec", recorded).train(progress=False)
     # a resumed run refuses flags that would change its results
     assert main(["train", "--resume", str(out), "--sigma", "0.1", "--quiet"]) == 2
-    assert "sigma: run has 0.005, asked 0.1" in capsys.readouterr().err
+    assert "cannot resume with --sigma 0.1 (the run has 0.005)" in capsys.readouterr().err
 
 
 def test_a_recorded_scene_run_drives_only_the_tracks_of_its_training_data(tmp_path):
@@ -445,7 +445,7 @@ def test_dagger_rounds_refit_the_warm_start_on_the_states_it_visits(windows_dir,
     assert doc["dagger"][0]["visited_windows"] == visited[0]  # the same first drive
     assert doc["dagger"][1]["validation_mse"] != rounds[1]["validation_mse"]
     assert json.loads((weighted / "config.json").read_text())["train"]["dagger_weight"] == 0.25
-    with pytest.raises(RunError, match="dagger_rounds refit the warm start"):
+    with pytest.raises(RunError, match="--dagger-rounds refit the warm start"):
         TrainConfig(dagger_rounds=1)
     with pytest.raises(RunError, match="no episode of the training scenario 'inner_city'"):
         cfg = TrainConfig(scenario="inner_city", preset="tiny", population=2, generations=1,
@@ -506,7 +506,7 @@ def test_unknown_dagger_labels_are_refused():
 
 
 def test_a_dagger_weight_without_rounds_is_refused_before_the_run(tmp_path, capsys):
-    with pytest.raises(RunError, match=r"dagger_weight 0.5 weighs the DAgger rounds' windows"):
+    with pytest.raises(RunError, match=r"--dagger-weight 0.5 weighs the DAgger rounds' windows"):
         TrainConfig(pretrain_episodes=2, dagger_weight=0.5)
     out = tmp_path / "run"
     args = ["train", "--pretrain-episodes", "2", "--dagger-rounds", "1", "--out", str(out)]
@@ -517,7 +517,7 @@ def test_a_dagger_weight_without_rounds_is_refused_before_the_run(tmp_path, caps
         capsys.readouterr().err
     )
     assert main([*args[:3], *args[5:], "--dagger-weight", "0.5"]) == 2
-    assert "give dagger_rounds >= 1" in capsys.readouterr().err
+    assert "give --dagger-rounds >= 1" in capsys.readouterr().err
     assert main([*args[:3], *args[5:], "--dagger-labels", "human"]) == 2
     assert "--dagger-labels human labels the DAgger rounds' windows: give --dagger-rounds >= 1" in (
         capsys.readouterr().err

@@ -45,7 +45,7 @@ def test_the_held_tracks_are_a_seeded_share_kept_out_of_the_generations():
 def test_a_bad_share_is_refused_saying_why(share, tracks, message):
     with pytest.raises(RunError, match=message):
         TrainConfig(ego_tracks=tracks, validation_tracks=share)
-    with pytest.raises(RunError, match="give validation_episodes >= 1"):
+    with pytest.raises(RunError, match="give --validation-episodes >= 1"):
         TrainConfig(ego_tracks=TRACKS, validation_tracks=0.3, validation_episodes=0)
 
 
