@@ -185,6 +185,7 @@ def _train(args: argparse.Namespace, out: str, started: float) -> int:
             except SettingsClash as exc:
                 raise RunError(clash_message(exc)) from None
             run.check_inputs()  # the same data as when it began
+            run.note_resumed(args.command)
         else:
             # the fields' own defaults: None where TrainConfig resolves one from the other
             # fields (the activation from the preset, the selection from the warm start)

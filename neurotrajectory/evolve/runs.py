@@ -504,6 +504,22 @@ class Run:
             date=time.strftime("%Y-%m-%d %H:%M"), out=out))  # fmt: skip
         return run
 
+    def note_resumed(self, command: str) -> None:
+        """Add ``command`` (the command line that resumes the run) and the date to the run's
+        ``README.md``, under how it was made and resumed before (a run without a README,
+        made before runs had one, is left without)."""
+        path = self.out / "README.md"
+        try:
+            lines = path.read_text().splitlines(keepends=True)
+        except OSError:
+            return
+        said = [i for i, line in enumerate(lines) if line.startswith(("Made by", "Resumed by"))]
+        if not said:
+            return
+        line = f"Resumed by `{command}` on {time.strftime('%Y-%m-%d %H:%M')}.\n"
+        lines[said[-1] + 1 : said[-1] + 1] = ["\n", line]
+        write_text(path, "".join(lines))
+
     def _write_config(self) -> None:
         after = dict(self.after)
         video, here = after.get("video"), self.out.resolve()

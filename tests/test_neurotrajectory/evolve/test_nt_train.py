@@ -128,6 +128,9 @@ def test_a_run_killed_mid_generation_resumes_to_the_same_result(tmp_path):
     assert [h["fitness"] for h in history(tmp_path / "a")] == [
         h["fitness"] for h in history(killed)
     ]
+    made, resumed = (killed / "README.md").read_text().split("\n\n")[1:3]  # the run's story
+    assert made.startswith("Made by `") and f"--out {killed}` on " in made
+    assert resumed.startswith(f"Resumed by `neurotrajectory train --resume {killed} --heldout 0")
 
 
 def test_a_killed_worker_is_named_with_a_way_on():
