@@ -24,14 +24,7 @@ import torch
 
 from gridsim.errors import DataWarning
 from neurotrajectory.compare.closed_loop import drive_episodes
-from neurotrajectory.compare.front import (
-    _other_tracks,
-    _resolve_track,
-    _scenes,
-    load_front,
-    load_warm_start,
-)
-from neurotrajectory.evolve.runs import RunError
+from neurotrajectory.compare.front import load_front, load_warm_start, run_tracks
 
 
 def main() -> None:
@@ -51,13 +44,7 @@ def main() -> None:
                          "network whose residual is in the ego frame, unbounded")  # fmt: skip
     branches = policy.net.branches
     bias, times = branches.head_bias.detach().clone(), policy.net.times.clone()
-    train = []
-    for name in cfg.ego_tracks:  # (the ones that can be the ego: the run drove no other)
-        try:
-            train.append(_resolve_track(cfg.scenario, name))
-        except RunError:
-            continue
-    held = _other_tracks(cfg.scenario, cfg.ego_tracks, _scenes(cfg.scenario))
+    _, train, held = run_tracks(cfg)
     seeds = list(cfg.heldout_seeds(max(len(held), len(train))))
 
     def drive(tracks) -> list[dict]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import zipfile
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -147,9 +148,9 @@ def heldout(
     seconds = cfg.episode_seconds if seconds is None else float(seconds)
     tracks, names = None, []
     if cfg.ego_tracks:  # each held-out track of the run's scenes once
-        scenes = _scenes(cfg.scenario)
-        tracks = _other_tracks(cfg.scenario, cfg.ego_tracks, scenes)[:episodes]
-        names = _track_names(tracks, scenes)
+        split = run_tracks(cfg)
+        tracks = split.held[:episodes]
+        names = _track_names(tracks, split.scenes)
     seeds = list(cfg.heldout_seeds(len(tracks) if tracks else episodes))
     warm = load_warm_start(run, policy.keep)
     planners = 2 if warm is None else 3
@@ -212,13 +213,39 @@ def _track_names(tracks: list[tuple[str, str]], scenes: list[tuple[str, Scenario
     return [track_name(ref, track) if several else track for ref, track in tracks]
 
 
-def _resolve_track(scenario: str, name: str) -> tuple[str, str]:
-    """``(scenario file, track id)`` of the track ``name`` of ``scenario`` that can be the
-    ego: named as reports name it (:func:`_track_names`), as ``SCENE/ID`` with the scene's
-    id (as ``config.json`` and datasets name it), or by its id alone where one scene has it."""
+class RunTracks(NamedTuple):
+    """The recorded tracks of a run's scenes that can be the ego, as ``(scenario file, track
+    id)``: those it trained on and those held out from it (:func:`run_tracks`)."""
+
+    scenes: list[tuple[str, Scenario]]  # (file, scenario) of each scene (:func:`_scenes`)
+    trained: list[tuple[str, str]]  # the run's ego_tracks that can be the ego
+    held: list[tuple[str, str]]  # every other one, in id order (what heldout drives)
+
+
+def run_tracks(config) -> RunTracks:
+    """The training and held-out tracks of a run of ``config`` (a
+    :class:`~neurotrajectory.evolve.runs.TrainConfig` with ``ego_tracks``, on recorded
+    scenes); a :class:`RunError` when none is held out."""
+    scenes = _scenes(config.scenario)
+    trained = []
+    for name in config.ego_tracks:  # (the ones that can be the ego: the run drove no other)
+        try:
+            trained.append(_resolve_track(config.scenario, name, scenes))
+        except RunError:
+            continue
+    return RunTracks(scenes, trained, _other_tracks(config.scenario, config.ego_tracks, scenes))
+
+
+def _resolve_track(
+    scenario: str, name: str, scenes: list[tuple[str, Scenario]] | None = None
+) -> tuple[str, str]:
+    """``(scenario file, track id)`` of the track ``name`` of ``scenario`` (``scenes`` if
+    loaded already, :func:`_scenes`) that can be the ego: named as reports name it
+    (:func:`_track_names`), as ``SCENE/ID`` with the scene's id (as ``config.json`` and
+    datasets name it), or by its id alone where one scene has it."""
     from gridsim.scenario.families.recorded import scene_of
 
-    scenes = _recorded(_scenes(scenario))
+    scenes = _recorded(_scenes(scenario) if scenes is None else scenes)
     every = _other_tracks(scenario, (), scenes)
     scene_ids = {ref: scene_of(sc) for ref, sc in scenes}
     names: dict[str, list[tuple[str, str]]] = {}

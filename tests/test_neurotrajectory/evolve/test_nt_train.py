@@ -839,13 +839,18 @@ def test_heldout_tracks_are_the_usable_tracks_a_run_did_not_train_on():
     from gridsim.scenario.families.recorded import ego_candidates, scene_of
     from gridsim.scenario.loader import load_scenario
     from gridsim.scenario.parts import library_for
-    from neurotrajectory.compare.front import _other_tracks, heldout_problem
+    from neurotrajectory.compare.front import _other_tracks, heldout_problem, run_tracks
 
     base = load_scenario("us101_4_1")
     usable = [t.track_id for t in ego_candidates(base)]
     every = [t.track_id for t in library_for(base).scene(scene_of(base))]
     assert 0 < len(usable) < len(every)  # the scene has tracks too short to be the ego
     assert _other_tracks("us101_4_1", tuple(usable[1:])) == [("us101_4_1", usable[0])]
+    named = (*usable[1:3], f"{scene_of(base)}/{usable[3]}", every[-1])  # (the last too short)
+    assert every[-1] not in usable
+    split = run_tracks(TrainConfig(scenario="us101_4_1", ego_tracks=named))
+    assert split.trained == [("us101_4_1", t) for t in usable[1:4]]  # the ones that can be ego
+    assert split.held == [("us101_4_1", t) for t in usable if t not in usable[1:4]]
     assert heldout_problem(TrainConfig(scenario="us101_4_1", ego_tracks=tuple(usable[1:]))) is None
     problem = heldout_problem(TrainConfig(scenario="us101_4_1", ego_tracks=tuple(every)))
     assert "us101_4_1: every track of the scene that can be the ego was trained on" in problem
