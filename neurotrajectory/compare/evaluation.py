@@ -406,10 +406,20 @@ def _video_label(method: str, group: str, scenario: str) -> str:
     return f"{method}, {group}" + ("" if stem == group else f" ({stem})")
 
 
+#: The settings the windows an evaluation records depend on (each group's files are checked
+#: on their own, :func:`_split_dataset`): an interrupted evaluation goes on with its windows
+#: when only others changed (the closed loop, End2End, the runs, the split, ...).
+RECORDING_SETTINGS = ("episodes", "episode_seconds", "seed", "goal_seconds")
+#: The ``evaluate`` flags of settings not named by the rule (``a_b``: ``--a-b``).
+_FLAGS = {"end2end": "--e2e-epochs", "neurotrajectory": "--run/--group-run",
+          "sources": "--group", "groups": "--groups"}  # fmt: skip
+
+
 def _go_on_or_start(partial: Path, settings: dict, log) -> None:
-    """Keep what an interrupted evaluation of the same ``settings`` left in ``partial`` (the
-    windows it recorded, ``data/``; the rest is made again), or refuse one of other settings
-    (:class:`~gridsim.errors.WorkKept`, naming them), or clear what a killed one left."""
+    """Keep what an interrupted evaluation left in ``partial`` (the windows it recorded,
+    ``data/``; the rest is made again) if it recorded them with the same
+    :data:`RECORDING_SETTINGS`, or refuse to discard them (:class:`~gridsim.errors.WorkKept`,
+    naming the flags that differ), or clear what a killed one left."""
     config = partial / "eval_config.json"
     if not config.is_file():
         empty_folder(partial)
@@ -418,18 +428,26 @@ def _go_on_or_start(partial: Path, settings: dict, log) -> None:
         then = json.loads(config.read_text())
     except (OSError, ValueError):
         then = None
-    if then != settings:
-        differ = ["unreadable"] if not isinstance(then, dict) else sorted(
-            k for k in set(settings) | set(then) if then.get(k) != settings.get(k))  # fmt: skip
-        raise WorkKept(f"{partial} holds an interrupted evaluation of other settings "
-                       f"({', '.join(differ)}): give the arguments it was made "
-                       f"with to go on with its recorded windows, or remove {partial} to start "
-                       "afresh")  # fmt: skip
+    if not isinstance(then, dict):
+        raise WorkKept(f"{partial} holds an interrupted evaluation whose eval_config.json is "
+                       f"unreadable: remove {partial} to start afresh")  # fmt: skip
+    differ = sorted(k for k in set(settings) | set(then) if then.get(k) != settings.get(k))
     kept = sorted(p.name for p in (partial / "data").glob("*") if p.is_dir())
+    recording = [k for k in differ if k in RECORDING_SETTINGS]
+    if recording and kept:
+        raise WorkKept(f"{partial} holds the windows of an interrupted evaluation recorded "
+                       f"with other {_flags(recording)}: give the values it was made with to "
+                       f"go on with them, or remove {partial} to start afresh")  # fmt: skip
     empty_folder(partial, keep=("data", "eval_config.json"))
     if kept:
+        changed = f" ({_flags(differ)} changed: the rest is made again)" if differ else ""
         log(f"going on with the interrupted evaluation in {partial}: the windows recorded "
-            f"of {', '.join(kept)} are kept")  # fmt: skip
+            f"of {', '.join(kept)} are kept{changed}")  # fmt: skip
+
+
+def _flags(settings: list[str]) -> str:
+    """The ``evaluate`` flags of ``eval_config.json``'s ``settings``."""
+    return ", ".join(_FLAGS.get(k, "--" + k.replace("_", "-")) for k in settings)
 
 
 def _say_kept(partial: Path) -> None:

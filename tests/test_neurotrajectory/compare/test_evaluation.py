@@ -222,16 +222,18 @@ def test_an_interrupted_evaluation_goes_on_with_the_windows_it_recorded(
     assert f"the windows recorded so far are kept in {partial}" in capsys.readouterr().err
     assert (partial / "data" / "seamless" / "manifest.json").is_file() and not out.exists()
     other = [*args]
-    other[other.index("--e2e-epochs") + 1] = "2"
-    assert main([*other, "--out", str(out)]) == 2
-    assert "holds an interrupted evaluation of other settings (end2end)" in \
-        capsys.readouterr().err  # fmt: skip
-    with monkeypatch.context() as m:
+    other[other.index("--episode-seconds") + 1] = "5"
+    assert main([*other, "--out", str(out)]) == 2  # the windows would change: refused
+    assert ("holds the windows of an interrupted evaluation recorded with other "
+            "--episode-seconds: give the values") in capsys.readouterr().err  # fmt: skip
+    with monkeypatch.context() as m:  # End2End and the closed loop changed: go on
         recorded = ctrl_c_at(m, evaluation, "record_dataset", 0)  # (counts the recordings)
-        assert main([*args, "--out", str(out)]) == 0
+        assert main([*args, "--out", str(out), "--closed-loop-episodes", "1"]) == 0
     assert recorded == [] and not partial.exists()
+    config = json.loads((out / "eval_config.json").read_text())
+    assert config["closed_loop_episodes"] == 1  # the settings it went on with
     same = [(d / "table2.csv").read_text() for d in (tmp_path / "whole", out)]
-    assert same[0] == same[1]
+    assert same[0] == same[1]  # (the same windows, the same open-loop table)
 
 
 def test_an_evaluation_interrupted_while_recording_goes_on_or_records_again(
