@@ -68,6 +68,9 @@ class Road(ABC):
     version: int = 0
     #: Whether the road never changes (nothing to track as the ego drives).
     static: bool = False
+    #: Whether the road's edges enclose its drivable area, so that a footprint cannot leave
+    #: it without touching an edge (not so where lanes are cut off at a map's border).
+    enclosed: bool = True
 
     @property
     @abstractmethod
@@ -175,6 +178,7 @@ class StaticRoad(Road):
         k = 2 * int(np.ceil(CLOSE_GAP / resolution / 2)) + 1
         self._raster = cv2.morphologyEx(self._raster, cv2.MORPH_CLOSE, np.ones((k, k), np.uint8))
         self._segments = _drop_open_ends(self._extract_boundaries(), open_ends, resolution)
+        self.enclosed = open_ends is None or len(open_ends) == 0
 
     @property
     def lanes(self) -> list[Lane]:

@@ -121,8 +121,10 @@ class World:
         trusted, self._checked = self._checked, True
         if contact.boundaries:
             off_road = True
-        elif trusted and not self.last.off_road and moved < 0.5 * self.ego_params.width:
-            # Still on the road: the footprint cannot have crossed an edge without touching it.
+        elif (trusted and not self.last.off_road and moved < 0.5 * self.ego_params.width
+              and self.road.enclosed):  # fmt: skip
+            # Still on the road: the footprint cannot have crossed an edge without touching it
+            # (a recorded map's open ends have no edge: there the test below runs).
             off_road = False
         else:
             off_road = not bool(self.road.is_drivable(self.ego_center()[None])[0])

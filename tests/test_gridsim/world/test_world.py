@@ -160,6 +160,22 @@ def test_a_checked_tick_after_unchecked_ones_tests_the_road_itself():
     assert world.tick(0.0, 0.0).off_road
 
 
+def test_driving_slowly_out_of_a_recorded_maps_open_end_is_off_road():
+    """Where a recorded map's lanes are cut off there is no edge to touch: the shortcut that
+    trusts "no edge touched, so still on the road" must not hold there (the lane follower of
+    `gridsim drive` rolled onto the grass past US-101's end at 1.3 m/s, 'ticks_off_road: 0')."""
+    world = build_world(load_scenario("us101_4_1"), 0)
+    speed = float(world.ego_track.speed.mean())  # as `gridsim drive` drives
+    follower, counted, outside = LaneFollower(speed=speed), [], []
+    for _ in range(200):
+        result = world.tick(*follower(world))
+        counted.append(result.off_road)
+        outside.append(not world.road.is_drivable(world.ego_center()[None])[0])
+    assert world.ego[3] < 0.5 * world.ego_params.width / world.dt  # slow: the shortcut's case
+    assert sum(outside) > 10 and counted == outside  # every tick off the map is off-road
+    assert not world.road.enclosed and build_world(load_scenario("seamless"), 0).road.enclosed
+
+
 def _world_state(world):
     f, road, traffic = world.traffic.fleet, world.road, world.traffic
     rng = getattr(traffic, "rng", None)  # synthetic traffic's random stream
