@@ -91,14 +91,8 @@ def _write(out, sc, seed, world, grids, times, steps, start, distance, collision
     spec = sc.config.sensor
     frame = view.render(world, grids[-1], grid_frame=(spec.cell_size, spec.orientation))
     caption = Caption(f"lane follower, {sc.name} (seed {seed})", world.time, float(world.ego[3]))
-    annotate(
-        frame,
-        caption,
-        view.view.pixels_per_metre,
-        view.view.inset_size,
-        view.ego_row(world),
-        setpoints=False,
-    )  # (the drive draws no set-points)
+    annotate(frame, caption, view.view.pixels_per_metre, view.view.inset_size,
+             setpoints=False)  # (the drive draws no set-points)  # fmt: skip
     cv2.imwrite(str(out / "topdown.png"), frame[:, :, ::-1])
     summary = {
         "scenario": sc.name,

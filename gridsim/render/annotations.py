@@ -27,6 +27,8 @@ from gridsim.sensors.occupancy import FREE, OCCUPIED, UNKNOWN
 
 _FONT, _SCALE, _STEP = cv2.FONT_HERSHEY_SIMPLEX, 0.42, 17
 _WHITE = (255, 255, 255)
+#: The colour of the caption's last line when the episode ended (RGB; bold).
+ENDED_COLOUR = (255, 120, 110)
 
 #: The picture's colours: name, RGB, drawn as a box (vehicles) or a dot (set-points).
 LEGEND: tuple[tuple[str, tuple[int, int, int], str], ...] = (
@@ -83,17 +85,18 @@ _ENDINGS = (("collision", "collision"), ("off_road", "off the road"),
 
 
 def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
-             inset_size: int | None = None, ego_row: float | None = None,
-             setpoints: bool = True) -> np.ndarray:  # fmt: skip
-    """Write ``caption``, the colour legend (without the set-points' colours unless
-    ``setpoints``: a frame that draws none), the grid inset's legend (beside an inset of
-    ``inset_size`` pixels at the top right, if any; under it when the caption is too wide)
-    and a scale bar on ``img`` (in place); returns ``img``. The banner of an episode's end
-    keeps clear of the ego's pixel row ``ego_row``, if given."""
+             inset_size: int | None = None, setpoints: bool = True) -> np.ndarray:  # fmt: skip
+    """Write ``caption`` (with how the episode ended, if it did, as its last line, in light
+    red and bold: the scene itself is left clear at the moment that matters), the colour
+    legend (without the set-points' colours unless ``setpoints``: a frame that draws none),
+    the grid inset's legend (beside an inset of ``inset_size`` pixels at the top right, if
+    any; under it when the caption is too wide) and a scale bar on ``img`` (in place);
+    returns ``img``."""
     text = [(t, None, "") for t in caption.lines()]
-    _band(img, 0, 0, text)
     if caption.ended:
-        _banner(img, f"episode over: {caption.ended} at {caption.time:.1f} s", ego_row)
+        text.append((f"episode over: {caption.ended} at {caption.time:.1f} s", ENDED_COLOUR,
+                     "alert"))  # fmt: skip
+    _band(img, 0, 0, text)
     legend = LEGEND if setpoints else tuple(e for e in LEGEND if e[2] != "dot")
     _band(img, 0, img.shape[0] - _STEP * len(legend) - 8, legend)
     if inset_size:
@@ -111,12 +114,19 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
 
 
 def _width(lines) -> int:
-    return max(cv2.getTextSize(t, _FONT, _SCALE, 1)[0][0] for t, _, _ in lines) + 30
+    return max(cv2.getTextSize(t, _FONT, _SCALE, _thickness(shape))[0][0]
+               for t, _, shape in lines) + 30  # fmt: skip
+
+
+def _thickness(shape: str) -> int:
+    """The strokes of a line's text: bold for an ``"alert"``."""
+    return 2 if shape == "alert" else 1
 
 
 def _band(img: np.ndarray, x: int, y: int, lines, width: int | None = None) -> None:
-    """``lines`` of ``(text, colour or None, "box" | "dot" | "")`` on a darkened band whose
-    top left is ``(x, y)``; a colour is drawn before its text."""
+    """``lines`` of ``(text, colour or None, "box" | "dot" | "alert" | "")`` on a darkened
+    band whose top left is ``(x, y)``; a colour is drawn before its text as a box or a dot,
+    or is the text's own, in bold (an alert)."""
     width = width or _width(lines)
     _darken(img[y : y + _STEP * len(lines) + 8, x : x + width])
     for k, (text, colour, shape) in enumerate(lines):
@@ -125,20 +135,10 @@ def _band(img: np.ndarray, x: int, y: int, lines, width: int | None = None) -> N
             cv2.rectangle(img, (x + 6, base - 9), (x + 17, base - 1), colour, -1)
         elif shape == "dot":
             cv2.circle(img, (x + 12, base - 5), 4, colour, -1, cv2.LINE_AA)
-        cv2.putText(img, text, (x + 24 if shape else x + 8, base), _FONT, _SCALE, _WHITE, 1,
+        marked = shape in ("box", "dot")
+        cv2.putText(img, text, (x + 24 if marked else x + 8, base), _FONT, _SCALE,
+                    colour if shape == "alert" else _WHITE, _thickness(shape),
                     cv2.LINE_AA)  # fmt: skip
-
-
-def _banner(img: np.ndarray, text: str, ego_row: float | None = None) -> None:
-    """``text`` in large letters on a dark band across the frame, at 70 % of its height, or
-    at 45 % when the ego (at pixel row ``ego_row``: the view runs ahead of it, so it sits
-    low when it heads up the frame) is in the lower part: the banner does not hide it."""
-    scale, thickness = 0.8, 2
-    (w, h), _ = cv2.getTextSize(text, _FONT, scale, thickness)
-    low = ego_row is not None and ego_row > 0.55 * img.shape[0]
-    x, y = (img.shape[1] - w) // 2, int(img.shape[0] * (0.45 if low else 0.7))
-    _darken(img[y - h - 10 : y + 12, max(x - 12, 0) : x + w + 12])
-    cv2.putText(img, text, (x, y), _FONT, scale, _WHITE, thickness, cv2.LINE_AA)
 
 
 def _darken(region: np.ndarray) -> None:
@@ -169,5 +169,4 @@ def annotate_env_frame(env, frame: np.ndarray, info: dict, label: str | None,
     renderer = u.renderer
     timed_out = u.world is not None and u.world.time >= u.time_limit - 1e-9  # (as step says)
     caption = Caption.from_info(info, label, fitness, timed_out)
-    return annotate(frame, caption, renderer.view.pixels_per_metre, renderer.view.inset_size,
-                    renderer.ego_row(env.unwrapped.world))  # fmt: skip
+    return annotate(frame, caption, renderer.view.pixels_per_metre, renderer.view.inset_size)

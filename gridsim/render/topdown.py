@@ -109,12 +109,6 @@ class TopDownRenderer:
             self._inset(img, grid, (world, ego_box) if grid_frame else None, grid_frame)
         return img
 
-    def ego_row(self, world) -> float:
-        """The pixel row of the ego's rear axle in the frame :meth:`render` draws."""
-        return self.view.height / 2 + self.view.pixels_per_metre * (
-            self.centre(world)[1] - float(world.ego[1])
-        )
-
     def centre(self, world) -> np.ndarray:
         """The view's centre [m, world]: ahead of the ego by what it drives in
         :data:`LEAD_SECONDS` (at most :data:`LEAD_MAX`), so that a plan of 2.5 s at highway

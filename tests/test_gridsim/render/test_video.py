@@ -44,7 +44,7 @@ def test_a_plan_is_drawn_beside_the_human_set_points_it_was_scored_against():
 
 
 def test_frames_say_how_the_episode_ended_and_videos_who_drives():
-    from gridsim.render.annotations import Caption, annotate
+    from gridsim.render.annotations import ENDED_COLOUR, Caption, annotate
     from gridsim.video import policy_name
 
     env = gym.make(ENV_ID, render_mode="rgb_array")
@@ -57,12 +57,10 @@ def test_frames_say_how_the_episode_ended_and_videos_who_drives():
     assert Caption.from_info({**info, "off_road": True}, None, None).ended == "off the road"
     marked = annotate(frame.copy(), caption, 8.0)
     unmarked = annotate(frame.copy(), Caption.from_info({**info, "time": 7.25}, None, None), 8.0)
-    rows = np.flatnonzero(np.any(marked != unmarked, axis=(1, 2)))
-    assert rows.min() > 300 and rows.max() < 360  # the banner, across the lower half
-    # an ego low in the frame (heading up it, the view leads it) keeps the banner off it
-    ego_low = annotate(frame.copy(), caption, 8.0, ego_row=336.0)
-    rows = np.flatnonzero(np.any(ego_low != unmarked, axis=(1, 2)))
-    assert rows.min() > 170 and rows.max() < 240
+    rows, cols = (np.flatnonzero(np.any(marked != unmarked, axis=a)) for a in ((1, 2), (0, 2)))
+    # the caption's last line, top left: nothing of the scene is covered at the end
+    assert rows.max() < 60 and cols.max() < 300
+    assert np.any(np.all(marked[:60, :300] == ENDED_COLOUR, axis=-1))  # in its colour
     # a frame without set-points (gridsim drive) does not list their colours
     plain = annotate(frame.copy(), caption, 8.0, setpoints=False)
     from gridsim.render.topdown import PLAN_COLOUR
@@ -87,8 +85,7 @@ def test_frames_say_how_the_episode_ended_and_videos_who_drives():
     def with_and_without_ending(info):
         frame, fitness = short.render(), np.zeros(3)
         plain = annotate(frame.copy(), Caption.from_info(info, None, fitness),
-                         u.renderer.view.pixels_per_metre, u.renderer.view.inset_size,
-                         u.renderer.ego_row(u.world))  # fmt: skip
+                         u.renderer.view.pixels_per_metre, u.renderer.view.inset_size)  # fmt: skip
         return annotate_env_frame(short, frame.copy(), info, None, fitness), plain
 
     _, info = short.reset(seed=0)
