@@ -69,7 +69,7 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         collisions += result.collided
         off_road += result.off_road
         grids[k] = sensor.observe(world)
-        times[k] = world.time
+        times[k] = round(world.time, 9)  # a sum of ticks, to the nanosecond (as info["time"])
     with new_folder(out) as partial:  # out appears whole
         return _write(partial, sc, seed, world, grids, times, steps, start, distance,
                       collisions, off_road)  # fmt: skip

@@ -91,6 +91,7 @@ def test_drive_command_writes_outputs(tmp_path, capsys):
     assert summary["ticks"] == 30 and summary["distance_m"] > 5
     data = np.load(out / "grids.npz")
     assert data["grids"].shape == (30, 128, 128) and data["grids"].dtype == np.uint8
+    assert data["times"].tolist() == [round(0.1 * (k + 1), 9) for k in range(30)]  # as info's
     assert (out / "topdown.png").stat().st_size > 1000
     assert json.loads(capsys.readouterr().out)["scenario"] == "inner_city"
     assert summary["outputs"] == sorted(p.name for p in out.iterdir())  # itself included
