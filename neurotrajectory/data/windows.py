@@ -17,6 +17,8 @@ NGSIM track of the shipped scenes in turn as the ego, removed from the replayed 
 
 from __future__ import annotations
 
+import math
+
 import difflib
 import json
 import platform
@@ -44,6 +46,7 @@ from gridsim.scenario.families.recorded import (
     checked_ego_tracks,
     ego_candidates,
     ego_track_ids,
+    outruns_ego,
     recorded_scene,
     scene_of,
     why_unfit,
@@ -219,6 +222,7 @@ def scenario_episodes(
         need = base.config.env.horizon_time
         chosen = [t for t in scene_tracks if (wanted is None or t.track_id in wanted)
                   and t.duration >= need and t.track_id not in flawed]  # fmt: skip
+        chosen = _followable(base, chosen)
         if named and len(chosen) < len(wanted):
             left = sorted(wanted - {t.track_id for t in chosen})
             warn_data(f"{base.source}: {len(left)} of the tracks ego.track names are not "
@@ -238,6 +242,23 @@ def scenario_episodes(
     overrides = ({"simulation": {"duration": duration}} if duration else {}) | goal
     out = [PlannedEpisode(f"{scenario}/seed{s}", int(s), overrides) for s in seeds]
     return out, {"episodes": len(out), "episode_seeds": [int(s) for s in seeds]}
+
+
+def _followable(scenario, chosen: list) -> list:
+    """The ``chosen`` ego tracks an ego can drive as recorded: one faster than
+    ``ego.vehicle.v_max`` would fall behind the human and label its windows from the wrong
+    place; those are left out, with a :class:`~gridsim.errors.DataWarning` naming them."""
+    fast = [t for t in chosen if outruns_ego(scenario, t)]
+    if fast:
+        top = math.ceil(10 * max(float(t.speed.max()) for t in fast)) / 10  # (to cover it)
+        shown = ", ".join(t.track_id for t in fast[:8]) + (
+            f" and {len(fast) - 8} more" if len(fast) > 8 else "")  # fmt: skip
+        warn_data(f"{scenario.source}: {len(fast)} of the {len(chosen)} tracks to drive as the "
+                  f"ego are faster than ego.vehicle.v_max "
+                  f"{scenario.config.ego.vehicle.v_max:g} m/s (up to {top:.1f} m/s): the ego "
+                  f"could not follow them, they are not recorded ({shown}); set "
+                  f"ego.vehicle.v_max >= {top:.1f} to record them")  # fmt: skip
+    return [t for t in chosen if not outruns_ego(scenario, t)]
 
 
 def _say_unfit_egos(scenario, chosen: list, tracks: list, road) -> None:

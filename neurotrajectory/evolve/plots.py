@@ -159,10 +159,11 @@ def _hypervolume(path: Path, history: list[dict], anchored: bool) -> Path:
     ax.set_xlabel("generation")
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylim(bottom=0)
-    ax.set_ylabel("hypervolume / the reference's")
-    ax.set_title(f"what a generation's members dominate beyond {who},\non its own episodes; "
-                 f"objectives as ratios to it, box to {HV_MARGIN:g}x (1: nothing beyond it)",
-                 fontsize=8)  # fmt: skip
+    ax.set_ylabel(f"hypervolume / {'individual 0' if anchored else 'that member'}'s alone")
+    ax.set_title(f"how much better the generation's members do than {who} alone\n(the "
+                 "objective space they dominate, on that generation's episodes, objectives "
+                 f"as ratios to it, up to {HV_MARGIN:g}x;\n1: no member does better on any "
+                 "objective)", fontsize=8)  # fmt: skip
     ax.legend(fontsize=8)
     fig.tight_layout()
     return _save(fig, path)

@@ -127,7 +127,7 @@ def _unfit_ego_note(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -
     if not unfit:
         return None
     return (f"{scenario.source}: ego.track {named} is {'; '.join(unfit)}: not a track a random "
-            "ego is drawn from (its episodes may end at once)")  # fmt: skip
+            "ego is drawn from (its episodes may end at once, or not as recorded)")  # fmt: skip
 
 
 def _scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
@@ -188,12 +188,22 @@ def _unfit_tests(scenario: Scenario, tracks, road: StaticRoad) -> dict:
     flawed = flawed_tracks(tuple(tracks), road).keys()
     quirks = unfit_experts(scene_of(scenario), tuple(tracks), road)
     longest = scenario.config.traffic.max_vehicle_length
+    fastest = scenario.config.ego.vehicle.v_max
     return {
         f"shorter than {MIN_TRACK_SECONDS:g} s": lambda t: t.duration < MIN_TRACK_SECONDS,
         f"of a vehicle longer than {longest:g} m": lambda t: t.length > longest,
         "implausible (see the warning)": lambda t: t.track_id in flawed,
         "overlapping another or grazing a road edge": lambda t: t.track_id in quirks,
-    }
+        f"faster than ego.vehicle.v_max {fastest:g} m/s (raise it to drive them)":
+            lambda t: outruns_ego(scenario, t),
+    }  # fmt: skip
+
+
+def outruns_ego(scenario: Scenario, track: Track) -> bool:
+    """Whether ``track`` drives faster than the scenario's ego may (``ego.vehicle.v_max``):
+    an ego driving it falls behind the human, and what is measured against the human's
+    future (labels, ``l1``) is measured from the wrong place."""
+    return float(track.speed.max()) > scenario.config.ego.vehicle.v_max
 
 
 def _pick_ego_track(scenario: Scenario, tracks, road: StaticRoad, rng) -> Track:

@@ -4,18 +4,22 @@ warning for the tracks a random ego is not drawn from."""
 import gc
 import hashlib
 import json
+import math
 import re
 import warnings
 import weakref
 from dataclasses import fields
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from breaks import ctrl_c_at
 
 from gridsim.errors import DataWarning, ScenarioError
 from gridsim.outputs import write_npz
+from gridsim.scenario.families.recorded import recorded_scene
+from gridsim.scenario.loader import load_scenario
 from neurotrajectory.data import recording, storage, windows
 from neurotrajectory.data.windows import drive_windows, scenario_episodes
 
@@ -55,6 +59,39 @@ def test_tracks_a_random_ego_is_not_drawn_from_are_named_once():
         "2 of the 12 tracks driven as the ego are not ones a random ego is drawn from (2 "
         "of a vehicle longer than 6 m): 387, 401;" in said[0]
     )  # why, not "validate names why"
+
+
+def test_tracks_faster_than_the_ego_may_drive_are_not_recorded_nor_drawn(tmp_path, capsys):
+    """A human faster than ``ego.vehicle.v_max`` outruns the ego that drives its track: its
+    windows were labelled from where the ego fell behind (a probe's scene at 31 m/s against
+    the default 25: the last set-point 98 m ahead instead of 78) and ``l1`` of the human's
+    own drive was 255,948. Such tracks are neither recorded nor drawn as a random ego, and
+    the key to raise is named."""
+    from gridsim.errors import DataError
+    from gridsim.scenario.families.recorded import ego_candidates, outruns_ego
+
+    path = tmp_path / "slow.yaml"
+    head = "name: slow\nroad: {type: recorded, map: builtin:USA_US101-4_1_T-1}\n"
+    path.write_text(head + "ego: {vehicle: {v_max: 15.0}}\n")
+    slow, usual = load_scenario(str(path)), load_scenario("us101_4_1")
+    tracks = recorded_scene(usual)[1]
+    fast = {t.track_id for t in tracks if t.speed.max() > 15.0}
+    assert fast and {t.track_id for t in tracks if outruns_ego(slow, t)} == fast
+    assert not any(outruns_ego(usual, t) for t in tracks)  # the shipped scenes: none (19 m/s)
+    assert not fast & {t.track_id for t in ego_candidates(slow)}
+    assert fast & {t.track_id for t in ego_candidates(usual)}
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        planned, _ = scenario_episodes(str(path))
+    recorded = {p.track.rsplit("/", 1)[1] for p in planned}
+    assert recorded and not recorded & fast
+    said = [str(w.message) for w in caught if "faster than ego.vehicle.v_max 15 m/s" in
+            str(w.message)]  # fmt: skip
+    top = max(float(t.speed.max()) for t in tracks)
+    assert len(said) == 1 and f"set ego.vehicle.v_max >= {math.ceil(10 * top) / 10:.1f}" in said[0]
+    path.write_text(head + "ego: {vehicle: {v_max: 3.0}}\n")  # no track is slow enough
+    with pytest.raises(DataError, match="faster than ego.vehicle.v_max 3 m/s \\(raise it"):
+        gym.make("GridSim-v0", scenario=str(path)).reset(seed=0)
 
 
 def test_a_scenario_that_names_its_ego_tracks_records_only_them(tmp_path):
