@@ -14,6 +14,7 @@ jumps no vehicle can make, is refused earlier, when the tracks are read:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 from typing import NamedTuple
@@ -68,6 +69,9 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
                 f"{where}: {off} of its {n} positions ({off / n:.0%}) are off the map's drivable "
                 f"area (at most {MAX_OFF_MAP:.0%})"
             )
+    if track.width > track.length:
+        out.append(f"{where}: it is {track.width:.3g} m wide and {track.length:.3g} m long: are "
+                   "its length and width swapped?")  # fmt: skip
     dt = np.diff(track.t)
     implied = np.hypot(np.diff(track.x), np.diff(track.y)) / dt
     recorded = 0.5 * (track.speed[1:] + track.speed[:-1])
@@ -148,15 +152,17 @@ def feet_hint(tracks: list[Track], whose: str = "the") -> str:
 #: mph, positions in feet (with speeds in m/s).
 _UNIT_RATIOS = (
     (1 / 3.6, "its speeds must be in m/s (km/h / 3.6)"),
+    (0.3048, "its speeds must be in m/s (ft/s x 0.3048)"),
     (0.44704, "its speeds must be in m/s (mph x 0.44704)"),
     (1 / 0.3048, "its positions must be in metres (feet x 0.3048)"),
 )
 
 
 def _unit_hint(ratio: float) -> str | None:
-    """What a ratio of implied over recorded speed says about the units, if it is one of
-    :data:`_UNIT_RATIOS` (within 10 %)."""
-    return next((why for r, why in _UNIT_RATIOS if abs(ratio / r - 1.0) < 0.1), None)
+    """What a ratio of implied over recorded speed says about the units: the nearest of
+    :data:`_UNIT_RATIOS` within 10 % (km/h and ft/s lie 10 % apart), if any."""
+    off, why = min((abs(math.log(ratio / r)), why) for r, why in _UNIT_RATIOS)
+    return why if off < math.log(1.1) else None
 
 
 def _degrees_off(direction: np.ndarray, heading: np.ndarray) -> float:

@@ -17,10 +17,9 @@ NGSIM track of the shipped scenes in turn as the ego, removed from the replayed 
 
 from __future__ import annotations
 
-import math
-
 import difflib
 import json
+import math
 import platform
 import warnings
 from collections.abc import Callable, Iterable, Iterator

@@ -105,6 +105,21 @@ def test_implausible_speeds_and_accelerations_are_caught():
     assert any("accelerations of 40 m/s^2 (median; at most 15)" in p for p in problems)
 
 
+def test_length_and_width_swapped_and_speeds_in_feet_per_second_are_named():
+    """A car 1.8 m long and 4.5 m wide straddled lanes without a word; speeds in ft/s (ratio
+    0.305, 10 % from km/h's 0.278) were said to be in km/h or time in steps, track by track."""
+    import dataclasses
+
+    fine = track("car", X, np.full(41, -1.75))
+    swapped = dataclasses.replace(fine, track_id="swapped", length=1.8, width=4.5)
+    (problem,) = track_problems(swapped)
+    assert "it is 4.5 m wide and 1.8 m long: are its length and width swapped?" in problem
+    for unit, factor, said in (("ft/s", 1 / 0.3048, "ft/s x 0.3048"), ("km/h", 3.6, "km/h / 3.6"),
+                               ("mph", 1 / 0.44704, "mph x 0.44704")):  # fmt: skip
+        (problem,) = track_problems(dataclasses.replace(fine, speed=fine.speed * factor))
+        assert problem.endswith(f"its speeds must be in m/s ({said})"), unit
+
+
 def test_a_scene_too_short_for_the_horizon_is_caught(tmp_path, capsys):
     short = track("ego", X[:21], np.full(21, -1.75))  # 2 s; the horizon needs 5 x 0.5 s
     code, out = validate(capsys, write_scene(tmp_path, [short]))
