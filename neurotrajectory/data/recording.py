@@ -269,8 +269,25 @@ def _differences(then: dict, now: dict) -> str:
         elif key == "versions":
             said.append(f"other versions ({old}, now {new})")
         else:
-            said.append(f"{key} {old!r} (now {new!r})")
+            flag = _FLAGS.get(key, key)
+            said.append(f"{flag} {_given(old)} (now {_given(new)})")
     return "; ".join(said)
+
+
+#: The ``record`` flags of a recording's arguments (``format`` and ``shard_size`` are the
+#: program's own, named as they are).
+_FLAGS = {"name": "--name", "source": "--scenario", "episodes": "--episodes", "seed": "--seed",
+          "stride": "--stride", "duration": "--episode-seconds",
+          "goal_seconds": "--goal-seconds", "split": "--split"}  # fmt: skip
+
+
+def _given(value) -> str:
+    """An argument as the command line gives it (None: the flag was not given)."""
+    if value is None:
+        return "not given"
+    if isinstance(value, list):
+        return " ".join(map(str, value))
+    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def checkpoint_windows(folder: Path) -> tuple[int, bool] | None:

@@ -290,11 +290,14 @@ def test_a_recording_of_other_arguments_is_refused_and_kept(tmp_path, monkeypatc
                                    resume=True)  # fmt: skip
     kept = sorted(p.name for p in (tmp_path / "d").iterdir())
     with pytest.raises(WorkKept, match=re.escape(
-            f"{tmp_path / 'd'} holds an interrupted recording that was made with seed 1 (now "
+            f"{tmp_path / 'd'} holds an interrupted recording that was made with --seed 1 (now "
             f"2): give the arguments it was made with to go on with it, or remove "
             f"{tmp_path / 'd'} to start afresh")):  # fmt: skip
         recording.record_dataset(tmp_path / "d", "seamless", 3, seed=2, duration=3.0,
                                  resume=True)  # fmt: skip
+    with pytest.raises(WorkKept, match="was made with --stride not given \\(now 2\\)"):
+        recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0,
+                                 stride=2, resume=True)  # fmt: skip
     with pytest.raises(WorkKept, match="was made without --split \\(now with\\)"):
         recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0,
                                  resume=True, split=("train", 0.3))  # fmt: skip

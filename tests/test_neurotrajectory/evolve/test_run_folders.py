@@ -351,7 +351,7 @@ def test_record_interrupted_goes_on_when_run_again(tmp_path, monkeypatch, capsys
     assert f"recorded until the last checkpoint are kept in {partial}: the same command" in err
     # other arguments are refused, the interrupted recording kept
     assert main([*argv[:-1], "--seed", "3", "--out", str(out)]) == 2
-    assert "holds an interrupted recording that was made with seed 0 (now 3)" in (
+    assert "holds an interrupted recording that was made with --seed 0 (now 3)" in (
         capsys.readouterr().err)  # fmt: skip
     assert (partial / "progress.json").is_file()
     assert not out.exists() and (partial / "progress.json").is_file()
