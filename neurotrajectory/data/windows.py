@@ -704,8 +704,7 @@ def record_group_into(
     return {
         "format": FORMAT_VERSION,
         "group": name,
-        "source": GROUP_SOURCE.get(name)
-        or ("human (NGSIM)" if all(replays.values()) else "simulator"),
+        "source": GROUP_SOURCE.get(name) or _source(replays),
         "seed": seed,
         **{k: first[k] for k in same},
         **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),
@@ -713,6 +712,20 @@ def record_group_into(
         **({"skipped": [{"file": str(f), "reason": r} for f, r in unused]} if unused else {}),
         "versions": package_versions(),
     }
+
+
+def _source(replays: dict[str, bool]) -> str:
+    """Who drove a group's windows, by whether each of its scenarios replays recorded tracks:
+    "human (NGSIM)" for the shipped recorded scenes, "human (recorded)" for a user's,
+    "simulator" for generated ones, or both."""
+    from gridsim.scenario.loader import builtin_scenarios
+
+    recorded = [s for s, replay in replays.items() if replay]
+    if not recorded:
+        return "simulator"
+    shipped = builtin_scenarios()
+    human = "human (NGSIM)" if all(s in shipped for s in recorded) else "human (recorded)"
+    return human if len(recorded) == len(replays) else f"{human} and simulator"
 
 
 def package_versions() -> dict:

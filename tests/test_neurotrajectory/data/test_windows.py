@@ -550,3 +550,13 @@ def test_a_groups_bar_shows_its_total_once_every_file_is_planned():
         windows.record_group("urban", 1, stride=40, **{**callbacks, "planned": planned})
     assert seen == [(0, None, "1 file still to plan"), (23, 29, "")]  # lankershim, peachtree
     assert bar.n == 29
+
+
+def test_a_groups_source_names_ngsim_only_for_the_shipped_scenes():
+    """A user's recorded data was labelled "human (NGSIM)" in the manifest and by evaluate."""
+    source = windows._source
+    assert source({"us101_3_3": True, "lankershim_1_1": True}) == "human (NGSIM)"
+    assert source({"/data/mine.yaml": True}) == "human (recorded)"
+    assert source({"seamless": False, "inner_city": False}) == "simulator"
+    assert source({"us101_3_3": True, "seamless": False}) == "human (NGSIM) and simulator"
+    assert source({"/data/mine.yaml": True, "us101_3_3": True}) == "human (recorded)"
