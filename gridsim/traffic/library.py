@@ -168,7 +168,9 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             lines.clear()
 
         for row in reader:
-            if row:  # (blank lines are skipped)
+            # (blank lines are skipped, and so are lines of spaces or of empty fields only: a
+            # spreadsheet's trailing ",,,,,," rows)
+            if row and (row[0].strip() or any(f.strip() for f in row)):
                 rows.append(row)
                 lines.append(reader.line_num)
                 if len(rows) == _BLOCK:

@@ -90,6 +90,15 @@ def test_trailing_commas_are_no_columns(tmp_path):
     assert track.x.tolist() == [0.0, 1.0, 2.0]
 
 
+def test_lines_of_spaces_or_empty_fields_only_are_blank(tmp_path):
+    """A spreadsheet's trailing ",,,,,,,," rows and a line of spaces are skipped as blank
+    lines are (they were refused as an empty scenario_id or a line cut short)."""
+    rows = [f"s,1,{k * 0.1:g},{k:g},0,0,10,4.5,1.8" for k in range(3)]
+    (track,) = read_tracks_csv(write_csv(tmp_path, [*rows[:2], "   ", *rows[2:], ",,,,,,,,",
+                                                    ",,,,,,,,", " "]))  # fmt: skip
+    assert track.x.tolist() == [0.0, 1.0, 2.0]
+
+
 def test_a_compressed_file_is_named_as_such(tmp_path):
     """A gzip file handed in as a CSV or a scenario says to decompress it first."""
     import gzip
