@@ -194,7 +194,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
                 k = int(conflict[0])
                 raise DataError(f"{path}: lines {rows_at[k]} and {rows_at[k + 1]}: track "
                                 f"({sid}, {tid}) has two rows at time {a[k, 0]:g} s with other "
-                                "values")  # fmt: skip
+                                f"values{_same_time_hint(a[k], a[k + 1])}")  # fmt: skip
             repeated.append((int(np.count_nonzero(again)), int(rows_at[1:][again][0])))
             a = a[np.concatenate(([True], ~again))]  # rows given twice: read once
         if np.any(np.ptp(a[:, 5:7], axis=0) > 0.1 * a[0, 5:7]):  # a size is the first row's
@@ -217,6 +217,20 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
     if not tracks:
         raise DataError(f"{path}: no track with at least 2 states")
     return tracks
+
+
+def _same_time_hint(a: np.ndarray, b: np.ndarray) -> str:
+    """Why two rows ``(t, x, y, heading, speed, ...)`` of one track may share a time stamp:
+    positions as far apart as the speed moves a car in a few tenths of a second are one car
+    whose time stamps were rounded (25 Hz to 0.1 s); farther ones, two vehicles under one
+    id."""
+    gap = float(np.hypot(a[1] - b[1], a[2] - b[2]))
+    if gap <= 0.3 * max(float(a[4]), float(b[4])) + 0.5:
+        return (
+            f" ({gap:.2g} m apart: are the time stamps rounded, say a 25 Hz recording's "
+            "to 0.1 s? give them in full)"
+        )
+    return f" ({gap:.3g} m apart: two vehicles under one id?)"
 
 
 #: Rows converted at a time (a block's text is held in memory, not the file's).

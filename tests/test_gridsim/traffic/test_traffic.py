@@ -54,8 +54,11 @@ def test_user_csv_loads(tmp_path):
         ),
         (["s,1,0,0,zero,0,10,4.5,1.8"], HEADER, "column 'y_m' is not a number"),
         (["s,1,0,0,0,0,-1,4.5,1.8"], HEADER, "speed_mps must be >= 0"),
-        (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0,1,0,0,1,4.5,1.8"], HEADER,
-         r"tracks.csv: lines 2 and 3: track \(s, 1\) has two rows at time 0 s with other values"),
+        (["s,1,0,0,0,0,10,4.5,1.8", "s,1,0,1,0,0,10,4.5,1.8"], HEADER,
+         r"tracks.csv: lines 2 and 3: track \(s, 1\) has two rows at time 0 s with other values "
+         r"\(1 m apart: are the time stamps rounded"),
+        (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0,40,0,0,1,4.5,1.8"], HEADER,
+         r"has two rows at time 0 s with other values \(40 m apart: two vehicles under one id\?"),
         (["s,1,0,0,0,0,1,4.5,1.8"], HEADER, "no track with at least 2 states"),
         (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0,0,0,1,4.5"], HEADER,
          r"tracks.csv:3: 8 column\(s\), the header has 9 \(a line cut short\?\)"),
