@@ -50,19 +50,27 @@ def _value(el: ET.Element | None, where: str) -> float | None:
 
 
 def _state(st: ET.Element, where: str) -> tuple[float, float, float, float, float | None]:
-    """``(step, x, y, orientation, velocity or None)`` of a ``<state>``/``<initialState>``."""
+    """``(step, x, y, orientation, velocity or None)`` of a ``<state>``/``<initialState>``
+    (``where``: the file, the obstacle and which of its states it is)."""
     point = st.find("position/point")
     if point is None:
-        raise DataError(f"{where}: a state has no <position><point> (shapes are not supported)")
+        raise DataError(f"{where}: no <position><point> (shapes are not supported)")
     try:
         x, y = float(point.findtext("x")), float(point.findtext("y"))
     except (TypeError, ValueError):
-        raise DataError(f"{where}: a state's <point> lacks a numeric <x> or <y>") from None
+        raise DataError(f"{where}: its <point> lacks a numeric <x> or <y>") from None
     step = _value(st.find("time"), where)
     heading = _value(st.find("orientation"), where)
-    if step is None or heading is None:
-        raise DataError(f"{where}: a state lacks <time> or <orientation>")
+    missing = [tag for tag, v in (("<time>", step), ("<orientation>", heading)) if v is None]
+    if missing:
+        raise DataError(f"{where}: no {' or '.join(missing)}")
     return step, x, y, heading, _value(st.find("velocity"), where)
+
+
+def _at(st: ET.Element) -> str:
+    """`` (time step N)`` of a state whose ``<time><exact>`` reads, for its messages."""
+    exact = st.findtext("time/exact")
+    return f" (time step {exact.strip()})" if exact and exact.strip() else ""
 
 
 def _size(obstacle: ET.Element, where: str) -> tuple[float, float]:
@@ -122,8 +130,10 @@ def _time_step(attrib: dict, path: Path) -> float:
 def _track(ob: ET.Element, path: Path, sid: str, dt: float) -> Track | None:
     """One dynamic obstacle as a track (``None`` if it has a single state)."""
     where = f"{path}: obstacle {ob.get('id')}"
-    states = [ob.find("initialState"), *ob.findall("trajectory/state")]
-    states = [_state(s, where) for s in states if s is not None]
+    first, rest = ob.find("initialState"), ob.findall("trajectory/state")
+    states = [] if first is None else [_state(first, f"{where}: its <initialState>")]
+    states += [_state(st, f"{where}: <state> {k} of its trajectory{_at(st)}")
+               for k, st in enumerate(rest, 1)]  # fmt: skip
     if len(states) < 2:
         return None
     a = np.array([s[:4] for s in states])

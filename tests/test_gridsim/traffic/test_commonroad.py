@@ -111,7 +111,11 @@ def test_missing_velocity_is_derived_from_positions(tmp_path):
         (OBSTACLE.format(shape="<polygon/>", v=VELOCITY), 'timeStepSize="0.1"',
          "obstacle 5: <shape> must be a <rectangle> or a <circle>"),
         (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<x>11</x>", "<x>a</x>"),
-         'timeStepSize="0.1"', "obstacle 5: a state's <point> lacks a numeric <x>"),
+         'timeStepSize="0.1"', r"obstacle 5: <state> 1 of its trajectory \(time step 1\): its "
+         "<point> lacks a numeric <x>"),
+        (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<orientation><exact>0</exact>"
+                                                         "</orientation><time>", "<time>", 1),
+         'timeStepSize="0.1"', "obstacle 5: its <initialState>: no <orientation>"),
         (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<exact>1</exact>", "<exact>0</exact>"),
          'timeStepSize="0.1"', "obstacle 5: time step 0 appears twice"),
         (OBSTACLE.format(shape=RECT, v="<velocity><exact>nan</exact></velocity>"),
