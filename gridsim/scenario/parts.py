@@ -8,12 +8,13 @@ import dataclasses
 import glob
 import hashlib
 import time
+import warnings
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import DataError, ScenarioError, warn_data
+from gridsim.errors import DataError, DataWarning, ScenarioError, warn_data
 from gridsim.road.polyline import Polyline
 from gridsim.scenario.checks import SceneReport, feet_hint, library_report
 from gridsim.scenario.family import is_recorded
@@ -190,17 +191,25 @@ def _library(files: tuple) -> TrajectoryLibrary:
     """The tracks of :func:`_library_files`: a file found in a folder or glob that cannot be
     read is skipped, all of them named in one :class:`~gridsim.errors.DataWarning` (as a
     collection skips its unusable scenario files); a file named on its own is refused."""
-    tracks, skipped = [], []
+    tracks, skipped, notes = [], [], []
     for f, found in files:
         if f == "builtin":
             tracks += TrajectoryLibrary.builtin().tracks
             continue
         try:
-            tracks += TrajectoryLibrary.from_files(f[0]).tracks
+            with warnings.catch_warnings(record=True) as said:
+                warnings.simplefilter("always", DataWarning)
+                tracks += TrajectoryLibrary.from_files(f[0]).tracks
         except DataError as exc:
             if not found:
                 raise
             skipped.append(f"{f[0]}: {str(exc).removeprefix(f'{f[0]}: ')}")
+        for w in said:  # a file's notes (rows given twice, single states, ...)
+            if issubclass(w.category, DataWarning):
+                notes.append(str(w.message))
+            else:
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    _say_notes(notes, len(files))
     if skipped:
         lines = "\n".join(f"  - {line}" for line in skipped)
         if not tracks:
@@ -211,6 +220,25 @@ def _library(files: tuple) -> TrajectoryLibrary:
             f"that cannot be read:\n{lines}"
         )
     return TrajectoryLibrary(tracks)
+
+
+#: A library's file notes shown in full; those of more files are named in one line.
+NOTES_SHOWN = 5
+
+
+def _say_notes(notes: list[str], files: int) -> None:
+    """The trajectory files' own warnings, as they were for a few files; for many (a library
+    of one CSV per vehicle), one warning with the first :data:`NOTES_SHOWN` in full and the
+    other files named (a warning per file filled a screen per hundred files)."""
+    if len(notes) <= NOTES_SHOWN:
+        for note in notes:
+            warn_data(note)
+        return
+    rest = [note.split(": ", 1)[0] for note in notes[NOTES_SHOWN:]]
+    named = ", ".join(rest[:10]) + (f" and {len(rest) - 10} more" if len(rest) > 10 else "")
+    shown = "\n".join(f"  - {note}" for note in notes[:NOTES_SHOWN])
+    warn_data(f"traffic.library: {len(notes)} of its {files} trajectory files have notes; the "
+              f"first {NOTES_SHOWN}:\n{shown}\n  and likewise: {named}")  # fmt: skip
 
 
 def seed_streams(seed: int) -> tuple[int, np.random.Generator, np.random.Generator]:

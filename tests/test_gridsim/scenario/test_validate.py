@@ -261,6 +261,27 @@ def test_a_flawed_library_track_is_not_used_as_a_speed_profile(tmp_path):
     assert len(used) == len(synthetic_tracks(load_scenario("seamless"))) - 1
 
 
+def test_a_library_of_many_files_with_notes_warns_once(tmp_path):
+    """A library of one CSV per vehicle, each with a row given twice: one warning, the first
+    files' notes in full and the others named (one warning per file filled the screen)."""
+    from gridsim.scenario import parts
+
+    header = "scenario_id,track_id,time_s,x_m,y_m,heading_rad,speed_mps,length_m,width_m"
+    (tmp_path / "lib").mkdir()
+    for k in range(8):
+        rows = [f"s,{k},{i * 0.1:.1f},{i * 1.0:g},0,0,10,4.5,1.8" for i in range(30)]
+        (tmp_path / "lib" / f"veh_{k}.csv").write_text("\n".join([header, *rows, rows[-1]]))
+    path = tmp_path / "mine.yaml"
+    path.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [lib]}\n")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert len(parts.library_for(load_scenario(path)).tracks) == 8
+    (said,) = [str(w.message) for w in caught if issubclass(w.category, DataWarning)]
+    assert said.startswith("traffic.library: 8 of its 8 trajectory files have notes; the first 5")
+    assert said.count("repeat an earlier one exactly") == parts.NOTES_SHOWN
+    assert "and likewise: " in said and f"{tmp_path / 'lib' / 'veh_7.csv'}" in said
+
+
 def test_a_library_folder_skips_the_files_it_cannot_read(tmp_path):
     """A folder of daily trajectory files with an empty one and one cut mid-line: both are
     named in one warning and the rest is used (one bad file made the whole library, and so
