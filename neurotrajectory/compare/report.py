@@ -215,7 +215,8 @@ def _fig8(results, methods, out: Path) -> Path:
         ax.set_xlabel("time after the decision [s]" if r.setpoint_times else "set-point")
         ax.set_xticks(t)
         ax.grid(alpha=0.3)
-    axes[0, 0].set_ylabel("RMSE [m] (band: NeuroTrajectory +- 1 std)")
+    axes[0, 0].set_ylabel("RMSE [m] (band: NeuroTrajectory \u00b1 1 std)")
+    fig.suptitle("error at each set-point on the held-out windows (Fig. 8)", fontsize=10)
     columns = max(1, min(len(shown), 2 if len(results) == 1 else 3 * len(results)))
     if shown:
         fig.legend(list(shown.values()), list(shown), loc="lower center", ncol=columns,
@@ -239,11 +240,12 @@ def _fig9(results, methods, out: Path) -> Path:
         ax.set_title(GROUP_TITLES.get(r.group, r.group), fontsize=9)
     axes[0, 0].set_ylabel("per-window RMSE [m]")
     said = textwrap.wrap(
-        "box: the middle half of the held-out windows, orange line: the "
-        "median, whiskers: to 1.5 box lengths (farther windows not drawn); "
-        "NT: NeuroTrajectory",
+        "box: the middle half of the held-out windows; orange: the median; whiskers: 1.5 box "
+        "lengths (farther windows not drawn); NT: NeuroTrajectory",
         70 * len(results),
+        break_long_words=False,
     )  # (a narrow figure: lines)
+    fig.suptitle("error of each held-out window (Fig. 9)", fontsize=10)
     fig.text(0.5, 0.005, "\n".join(said), ha="center", va="bottom", fontsize=7)
     fig.tight_layout(rect=(0, 0.04 * len(said), 1, 1))
     path = out / "fig9_window_rmse.png"
