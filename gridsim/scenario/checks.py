@@ -245,6 +245,24 @@ def _alone_in_time(tracks: list[Track], source: str) -> list[str]:
             "meet no traffic; are their time stamps from one clock?"]  # fmt: skip
 
 
+#: s: a scene sampled this coarsely (the median of its tracks' median time steps) is asked
+#: whether its time column counts frames (recordings of vehicles run at 10-30 Hz).
+COARSE_STEP = 0.5
+
+
+def _coarse_time(tracks: list[Track], source: str) -> list[str]:
+    """A warning when the tracks are sampled every :data:`COARSE_STEP` seconds or more: time
+    in frame numbers with speeds per frame passes every other check (positions and speeds
+    agree), and would replay the scene that many times too slowly."""
+    steps = [float(np.median(np.diff(t.t))) for t in tracks if len(t.t) > 1]
+    step = float(np.median(steps)) if steps else 0.0
+    if step < COARSE_STEP:
+        return []
+    return [f"{source}: its tracks are sampled every {step:.3g} s (median): is the time "
+            "column in seconds, not frame numbers? (vehicle recordings run at 10-30 Hz: "
+            "NGSIM 10, highD 25); the data is used as given"]  # fmt: skip
+
+
 def _verdict(
     flawed: dict[str, list[str]], total: int, source: str, what: str, kept: str
 ) -> tuple[list[str], list[str]]:
@@ -269,6 +287,7 @@ def library_report(tracks: list[Track], source: str) -> SceneReport:
                                   "in the wrong units (are time stamps in seconds, speeds in "
                                   "m/s and headings in radians?)",
                                   "not used as a speed profile")  # fmt: skip
+    warnings += _coarse_time(tracks, source)
     return SceneReport(tuple(problems), tuple(warnings), frozenset(flawed),
                        "traffic.library (its tracks give the speed profiles)")  # fmt: skip
 
@@ -330,7 +349,7 @@ def _scene_checks(tracks: tuple[Track, ...], road: StaticRoad, source: str,
             f"{longest.duration:.3g} s (its longest track, {longest.track_id}); the horizon "
             f"needs {need:.3g} s (env.horizon x env.setpoint_period)"
         )
-    warnings += _alone_in_time(list(tracks), source)
+    warnings += _alone_in_time(list(tracks), source) + _coarse_time(list(tracks), source)
     by_id: dict = {}
     for t in tracks:  # (the first of an id, as a search would find)
         by_id.setdefault(t.track_id, t)

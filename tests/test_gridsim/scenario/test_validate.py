@@ -96,6 +96,18 @@ def test_time_in_steps_instead_of_seconds_is_caught(tmp_path, capsys):
     assert "its time step is 1 s: a CSV's time column, a CommonRoad file's timeStepSize" in out
 
 
+def test_time_in_frames_with_speeds_per_frame_is_asked_about(tmp_path, capsys):
+    """Frame numbers for time and speeds in metres per frame agree with the positions, so no
+    track check sees them; the scene would replay ten times too slowly: a warning asks."""
+    slow = [track(name, X[::10], np.full(5, y), dt=1.0) for name, y in (("ego", -1.75),
+                                                                         ("car", 1.75))]  # fmt: skip
+    code, out = validate(capsys, write_scene(tmp_path, slow))
+    assert "its tracks are sampled every 1 s (median): is the time column in seconds, not " \
+        "frame numbers?" in out  # fmt: skip
+    code, out = validate(capsys, write_scene(tmp_path, [track("ego", X, np.full(41, -1.75))]))
+    assert code == 0 and "sampled every" not in out  # 10 Hz: nothing asked
+
+
 def test_implausible_speeds_and_accelerations_are_caught():
     x = np.cumsum(np.full(41, 9.0))  # 90 m/s, consistent with its speed column
     problems = track_problems(track("fast", x, np.zeros(41)))
