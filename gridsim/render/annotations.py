@@ -90,8 +90,8 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
     red and bold: the scene itself is left clear at the moment that matters), the colour
     legend (without the set-points' colours unless ``setpoints``: a frame that draws none),
     the grid inset's legend (beside an inset of ``inset_size`` pixels at the top right, if
-    any; under it when the caption is too wide) and a scale bar on ``img`` (in place);
-    returns ``img``."""
+    any; at the bottom beside the colour legend when the caption is too wide) and a scale
+    bar on ``img`` (in place); returns ``img``."""
     text = [(t, None, "") for t in caption.lines()]
     if caption.ended:
         text.append((f"episode over: {caption.ended} at {caption.time:.1f} s", ENDED_COLOUR,
@@ -102,13 +102,14 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
     if inset_size:
         grid = [("sensor grid:", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
         width = _width(grid)
-        # beside the inset, in the top band, where the caption leaves room; else under it
-        # (over the picture's right edge, where the road ahead often runs)
+        # beside the inset, in the top band, where the caption leaves room; else at the
+        # bottom beside the colours' legend (under the inset it hid the road ahead, which
+        # often runs across the middle of the picture)
         beside = img.shape[1] - inset_size - 16 - width
         if beside >= _width(text) + 8:
             _band(img, beside, 8, grid, width)
         else:
-            _band(img, img.shape[1] - width - 8, inset_size + 12, grid, width)
+            _band(img, _width(legend) + 8, img.shape[0] - _STEP * len(grid) - 8, grid, width)
     _scale_bar(img, pixels_per_metre)
     return img
 

@@ -265,6 +265,12 @@ def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     assert differs[10:100, w - 300 : w - 180].mean() > 0.05  # the grid's legend is there
     assert differs[h - 30 :, w - 100 :].any()
     assert not differs[~regions].any()  # the picture itself is untouched
+    # a caption too wide for the grid's legend beside the inset: it goes to the bottom,
+    # beside the colours' (under the inset it hid the road ahead)
+    wide = _frame(env, info, True, "my planner " + "x" * 40, np.array([1.5e6, 0.25, 80.0]))
+    differs = np.any(plain != wide, axis=2)
+    assert not differs[170:300, w - 170 :].any()  # nothing under the inset
+    assert differs[h - 90 :, 150:300].mean() > 0.05 and not differs[h - 100 :, 310 : w - 140].any()
     lines = Caption.from_info(info, "my planner", np.array([1.5, 0.25, 80.0])).lines()
     assert lines == ["my planner", "t   0.0 s    speed  8.0 m/s",
                      "summed so far: l1 1.5 m^2  l2 0.25 rad/s  l3 80 m/s"]  # fmt: skip

@@ -99,8 +99,8 @@ def test_time_in_steps_instead_of_seconds_is_caught(tmp_path, capsys):
 def test_time_in_frames_with_speeds_per_frame_is_asked_about(tmp_path, capsys):
     """Frame numbers for time and speeds in metres per frame agree with the positions, so no
     track check sees them; the scene would replay ten times too slowly: a warning asks."""
-    slow = [track(name, X[::10], np.full(5, y), dt=1.0) for name, y in (("ego", -1.75),
-                                                                         ("car", 1.75))]  # fmt: skip
+    lanes = (("ego", -1.75), ("car", 1.75))
+    slow = [track(name, X[::10], np.full(5, y), dt=1.0) for name, y in lanes]
     code, out = validate(capsys, write_scene(tmp_path, slow))
     assert "its tracks are sampled every 1 s (median): is the time column in seconds, not " \
         "frame numbers?" in out  # fmt: skip
