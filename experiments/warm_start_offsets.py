@@ -44,7 +44,8 @@ def main() -> None:
                          "network whose residual is in the ego frame, unbounded")  # fmt: skip
     branches = policy.net.branches
     bias, times = branches.head_bias.detach().clone(), policy.net.times.clone()
-    _, train, held = run_tracks(cfg)
+    split = run_tracks(cfg)
+    train, held = split.trained, split.held
     seeds = list(cfg.heldout_seeds(max(len(held), len(train))))
 
     def drive(tracks) -> list[dict]:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -213,7 +213,8 @@ def _track_names(tracks: list[tuple[str, str]], scenes: list[tuple[str, Scenario
     return [track_name(ref, track) if several else track for ref, track in tracks]
 
 
-class RunTracks(NamedTuple):
+@dataclass(frozen=True)
+class RunTracks:
     """The recorded tracks of a run's scenes that can be the ego, as ``(scenario file, track
     id)``: those it trained on and those held out from it (:func:`run_tracks`)."""
 

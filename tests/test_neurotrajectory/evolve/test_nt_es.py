@@ -95,7 +95,7 @@ def test_an_es_run_resumes_and_runs_on_processes_to_the_same_bits(es_run, tmp_pa
 
 
 def test_es_needs_a_warm_start_and_a_sane_step():
-    with pytest.raises(RunError, match="selection 'es' starts from the warm start"):
+    with pytest.raises(RunError, match="--selection es starts from the warm start"):
         TrainConfig(selection="es")
     for bad in (0.0, -1.0, float("nan"), 1e9):
         with pytest.raises(RunError, match=r"es_step must be a finite number in \(0, 100\]"):
