@@ -9,6 +9,7 @@ from gridsim.cli.flags import at_least, overlay_flag, quiet_flag, scenario_flag,
 from gridsim.errors import GridSimError
 from gridsim.outputs import rounded
 from gridsim.policies import POLICIES
+from gridsim.scenario.family import is_recorded
 
 
 def add_parser(sub) -> None:
@@ -22,6 +23,9 @@ def add_parser(sub) -> None:
         help="the driver: the human reference, lane following, random or idle",
     )
     seed_flag(p)
+    p.add_argument("--track", default=None, metavar="ID",
+                   help="recorded scenes: the track the ego drives (default: one drawn from "
+                   "the seed; the summary names it)")  # fmt: skip
     p.add_argument("--video", default=None, help="write a video (.mp4, or .gif)")
     overlay_flag(p)
     quiet_flag(p)
@@ -31,7 +35,7 @@ def add_parser(sub) -> None:
 def execute(args: argparse.Namespace) -> int:
     summary = run_policy(
         args.scenario, args.policy, args.steps, args.seed, video=args.video,
-        progress=not args.quiet, overlay=args.overlay,
+        progress=not args.quiet, overlay=args.overlay, track=args.track,
     )  # fmt: skip
     print(json.dumps(rounded(summary), indent=2))
     return 0
@@ -45,9 +49,12 @@ def run_policy(
     video: str | None = None,
     progress: bool = True,
     overlay: bool = True,
+    track: str | None = None,
 ) -> dict:
-    """Run ``policy`` for up to ``steps`` decisions; optionally write a video. Returns a
-    summary: distance driven, collisions, off-road, fitness sums and the episode outcome."""
+    """Run ``policy`` for up to ``steps`` decisions (on a recorded scene with the ego on
+    ``track``, if given); optionally write a video. Returns a summary: distance driven,
+    collisions, off-road, fitness sums and the episode outcome (on a recorded scene, the
+    ego's track and how long it lasts: its episode lasts at most that)."""
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.outputs import progress_bar
     from gridsim.video import record_episode, video_problem
@@ -59,9 +66,12 @@ def run_policy(
     if video is not None and (problem := video_problem(video)):
         raise GridSimError(f"--video {video}: {problem}")  # before any work
     pol = POLICIES[policy]()
-    env = GridSimEnv(
-        scenario, render_mode="rgb_array" if video else None, action_type=pol.action_type
-    )
+    ego = {"ego": {"track": str(track)}} if track is not None else {}
+    env = GridSimEnv(scenario, render_mode="rgb_array" if video else None,
+                     action_type=pol.action_type, **ego)  # fmt: skip
+    if track is not None and not is_recorded(env.scenario):
+        raise GridSimError(f"--track {track}: {scenario} is a generated scenario, it has no "
+                           "recorded tracks to drive (drop --track)")  # fmt: skip
     env.action_space.seed(seed)
     bar = progress_bar(
         total=steps, desc=f"{policy} on {scenario}", unit="step", disable=not progress
@@ -81,6 +91,10 @@ def run_policy(
     summary = {"scenario": env.scenario.name, "policy": policy, "seed": seed, **s,
                "simulated_s": round(s["simulated_s"], 3),
                "distance_m": round(s["distance_m"], 2)}  # fmt: skip
+    recorded = env.world.ego_track
+    if recorded is not None:  # (its episode lasts at most as long as the human's track)
+        summary |= {"ego_track": recorded.track_id,
+                    "ego_track_s": round(float(recorded.duration), 3)}  # fmt: skip
     if path is not None:
         summary["video"] = str(path)
     return summary

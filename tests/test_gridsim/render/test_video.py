@@ -215,6 +215,22 @@ def test_gymnasium_record_video_wrapper(tmp_path):
     assert len(iio.imread(videos[0], index=None)) >= 20
 
 
+def test_run_drives_the_recorded_track_asked_for_and_names_it(capsys):
+    """A recorded scene's episode lasts as long as its ego's track (2-7 s on the shipped
+    scenes): the summary names the track and its length, and ``--track`` picks one."""
+    assert main(["run", "--scenario", "us101_3_3", "--track", "388", "--quiet"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["ego_track"] == "388" and summary["ego_track_s"] == pytest.approx(3.1)
+    assert summary["simulated_s"] <= summary["ego_track_s"]
+    assert main(["run", "--scenario", "us101_3_3", "--track", "9999", "--quiet"]) == 2
+    assert "ego.track '9999' is not in scene 'USA_US101-3_3_T-1'; tracks: 363, 376" in \
+        capsys.readouterr().err  # fmt: skip
+    assert main(["run", "--scenario", "seamless", "--track", "3", "--quiet"]) == 2
+    assert "--track 3: seamless is a generated scenario" in capsys.readouterr().err
+    assert main(["run", "--steps", "3", "--quiet"]) == 0
+    assert "ego_track" not in json.loads(capsys.readouterr().out)  # generated: no track
+
+
 def test_run_command(tmp_path, capsys):
     video = tmp_path / "out.mp4"
     code = main(["run", "--scenario", "inner_city", "--steps", "40", "--policy", "lane-follow",
