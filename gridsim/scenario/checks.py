@@ -284,8 +284,8 @@ def library_report(tracks: list[Track], source: str) -> SceneReport:
     one, else a warning per flawed track, which is not used."""
     flawed = flawed_tracks(tuple(tracks))
     problems, warnings = _verdict(flawed, len(tracks), source,
-                                  "in the wrong units (are time stamps in seconds, speeds in "
-                                  "m/s and headings in radians?)",
+                                  "implausible or in the wrong units (are time stamps in "
+                                  "seconds, speeds in m/s and headings in radians?)",
                                   "not used as a speed profile")  # fmt: skip
     warnings += _coarse_time(tracks, source)
     return SceneReport(tuple(problems), tuple(warnings), frozenset(flawed),

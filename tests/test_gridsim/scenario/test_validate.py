@@ -254,8 +254,8 @@ def test_a_generated_roads_library_in_other_units_is_refused(tmp_path, capsys):
     checks that need no map now run on them too."""
     path = _library_scenario(tmp_path, None)
     with pytest.raises(DataError, match=r"implausible traffic.library \(its tracks give the "
-                       r"speed profiles\).*\n.* tracks are in the wrong units .*\n.*its speeds "
-                       r"must be in m/s \(km/h / 3.6\)"):  # fmt: skip
+                       r"speed profiles\).*\n.* tracks are implausible or in the wrong units "
+                       r".*\n.*its speeds must be in m/s \(km/h / 3.6\)"):  # fmt: skip
         gym.make("GridSim-v0", scenario=path).reset(seed=0)
     assert main(["validate", path]) == 2
     assert "its speeds must be in m/s (km/h / 3.6)" in capsys.readouterr().err
