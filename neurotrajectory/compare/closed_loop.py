@@ -95,10 +95,19 @@ def closed_loop(
     video: Path | None = None,
     goal_seconds: float | None = None,
     label: str | None = None,
+    tracks: list[str] | None = None,
 ) -> dict:
     """Mean closed-loop statistics of ``policy`` over ``seeds`` on ``scenario``, with the rows
     of its episodes (:func:`drive_episodes`) under ``"per_episode"``; ``label``: the driver's
-    name in the video."""
-    rows = drive_episodes(scenario, policy, seeds, seconds, video, goal_seconds=goal_seconds,
-                          label=label)  # fmt: skip
+    name in the video. With ``tracks`` (ids of a recorded scene), the ego drives each of them
+    once, with the seeds in turn, and each row names its ``track``."""
+    if tracks is None:
+        rows = drive_episodes(scenario, policy, seeds, seconds, video,
+                              goal_seconds=goal_seconds, label=label)  # fmt: skip
+        return summarise(rows) | {"per_episode": rows}
+    rows = [{**row, "track": track}
+            for k, (track, seed) in enumerate(zip(tracks, seeds, strict=True))
+            for row in drive_episodes(scenario, policy, [seed], seconds,
+                                      video if k == 0 else None, ego={"track": track},
+                                      goal_seconds=goal_seconds, label=label)]  # fmt: skip
     return summarise(rows) | {"per_episode": rows}

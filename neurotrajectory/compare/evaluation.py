@@ -46,7 +46,7 @@ from gridsim.scenario.schema import MAX_DURATION
 from gridsim.seeding import Salt, stream
 from neurotrajectory.compare import methods
 from neurotrajectory.compare.baselines.end2end import CommandPolicy, End2End, TrainSettings
-from neurotrajectory.compare.closed_loop import closed_loop
+from neurotrajectory.compare.closed_loop import closed_loop, summarise
 from neurotrajectory.compare.front import NetPredictor, load_front, trained_tracks
 from neurotrajectory.compare.methods import NT_BEST, NT_PICKED
 from neurotrajectory.compare.metrics import Accuracy, accuracy
@@ -114,6 +114,11 @@ class EvalConfig(Settings):
         if unknown:
             raise ValueError(f"unknown scenario groups {unknown}; choose from {list(GROUPS)} "
                              "or give NAME=FOLDER")  # fmt: skip
+        shadowing = sorted(set(self.sources) & set(GROUPS))
+        if shadowing:
+            raise ValueError(f"--group {shadowing[0]}=...: {shadowing[0]!r} is a built-in group "
+                             "(its title and source would be claimed for your files); give "
+                             "yours another name")  # fmt: skip
         bad = [g for g in self.groups if not GROUP_NAME.fullmatch(g)]
         if bad:
             raise ValueError(f"group name {bad[0]!r}: use letters, digits, '_', '-', '.', "
@@ -322,24 +327,56 @@ def _evaluate_group(
             disable=not progress,
             desc=f"closed loop {group} ({len(seeds)} episodes each)",
         )
-        scenarios = group_scenarios(group, cfg.sources.get(group))
-        for name, policy in bar:
+        held = _closed_loop_tracks(group_scenarios(group, cfg.sources.get(group)), test_tracks,
+                                   cfg.closed_loop_episodes, log)  # fmt: skip
+        scenarios = list(held)
+        for name, policy in bar if scenarios else ():
             slug = name.lower().replace(" ", "-")
-            per = [closed_loop(sc, policy, seeds, cfg.closed_loop_seconds,
-                                out / "videos" / f"{group}-{Path(sc).stem}-{slug}.mp4"
-                                if cfg.videos else None, cfg.goal_seconds,
-                                label=_video_label(name, group, sc))
+            per = [closed_loop(sc, policy, seeds[: len(held[sc]) if held[sc] else None],
+                               cfg.closed_loop_seconds,
+                               out / "videos" / f"{group}-{Path(sc).stem}-{slug}.mp4"
+                               if cfg.videos else None, cfg.goal_seconds,
+                               label=_video_label(name, group, sc), tracks=held[sc])
                    for sc in scenarios]  # fmt: skip
-            loop[name] = {k: float(np.mean([p[k] for p in per]))
-                          for k in per[0] if k != "per_episode"}  # fmt: skip
-            loop[name]["episodes"] = int(sum(p["episodes"] for p in per))
-            # every episode's outcome, to look up the failures (results.json)
-            loop[name]["per_episode"] = [{"scenario": Path(sc).stem, **row}
-                                         for sc, p in zip(scenarios, per, strict=True)
-                                         for row in p["per_episode"]]  # fmt: skip
+            # every episode's outcome, to look up the failures (results.json); the means
+            # over all of them (scenes may give different numbers of held-out tracks)
+            rows = [
+                {"scenario": Path(sc).stem, **row}
+                for sc, p in zip(scenarios, per, strict=True)
+                for row in p["per_episode"]
+            ]
+            loop[name] = summarise(rows) | {"per_episode": rows}
     return GroupResult(group, manifest["source"], len(train), len(test),
                        len(test_tracks), scores, loop, best,
                        tuple(float(t) for t in setting.times), tuple(seen))  # fmt: skip
+
+
+def _closed_loop_tracks(scenarios: tuple[str, ...], test_tracks: set[str], episodes: int,
+                        log) -> dict[str, list[str] | None]:  # fmt: skip
+    """Per scenario of a group, what its closed loop drives: on a recorded scene the tracks
+    of the test side of the split (``test_tracks``, ``SCENE/ID``), each once, at most
+    ``episodes`` of them in the scene's order (a random ego would mostly drive the tracks
+    End2End and the run trained on); None on a generated one (episodes drawn from seeds).
+    A recorded scene none of whose tracks is on the test side is left out, and said."""
+    from gridsim.scenario.families.recorded import recorded_scene, scene_of
+    from gridsim.scenario.family import is_recorded
+    from gridsim.scenario.loader import load_scenario
+    from gridsim.traffic.track import track_name
+
+    out: dict[str, list[str] | None] = {}
+    for sc in scenarios:
+        scenario = load_scenario(sc)
+        if not is_recorded(scenario):
+            out[sc] = None
+            continue
+        scene = scene_of(scenario)
+        ids = [t.track_id for t in recorded_scene(scenario)[1]
+               if track_name(scene, t.track_id) in test_tracks]  # fmt: skip
+        if ids:
+            out[sc] = ids[:episodes]
+        else:
+            log(f"{sc}: no track of the test side to drive in closed loop; left out")
+    return out
 
 
 def evaluate(

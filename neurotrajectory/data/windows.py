@@ -704,7 +704,7 @@ def record_group_into(
     return {
         "format": FORMAT_VERSION,
         "group": name,
-        "source": GROUP_SOURCE.get(name) or _source(replays),
+        "source": (GROUP_SOURCE.get(name) if source is None else None) or _source(replays),
         "seed": seed,
         **{k: first[k] for k in same},
         **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),

@@ -187,6 +187,12 @@ def test_evaluate_runs_end_to_end_on_a_tiny_configuration(tiny_run, data, tmp_pa
         assert len({e["scenario"] for e in episodes}) == 2
         assert stats["completed"] == pytest.approx(np.mean([e["completed"] for e in episodes]))
         assert all(isinstance(e["seed"], int) for e in episodes)
+    # on recorded scenes the closed loop drives tracks of the test side, the first of each
+    # scene (a random ego drove mostly the tracks End2End and the run were trained on)
+    test_tracks = set(split_by_track(ds.windows, 0.3, seed=0)[1].track.tolist())
+    driven = {f"{e['scenario']}/{e['track']}" for e in urban["closed_loop"]["DWA"]["per_episode"]}
+    scenes = {"lankershim_1_1": "USA_Lanker-1_1_T-1", "peachtree_4_8": "USA_Peach-4_8_T-1"}
+    assert {f"{scenes[n.split('/')[0]]}/{n.split('/')[1]}" for n in driven} <= test_tracks
 
 
 def test_evaluation_is_deterministic(tiny_run, tmp_path):

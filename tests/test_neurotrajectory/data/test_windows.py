@@ -560,3 +560,21 @@ def test_a_groups_source_names_ngsim_only_for_the_shipped_scenes():
     assert source({"seamless": False, "inner_city": False}) == "simulator"
     assert source({"us101_3_3": True, "seamless": False}) == "human (NGSIM) and simulator"
     assert source({"/data/mine.yaml": True, "us101_3_3": True}) == "human (recorded)"
+
+
+def test_a_group_named_like_a_built_in_one_takes_its_source_from_its_files(tmp_path):
+    """``record --scenario FOLDER --name highway`` of generated scenes said "human (NGSIM)"
+    (the built-in group's); ``evaluate`` refuses a user group of a built-in name."""
+    from neurotrajectory.cli import main
+    from neurotrajectory.compare.evaluation import EvalConfig
+    from neurotrajectory.data.windows import DatasetError
+
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "a.yaml").write_text("extends: seamless\nname: a\n")
+    out = tmp_path / "data"
+    assert main(["record", "--scenario", str(tmp_path / "scenes"), "--name", "highway",
+                 "--episodes", "1", "--episode-seconds", "3", "--out", str(out),
+                 "--quiet"]) == 0  # fmt: skip
+    assert json.loads((out / "manifest.json").read_text())["source"] == "simulator"
+    with pytest.raises(DatasetError, match="'highway' is a built-in group"):
+        EvalConfig(groups=("highway",), sources={"highway": str(tmp_path / "scenes")})
