@@ -180,7 +180,7 @@ def _split_dataset(
         if (folder / "manifest.json").is_file():  # recorded before a break: if still the same
             problem = _other_files(dataset_manifest(folder), group, cfg.sources.get(group))
             if problem is None:
-                return load_split(folder, cfg.test_fraction, cfg.seed)
+                return _split(folder, group, cfg)
             log(f"{group}: recording again: the windows kept were {problem}")
             shutil.rmtree(folder)
         log(f"{group}: recording windows")
@@ -202,7 +202,21 @@ def _split_dataset(
                 bar.reset()
                 bar.total = None  # (the files planned again count it anew)
                 record()
-    return load_split(folder, cfg.test_fraction, cfg.seed)
+    return _split(folder, group, cfg)
+
+
+def _split(folder: Path, group: str, cfg: EvalConfig) -> tuple[dict, Windows, Windows]:
+    """:func:`~neurotrajectory.data.storage.load_split` of ``group``'s dataset ``folder``; a
+    group too small to split says which and how to grow it."""
+    try:
+        return load_split(folder, cfg.test_fraction, cfg.seed)
+    except DatasetError as exc:
+        if "to split" not in str(exc):
+            raise
+        raise DatasetError(
+            f"{group}: {exc}: the split by track holds whole tracks out; "
+            "record more of the group (--episodes)"
+        ) from None
 
 
 def _other_files(manifest: dict, group: str, source: str | None) -> str | None:
@@ -405,10 +419,12 @@ def evaluate(
         trained = front.run.config.goal_seconds
         if trained != cfg.goal_seconds:
             said = "at the last set-point" if trained is None else f"{trained:g} s ahead"
+            how = "leave out --goal-seconds" if trained is None else (
+                f"give --goal-seconds {trained:g}")  # fmt: skip
             raise DatasetError(f"{group}: the run {front.run.out} was trained with the "
-                               f"destination {said}; evaluate it with the same --goal-seconds "
-                               "(or train a run for this setting)")  # fmt: skip
-    data_dir = Path(data_dir) if data_dir is not None else None
+                               f"destination {said}; {how} to evaluate it in its setting (or "
+                               "train a run for this one)")  # fmt: skip
+    data_dir = Path(data_dir).absolute() if data_dir is not None else None
     settings = {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
                 **cfg.as_dict(), "data": None if data_dir is None else str(data_dir)}  # fmt: skip
     if data_dir is not None:  # the windows are the datasets' (their manifests say how made)

@@ -425,3 +425,18 @@ def test_an_evaluation_video_names_its_scene():
     assert _video_label("End2End", "urban", "lankershim_1_1") == "End2End, urban (lankershim_1_1)"
     assert _video_label("DWA", "seamless", "seamless") == "DWA, seamless"
     assert _video_label("DWA", "mine", "my/scenes/a.yaml") == "DWA, mine (a)"
+
+
+def test_a_group_too_small_to_split_says_which_and_how(tmp_path):
+    """``--episodes 1`` gave "need windows from >= 2 tracks to split, got 1" alone."""
+    from neurotrajectory.compare import evaluation
+    from neurotrajectory.data.recording import record_dataset
+    from neurotrajectory.data.windows import DatasetError
+
+    record_dataset(tmp_path / "one", "seamless", 1, duration=3.0)
+    with pytest.raises(
+        DatasetError,
+        match=r"seamless: need windows from >= 2 tracks to split, "
+        r"got 1: .*record more of the group \(--episodes\)",
+    ):
+        evaluation._split(tmp_path / "one", "seamless", evaluation.EvalConfig())

@@ -131,7 +131,8 @@ def test_runs_train_and_evaluate_in_one_setting_only(far_data, tmp_path, capsys)
     out = tmp_path / "eval"
     assert main(["evaluate", "--run", str(run), "--groups", "seamless", "--out", str(out),
                  "--quiet"]) == 2  # fmt: skip
-    assert "was trained with the destination 5 s ahead" in capsys.readouterr().err
+    assert "was trained with the destination 5 s ahead; give --goal-seconds 5 to evaluate " \
+        "it in its setting" in capsys.readouterr().err  # fmt: skip
     assert not out.exists()
     with pytest.raises(RunError, match="goal_seconds must be a finite number > 0"):
         TrainConfig(goal_seconds=float("nan"))
