@@ -7,7 +7,12 @@ advances the lazy human reference) and on seeds driven before (cached reference)
 is timed cold (a new seed: builds the world and the reference's first seconds) and warm (a
 seed seen before: a copy of the kept world, the reference from the cache).
 
-    python benchmarks/bench_env.py [--steps 3000] [--resets 10] [--cpu]
+    python benchmarks/bench_env.py [--steps 3000] [--resets 10] [--cpu] [--lockstep-rounds 8]
+
+``lockstep`` steps 32 environments together (16 individuals x 2 episodes, as a training
+worker does, newest grid observed) one after the other and with
+:func:`~gridsim.envs.gridsim_env.step_all` (each phase for all of them in turn), rounds
+alternated, and prints both (us per environment step, medians of the rounds) and their ratio.
 
 ``--cpu`` times with ``time.process_time`` (CPU time of the process) instead of the wall
 clock: steadier on a machine shared with other jobs.
@@ -101,17 +106,55 @@ def bench_reset(n: int, clock) -> None:
     print(json.dumps(row))
 
 
+def bench_lockstep(rounds: int, clock, envs_n: int = 32, decisions: int = 150) -> None:
+    from gridsim.envs.gridsim_env import GridSimEnv, step_all
+
+    envs = [GridSimEnv("seamless", observation_type="grid") for _ in range(envs_n)]
+    seeds = [1000 + k % 2 for k in range(envs_n)]  # 2 episodes each, as in training
+
+    def run(together: bool) -> float:
+        infos = [env.reset(seed=s)[1] for env, s in zip(envs, seeds, strict=True)]
+        live, spent, steps = list(range(envs_n)), 0.0, 0
+        for _ in range(decisions):
+            if not live:
+                break
+            actions = [infos[k]["reference_setpoints"] for k in live]
+            t = clock()
+            if together:
+                out = step_all([envs[k] for k in live], actions)
+            else:
+                out = [envs[k].step(a) for k, a in zip(live, actions, strict=True)]
+            spent += clock() - t
+            steps += len(live)
+            for k, (*_, info) in zip(live, out, strict=True):
+                infos[k] = info
+            live = [k for k, o in zip(live, out, strict=True) if not (o[2] or o[3])]
+        return 1e6 * spent / steps
+
+    run(False), run(True)  # warm-up
+    times: dict[bool, list[float]] = {False: [], True: []}
+    for _ in range(rounds):
+        for together in (False, True):
+            times[together].append(run(together))
+    one, phased = (float(np.median(times[k])) for k in (False, True))
+    print(json.dumps({"bench": "lockstep_32_envs", "one_after_another_us": round(one, 1),
+                      "step_all_us": round(phased, 1), "ratio": round(one / phased, 3),
+                      "rounds": rounds, "loadavg": os.getloadavg()[0]}))  # fmt: skip
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=3000)
     ap.add_argument("--resets", type=int, default=10)
     ap.add_argument("--cpu", action="store_true", help="time CPU, not wall-clock, time")
+    ap.add_argument("--lockstep-rounds", type=int, default=8)
     args = ap.parse_args()
     clock = time.process_time if args.cpu else time.perf_counter
     for cached in (False, True):
         bench_steps(args.steps, "trajectory", cached, clock)
         bench_steps(args.steps, "control", cached, clock)
     bench_reset(args.resets, clock)
+    bench_lockstep(args.lockstep_rounds, clock)
 
 
 if __name__ == "__main__":

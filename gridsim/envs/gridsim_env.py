@@ -22,6 +22,7 @@ Reward: float32 ``(3,)`` fitness vector ``[l1, l2, l3]`` for the step (see
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -234,7 +235,13 @@ class GridSimEnv(gym.Env):
             interrupts.leave()
 
     def _step(self, action):
-        """The body of :meth:`step`."""
+        """The body of :meth:`step`: :meth:`_act`, then :meth:`_sense`."""
+        self._act(action)
+        return self._sense()
+
+    def _check_steppable(self) -> None:
+        """A :class:`RuntimeError` unless a step may come now (after a reset, before the
+        episode's end)."""
         if self.world is None:
             raise RuntimeError("call reset() before step()")
         if self._terminated:
@@ -243,6 +250,11 @@ class GridSimEnv(gym.Env):
         if self._truncated:
             raise RuntimeError(f"the episode reached its time limit ({self.time_limit:g} s, "
                                "simulation.duration): call reset() before step()")  # fmt: skip
+
+    def _act(self, action) -> None:
+        """A step's first phase: the controller and the world's ticks (the fitness terms and
+        the last tick's result kept for :meth:`_sense`)."""
+        self._check_steppable()
         world = self.world
         rotation = grid_rotation(self._orientation, world.ego[PSI])
         control, plan = self.action_kind.controller(world, action, rotation)
@@ -261,6 +273,13 @@ class GridSimEnv(gym.Env):
                 break
         self._last_accel, self._last_rate = result.accel, result.steer_rate
         self._scored = (plan, self._ref_future)  # (before the look-ahead moves on)
+        self._acted = (result, l1, l2, l3)
+
+    def _sense(self):
+        """A step's second phase, after :meth:`_act`: the new grid, the look-ahead, the
+        episode's end and what :meth:`step` returns."""
+        result, l1, l2, l3 = self._acted
+        world = self.world
         self._newest = (self._newest + 1) % len(self._grids)
         if self._sensing:
             self.sensor.observe(world, out=self._grids[self._newest])
@@ -425,3 +444,25 @@ def make_env(**kwargs: Any) -> gym.Env:
 
 
 __all__ = ["EGO_FEATURES", "GridSimEnv", "make_env"]
+
+
+def step_all(envs: Sequence[GridSimEnv], actions: Sequence) -> list[tuple]:
+    """``[env.step(action) for env, action in zip(envs, actions)]``, each phase of a step
+    for every environment in turn: every world's ticks, then every grid and look-ahead. The
+    tables the worlds of a process share (the sensor's rays, the library's profiles) then
+    stay in cache from one environment to the next: 32 seamless environments in lockstep
+    step in 188 us each instead of 227 (``benchmarks/bench_env.py``'s ``lockstep``), with the
+    same results (each environment's own computations are unchanged). Every environment is
+    checked before any moves (a :class:`RuntimeError`, as :meth:`GridSimEnv.step`'s)."""
+    envs = [env.unwrapped for env in envs]
+    if len(envs) != len(actions):
+        raise ValueError(f"{len(envs)} environments and {len(actions)} actions")
+    for env in envs:
+        env._check_steppable()
+    interrupts.enter()  # a Ctrl-C waits for the steps' end (gridsim.interrupts)
+    try:
+        for env, action in zip(envs, actions, strict=True):
+            env._act(action)
+        return [env._sense() for env in envs]
+    finally:
+        interrupts.leave()

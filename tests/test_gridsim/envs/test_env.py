@@ -717,3 +717,38 @@ def test_an_episode_is_replayed_from_its_info_episode_seed():
         with pytest.raises(ValueError, match=said):
             again.reset(options=bad)
     assert again.unwrapped.world.time == before
+
+
+def test_step_all_gives_what_stepping_one_after_another_gives():
+    """``step_all`` runs each phase of a step for every environment in turn (the shared
+    tables stay in cache); each environment's results are the same, bit for bit, and an
+    environment that cannot step stops them all before any moves."""
+    from gridsim.envs.gridsim_env import GridSimEnv, step_all
+
+    def make():
+        envs = [GridSimEnv(sc, observation_type="grid") for sc in ("seamless", "inner_city",
+                                                                    "seamless")]  # fmt: skip
+        infos = [env.reset(seed=s)[1] for env, s in zip(envs, (3, 4, 3), strict=True)]
+        return envs, infos
+
+    (alone, a_infos), (together, t_infos) = make(), make()
+    for _ in range(25):
+        live = [k for k in range(3) if not (alone[k]._terminated or alone[k]._truncated)]
+        actions = [a_infos[k]["reference_setpoints"] + 0.3 * k for k in live]
+        one = [alone[k].step(a) for k, a in zip(live, actions, strict=True)]
+        both = step_all([together[k] for k in live], actions)
+        for k, x, y in zip(live, one, both, strict=True):
+            assert np.array_equal(x[0]["grid"], y[0]["grid"]) and np.array_equal(x[1], y[1])
+            assert x[2:4] == y[2:4] and np.array_equal(x[4]["pose"], y[4]["pose"])
+            a_infos[k], t_infos[k] = x[4], y[4]
+    ended = GridSimEnv("seamless", simulation={"duration": 0.1})
+    _, info = ended.reset(seed=0)
+    ended.step(info["reference_setpoints"])  # truncated: its time is up
+    fresh = GridSimEnv("seamless")
+    _, info = fresh.reset(seed=0)
+    before = fresh.world.ego.copy()
+    with pytest.raises(RuntimeError, match="reached its time limit"):
+        step_all([fresh, ended], [info["reference_setpoints"]] * 2)
+    assert np.array_equal(fresh.world.ego, before)  # nothing moved
+    with pytest.raises(ValueError, match="2 environments and 1 actions"):
+        step_all([fresh, fresh], [info["reference_setpoints"]])
