@@ -235,9 +235,11 @@ class GridSimEnv(gym.Env):
             interrupts.leave()
 
     def _step(self, action):
-        """The body of :meth:`step`: :meth:`_act`, then :meth:`_sense`."""
+        """The body of :meth:`step`: its phases :meth:`_act`, :meth:`_sense` and
+        :meth:`_finish`."""
         self._act(action)
-        return self._sense()
+        self._sense()
+        return self._finish()
 
     def _check_steppable(self) -> None:
         """A :class:`RuntimeError` unless a step may come now (after a reset, before the
@@ -275,14 +277,17 @@ class GridSimEnv(gym.Env):
         self._scored = (plan, self._ref_future)  # (before the look-ahead moves on)
         self._acted = (result, l1, l2, l3)
 
-    def _sense(self):
-        """A step's second phase, after :meth:`_act`: the new grid, the look-ahead, the
-        episode's end and what :meth:`step` returns."""
-        result, l1, l2, l3 = self._acted
-        world = self.world
+    def _sense(self) -> None:
+        """A step's second phase, after :meth:`_act`: the new grid."""
         self._newest = (self._newest + 1) % len(self._grids)
         if self._sensing:
-            self.sensor.observe(world, out=self._grids[self._newest])
+            self.sensor.observe(self.world, out=self._grids[self._newest])
+
+    def _finish(self):
+        """A step's last phase, after :meth:`_sense`: the look-ahead, the episode's end and
+        what :meth:`step` returns."""
+        result, l1, l2, l3 = self._acted
+        world = self.world
         self._look_ahead()
         tol = self.cfg.env.destination_tolerance
         reached = self.reference.reached(world.ego[:2], self._travelled, tol)
@@ -448,12 +453,12 @@ __all__ = ["EGO_FEATURES", "GridSimEnv", "make_env"]
 
 def step_all(envs: Sequence[GridSimEnv], actions: Sequence) -> list[tuple]:
     """``[env.step(action) for env, action in zip(envs, actions)]``, each phase of a step
-    for every environment in turn: every world's ticks, then every grid and look-ahead. The
-    tables the worlds of a process share (the sensor's rays, the library's profiles) then
-    stay in cache from one environment to the next: 32 seamless environments in lockstep
-    step in 188 us each instead of 227 (``benchmarks/bench_env.py``'s ``lockstep``), with the
-    same results (each environment's own computations are unchanged). Every environment is
-    checked before any moves (a :class:`RuntimeError`, as :meth:`GridSimEnv.step`'s)."""
+    for every environment in turn: every world's ticks, then every grid, then every
+    look-ahead and result. The tables the worlds of a process share (the sensor's rays, the
+    library's profiles) then stay in cache from one environment to the next
+    (``benchmarks/bench_env.py``'s ``lockstep`` measures it), with the same results (each
+    environment's own computations are unchanged). Every environment is checked before any
+    moves (a :class:`RuntimeError`, as :meth:`GridSimEnv.step`'s)."""
     envs = [env.unwrapped for env in envs]
     if len(envs) != len(actions):
         raise ValueError(f"{len(envs)} environments and {len(actions)} actions")
@@ -463,6 +468,8 @@ def step_all(envs: Sequence[GridSimEnv], actions: Sequence) -> list[tuple]:
     try:
         for env, action in zip(envs, actions, strict=True):
             env._act(action)
-        return [env._sense() for env in envs]
+        for env in envs:
+            env._sense()
+        return [env._finish() for env in envs]
     finally:
         interrupts.leave()
