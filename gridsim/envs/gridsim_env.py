@@ -235,9 +235,10 @@ class GridSimEnv(gym.Env):
             interrupts.leave()
 
     def _step(self, action):
-        """The body of :meth:`step`: its phases :meth:`_act`, :meth:`_sense` and
-        :meth:`_finish`."""
-        self._act(action)
+        """The body of :meth:`step`: its phases :meth:`_plan`, :meth:`_act`, :meth:`_sense`
+        and :meth:`_finish`."""
+        self._plan(action)
+        self._act()
         self._sense()
         return self._finish()
 
@@ -253,13 +254,19 @@ class GridSimEnv(gym.Env):
             raise RuntimeError(f"the episode reached its time limit ({self.time_limit:g} s, "
                                "simulation.duration): call reset() before step()")  # fmt: skip
 
-    def _act(self, action) -> None:
-        """A step's first phase: the controller and the world's ticks (the fitness terms and
-        the last tick's result kept for :meth:`_sense`)."""
+    def _plan(self, action) -> None:
+        """A step's first phase: the action checked and turned into the controller and the
+        commanded plan (nothing moves yet)."""
         self._check_steppable()
         world = self.world
         rotation = grid_rotation(self._orientation, world.ego[PSI])
-        control, plan = self.action_kind.controller(world, action, rotation)
+        self._planned = self.action_kind.controller(world, action, rotation)
+
+    def _act(self) -> None:
+        """A step's second phase, after :meth:`_plan`: the world's ticks (the fitness terms
+        and the last tick's result kept for :meth:`_finish`)."""
+        world = self.world
+        control, plan = self._planned
         l1 = float(((plan - self._ref_future) ** 2).sum())
         l2 = l3 = 0.0
         v_lo, v_hi = self.cfg.speed_range
@@ -278,7 +285,7 @@ class GridSimEnv(gym.Env):
         self._acted = (result, l1, l2, l3)
 
     def _sense(self) -> None:
-        """A step's second phase, after :meth:`_act`: the new grid."""
+        """A step's third phase, after :meth:`_act`: the new grid."""
         self._newest = (self._newest + 1) % len(self._grids)
         if self._sensing:
             self.sensor.observe(self.world, out=self._grids[self._newest])
@@ -448,26 +455,34 @@ def make_env(**kwargs: Any) -> gym.Env:
     return GridSimEnv(**kwargs)
 
 
-__all__ = ["EGO_FEATURES", "GridSimEnv", "make_env"]
+__all__ = ["EGO_FEATURES", "GridSimEnv", "make_env", "step_all"]
 
 
 def step_all(envs: Sequence[GridSimEnv], actions: Sequence) -> list[tuple]:
-    """``[env.step(action) for env, action in zip(envs, actions)]``, each phase of a step
-    for every environment in turn: every world's ticks, then every grid, then every
-    look-ahead and result. The tables the worlds of a process share (the sensor's rays, the
-    library's profiles) then stay in cache from one environment to the next
-    (``benchmarks/bench_env.py``'s ``lockstep`` measures it), with the same results (each
-    environment's own computations are unchanged). Every environment is checked before any
-    moves (a :class:`RuntimeError`, as :meth:`GridSimEnv.step`'s)."""
-    envs = [env.unwrapped for env in envs]
+    """``[env.step(action) for env, action in zip(envs, actions)]`` for distinct
+    :class:`GridSimEnv` (not wrapped: a wrapper's step would be bypassed), each phase of a
+    step for every environment in turn: every action checked and planned, then every
+    world's ticks, then every grid, then every look-ahead and result. The tables the worlds
+    of a process share (the sensor's rays, the library's profiles) then stay in cache from
+    one environment to the next (``benchmarks/bench_env.py``'s ``lockstep`` measures it),
+    with the same results (each environment's own computations are unchanged). Every
+    environment and action is checked before any world moves (the errors of
+    :meth:`GridSimEnv.step`)."""
     if len(envs) != len(actions):
         raise ValueError(f"{len(envs)} environments and {len(actions)} actions")
-    for env in envs:
-        env._check_steppable()
+    if any(env is not env.unwrapped for env in envs):
+        raise ValueError(
+            "step_all steps GridSimEnv themselves: give env.unwrapped (a "
+            "wrapper's own step would be bypassed), or step wrapped ones alone"
+        )
+    if len({id(env) for env in envs}) != len(envs):
+        raise ValueError("an environment is listed twice: step_all steps each once")
     interrupts.enter()  # a Ctrl-C waits for the steps' end (gridsim.interrupts)
     try:
         for env, action in zip(envs, actions, strict=True):
-            env._act(action)
+            env._plan(action)
+        for env in envs:
+            env._act()
         for env in envs:
             env._sense()
         return [env._finish() for env in envs]

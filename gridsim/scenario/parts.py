@@ -209,7 +209,7 @@ def _library(files: tuple) -> TrajectoryLibrary:
                 notes.append(str(w.message))
             else:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    _say_notes(notes, len(files))
+    _say_notes(notes, sum(f != "builtin" for f, _ in files))
     if skipped:
         lines = "\n".join(f"  - {line}" for line in skipped)
         if not tracks:
@@ -234,10 +234,11 @@ def _say_notes(notes: list[str], files: int) -> None:
         for note in notes:
             warn_data(note)
         return
-    rest = [note.split(": ", 1)[0] for note in notes[NOTES_SHOWN:]]
+    said = len(dict.fromkeys(note.split(": ", 1)[0] for note in notes))  # (files with notes)
+    rest = list(dict.fromkeys(note.split(": ", 1)[0] for note in notes[NOTES_SHOWN:]))
     named = ", ".join(rest[:10]) + (f" and {len(rest) - 10} more" if len(rest) > 10 else "")
     shown = "\n".join(f"  - {note}" for note in notes[:NOTES_SHOWN])
-    warn_data(f"traffic.library: {len(notes)} of its {files} trajectory files have notes; the "
+    warn_data(f"traffic.library: {said} of its {files} trajectory files have notes; the "
               f"first {NOTES_SHOWN}:\n{shown}\n  and likewise: {named}")  # fmt: skip
 
 

@@ -10,12 +10,14 @@ represented by one member of its Pareto front chosen **without** the test data (
 the knee by default), and also by the front member with the lowest test RMSE (an optimistic
 pick, labelled as such).
 
-**Closed loop.** Every method drives GridSim-v0 on each scenario of the group: NeuroTrajectory,
-DWA and constant velocity through the trajectory action, End2End through its discrete
-commands, and the human reference for scale. Reported: completion (the episode ran to its
-time limit or destination without collision or leaving the road), progress (distance driven
-over the distance the human reference drove in the same time), collisions, off-road, mean
-speed, mean steering rate and the episode fitness vector ``[l1, l2, l3]``.
+**Closed loop.** Every method drives GridSim-v0 on each scenario of the group (on a
+recorded scene, each track of the test side of the split, and no scene without one):
+NeuroTrajectory, DWA and constant velocity through the trajectory action, End2End through
+its discrete commands, and the human reference for scale. Reported: completion (the
+episode ran to its time limit or destination without collision or leaving the road),
+progress (distance driven over the distance the human reference drove in the same time),
+collisions, off-road, mean speed, mean steering rate and the episode fitness vector ``[l1,
+l2, l3]``.
 """
 
 from __future__ import annotations
@@ -334,17 +336,18 @@ def _evaluate_group(
         policies |= {End2End.name: CommandPolicy(e2e), NT_PICKED: TrajectoryPolicy(nt, keep)}
         rng = stream(cfg.seed, Salt.CLOSED_LOOP_EPISODES)
         seeds = [int(s) for s in rng.integers(0, 2**31 - 1, size=cfg.closed_loop_episodes)]
-        bar = progress_bar(
-            policies.items(),
-            unit="method",
-            leave=False,
-            disable=not progress,
-            desc=f"closed loop {group} ({len(seeds)} episodes each)",
-        )
         held = _closed_loop_tracks(group_scenarios(group, cfg.sources.get(group)), test_tracks,
                                    cfg.closed_loop_episodes, log)  # fmt: skip
         scenarios = list(held)
-        for name, policy in bar if scenarios else ():
+        episodes = sum(len(seeds) if ids is None else len(ids) for ids in held.values())
+        bar = progress_bar(
+            policies.items() if scenarios else (),
+            unit="method",
+            leave=False,
+            disable=not progress,
+            desc=f"closed loop {group} ({episodes} episodes each)",
+        )
+        for name, policy in bar:
             slug = name.lower().replace(" ", "-")
             per = [closed_loop(sc, policy, seeds[: len(held[sc]) if held[sc] else None],
                                cfg.closed_loop_seconds,
@@ -487,7 +490,7 @@ def _go_on_or_start(partial: Path, settings: dict, log) -> None:
     differ = sorted(k for k in set(settings) | set(then) if then.get(k) != settings.get(k))
     kept = sorted(p.name for p in (partial / "data").glob("*") if p.is_dir())
     recording = [k for k in differ if k in RECORDING_SETTINGS]
-    if recording and kept:
+    if recording and kept and settings.get("data") is None:  # (with --data none is read)
         raise WorkKept(f"{partial} holds the windows of an interrupted evaluation recorded "
                        f"with other {_flags(recording)}: give the values it was made with to "
                        f"go on with them, or remove {partial} to start afresh")  # fmt: skip

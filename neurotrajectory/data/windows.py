@@ -221,12 +221,12 @@ def scenario_episodes(
         need = base.config.env.horizon_time
         chosen = [t for t in scene_tracks if (wanted is None or t.track_id in wanted)
                   and t.duration >= need and t.track_id not in flawed]  # fmt: skip
-        chosen = _followable(base, chosen)
         if named and len(chosen) < len(wanted):
             left = sorted(wanted - {t.track_id for t in chosen})
             warn_data(f"{base.source}: {len(left)} of the tracks ego.track names are not "
                       f"recorded: {', '.join(left[:10])} (shorter than the {need:g} s horizon, "
                       "or flawed: `gridsim validate` says which)")  # fmt: skip
+        chosen = _followable(base, chosen)  # (and those too fast, said on their own)
         _say_unfit_egos(base, chosen, scene_tracks, road)
         out = [PlannedEpisode(track_name(scene, t.track_id), 0,
                        {"ego": {"track": t.track_id},

@@ -750,5 +750,14 @@ def test_step_all_gives_what_stepping_one_after_another_gives():
     with pytest.raises(RuntimeError, match="reached its time limit"):
         step_all([fresh, ended], [info["reference_setpoints"]] * 2)
     assert np.array_equal(fresh.world.ego, before)  # nothing moved
+    other = GridSimEnv("seamless")
+    other.reset(seed=1)
+    with pytest.raises(ValueError, match="trajectory action must have shape"):
+        step_all([fresh, other], [info["reference_setpoints"], np.zeros(3)])
+    assert np.array_equal(fresh.world.ego, before) and fresh.world.time == 0.0  # checked first
     with pytest.raises(ValueError, match="2 environments and 1 actions"):
         step_all([fresh, fresh], [info["reference_setpoints"]])
+    with pytest.raises(ValueError, match="an environment is listed twice"):
+        step_all([fresh, fresh], [info["reference_setpoints"]] * 2)
+    with pytest.raises(ValueError, match="give env.unwrapped"):
+        step_all([gym.wrappers.TimeLimit(fresh, 5)], [info["reference_setpoints"]])

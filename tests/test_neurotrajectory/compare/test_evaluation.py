@@ -440,3 +440,19 @@ def test_a_group_too_small_to_split_says_which_and_how(tmp_path):
         r"got 1: .*record more of the group \(--episodes\)",
     ):
         evaluation._split(tmp_path / "one", "seamless", evaluation.EvalConfig())
+
+
+def test_going_on_with_data_is_not_refused_for_windows_it_does_not_read(tmp_path):
+    """An interrupted evaluation that recorded windows, run again with --data: the windows
+    kept are not read (the datasets are), so nothing is refused (it named --episodes and
+    --episode-seconds, which the user had not changed)."""
+    from neurotrajectory.compare.evaluation import _go_on_or_start
+
+    partial = tmp_path / ".eval.partial"
+    (partial / "data" / "seamless").mkdir(parents=True)
+    then = {"episodes": 8, "episode_seconds": 30.0, "seed": 0, "data": None}
+    (partial / "eval_config.json").write_text(json.dumps(then))
+    said = []
+    _go_on_or_start(partial, {**then, "episodes": None, "episode_seconds": None,
+                              "data": str(tmp_path / "sets")}, said.append)  # fmt: skip
+    assert "going on with the interrupted evaluation" in said[0] and "--data" in said[0]
