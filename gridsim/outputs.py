@@ -140,6 +140,16 @@ def rounded(data: Any, digits: int = 4) -> Any:
     return data
 
 
+def as_given(value: Any, missing: str = "none") -> str:
+    """A setting's ``value`` as a command line gives it: a list's items apart, a float by
+    ``:g``, None as ``missing`` (what a message says of a flag not given)."""
+    if value is None:
+        return missing
+    if isinstance(value, tuple | list):
+        return " ".join(as_given(v, missing) for v in value) or missing
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
 def short_repr(value: Any) -> str:
     """``repr(value)``, cut to a readable length for an error message."""
     return reprlib.repr(value)

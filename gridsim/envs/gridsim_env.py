@@ -455,9 +455,6 @@ def make_env(**kwargs: Any) -> gym.Env:
     return GridSimEnv(**kwargs)
 
 
-__all__ = ["EGO_FEATURES", "GridSimEnv", "make_env", "step_all"]
-
-
 def step_all(envs: Sequence[GridSimEnv], actions: Sequence) -> list[tuple]:
     """``[env.step(action) for env, action in zip(envs, actions)]`` for distinct
     :class:`GridSimEnv` (not wrapped: a wrapper's step would be bypassed), each phase of a
@@ -488,3 +485,6 @@ def step_all(envs: Sequence[GridSimEnv], actions: Sequence) -> list[tuple]:
         return [env._finish() for env in envs]
     finally:
         interrupts.leave()
+
+
+__all__ = ["EGO_FEATURES", "GridSimEnv", "make_env", "step_all"]

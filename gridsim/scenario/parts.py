@@ -234,8 +234,9 @@ def _say_notes(notes: list[str], files: int) -> None:
         for note in notes:
             warn_data(note)
         return
-    said = len(dict.fromkeys(note.split(": ", 1)[0] for note in notes))  # (files with notes)
-    rest = list(dict.fromkeys(note.split(": ", 1)[0] for note in notes[NOTES_SHOWN:]))
+    noted = [note.split(": ", 1)[0] for note in notes]  # each note's file
+    said = len(set(noted))
+    rest = list(dict.fromkeys(noted[NOTES_SHOWN:]))
     named = ", ".join(rest[:10]) + (f" and {len(rest) - 10} more" if len(rest) > 10 else "")
     shown = "\n".join(f"  - {note}" for note in notes[:NOTES_SHOWN])
     warn_data(f"traffic.library: {said} of its {files} trajectory files have notes; the "

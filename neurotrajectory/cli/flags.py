@@ -15,13 +15,14 @@ from neurotrajectory.settings import Settings, base_type, bounds, choices, descr
 
 def settings_flag(
     parser: argparse.ArgumentParser, settings: type[Settings], flag: str, **kwargs
-) -> None:
+) -> str:
     """Declare ``flag`` for the field of ``settings`` of its name (``--a-b``: ``a_b``; or
     ``dest``), its help the field's description (or ``help``) and its default. The flag's
     default is None (so that a command can tell a flag given from one not given; the
     field's default applies). An integer field parses as an integer within the field's
     bounds, a number as a finite float within them, a :class:`~neurotrajectory.settings.OneOf`
-    field takes its choices; ``kwargs`` (``action``, ``nargs``, ...) go to argparse as given."""
+    field takes its choices; ``kwargs`` (``action``, ``nargs``, ...) go to argparse as given.
+    Returns the field's name."""
     name = kwargs.pop("dest", flag.lstrip("-").replace("-", "_"))
     field = settings.model_fields[name]  # a KeyError here is a flag without its field: a bug
     kind = base_type(field)
@@ -40,6 +41,7 @@ def settings_flag(
             repr(default) if isinstance(default, str) else str(default))  # fmt: skip
         what += f" (default {shown})"
     parser.add_argument(flag, dest=name, default=None, help=what, **kwargs)
+    return name
 
 
 def run_flag(parser: argparse.ArgumentParser, what: str = "a finished training run's folder"):

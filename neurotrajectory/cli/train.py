@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from gridsim.cli.flags import at_least, quiet_flag, scenario_flag
-from gridsim.outputs import counted
+from gridsim.outputs import as_given, counted
 from gridsim.scenario.collection import absolute_ref
 from neurotrajectory.cli.flags import check_video, goal_flag, settings_flag
 from neurotrajectory.cli.heldout import report_heldout
@@ -45,8 +45,7 @@ _FLAGS: dict[str, tuple[str, Any]] = {}
 
 def config_flag(parser: argparse.ArgumentParser, flag: str, **kwargs) -> None:
     """``flag`` for its :class:`TrainConfig` field (:func:`settings_flag`)."""
-    _FLAGS[kwargs.get("dest", flag.lstrip("-").replace("-", "_"))] = (flag, kwargs.get("const"))
-    settings_flag(parser, TrainConfig, flag, **kwargs)
+    _FLAGS[settings_flag(parser, TrainConfig, flag, **kwargs)] = (flag, kwargs.get("const"))
 
 
 def flag_of(field: str) -> str:
@@ -63,21 +62,12 @@ def clash_message(exc: SettingsClash) -> str:
         if const is not None:  # a flag that takes no value
             parts.append(f"{flag} (the run began without it)")
         else:
-            parts.append(f"{flag} {_shown(asked)} (the run has {_shown(has)})")
+            parts.append(f"{flag} {as_given(asked)} (the run has {as_given(has)})")
     may = ", ".join(flag_of(f) for f in TrainConfig.RESUMABLE)
     return (f"{exc.out}: cannot resume with {'; '.join(parts)}: "
             f"{'it' if len(parts) == 1 else 'they'} would change the run's results. Leave "
             f"{'it' if len(parts) == 1 else 'them'} out to resume (a resume may change "
             f"{may}), or start a new run with another --out")  # fmt: skip
-
-
-def _shown(value: Any) -> str:
-    """A setting as it is given on the command line."""
-    if value is None:
-        return "none"
-    if isinstance(value, tuple | list):
-        return " ".join(_shown(v) for v in value) or "none"
-    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def add_parser(sub) -> None:

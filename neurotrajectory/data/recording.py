@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.errors import WorkKept
-from gridsim.outputs import LOCK_NAME, empty_folder, write_json
+from gridsim.outputs import LOCK_NAME, as_given, empty_folder, write_json
 from gridsim.scenario.collection import input_changes, same_inputs
 from neurotrajectory.data import storage
 from neurotrajectory.data.storage import (
@@ -270,7 +270,7 @@ def _differences(then: dict, now: dict) -> str:
             said.append(f"other versions ({old}, now {new})")
         else:
             flag = _FLAGS.get(key, key)
-            said.append(f"{flag} {_given(old)} (now {_given(new)})")
+            said.append(f"{flag} {as_given(old, 'not given')} (now {as_given(new, 'not given')})")
     return "; ".join(said)
 
 
@@ -279,15 +279,6 @@ def _differences(then: dict, now: dict) -> str:
 _FLAGS = {"name": "--name", "source": "--scenario", "episodes": "--episodes", "seed": "--seed",
           "stride": "--stride", "duration": "--episode-seconds",
           "goal_seconds": "--goal-seconds", "split": "--split"}  # fmt: skip
-
-
-def _given(value) -> str:
-    """An argument as the command line gives it (None: the flag was not given)."""
-    if value is None:
-        return "not given"
-    if isinstance(value, list):
-        return " ".join(map(str, value))
-    return f"{value:g}" if isinstance(value, float) else str(value)
 
 
 def checkpoint_windows(folder: Path) -> tuple[int, bool] | None:

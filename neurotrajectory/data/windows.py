@@ -247,7 +247,8 @@ def _followable(scenario, chosen: list) -> list:
     """The ``chosen`` ego tracks an ego can drive as recorded: one faster than
     ``ego.vehicle.v_max`` would fall behind the human and label its windows from the wrong
     place; those are left out, with a :class:`~gridsim.errors.DataWarning` naming them."""
-    fast = [t for t in chosen if outruns_ego(scenario, t)]
+    too_fast = [outruns_ego(scenario, t) for t in chosen]
+    fast = [t for t, out in zip(chosen, too_fast, strict=True) if out]
     if fast:
         top = math.ceil(10 * max(float(t.speed.max()) for t in fast)) / 10  # (to cover it)
         shown = ", ".join(t.track_id for t in fast[:8]) + (
@@ -257,7 +258,7 @@ def _followable(scenario, chosen: list) -> list:
                   f"{scenario.config.ego.vehicle.v_max:g} m/s (up to {top:.1f} m/s): the ego "
                   f"could not follow them, they are not recorded ({shown}); set "
                   f"ego.vehicle.v_max >= {top:.1f} to record them")  # fmt: skip
-    return [t for t in chosen if not outruns_ego(scenario, t)]
+    return [t for t, out in zip(chosen, too_fast, strict=True) if not out]
 
 
 def _say_unfit_egos(scenario, chosen: list, tracks: list, road) -> None:
