@@ -25,6 +25,7 @@ numbers. Both read-outs start at 0.
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, astuple, dataclass
@@ -396,8 +397,9 @@ def size_mismatch(cfg: NetConfig, windows) -> str | None:
 # * every matrix product is a ``torch.bmm`` item of a fixed shape per individual (one item
 #   per individual with all ``E`` rows, finished episodes included: MKL does not compute a
 #   row alike for different row counts), and every convolution one ``conv2d`` call per
-#   individual on its ``E`` frames, or, for the second and later convolutions, one grouped
-#   call for the batch where a probe shows it gives those bits (:meth:`PopulationNet.grouped`);
+#   individual on its ``E`` frames, or, from the first or the second convolution on, one
+#   grouped call for the batch where a probe shows it gives those bits (and is the faster;
+#   :meth:`PopulationNet.grouped_from`);
 # * MKL's result for an item also depends on the 64-byte alignment of its operands, so every
 #   item starts at the same alignment: weights live in 64-byte aligned rows (the population
 #   store, and a per-batch copy of the small parameters, each at an aligned offset), and
@@ -482,10 +484,10 @@ def _bmm_t(x: torch.Tensor, w) -> torch.Tensor:
 
 
 def _grouped_convolutions(params: dict) -> dict:
-    """The weights and biases of the convolutions after the first, of every individual of
-    ``params`` as one grouped convolution's (``NAME.grouped``)."""
+    """The weights and biases of every convolution, of every individual of ``params`` as one
+    grouped convolution's (``NAME.grouped``)."""
     out = {}
-    for name in _CONV_NAMES[1:]:
+    for name in _CONV_NAMES:
         weight = params[name + ".weight"]
         out[name + ".grouped"] = (weight.reshape(-1, *weight.shape[2:]),
                                   params[name + ".bias"].reshape(-1))  # fmt: skip
@@ -519,7 +521,7 @@ class PopulationNet:
         self.n_cnn = cfg.channels[2] * (cfg.grid_size // cfg.pool // 8) ** 2
         self.times = template.times.clone()
         self.act = _PW_ACTIVATIONS[cfg.activation]
-        self._grouped_ok: dict[tuple[int, int], bool] = {}  # see :meth:`grouped`
+        self._grouped_from: dict[tuple[int, int], int | None] = {}  # see :meth:`grouped_from`
 
     # -- parameters ---------------------------------------------------------------------------
     def store(self, population) -> torch.Tensor:
@@ -572,7 +574,7 @@ class PopulationNet:
     def _arranged(self, params: dict, k: int) -> dict:
         """Small weights of ``k`` individuals laid out as the forward pass multiplies them,
         once per batch of individuals instead of every step: the convolutions after the
-        first as one grouped weight, the branches' recurrent weights ``(K * B, hid, 4h)`` and
+        convolutions as grouped weights, the branches' recurrent weights ``(K * B, hid, 4h)`` and
         read-outs ``(K * B, 2, hid)`` contiguous (MKL is twice as fast on them as on the
         transposed views)."""
         b, g4, hid = self.shapes["branches.weight_hh"]
@@ -591,18 +593,22 @@ class PopulationNet:
         k, e, h, w = frames.shape
         p = self.cfg.pool
         x = (block_means(frames.reshape(k * e, h, w), p) / 255.0).view(k, e, 1, h // p, w // p)
-        if self.grouped(k, e):
-            return self._features_grouped(params, x)
-        return self._features_per_individual(params, x)
+        first = self.grouped_from(k, e)
+        if first is None:
+            return self._features_per_individual(params, x)
+        return self._features_grouped(params, x, first)
 
-    def _features_grouped(self, params: dict, x: torch.Tensor) -> torch.Tensor:
-        """:meth:`frame_features` of the pooled frames ``x`` ``(K, E, 1, h, w)``, the second
-        and later convolutions as one grouped call for all individuals."""
+    def _features_grouped(self, params: dict, x: torch.Tensor, first: int) -> torch.Tensor:
+        """:meth:`frame_features` of the pooled frames ``x`` ``(K, E, 1, h, w)``, convolution
+        ``first`` and those after it as one grouped call for all individuals (those before,
+        one call per individual; ``first`` is 0 or 1)."""
         k, e = x.shape[:2]
-        first = _CONV_NAMES[0]  # per individual (grouped, it is slower and rounds otherwise)
-        y = torch.stack([self._conv(x[i], params, first, i, 0) for i in range(k)], dim=1)
-        y = y.view(e, k * y.shape[2], *y.shape[3:])
-        for layer, name in enumerate(_CONV_NAMES[1:], 1):
+        if first == 0:  # (E, K channels, h, w)
+            y = x.transpose(0, 1).reshape(e, k, *x.shape[3:])
+        else:  # the first convolution per individual
+            y = torch.stack([self._conv(x[i], params, _CONV_NAMES[0], i, 0) for i in range(k)], 1)
+            y = y.view(e, k * y.shape[2], *y.shape[3:])
+        for layer, name in enumerate(_CONV_NAMES[first:], first):
             y = self._conv(y, params, name, None, layer, groups=k)
         return y.reshape(e, k, -1).transpose(0, 1).contiguous()
 
@@ -629,30 +635,45 @@ class PopulationNet:
         stride, pad = _CONVS[layer]
         return torch.nn.functional.conv2d(x, weight, bias, stride, pad, 1, groups).relu_()
 
-    def grouped(self, k: int, e: int) -> bool:
-        """Whether :meth:`frame_features` of ``k`` individuals on ``e`` frames each runs the
-        second and later convolutions as one grouped call for all individuals: where oneDNN's
-        grouped convolution gives the bits of one call per individual, which a probe on
-        random weights and frames of these shapes decides once per ``(k, e)`` (oneDNN picks
-        its kernels by shape and CPU, never by values). One frame per individual: never
-        (torch then convolves each individual without oneDNN)."""
+    def grouped_from(self, k: int, e: int) -> int | None:
+        """From which convolution on :meth:`frame_features` of ``k`` individuals on ``e``
+        frames each runs one grouped call for all individuals (0: every convolution, 1: the
+        second and later; None: one call per individual throughout): of the choices where
+        oneDNN's grouped convolution gives the bits of one call per individual, the fastest.
+        A probe on random weights and frames of these shapes decides once per ``(k, e)``
+        (oneDNN picks its kernels by shape and CPU, never by values, so every choice it
+        allows gives the same results; only the time differs). One frame per individual:
+        None (torch then convolves each individual without oneDNN)."""
         if e < 2:
-            return False
-        known = self._grouped_ok.get((k, e))
-        if known is None:
-            g = torch.Generator().manual_seed(0)
-            params = {}
-            for name in _CONV_NAMES:
-                w_shape = (k, *self.shapes[name + ".weight"])
-                params[name + ".weight"] = 0.2 * torch.randn(w_shape, generator=g)
-                params[name + ".bias"] = 0.1 * torch.randn(w_shape[:2], generator=g)
-            params |= _grouped_convolutions(params)
-            side = self.cfg.grid_size // self.cfg.pool
-            x = torch.rand(k, e, 1, side, side, generator=g)
-            known = self._grouped_ok[(k, e)] = torch.equal(
-                self._features_grouped(params, x), self._features_per_individual(params, x)
-            )
-        return known
+            return None
+        if (k, e) not in self._grouped_from:
+            self._grouped_from[(k, e)] = self._probe_grouped(k, e)
+        return self._grouped_from[(k, e)]
+
+    def _probe_grouped(self, k: int, e: int) -> int | None:
+        """:meth:`grouped_from`'s probe: the bits of each choice, then the times of those
+        that give the bits of one call per individual (the best of 5 runs each)."""
+        g = torch.Generator().manual_seed(0)
+        params = {}
+        for name in _CONV_NAMES:
+            w_shape = (k, *self.shapes[name + ".weight"])
+            params[name + ".weight"] = 0.2 * torch.randn(w_shape, generator=g)
+            params[name + ".bias"] = 0.1 * torch.randn(w_shape[:2], generator=g)
+        params |= _grouped_convolutions(params)
+        side = self.cfg.grid_size // self.cfg.pool
+        x = torch.rand(k, e, 1, side, side, generator=g)
+        reference = self._features_per_individual(params, x)
+        allowed = [f for f in (1, 0)
+                   if torch.equal(self._features_grouped(params, x, f), reference)]  # fmt: skip
+        if len(allowed) < 2:
+            return allowed[0] if allowed else None
+        best = {f: math.inf for f in allowed}
+        for _ in range(5):  # alternated, so that a slower moment of the machine hits both
+            for f in allowed:
+                t0 = time.perf_counter()
+                self._features_grouped(params, x, f)
+                best[f] = min(best[f], time.perf_counter() - t0)
+        return min(allowed, key=best.__getitem__)
 
     def grid_part(self, params: dict, feats: torch.Tensor) -> torch.Tensor:
         """``fc1``'s product with the CNN features of one frame: ``feats`` ``(K, E, n_cnn)`` ->

@@ -69,9 +69,9 @@ def test_population_forward_matches_trajectorynet_and_ignores_the_batch(preset):
 
 @pytest.mark.parametrize("preset", ["default", "paper"])
 def test_frame_features_are_those_of_one_convolution_call_per_individual(preset):
-    """Where the probe lets the convolutions after the first run grouped, for all individuals
-    at once, they give the bits of one call per individual (on other frames and weights than
-    the probe's); one frame per individual is never grouped."""
+    """Every grouped choice the probe allows (all convolutions, or those after the first, as
+    one call for all individuals) gives the bits of one call per individual (on other frames
+    and weights than the probe's); one frame per individual is never grouped."""
     torch.set_num_threads(1)
     cfg = PRESETS[preset]
     pnet = PopulationNet(cfg)
@@ -86,11 +86,12 @@ def test_frame_features_are_those_of_one_convolution_call_per_individual(preset)
         )
         one_per_individual = pnet._features_per_individual(params, x)
         assert torch.equal(pnet.frame_features(params, frames), one_per_individual)
-        if pnet.grouped(k, e):
-            assert torch.equal(pnet._features_grouped(params, x), one_per_individual)
-    assert not pnet.grouped(4, 1)
-    if numerics_platform().startswith("GenuineIntel/AVX512/"):  # where it was measured
-        assert pnet.grouped(16, 2), "the grouped convolutions are no longer used"
+        first = pnet.grouped_from(k, e)
+        if first is not None:
+            assert torch.equal(pnet._features_grouped(params, x, first), one_per_individual)
+    assert pnet.grouped_from(4, 1) is None
+    if "/AVX512/" in numerics_platform():  # where it was measured (Intel and AMD)
+        assert pnet.grouped_from(16, 2) is not None, "the grouped convolutions are no longer used"
 
 
 def _results(ev, pop):
