@@ -1,4 +1,5 @@
-"""Simulator speed: occupancy grid, world tick with 20 and with 1,000 vehicles.
+"""Simulator speed: occupancy grid, world tick with 20 and with 1,000 vehicles, and on the
+inner-city streets (cars on crossing routes, giving way to each other).
 
 Prints one JSON object per line: medians (and 90th percentiles) in microseconds over
 ``--calls`` timed calls on one core, and the ratio to the target. Run:
@@ -74,8 +75,7 @@ def bench_grid(calls: int) -> dict:
     )
 
 
-def bench_tick(participants: int, window, calls: int, target_us: float | None, name: str) -> dict:
-    _, world = world_with(participants, window)
+def bench_tick(world, calls: int, target_us: float | None, name: str) -> dict:
     driver = LaneFollower(speed=10.0)
     for _ in range(100):  # settle the spawn
         world.tick(*driver(world))
@@ -96,8 +96,13 @@ def main() -> None:
     ap.add_argument("--calls", type=int, default=2000)
     args = ap.parse_args()
     bench_grid(args.calls)
-    small = bench_tick(20, (80.0, 160.0), args.calls, 200.0, "world_tick_20_vehicles")
-    big = bench_tick(1000, (4000.0, 4000.0), args.calls, None, "world_tick_1000_vehicles")
+    small = bench_tick(world_with(20, (80.0, 160.0))[1], args.calls, 200.0,
+                       "world_tick_20_vehicles")  # fmt: skip
+    big = bench_tick(world_with(1000, (4000.0, 4000.0))[1], args.calls, None,
+                     "world_tick_1000_vehicles")  # fmt: skip
+    # (at most 600 ticks: the lane follower leaves the city's streets after about 700)
+    bench_tick(build_world(load_scenario("inner_city"), 0), min(args.calls, 600), None,
+               "world_tick_inner_city")  # fmt: skip
     ratio = big["median_us"] / small["median_us"]
     print(
         json.dumps(

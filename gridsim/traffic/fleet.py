@@ -194,13 +194,15 @@ class Fleet:
         kernels.leaders(self.state, _ego(ego), self._cross_candidates(), self.paths.kernel_data(),
                         *self._settings[0])  # fmt: skip
 
-    def _cross_candidates(self) -> tuple[np.ndarray, ...]:
+    def _cross_candidates(self, crossings: bool = True) -> tuple[np.ndarray, ...]:
         """Leader candidates ``(a, b, gap, lead_v)`` on other paths for the vehicles outside
-        lane corridors, kept if the other vehicle lies on the follower's path as far ahead as
-        it is (:func:`~gridsim.traffic.fleet_kernels.cross_path`); none when all are in one.
-        Pairs come from all pairs when few vehicles are active (as the compiled world tick
-        finds them: :func:`~gridsim.traffic.fleet_kernels.all_pairs_candidates`), else from
-        a k-d tree. Pairs inside one corridor are left to
+        lane corridors: kept if the other vehicle lies on the follower's path as far ahead as
+        it is (:func:`~gridsim.traffic.fleet_kernels.cross_path`), then (with ``crossings``)
+        those of generated vehicles giving way where their paths cross
+        (:func:`~gridsim.traffic.fleet_kernels.crossing_candidates`); none when all are in
+        a corridor. Pairs come from all pairs when few vehicles are active (as the compiled
+        world tick finds them: :func:`~gridsim.traffic.fleet_kernels.all_pairs_candidates`),
+        else from a k-d tree. Pairs inside one corridor are left to
         :func:`~gridsim.traffic.fleet_kernels.same_path`."""
         if self.paths.all_in_corridors:
             return _NO_CANDIDATES
@@ -208,16 +210,21 @@ class Fleet:
         paths = self.paths.kernel_data()
         if len(idx) <= kernels.ALL_PAIRS_MAX:
             return kernels.all_pairs_candidates(self.state, idx, self.paths.corridor_ids, paths,
-                                                self._settings[0])  # fmt: skip
+                                                self._settings[0], crossings)  # fmt: skip
         corridor = self.paths.corridors(self.path[idx])
         if np.all(corridor >= 0):
             return _NO_CANDIDATES
         pts = np.stack([self.x[idx], self.y[idx]], axis=1)
         pairs = cKDTree(pts).query_pairs(self.p.lookahead, output_type="ndarray")
         c, sn = np.cos(self.psi[idx]), np.sin(self.psi[idx])
-        return kernels.cross_path(idx, corridor, c, sn, pairs[:, 0], pairs[:, 1], False,
-                                  self.state, paths, self.p.lookahead,
-                                  self.p.lateral_margin)  # fmt: skip
+        p = self.p
+        found = kernels.cross_path(idx, corridor, c, sn, pairs[:, 0], pairs[:, 1], False,
+                                   self.state, paths, p.lookahead, p.lateral_margin)  # fmt: skip
+        if not crossings:
+            return found
+        crossing = kernels.crossing_candidates(idx, pairs[:, 0], pairs[:, 1], self.state, paths,
+                                               p.lateral_margin, p.crossing_horizon)  # fmt: skip
+        return kernels.joined(found, crossing)
 
     # -- the tick --------------------------------------------------------------------------------
     def tick(

@@ -17,8 +17,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from gridsim.jit import kernel
+from gridsim.jit import kernel, search_right
 from gridsim.traffic.table_kernels import SMALL_QUERY, frenet_one, lookup
+from gridsim.vehicle.footprint_kernels import oriented_boxes_apart
 from gridsim.vehicle.idm import idm_accel, idm_gap
 
 REPLAY, IDM = 0, 1
@@ -197,11 +198,12 @@ def no_candidates():
 
 
 @kernel
-def all_pairs_candidates(state, idx, corridors, paths, leader_settings):
-    """The leader candidates on other paths (:func:`cross_path`) of the active participants
-    ``idx`` (at most :data:`ALL_PAIRS_MAX`), over all their pairs in ``np.triu_indices``
-    order; none when each is on a path in a lane corridor (``corridors``: every path slot's
-    corridor, ``-1`` for none; ``leader_settings``: ``(lookahead, lateral_margin, _)``).
+def all_pairs_candidates(state, idx, corridors, paths, leader_settings, crossings):
+    """The leader candidates on other paths (:func:`cross_path`, then, with ``crossings``,
+    :func:`crossing_candidates`) of the active participants ``idx`` (at most
+    :data:`ALL_PAIRS_MAX`), over all their pairs in ``np.triu_indices`` order; none when
+    each is on a path in a lane corridor (``corridors``: every path slot's corridor, ``-1``
+    for none; ``leader_settings``: ``(lookahead, lateral_margin, crossing_horizon)``).
     Python's tick (:meth:`~gridsim.traffic.fleet.Fleet.find_leaders`) and the compiled world
     tick both call it."""
     f = FleetState(*state)
@@ -219,9 +221,19 @@ def all_pairs_candidates(state, idx, corridors, paths, leader_settings):
             pi[k], pj[k] = a, b
             k += 1
     psi = f.psi[idx]
-    lookahead, margin, _ = leader_settings
-    return cross_path(idx, corridor, np.cos(psi), np.sin(psi), pi, pj, True, state, paths,
-                      lookahead, margin)  # fmt: skip
+    lookahead, margin, horizon = leader_settings
+    found = cross_path(idx, corridor, np.cos(psi), np.sin(psi), pi, pj, True, state, paths,
+                       lookahead, margin)  # fmt: skip
+    if not crossings:
+        return found
+    return joined(found, crossing_candidates(idx, pi, pj, state, paths, margin, horizon))
+
+
+@kernel
+def joined(first, second):
+    """Two sets of leader candidates ``(a, b, gap, lead_v)`` as one, ``first``'s first."""
+    a, b = np.concatenate((first[0], second[0])), np.concatenate((first[1], second[1]))
+    return a, b, np.concatenate((first[2], second[2])), np.concatenate((first[3], second[3]))
 
 
 #: m: spacing of the samples of a participant's path ahead in :func:`swept_conflict`
@@ -281,6 +293,250 @@ def swept_conflict(paths, path_id, s, d, length, width, v, ego, margin, horizon,
     if e_in < p_out + SWEEP_BUFFER and e_out > p_in - SWEEP_BUFFER:
         return u_in - u_front
     return np.inf
+
+
+#: the cosine of the smallest angle between two participants' headings at which their paths
+#: count as crossing in :func:`first_conflict` (30 degrees): nearer the same direction is a
+#: merge or a follower, which :func:`cross_path` and :func:`same_path` see
+CROSSING_COS = 0.8660254037844387
+
+
+#: m: spacing of the samples of a participant's path ahead in :func:`path_samples`
+CROSSING_STEP = 1.0
+
+
+@kernel
+def path_samples(paths, t, s, d, pose, reach):
+    """Where a participant on path ``t`` at arc length ``s`` [m], lateral offset ``d`` [m]
+    and ``pose`` ``(x, y, psi)`` now will be over the next ``reach`` [m]: rows ``(x, y, cos
+    psi, sin psi, u, x_min, x_max, y_min, y_max)``, first the pose now (``u = 0``), then
+    every :data:`CROSSING_STEP` ahead along the path (end segments extended), shifted ``d``
+    to the left, with the path's heading there and the distance ``u`` [m] ahead; the last
+    four columns bound the rows up to each (running minima and maxima). ``paths``:
+    :meth:`~gridsim.traffic.tables.PathBank.kernel_data`."""
+    bank, ys, slope, normal, _ = paths
+    keys, base, first, last = bank[0], bank[1], bank[2], bank[3]
+    steps = max(int(reach / CROSSING_STEP), 0)
+    out = np.empty((steps + 1, 9))
+    x, y, h = pose
+    c, sn, u = np.cos(h), np.sin(h), 0.0
+    i = min(max(search_right(keys, s + base[t]), first[t]), last[t])
+    for q in range(steps + 1):
+        if q > 0:
+            u = q * CROSSING_STEP
+            key = s + u + base[t]
+            while i < last[t] and keys[i + 1] <= key:
+                i += 1
+            dk = key - keys[i]
+            nx, ny = normal[i, 0], normal[i, 1]  # (-sin, cos) of the segment's heading
+            x = (ys[i, 0] + dk * slope[i, 0]) + d * nx
+            y = (ys[i, 1] + dk * slope[i, 1]) + d * ny
+            c, sn = ny, -nx
+        out[q, 0], out[q, 1], out[q, 2], out[q, 3], out[q, 4] = x, y, c, sn, u
+        if q == 0:
+            out[q, 5], out[q, 6], out[q, 7], out[q, 8] = x, x, y, y
+        else:
+            out[q, 5], out[q, 6] = min(out[q - 1, 5], x), max(out[q - 1, 6], x)
+            out[q, 7], out[q, 8] = min(out[q - 1, 7], y), max(out[q - 1, 8], y)
+    return out
+
+
+@kernel
+def _within(samples, reach) -> int:
+    """How many rows of :func:`path_samples` ``samples`` lie at most ``reach`` [m] ahead."""
+    return min(len(samples), max(int(reach / CROSSING_STEP), 0) + 1)
+
+
+@kernel
+def first_conflict(a, reach_a, b, reach_b, size, margin):
+    """How far [m] participant ``a`` moves along its path (looking ``reach_a`` [m] ahead)
+    before its footprint touches (within ``margin`` [m]) participant ``b``'s footprint now
+    or on its path up to ``reach_b`` [m] ahead, the two at 30 degrees or more to each other
+    (:data:`CROSSING_COS`): 0 if it does where it stands, inf if not within reach. ``a``,
+    ``b``: their :func:`path_samples`; ``size``: ``(length_a, width_a, length_b,
+    width_b)`` [m]."""
+    la, wa, lb, wb = size
+    na, nb = _within(a, reach_a), _within(b, reach_b)
+    near = 0.5 * (np.hypot(la, wa) + np.hypot(lb, wb)) + margin  # the footprints' circles
+    x_lo, x_hi, y_lo, y_hi = b[nb - 1, 5], b[nb - 1, 6], b[nb - 1, 7], b[nb - 1, 8]
+    if (a[na - 1, 5] > x_hi + near or a[na - 1, 6] < x_lo - near
+            or a[na - 1, 7] > y_hi + near or a[na - 1, 8] < y_lo - near):  # fmt: skip
+        return np.inf
+    for k in range(na):
+        x, y, c, sn = a[k, 0], a[k, 1], a[k, 2], a[k, 3]
+        if not (x_lo - near < x < x_hi + near and y_lo - near < y < y_hi + near):
+            continue
+        q = 0
+        while q < nb:
+            dx, dy = x - b[q, 0], y - b[q, 1]
+            d2 = dx * dx + dy * dy
+            if d2 >= near * near:  # skip the samples that cannot come near yet: along a path
+                # (offset, around bends) a point moves less than twice the arc length
+                ahead = b[q, 4] + 0.5 * (np.sqrt(d2) - near)
+                q += 1
+                while q < nb and b[q, 4] < ahead:
+                    q += 1
+                continue
+            if c * b[q, 2] + sn * b[q, 3] < CROSSING_COS and not oriented_boxes_apart(
+                (x, y, c, sn, la, wa), (b[q, 0], b[q, 1], b[q, 2], b[q, 3], lb, wb), margin
+            ):  # at 30 degrees or more (the cosine of the angle between), touching
+                return a[k, 4]
+            q += 1
+    return np.inf
+
+
+@kernel
+def _who(state, i):
+    """What :func:`pair_conflict` reads of participant ``i`` (a fleet index): ``(path,
+    recorded, x, y, v, length, width)``."""
+    f = FleetState(*state)
+    return f.path[i], f.geometric[i], f.x[i], f.y[i], f.v[i], f.length[i], f.width[i]
+
+
+@kernel
+def _reach(v, length, horizon) -> float:
+    """How far [m] a participant at speed ``v`` [m/s] looks ahead for a crossing: what it
+    covers within ``horizon`` [s] (at least 1 m/s), from its centre to its front."""
+    return max(v, 1.0) * horizon + 0.5 * length
+
+
+@kernel
+def pair_conflict(who_i, who_j, samples_i, samples_j, margin, horizon):
+    """:func:`first_conflict` of generated participants ``i`` and ``j`` each way round
+    ``(u_i, u_j)`` [m], each looking :func:`_reach` ahead along its own path and, along the
+    other's, past where it stands (two that meet head-on share a stretch of path beyond the
+    other's own reach): inf where there is none; ``(inf, inf)`` for recorded participants
+    (replaying a track's exact pose: they keep to their recording), two on one path and two
+    too far apart. ``who_i``, ``who_j``: their :func:`_who`; ``samples_i``, ``samples_j``:
+    their :func:`path_samples`, at least as far as :func:`sample_reach` (None: too far apart
+    to need them, as :func:`near_pair` tells)."""
+    path_i, rec_i, xi, yi, vi, li, wi = who_i
+    path_j, rec_j, xj, yj, vj, lj, wj = who_j
+    if not near_pair(who_i, who_j, margin, horizon):
+        return np.inf, np.inf
+    reach_i, reach_j = _reach(vi, li, horizon), _reach(vj, lj, horizon)
+    past = np.hypot(xi - xj, yi - yj) + li + lj + margin
+    u_i = first_conflict(samples_i, reach_i, samples_j, max(reach_j, past), (li, wi, lj, wj),
+                         margin)  # fmt: skip
+    if u_i == np.inf:
+        return np.inf, np.inf
+    return u_i, first_conflict(samples_j, reach_j, samples_i, max(reach_i, past),
+                               (lj, wj, li, wi), margin)  # fmt: skip
+
+
+@kernel
+def near_pair(who_i, who_j, margin, horizon) -> bool:
+    """Whether :func:`pair_conflict` looks at two participants (:func:`_who`): both generated,
+    on different paths, and near enough to meet within their reach."""
+    path_i, rec_i, xi, yi, vi, li, wi = who_i
+    path_j, rec_j, xj, yj, vj, lj, wj = who_j
+    if rec_i or rec_j or path_i == path_j:
+        return False
+    reach = _reach(vi, li, horizon) + _reach(vj, lj, horizon)
+    return np.hypot(xi - xj, yi - yj) <= reach + li + lj + margin
+
+
+@kernel
+def sample_reach(who, longest, horizon, margin) -> float:
+    """How far [m] :func:`pair_conflict` may read a participant's (:func:`_who`)
+    :func:`path_samples` when the others look at most ``longest`` [m] ahead (their
+    :func:`_reach` plus twice their length): its own reach, or, as the other of a pair, past
+    the one it meets."""
+    v, length = who[4], who[5]
+    return _reach(v, length, horizon) + longest + 2.0 * (length + margin)
+
+
+@kernel
+def _samples_of(state, paths, i, reach):
+    """:func:`path_samples` of participant ``i`` (a fleet index)."""
+    f = FleetState(*state)
+    return path_samples(paths, f.path[i], f.s[i], f.d[i], (f.x[i], f.y[i], f.psi[i]), reach)
+
+
+@kernel
+def _longest(state, idx, horizon) -> float:
+    """The longest :func:`_reach` plus twice the length [m] of participants ``idx``."""
+    f = FleetState(*state)
+    out = 0.0
+    for i in idx:
+        out = max(out, _reach(f.v[i], f.length[i], horizon) + 2.0 * f.length[i])
+    return out
+
+
+@kernel
+def crossing_candidates(idx, pi, pj, state, paths, margin, horizon):
+    """Leader candidates ``(a, b, gap, lead_v = 0)`` (``a``, ``b`` index ``idx``) of generated
+    participants giving way to each other where their paths cross (:func:`pair_conflict`;
+    merges and followers are :func:`cross_path`'s and :func:`same_path`'s), for the pairs
+    ``(pi, pj)``. The one already in the other's way goes, else the first to get there (at
+    its speed, at least 1 m/s; the first of the pair on a tie); the other stops short of
+    where it would touch the other's path (gap [m]), unless it gets there more than
+    :data:`SWEEP_BUFFER` after the first has cleared it. Each in the other's way already
+    (where it was not seen in time): the one whose path runs into the other where it stands
+    later (or not at all) goes, the other stands (gap 0)."""
+    f = FleetState(*state)
+    longest = _longest(state, idx, horizon)
+    none = np.empty((0, 9))
+    samples = [none for _ in range(len(idx))]  # made when a near pair needs them
+    n = len(pi)
+    a, b, gap = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n)
+    m = 0
+    for q in range(n):
+        i, j = idx[pi[q]], idx[pj[q]]
+        who_i, who_j = _who(state, i), _who(state, j)
+        if not near_pair(who_i, who_j, margin, horizon):
+            continue
+        for p, who in ((pi[q], who_i), (pj[q], who_j)):
+            if len(samples[p]) == 0:
+                samples[p] = _samples_of(state, paths, idx[p],
+                                         sample_reach(who, longest, horizon, margin))  # fmt: skip
+        s_i, s_j = samples[pi[q]], samples[pj[q]]
+        u_i, u_j = pair_conflict(who_i, who_j, s_i, s_j, margin, horizon)
+        if u_j == np.inf:
+            continue
+        vi, vj = max(f.v[i], 1.0), max(f.v[j], 1.0)
+        if u_i <= 0 and u_j <= 0:
+            reach_i, reach_j = _reach(f.v[i], f.length[i], horizon), _reach(f.v[j], f.length[j],
+                                                                            horizon)  # fmt: skip
+            size_ij = (f.length[i], f.width[i], f.length[j], f.width[j])
+            size_ji = (f.length[j], f.width[j], f.length[i], f.width[i])
+            here_i = first_conflict(s_i, reach_i, s_j, 0.0, size_ij, margin)
+            here_j = first_conflict(s_j, reach_j, s_i, 0.0, size_ji, margin)
+            a[m], b[m], gap[m] = (pj[q], pi[q], 0.0) if here_i >= here_j else (pi[q], pj[q], 0.0)
+            m += 1
+            continue
+        if u_i <= 0 or (u_j > 0 and u_i / vi <= u_j / vj):  # i goes, j waits
+            u_go, v_go, u_wait, v_wait, a[m], b[m] = u_i, vi, u_j, vj, pj[q], pi[q]
+        else:
+            u_go, v_go, u_wait, v_wait, a[m], b[m] = u_j, vj, u_i, vi, pi[q], pj[q]
+        cleared = (max(u_go, 0.0) + f.length[i] + f.length[j] + 2 * margin) / v_go
+        if u_wait / v_wait <= cleared + SWEEP_BUFFER:
+            gap[m] = u_wait
+            m += 1
+    return a[:m], b[:m], gap[:m], np.zeros(m)
+
+
+@kernel
+def blocked(state, paths, i, margin, horizon, decel) -> bool:
+    """Whether generated participant ``i`` and another active one meet where their paths
+    cross with one in the other's way already (:func:`pair_conflict` 0) and the other unable
+    to stop short of it braking at ``decel`` [m/s^2]: a spawn to refuse (one of them would
+    drive into the other)."""
+    f = FleetState(*state)
+    longest = _longest(state, np.flatnonzero(f.active), horizon)
+    who_i = _who(state, i)
+    own = _samples_of(state, paths, i, sample_reach(who_i, longest, horizon, margin))
+    for j in range(len(f.active)):
+        who_j = _who(state, j)
+        if j == i or not f.active[j] or not near_pair(who_i, who_j, margin, horizon):
+            continue
+        other = _samples_of(state, paths, j, sample_reach(who_j, longest, horizon, margin))
+        u_i, u_j = pair_conflict(who_i, who_j, own, other, margin, horizon)
+        if (u_i <= 0 and u_j <= f.v[j] ** 2 / (2 * decel)) or (
+            u_j <= 0 and u_i <= f.v[i] ** 2 / (2 * decel)
+        ):
+            return True
+    return False
 
 
 @kernel

@@ -19,6 +19,7 @@ from gridsim.road.base import Road
 from gridsim.road.city import CityRoad
 from gridsim.road.seamless import SeamlessRoad
 from gridsim.seeding import copy_generator
+from gridsim.traffic import fleet_kernels
 from gridsim.traffic.fleet import EgoPose, Fleet, FleetParams
 from gridsim.traffic.profile_kernels import continue_profiles
 from gridsim.traffic.profiles import HumanProfiles, SpeedBounds, human_profiles
@@ -507,6 +508,20 @@ class CityTraffic(SyntheticTraffic):
         if math.hypot(x - ego.x, y - ego.y) < reach + CITY_EGO_CLEARANCE:
             return False
         return super()._clear(x, y, heading, length, width, ego)
+
+    def _spawn(self, i: int, path: int, s: float, ego: EgoPose, drawn=None) -> bool:
+        """As for any traffic, refused where the new participant and another would meet
+        where their paths cross, one in the other's way already and the other unable to stop
+        short of it at the IDM's comfortable deceleration
+        (:func:`~gridsim.traffic.fleet_kernels.blocked`)."""
+        if not super()._spawn(i, path, s, ego, drawn):
+            return False
+        f = self.fleet
+        if fleet_kernels.blocked(f.state, f.paths.kernel_data(), i, f.p.lateral_margin,
+                                 f.p.crossing_horizon, f.p.idm.b):  # fmt: skip
+            f.deactivate(np.array([i]))
+            return False
+        return True
 
     def tick(self, dt: float, ego: EgoPose) -> None:
         self.refill(self.fleet.tick(dt, ego), ego, dt)

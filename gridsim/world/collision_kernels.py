@@ -10,6 +10,7 @@ import numpy as np
 
 from gridsim.jit import jitable, kernel
 from gridsim.traffic.fleet_kernels import FleetState
+from gridsim.vehicle.footprint_kernels import boxes_apart
 
 #: A vehicle contact is ruled out without pymunk when the boxes are apart by more than this
 #: [m] along a separating axis (:func:`boxes_apart`; pymunk's rounding is some 1e-12 m).
@@ -80,31 +81,6 @@ def near_segments(segments, cx, cy, reach):
             out[n] = k
             n += 1
     return out[:n]
-
-
-@kernel
-def boxes_apart(a, b, margin) -> bool:
-    """Whether two oriented boxes ``(x, y, psi, length, width)`` [m, rad] (centre, heading,
-    size) are apart by more than ``margin`` [m] along one of their four edge normals
-    (separating axes). Then they cannot touch whatever pymunk's rounding; otherwise they may."""
-    ax, ay, apsi, alen, awid = a
-    bx, by, bpsi, blen, bwid = b
-    ac, as_, bc, bs = np.cos(apsi), np.sin(apsi), np.cos(bpsi), np.sin(bpsi)
-    dx, dy = bx - ax, by - ay
-    for k in range(4):
-        if k == 0:
-            ux, uy = ac, as_
-        elif k == 1:
-            ux, uy = -as_, ac
-        elif k == 2:
-            ux, uy = bc, bs
-        else:
-            ux, uy = -bs, bc
-        reach_a = 0.5 * (alen * abs(ac * ux + as_ * uy) + awid * abs(-as_ * ux + ac * uy))
-        reach_b = 0.5 * (blen * abs(bc * ux + bs * uy) + bwid * abs(-bs * ux + bc * uy))
-        if abs(dx * ux + dy * uy) - reach_a - reach_b > margin:
-            return True
-    return False
 
 
 @kernel

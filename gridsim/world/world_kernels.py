@@ -117,7 +117,7 @@ def follow_tick(ego, step_limits, dt, follow, road, traffic, box, broad):
         idx = np.flatnonzero(FleetState(*state).active)
         if len(idx) > ALL_PAIRS_MAX:
             return _not_done(BEFORE, accel, steer, ego)
-        cross = all_pairs_candidates(state, idx, corridors, paths, fleet_settings[0])
+        cross = all_pairs_candidates(state, idx, corridors, paths, fleet_settings[0], True)
     x1, y1, psi1, v1, d1, a1, r1 = step_one(x, y, psi, v, delta, accel, steer, step_limits, dt)
     s1, j1 = np.nan, -1
     if road is not None:  # a road that grows and trims: the ego's place on it

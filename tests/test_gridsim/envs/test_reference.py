@@ -42,7 +42,7 @@ def test_lazy_reference_equals_the_reference_simulated_up_front(scenario, seed):
 
 def test_samples_do_not_depend_on_the_order_of_requests():
     sc = load_scenario("inner_city", {"simulation": {"duration": 20.0}})
-    seed = 322709278  # the episode seed of reset(seed=14): needs a revision at ~6 s
+    seed = 5517670  # the episode seed of reset(seed=27): needs a revision
     ahead, step_by_step = HumanReference(sc, seed, 22.5), HumanReference(sc, seed, 22.5)
     far = ahead.positions(np.array([19.0, 0.3]))
     for t in np.arange(0.0, 22.5, 0.7):
@@ -52,7 +52,7 @@ def test_samples_do_not_depend_on_the_order_of_requests():
     assert ahead.revisions == step_by_step.revisions != []
 
 
-@pytest.mark.parametrize("seed", [111222205, 220873468])
+@pytest.mark.parametrize("seed", [788269980, 1837343323])  # reset(seed=56), reset(seed=132)
 def test_a_second_revision_does_not_depend_on_the_order_of_requests(seed):
     """A revision found while a revision is replayed may reach back before the samples
     handed out, and is then cut short there: what was handed out must depend on the tick
@@ -113,7 +113,7 @@ def test_profile_chain_at_interpolates_as_numpy():
         assert offset == np.interp(t, chain.times[:n], chain.offsets[:n])
 
 
-@pytest.mark.parametrize("seed", [14, 35, 51, 56])
+@pytest.mark.parametrize("seed", [27, 56, 70, 77])
 def test_following_a_revised_reference_does_not_collide(seed):
     """Inner-city seeds whose reference would drive into crossing traffic without revisions."""
     env = GridSimEnv("inner_city", simulation={"duration": 30.0})

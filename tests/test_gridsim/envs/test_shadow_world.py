@@ -11,9 +11,9 @@ from gridsim.envs.human_reference import HumanReference
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import load_scenario
 from gridsim.vehicle.control import pursuit_inputs, pursuit_lookahead
+from gridsim.vehicle.footprint_kernels import boxes_apart
 from gridsim.vehicle.idm import idm_accel
 from gridsim.vehicle.kinematics import V
-from gridsim.world.collision_kernels import boxes_apart
 from gridsim.world.scripted_driver_kernels import route_inputs
 from gridsim.world.scripted_drivers import HumanDriver, LaneFollower
 
