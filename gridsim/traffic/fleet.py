@@ -222,6 +222,9 @@ class Fleet:
                                    self.state, paths, p.lookahead, p.lateral_margin)  # fmt: skip
         if not crossings:
             return found
+        reach = 2.0 * kernels.longest_reach(self.state, idx, p.crossing_horizon) + p.lateral_margin
+        if reach > p.lookahead:  # pairs near enough to meet at a crossing (near_pair)
+            pairs = cKDTree(pts).query_pairs(reach, output_type="ndarray")
         crossing = kernels.crossing_candidates(idx, pairs[:, 0], pairs[:, 1], self.state, paths,
                                                p.lateral_margin, p.crossing_horizon)  # fmt: skip
         return kernels.joined(found, crossing)

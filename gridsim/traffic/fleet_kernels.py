@@ -348,13 +348,13 @@ def _within(samples, reach) -> int:
 
 
 @kernel
-def first_conflict(a, reach_a, b, reach_b, size, margin):
+def first_conflict(a, reach_a, b, reach_b, size, margin, crossing=True):
     """How far [m] participant ``a`` moves along its path (looking ``reach_a`` [m] ahead)
     before its footprint touches (within ``margin`` [m]) participant ``b``'s footprint now
     or on its path up to ``reach_b`` [m] ahead, the two at 30 degrees or more to each other
-    (:data:`CROSSING_COS`): 0 if it does where it stands, inf if not within reach. ``a``,
-    ``b``: their :func:`path_samples`; ``size``: ``(length_a, width_a, length_b,
-    width_b)`` [m]."""
+    (:data:`CROSSING_COS`; with ``crossing`` False: at less, heading the same way): 0 if it
+    does where it stands, inf if not within reach. ``a``, ``b``: their :func:`path_samples`;
+    ``size``: ``(length_a, width_a, length_b, width_b)`` [m]."""
     la, wa, lb, wb = size
     na, nb = _within(a, reach_a), _within(b, reach_b)
     near = 0.5 * (np.hypot(la, wa) + np.hypot(lb, wb)) + margin  # the footprints' circles
@@ -377,9 +377,10 @@ def first_conflict(a, reach_a, b, reach_b, size, margin):
                 while q < nb and b[q, 4] < ahead:
                     q += 1
                 continue
-            if c * b[q, 2] + sn * b[q, 3] < CROSSING_COS and not oriented_boxes_apart(
+            angled = c * b[q, 2] + sn * b[q, 3] < CROSSING_COS  # (the cosine of the angle)
+            if angled == crossing and not oriented_boxes_apart(
                 (x, y, c, sn, la, wa), (b[q, 0], b[q, 1], b[q, 2], b[q, 3], lb, wb), margin
-            ):  # at 30 degrees or more (the cosine of the angle between), touching
+            ):  # at the angle asked for, touching
                 return a[k, 4]
             q += 1
     return np.inf
@@ -406,22 +407,32 @@ def pair_conflict(who_i, who_j, samples_i, samples_j, margin, horizon):
     ``(u_i, u_j)`` [m], each looking :func:`_reach` ahead along its own path and, along the
     other's, past where it stands (two that meet head-on share a stretch of path beyond the
     other's own reach): inf where there is none; ``(inf, inf)`` for recorded participants
-    (replaying a track's exact pose: they keep to their recording), two on one path and two
-    too far apart. ``who_i``, ``who_j``: their :func:`_who`; ``samples_i``, ``samples_j``:
-    their :func:`path_samples`, at least as far as :func:`sample_reach` (None: too far apart
-    to need them, as :func:`near_pair` tells)."""
+    (replaying a track's exact pose: they keep to their recording), two on one path, two
+    too far apart and two heading the same way of which one drives into the other where it
+    stands (a follower: :func:`cross_path` and :func:`same_path` find those). ``who_i``,
+    ``who_j``: their :func:`_who`; ``samples_i``, ``samples_j``: their :func:`path_samples`,
+    at least as far as :func:`sample_reach`."""
     path_i, rec_i, xi, yi, vi, li, wi = who_i
     path_j, rec_j, xj, yj, vj, lj, wj = who_j
     if not near_pair(who_i, who_j, margin, horizon):
         return np.inf, np.inf
     reach_i, reach_j = _reach(vi, li, horizon), _reach(vj, lj, horizon)
     past = np.hypot(xi - xj, yi - yj) + li + lj + margin
-    u_i = first_conflict(samples_i, reach_i, samples_j, max(reach_j, past), (li, wi, lj, wj),
-                         margin)  # fmt: skip
+    size_ij, size_ji = (li, wi, lj, wj), (lj, wj, li, wi)
+    u_i = first_conflict(samples_i, reach_i, samples_j, max(reach_j, past), size_ij, margin)
     if u_i == np.inf:
         return np.inf, np.inf
-    return u_i, first_conflict(samples_j, reach_j, samples_i, max(reach_i, past),
-                               (lj, wj, li, wi), margin)  # fmt: skip
+    u_j = first_conflict(samples_j, reach_j, samples_i, max(reach_i, past), size_ji, margin)
+    if u_j == np.inf:
+        return np.inf, np.inf
+    # one behind the other, both heading the same way now (a follower, or a car about to
+    # turn ahead of it): the leader search's, not a crossing
+    if samples_i[0, 2] * samples_j[0, 2] + samples_i[0, 3] * samples_j[0, 3] >= CROSSING_COS and (
+        first_conflict(samples_i, reach_i, samples_j, 0.0, size_ij, margin, False) < np.inf
+        or first_conflict(samples_j, reach_j, samples_i, 0.0, size_ji, margin, False) < np.inf
+    ):
+        return np.inf, np.inf
+    return u_i, u_j
 
 
 @kernel
@@ -454,7 +465,7 @@ def _samples_of(state, paths, i, reach):
 
 
 @kernel
-def _longest(state, idx, horizon) -> float:
+def longest_reach(state, idx, horizon) -> float:
     """The longest :func:`_reach` plus twice the length [m] of participants ``idx``."""
     f = FleetState(*state)
     out = 0.0
@@ -473,9 +484,12 @@ def crossing_candidates(idx, pi, pj, state, paths, margin, horizon):
     where it would touch the other's path (gap [m]), unless it gets there more than
     :data:`SWEEP_BUFFER` after the first has cleared it. Each in the other's way already
     (where it was not seen in time): the one whose path runs into the other where it stands
-    later (or not at all) goes, the other stands (gap 0)."""
+    later (or not at all) goes, the other stands (gap 0). Where the waits close a circle
+    (four cars at a crossroads, each with another on its right), the one of the circle
+    nearest its crossing (in time) goes (:func:`_unblocked`)."""
     f = FleetState(*state)
-    longest = _longest(state, idx, horizon)
+    longest = longest_reach(state, idx, horizon)
+    soonest = np.full(len(idx), np.inf)  # each one's time [s] to its nearest crossing
     none = np.empty((0, 9))
     samples = [none for _ in range(len(idx))]  # made when a near pair needs them
     n = len(pi)
@@ -495,6 +509,8 @@ def crossing_candidates(idx, pi, pj, state, paths, margin, horizon):
         if u_j == np.inf:
             continue
         vi, vj = max(f.v[i], 1.0), max(f.v[j], 1.0)
+        soonest[pi[q]] = min(soonest[pi[q]], max(u_i, 0.0) / vi)
+        soonest[pj[q]] = min(soonest[pj[q]], max(u_j, 0.0) / vj)
         if u_i <= 0 and u_j <= 0:
             reach_i, reach_j = _reach(f.v[i], f.length[i], horizon), _reach(f.v[j], f.length[j],
                                                                             horizon)  # fmt: skip
@@ -513,7 +529,51 @@ def crossing_candidates(idx, pi, pj, state, paths, margin, horizon):
         if u_wait / v_wait <= cleared + SWEEP_BUFFER:
             gap[m] = u_wait
             m += 1
-    return a[:m], b[:m], gap[:m], np.zeros(m)
+    keep = _unblocked(a[:m], b[:m], soonest)
+    return a[:m][keep], b[:m][keep], gap[:m][keep], np.zeros(int(keep.sum()))
+
+
+@kernel
+def _unblocked(wait, go, soonest):
+    """Which of the waits ``wait[e]`` -> ``go[e]`` (positions of participants) to keep so that
+    none closes a circle: while some do, the participant of a circle with the lowest
+    ``soonest`` [s] (the first of those) stops waiting."""
+    n, m = len(soonest), len(wait)
+    keep = np.ones(m, np.bool_)
+    while True:
+        free = np.zeros(n, np.bool_)  # waits for no one who is not free: it will move
+        changed = True
+        while changed:
+            changed = False
+            for node in range(n):
+                if free[node]:
+                    continue
+                stuck = False
+                for e in range(m):
+                    if keep[e] and wait[e] == node and not free[go[e]]:
+                        stuck = True
+                        break
+                if not stuck:
+                    free[node] = changed = True
+        if free.all():
+            return keep
+        # walk the waits from one that is not free until a participant comes again
+        order = np.full(n, -1, np.int64)
+        node, k = np.flatnonzero(~free)[0], 0
+        while order[node] < 0:
+            order[node], k = k, k + 1
+            for e in range(m):
+                if keep[e] and wait[e] == node and not free[go[e]]:
+                    node = go[e]
+                    break
+        first = node  # on the circle: those visited from its first visit on
+        best = first
+        for other in range(n):
+            if order[other] >= order[first] and soonest[other] < soonest[best]:
+                best = other
+        for e in range(m):
+            if wait[e] == best:
+                keep[e] = False
 
 
 @kernel
@@ -521,9 +581,15 @@ def blocked(state, paths, i, margin, horizon, decel) -> bool:
     """Whether generated participant ``i`` and another active one meet where their paths
     cross with one in the other's way already (:func:`pair_conflict` 0) and the other unable
     to stop short of it braking at ``decel`` [m/s^2]: a spawn to refuse (one of them would
-    drive into the other)."""
+    drive into the other). Each looks at least as far ahead as it needs to stop (the
+    ``horizon`` [s] made longer where a car is faster than ``2 * decel * horizon``)."""
     f = FleetState(*state)
-    longest = _longest(state, np.flatnonzero(f.active), horizon)
+    active = np.flatnonzero(f.active)
+    fastest = 0.0
+    for j in active:
+        fastest = max(fastest, f.v[j])
+    horizon = max(horizon, fastest / (2 * decel))  # then v * horizon >= v^2 / (2 decel)
+    longest = longest_reach(state, active, horizon)
     who_i = _who(state, i)
     own = _samples_of(state, paths, i, sample_reach(who_i, longest, horizon, margin))
     for j in range(len(f.active)):
