@@ -488,6 +488,11 @@ def crossing_candidates(idx, pi, pj, state, paths, margin, horizon):
     (four cars at a crossroads, each with another on its right), the one of the circle
     nearest its crossing (in time) goes (:func:`_unblocked`)."""
     f = FleetState(*state)
+    generated = 0
+    for i in idx:
+        generated += not f.geometric[i]
+    if generated < 2:  # (a recorded scene: every pair replays its recording)
+        return no_candidates()
     longest = longest_reach(state, idx, horizon)
     soonest = np.full(len(idx), np.inf)  # each one's time [s] to its nearest crossing
     none = np.empty((0, 9))
