@@ -701,6 +701,41 @@ def test_a_fleet_ticks_without_an_ego_as_with_one_out_of_reach():
         assert np.array_equal(getattr(fleets[0], name), getattr(fleets[1], name)), name
 
 
+def test_a_refused_city_spawn_leaves_its_slot_empty(monkeypatch):
+    """Dense inner-city traffic: a spawn that :func:`~gridsim.traffic.fleet_kernels.blocked`
+    refuses is not placed (its slot stays inactive until a later respawn), and every spawn
+    placed passes the test."""
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from gridsim.policies import Reference
+    from gridsim.traffic import sources
+    from gridsim.traffic.sources import CityTraffic
+
+    refused, placed = [], []
+    spawn = CityTraffic._spawn
+
+    def watched(self, i, path, s, ego, drawn=None):
+        ok = spawn(self, i, path, s, ego, drawn)
+        f = self.fleet
+        if ok:
+            placed.append(not sources.fleet_kernels.blocked(
+                f.state, f.paths.kernel_data(), i, f.p.lateral_margin, f.p.crossing_horizon,
+                f.p.idm.b))  # fmt: skip
+        else:
+            refused.append(not f.active[i])
+        return ok
+
+    monkeypatch.setattr(CityTraffic, "_spawn", watched)
+    env = GridSimEnv("inner_city", simulation={"duration": 10.0}, traffic={"participants": 60})
+    policy = Reference()
+    for seed in range(3):
+        obs, info = env.reset(seed=seed)
+        while True:
+            obs, _, term, trunc, info = env.step(policy(env, obs, info))
+            if term or trunc:
+                break
+    assert refused and all(refused) and placed and all(placed)
+
+
 def test_city_traffic_never_appears_next_to_the_ego(monkeypatch):
     """On city streets participants spawn crossing or merging into the ego's path: none may
     be placed within CITY_EGO_CLEARANCE of the ego, at reset or when respawned mid-episode
