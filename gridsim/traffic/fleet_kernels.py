@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 
 from gridsim.jit import kernel, search_right
-from gridsim.traffic.table_kernels import SMALL_QUERY, frenet_one, lookup
+from gridsim.traffic.table_kernels import SMALL_QUERY, frenet_one, lookup, point_on_segment
 from gridsim.vehicle.footprint_kernels import oriented_boxes_apart
 from gridsim.vehicle.idm import idm_accel, idm_gap
 
@@ -314,8 +314,8 @@ def path_samples(paths, t, s, d, pose, reach):
     to the left, with the path's heading there and the distance ``u`` [m] ahead; the last
     four columns bound the rows up to each (running minima and maxima). ``paths``:
     :meth:`~gridsim.traffic.tables.PathBank.kernel_data`."""
-    bank, ys, slope, normal, _ = paths
-    keys, base, first, last = bank[0], bank[1], bank[2], bank[3]
+    keys, base, first, last = paths[0][0], paths[0][1], paths[0][2], paths[0][3]
+    normal = paths[3]
     steps = max(int(reach / CROSSING_STEP), 0)
     out = np.empty((steps + 1, 9))
     x, y, h = pose
@@ -327,11 +327,8 @@ def path_samples(paths, t, s, d, pose, reach):
             key = s + u + base[t]
             while i < last[t] and keys[i + 1] <= key:
                 i += 1
-            dk = key - keys[i]
-            nx, ny = normal[i, 0], normal[i, 1]  # (-sin, cos) of the segment's heading
-            x = (ys[i, 0] + dk * slope[i, 0]) + d * nx
-            y = (ys[i, 1] + dk * slope[i, 1]) + d * ny
-            c, sn = ny, -nx
+            x, y = point_on_segment(paths, i, key, d)
+            c, sn = normal[i, 1], -normal[i, 0]  # the normal is (-sin, cos) of the heading
         out[q, 0], out[q, 1], out[q, 2], out[q, 3], out[q, 4] = x, y, c, sn, u
         if q == 0:
             out[q, 5], out[q, 6], out[q, 7], out[q, 8] = x, x, y, y
@@ -406,16 +403,14 @@ def pair_conflict(who_i, who_j, samples_i, samples_j, margin, horizon):
     """:func:`first_conflict` of generated participants ``i`` and ``j`` each way round
     ``(u_i, u_j)`` [m], each looking :func:`_reach` ahead along its own path and, along the
     other's, past where it stands (two that meet head-on share a stretch of path beyond the
-    other's own reach): inf where there is none; ``(inf, inf)`` for recorded participants
-    (replaying a track's exact pose: they keep to their recording), two on one path, two
-    too far apart and two heading the same way of which one drives into the other where it
-    stands (a follower: :func:`cross_path` and :func:`same_path` find those). ``who_i``,
-    ``who_j``: their :func:`_who`; ``samples_i``, ``samples_j``: their :func:`path_samples`,
-    at least as far as :func:`sample_reach`."""
-    path_i, rec_i, xi, yi, vi, li, wi = who_i
-    path_j, rec_j, xj, yj, vj, lj, wj = who_j
-    if not near_pair(who_i, who_j, margin, horizon):
-        return np.inf, np.inf
+    other's own reach): inf where there is none; ``(inf, inf)`` for two heading the same way
+    of which one drives into the other where it stands (a follower: :func:`cross_path` and
+    :func:`same_path` find those). ``who_i``, ``who_j``: their :func:`_who`, a
+    :func:`near_pair` (the callers test it first, before they make the samples: recorded
+    participants, two on one path and two too far apart are not); ``samples_i``,
+    ``samples_j``: their :func:`path_samples`, at least as far as :func:`sample_reach`."""
+    _, _, xi, yi, vi, li, wi = who_i
+    _, _, xj, yj, vj, lj, wj = who_j
     reach_i, reach_j = _reach(vi, li, horizon), _reach(vj, lj, horizon)
     past = np.hypot(xi - xj, yi - yj) + li + lj + margin
     size_ij, size_ji = (li, wi, lj, wj), (lj, wj, li, wi)
@@ -433,6 +428,15 @@ def pair_conflict(who_i, who_j, samples_i, samples_j, margin, horizon):
     ):
         return np.inf, np.inf
     return u_i, u_j
+
+
+@kernel
+def _into_where_it_stands(who_a, who_b, samples_a, samples_b, margin, horizon) -> float:
+    """How far [m] ``a`` moves (looking :func:`_reach` ahead) before it touches ``b`` where
+    ``b`` stands now (:func:`first_conflict`; ``who``: :func:`_who`)."""
+    la, wa, lb, wb = who_a[5], who_a[6], who_b[5], who_b[6]
+    reach = _reach(who_a[4], la, horizon)
+    return first_conflict(samples_a, reach, samples_b, 0.0, (la, wa, lb, wb), margin)
 
 
 @kernel
@@ -516,13 +520,9 @@ def crossing_candidates(idx, pi, pj, state, paths, margin, horizon):
         vi, vj = max(f.v[i], 1.0), max(f.v[j], 1.0)
         soonest[pi[q]] = min(soonest[pi[q]], max(u_i, 0.0) / vi)
         soonest[pj[q]] = min(soonest[pj[q]], max(u_j, 0.0) / vj)
-        if u_i <= 0 and u_j <= 0:
-            reach_i, reach_j = _reach(f.v[i], f.length[i], horizon), _reach(f.v[j], f.length[j],
-                                                                            horizon)  # fmt: skip
-            size_ij = (f.length[i], f.width[i], f.length[j], f.width[j])
-            size_ji = (f.length[j], f.width[j], f.length[i], f.width[i])
-            here_i = first_conflict(s_i, reach_i, s_j, 0.0, size_ij, margin)
-            here_j = first_conflict(s_j, reach_j, s_i, 0.0, size_ji, margin)
+        if u_i <= 0 and u_j <= 0:  # the one that runs into the other later goes
+            here_i = _into_where_it_stands(who_i, who_j, s_i, s_j, margin, horizon)
+            here_j = _into_where_it_stands(who_j, who_i, s_j, s_i, margin, horizon)
             a[m], b[m], gap[m] = (pj[q], pi[q], 0.0) if here_i >= here_j else (pi[q], pj[q], 0.0)
             m += 1
             continue

@@ -50,12 +50,20 @@ def lookup(bank, ys, slope, slots, x, clamp, buckets, out) -> None:
 def frenet_one(path, t, s, d, buckets) -> tuple[float, float, float]:
     """Point ``(x, y)`` at arc length ``s`` and offset ``d`` on path ``t`` (end segments
     extended) and the path heading; ``path`` is :meth:`PathBank.kernel_data`."""
-    bank, ys, slope, normal, heading = path
-    i, k = _segment(bank, t, s, False, buckets)
-    dk = k - bank[0][i]
+    i, k = _segment(path[0], t, s, False, buckets)
+    x, y = point_on_segment(path, i, k, d)
+    return x, y, path[4][i]
+
+
+@kernel
+def point_on_segment(path, i, k, d) -> tuple[float, float]:
+    """Point ``(x, y)`` of segment ``i`` (a flat index) of :meth:`PathBank.kernel_data`
+    ``path`` at the shared-axis key ``k`` (its line extended), ``d`` [m] to its left."""
+    _, ys, slope, normal, _ = path
+    dk = k - path[0][0][i]
     x = (ys[i, 0] + dk * slope[i, 0]) + d * normal[i, 0]
     y = (ys[i, 1] + dk * slope[i, 1]) + d * normal[i, 1]
-    return x, y, heading[i]
+    return x, y
 
 
 @kernel
