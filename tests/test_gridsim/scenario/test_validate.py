@@ -2,6 +2,7 @@
 with the file, the track and the numbers; the shipped scenes pass."""
 
 import warnings
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -271,6 +272,24 @@ def test_a_flawed_library_track_is_not_used_as_a_speed_profile(tmp_path):
         used = synthetic_tracks(sc)
     assert "1213" not in {t.track_id for t in used}
     assert len(used) == len(synthetic_tracks(load_scenario("seamless"))) - 1
+
+
+def test_a_library_report_made_once_is_still_said_and_names_its_scenario(tmp_path):
+    """The library's report is made once per library and scenario (each reset of a generated
+    road asked for it: 1.6 ms a reset); every selection still warns, in the scenario's name,
+    and the same library under another scenario file gets a report naming that file."""
+    from gridsim.scenario.parts import synthetic_tracks
+
+    path = _library_scenario(tmp_path, {"1213"})
+    other = tmp_path / "other.yaml"
+    other.write_text(Path(path).read_text().replace("name: mine", "name: other"))
+    for source in (path, path, str(other)):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            used = synthetic_tracks(load_scenario(source))
+        (said,) = [str(w.message) for w in caught if issubclass(w.category, DataWarning)]
+        assert said.startswith(f"{tmp_path / 'kmh.csv'}: track 1213 of scene")
+        assert "1213" not in {t.track_id for t in used}
 
 
 def test_a_library_of_many_files_with_notes_warns_once(tmp_path):
