@@ -1,16 +1,19 @@
 """GridSim-v0 against highway-env's highway-fast-v0: simulated seconds per CPU-second.
 
 Both envs observe an occupancy grid of the same cells (128 x 128 cells of 0.5 m, 64 m x 64 m
-around the ego, axes aligned with the world), take random actions from their own (seeded)
-action spaces and are reset whenever an episode ends, resets included in the time. They run
-alternately in one process (GridSim, highway, GridSim, highway, ...), each for a fixed budget
-of CPU seconds per round, so that drift in machine speed hits both. Simulated seconds are
-steps x decision period for GridSim-v0 (0.1 s) and steps / policy_frequency for highway-env
-(1 Hz in highway-fast-v0, with 5 simulation ticks per step).
+around the ego, axes aligned with the world), run as vector envs of ``--num-envs`` each
+(``gym.make_vec``: GridSim-v0's own, which steps its worlds phase by phase, and gymnasium's
+``SyncVectorEnv`` for highway-env; 1: one env each in such a vector), take random actions from
+their own (seeded) batch action spaces and reset an env in the step its episode ends
+(``SAME_STEP`` autoreset), resets included in the time. They run alternately in one process
+(GridSim, highway, GridSim, highway, ...), each for a fixed budget of CPU seconds per round,
+so that drift in machine speed hits both. Simulated seconds are env-steps x decision period
+for GridSim-v0 (0.1 s) and env-steps / policy_frequency for highway-env (1 Hz in
+highway-fast-v0, with 5 simulation ticks per step).
 
-Prints JSON lines: the highway-env config used, one line per env per round, one summary per
-env (median simulated s per CPU-s over rounds, steps/s, resets, mean episode length, share
-of CPU time spent in reset) and the ratio GridSim / highway (median of the per-round
+Prints JSON lines: the highway-env config used, one line per env per round (with the load),
+one summary per env (median simulated s per CPU-s over rounds, env-steps/s, episodes ended,
+mean episode length, how they ended) and the ratio GridSim / highway (median of the per-round
 ratios) with the target (12x, issue 25; 5x before) and the long-term aim (20x).
 
 highway-env is a benchmark-only extra (it pulls in pygame; nothing is rendered and SDL is set
@@ -18,6 +21,7 @@ to its dummy video driver):
 
     pip install ".[bench]"
     python benchmarks/bench_vs_highway.py [--rounds 5] [--seconds-per-round 10] [--seed 0]
+        [--num-envs 16]
 """
 
 from __future__ import annotations
@@ -75,52 +79,50 @@ def highway_config(features: list[str], cells: int, cell: float) -> dict:
 
 
 class Runner:
-    """One env driven by seeded random actions; counts steps, resets and CPU/wall time."""
+    """A vector of ``num_envs`` envs driven by seeded random actions (one draw of the batch
+    action space a step), reset in the same step when an episode ends (``SAME_STEP``
+    autoreset: every env-step simulates a decision period); counts env-steps, episode ends
+    and CPU/wall time."""
 
-    def __init__(self, name: str, env: gym.Env, decision_period: float, seed: int) -> None:
+    def __init__(self, name: str, env: gym.vector.VectorEnv, decision_period: float,
+                 seed: int) -> None:  # fmt: skip
         self.name = name
         self.env = env
         self.dt = decision_period
         env.action_space.seed(seed)
         self.env.reset(seed=seed)  # first reset (imports, caches) outside the timings
-        self.ep_steps = 0
+        self.ep_steps = np.zeros(env.num_envs, int)
         self.episode_lengths: list[int] = []
         self.end_reasons: dict[str, int] = {}
-        self.total = {"steps": 0, "resets": 0, "cpu_s": 0.0, "wall_s": 0.0, "reset_cpu_s": 0.0}
+        self.total = {"steps": 0, "cpu_s": 0.0, "wall_s": 0.0}
 
-    def _reason(self, terminated: bool, info: dict) -> str:
-        if not terminated:
-            return "truncated"
-        for key in ("crashed", "collision", "off_road", "destination_reached"):
-            if info.get(key):
-                return key
-        return "terminated"
+    def _count_ends(self, terminated: np.ndarray, truncated: np.ndarray, info: dict) -> None:
+        final = info.get("final_info", {})
+        for i in np.flatnonzero(terminated | truncated):
+            self.episode_lengths.append(int(self.ep_steps[i]))
+            reason = "truncated"
+            if terminated[i]:
+                reason = next((key for key in ("crashed", "collision", "off_road",
+                                               "destination_reached")
+                               if key in final and final[key][i]), "terminated")  # fmt: skip
+            self.end_reasons[reason] = self.end_reasons.get(reason, 0) + 1
+            self.ep_steps[i] = 0
 
     def run(self, cpu_budget: float) -> dict:
-        env, sample = self.env, self.env.action_space.sample
-        steps = resets = 0
-        reset_cpu = 0.0
+        env, sample, n = self.env, self.env.action_space.sample, self.env.num_envs
+        steps = ends = 0
         c0, w0 = time.process_time(), time.perf_counter()
         now = c0
         while now - c0 < cpu_budget:
             _, _, terminated, truncated, info = env.step(sample())
-            steps += 1
+            steps += n
             self.ep_steps += 1
-            if terminated or truncated:
-                self.episode_lengths.append(self.ep_steps)
-                reason = self._reason(terminated, info)
-                self.end_reasons[reason] = self.end_reasons.get(reason, 0) + 1
-                self.ep_steps = 0
-                r0 = time.process_time()
-                env.reset()
-                now = time.process_time()
-                reset_cpu += now - r0
-                resets += 1
-            else:
-                now = time.process_time()
+            if terminated.any() or truncated.any():
+                ends += int((terminated | truncated).sum())
+                self._count_ends(terminated, truncated, info)
+            now = time.process_time()
         cpu, wall = now - c0, time.perf_counter() - w0
-        for key, value in (("steps", steps), ("resets", resets), ("cpu_s", cpu),
-                           ("wall_s", wall), ("reset_cpu_s", reset_cpu)):  # fmt: skip
+        for key, value in (("steps", steps), ("cpu_s", cpu), ("wall_s", wall)):
             self.total[key] += value
         sim = steps * self.dt
         return {
@@ -131,33 +133,30 @@ class Runner:
             "sim_s_per_cpu_s": sim / cpu,
             "sim_s_per_wall_s": sim / wall,
             "steps": steps,
-            "resets": resets,
-            "reset_cpu_share": round(reset_cpu / cpu, 3),
+            "episodes_ended": ends,
+            "loadavg": os.getloadavg()[0],
         }
 
 
 def summary(runner: Runner, rows: list[dict]) -> dict:
     t = runner.total
     lengths = runner.episode_lengths
-    step_cpu = t["cpu_s"] - t["reset_cpu_s"]
     return {
         "bench": "summary",
         "env": runner.name,
+        "num_envs": runner.env.num_envs,
         "decision_period_s": runner.dt,
         "sim_s_per_cpu_s_median": round(float(np.median([r["sim_s_per_cpu_s"] for r in rows])), 2),
         "sim_s_per_wall_s_median": round(
             float(np.median([r["sim_s_per_wall_s"] for r in rows])), 2
         ),
         "steps_per_cpu_s": round(t["steps"] / t["cpu_s"], 1),
-        "steps_per_cpu_s_excluding_resets": round(t["steps"] / step_cpu, 1),
-        "reset_cpu_ms_mean": round(1e3 * t["reset_cpu_s"] / max(t["resets"], 1), 1),
-        "reset_cpu_share": round(t["reset_cpu_s"] / t["cpu_s"], 3),
         "steps": t["steps"],
-        "resets": t["resets"],
         "episodes_ended": len(lengths),
         "mean_episode_steps": round(float(np.mean(lengths)), 1) if lengths else None,
         "mean_episode_sim_s": round(float(np.mean(lengths)) * runner.dt, 2) if lengths else None,
         "episode_ends": runner.end_reasons,
+        "loadavg": [r["loadavg"] for r in rows],
     }
 
 
@@ -167,6 +166,8 @@ def main() -> None:
     ap.add_argument("--seconds-per-round", type=float, default=10.0,
                     help="CPU seconds per env per round")  # fmt: skip
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--num-envs", type=int, default=16,
+                    help="envs per vector env (both simulators); 1: a single env each")  # fmt: skip
     ap.add_argument(
         "--highway-features",
         default="presence",
@@ -174,6 +175,7 @@ def main() -> None:
     )
     args = ap.parse_args()
 
+    n = args.num_envs
     gs_env = gym.make("GridSim-v0")
     cfg = gs_env.unwrapped.cfg
     sensor = cfg.sensor
@@ -205,15 +207,22 @@ def main() -> None:
             **{k: hw_full[k] for k in ("policy_frequency", "simulation_frequency", "duration",
                                        "lanes_count", "vehicles_count", "action")},
         },
+        "num_envs": n,
+        "vector_envs": "GridSim-v0: its own (MOSyncVectorEnv, steps phase by phase); "
+                       f"{HIGHWAY_ID}: gymnasium's SyncVectorEnv; both SAME_STEP autoreset",
         "rounds": args.rounds,
         "cpu_s_per_env_per_round": args.seconds_per_round,
         "seed": args.seed,
     }), flush=True)  # fmt: skip
 
+    same_step = gym.vector.AutoresetMode.SAME_STEP
     runners = [
-        Runner("GridSim-v0", gs_env, gs_dt, args.seed),
-        Runner(HIGHWAY_ID, hw_env, hw_dt, args.seed),
-    ]
+        Runner("GridSim-v0", gym.make_vec("GridSim-v0", n, autoreset_mode=same_step), gs_dt,
+               args.seed),
+        Runner(HIGHWAY_ID, gym.make_vec(HIGHWAY_ID, n, vectorization_mode="sync",
+                                        vector_kwargs={"autoreset_mode": same_step},
+                                        config=hw_cfg), hw_dt, args.seed),
+    ]  # fmt: skip
     rows: dict[str, list[dict]] = {r.name: [] for r in runners}
     ratios = []
     for rnd in range(args.rounds):

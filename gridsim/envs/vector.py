@@ -23,14 +23,20 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import iterate
 
-from gridsim.envs.gridsim_env import GridSimEnv
+from gridsim.envs.gridsim_env import GridSimEnv, step_all
 
 EnvFns = Sequence[Callable[[], gym.Env]]
 
 
 class MOSyncVectorEnv(gym.vector.SyncVectorEnv):
-    """``SyncVectorEnv`` whose rewards have the shape of the environments' ``reward_space``."""
+    """``SyncVectorEnv`` whose rewards have the shape of the environments' ``reward_space``.
+
+    When its environments are distinct :class:`GridSimEnv` themselves (not wrapped: as
+    :func:`make_vector_env` builds them), a step steps them phase by phase
+    (:func:`~gridsim.envs.gridsim_env.step_all`: the same results, the shared tables kept in
+    cache); gymnasium's ``step`` then collects those results, resets and stacks as usual."""
 
     def __init__(self, env_fns: EnvFns, **kwargs: Any) -> None:
         super().__init__(env_fns, **kwargs)
@@ -38,6 +44,39 @@ class MOSyncVectorEnv(gym.vector.SyncVectorEnv):
         shape = space.shape if space is not None else ()
         self._rewards = np.zeros((self.num_envs, *shape), dtype=np.float64)
         self.reward_space = space
+        self._phased = len({id(e) for e in self.envs}) == len(self.envs) and all(
+            type(e) is GridSimEnv for e in self.envs
+        )
+
+    def step(self, actions: Any) -> tuple:
+        if not self._phased:
+            return super().step(actions)
+        skipped = self._autoreset_envs if self.autoreset_mode == AutoresetMode.NEXT_STEP else None
+        live = [i for i in range(self.num_envs) if skipped is None or not skipped[i]]
+        per_env = list(iterate(self.action_space, actions))
+        results = step_all([self.envs[i] for i in live], [per_env[i] for i in live])
+        envs = self.envs
+        answered = list(envs)
+        for i, result in zip(live, results, strict=True):
+            answered[i] = _Stepped(envs[i], result)
+        self.envs = answered  # gymnasium's step reads each result from its env's step
+        try:
+            return super().step(actions)
+        finally:
+            self.envs = envs
+
+
+class _Stepped:
+    """An environment already stepped: its ``step`` answers ``result``; the rest is its own."""
+
+    def __init__(self, env: GridSimEnv, result: tuple) -> None:
+        self._env, self._result = env, result
+
+    def step(self, action: Any) -> tuple:
+        return self._result
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._env, name)
 
 
 class MOAsyncVectorEnv(gym.vector.AsyncVectorEnv):

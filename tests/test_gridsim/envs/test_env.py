@@ -19,7 +19,7 @@ from paths import ROOT
 
 import gridsim
 from gridsim.envs import ENV_ID, register_envs
-from gridsim.envs.gridsim_env import EGO_FEATURES, GridSimEnv
+from gridsim.envs.gridsim_env import EGO_FEATURES, GridSimEnv, step_all
 from gridsim.envs.vector import mo_async_worker
 from gridsim.envs.wrappers import LinearScalarization
 from gridsim.errors import ScenarioError
@@ -497,16 +497,17 @@ def test_make_vec_stacks_the_vector_rewards(make_vec_kwargs, autoreset):
             assert r.shape == (2, 3) and r.dtype == np.float64
             for i, env in enumerate(singles):
                 if due[i]:  # the autoreset step: a zero vector
-                    env.reset()
+                    seen, _ = env.reset()
                     reward, ended = np.zeros(3), False
                     assert not (term[i] or trunc[i])
                 else:
-                    _, reward, te, tr, _ = env.step(actions[i])
+                    seen, reward, te, tr, _ = env.step(actions[i])
                     assert (te, tr) == (term[i], trunc[i])
                     ended = te or tr
                     if ended and autoreset is SAME:
-                        env.reset()
+                        seen, _ = env.reset()
                 np.testing.assert_array_equal(r[i], reward)
+                np.testing.assert_array_equal(obs["grids"][i], seen["grids"])
                 due[i] = ended and autoreset is NEXT
                 ends[i] += ended
             if autoreset is OFF and (term | trunc).any():
@@ -517,6 +518,32 @@ def test_make_vec_stacks_the_vector_rewards(make_vec_kwargs, autoreset):
         assert ends[0] >= 3 and ends[1] == 1
     finally:
         venv.close()
+
+
+def test_make_vec_steps_its_environments_phase_by_phase(monkeypatch):
+    """The default vector env steps its GridSimEnv with ``step_all`` (the live ones only, on a
+    NEXT_STEP autoreset step); one of other environments steps them in turn."""
+    from gridsim.envs import vector
+
+    calls = []
+
+    def spy(envs, actions):
+        calls.append(len(envs))
+        return step_all(envs, actions)
+
+    monkeypatch.setattr(vector, "step_all", spy)
+    actions = np.array([[2.0, 1.0], [0.0, 0.0]], np.float32)  # env 0 leaves the road at 9
+    venv = gym.make_vec(ENV_ID, num_envs=2, action_type="control", **SHORT)
+    venv.reset(seed=[1, 2])
+    for _ in range(11):
+        venv.step(actions)
+    assert calls == [2] * 9 + [1, 2]  # env 0's autoreset step: env 1 alone
+    wrapped = vector.MOSyncVectorEnv(
+        [lambda: gym.wrappers.RecordEpisodeStatistics(GridSimEnv(**SHORT))] * 2
+    )
+    wrapped.reset(seed=[1, 2])
+    wrapped.step(wrapped.action_space.sample())
+    assert len(calls) == 11
 
 
 @pytest.mark.parametrize(
