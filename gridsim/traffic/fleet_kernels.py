@@ -297,12 +297,20 @@ def swept_conflict(paths, path_id, s, d, length, width, v, ego, margin, horizon,
 
 #: the cosine of the smallest angle between two participants' headings at which their paths
 #: count as crossing in :func:`first_conflict` (30 degrees): nearer the same direction is a
-#: merge or a follower, which :func:`cross_path` and :func:`same_path` see
+#: merge, or a follower (which :func:`cross_path` and :func:`same_path` see)
 CROSSING_COS = 0.8660254037844387
+
+#: The touches :func:`first_conflict` counts: at :data:`CROSSING_COS` or more (crossing),
+#: at less (merging or following), at any angle.
+ANGLED, SHALLOW, ANY_ANGLE = 0, 1, 2
 
 
 #: m: spacing of the samples of a participant's path ahead in :func:`path_samples`
 CROSSING_STEP = 1.0
+
+#: m/s: a participant slower than this counts as standing where it is for one behind it on
+#: another path whose path clips its footprint (a car turning past one that waits)
+STANDING_SPEED = 1.0
 
 
 @kernel
@@ -345,13 +353,14 @@ def _within(samples, reach) -> int:
 
 
 @kernel
-def first_conflict(a, reach_a, b, reach_b, size, margin, crossing=True):
+def first_conflict(a, reach_a, b, reach_b, size, margin, angles=ANY_ANGLE):
     """How far [m] participant ``a`` moves along its path (looking ``reach_a`` [m] ahead)
     before its footprint touches (within ``margin`` [m]) participant ``b``'s footprint now
-    or on its path up to ``reach_b`` [m] ahead, the two at 30 degrees or more to each other
-    (:data:`CROSSING_COS`; with ``crossing`` False: at less, heading the same way): 0 if it
-    does where it stands, inf if not within reach. ``a``, ``b``: their :func:`path_samples`;
-    ``size``: ``(length_a, width_a, length_b, width_b)`` [m]."""
+    or on its path up to ``reach_b`` [m] ahead, at any angle to each other, or with
+    ``angles`` :data:`ANGLED` at 30 degrees or more (:data:`CROSSING_COS`), with
+    :data:`SHALLOW` at less: 0 if it does where it stands, inf if not within reach. ``a``,
+    ``b``: their :func:`path_samples`; ``size``: ``(length_a, width_a, length_b, width_b)``
+    [m]."""
     la, wa, lb, wb = size
     na, nb = _within(a, reach_a), _within(b, reach_b)
     near = 0.5 * (np.hypot(la, wa) + np.hypot(lb, wb)) + margin  # the footprints' circles
@@ -375,7 +384,7 @@ def first_conflict(a, reach_a, b, reach_b, size, margin, crossing=True):
                     q += 1
                 continue
             angled = c * b[q, 2] + sn * b[q, 3] < CROSSING_COS  # (the cosine of the angle)
-            if angled == crossing and not oriented_boxes_apart(
+            if (angles == ANY_ANGLE or angled == (angles == ANGLED)) and not oriented_boxes_apart(
                 (x, y, c, sn, la, wa), (b[q, 0], b[q, 1], b[q, 2], b[q, 3], lb, wb), margin
             ):  # at the angle asked for, touching
                 return a[k, 4]
@@ -423,8 +432,8 @@ def pair_conflict(who_i, who_j, samples_i, samples_j, margin, horizon):
     # one behind the other, both heading the same way now (a follower, or a car about to
     # turn ahead of it): the leader search's, not a crossing
     if samples_i[0, 2] * samples_j[0, 2] + samples_i[0, 3] * samples_j[0, 3] >= CROSSING_COS and (
-        first_conflict(samples_i, reach_i, samples_j, 0.0, size_ij, margin, False) < np.inf
-        or first_conflict(samples_j, reach_j, samples_i, 0.0, size_ji, margin, False) < np.inf
+        first_conflict(samples_i, reach_i, samples_j, 0.0, size_ij, margin, SHALLOW) < np.inf
+        or first_conflict(samples_j, reach_j, samples_i, 0.0, size_ji, margin, SHALLOW) < np.inf
     ):
         return np.inf, np.inf
     return u_i, u_j
@@ -502,7 +511,8 @@ def crossing_candidates(idx, pi, pj, state, paths, margin, horizon):
     none = np.empty((0, 9))
     samples = [none for _ in range(len(idx))]  # made when a near pair needs them
     n = len(pi)
-    a, b, gap = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n)
+    a, b, gap = np.empty(2 * n, np.int64), np.empty(2 * n, np.int64), np.empty(2 * n)
+    held = np.zeros(2 * n, np.bool_)  # the one waited for stands in the waiting one's way
     m = 0
     for q in range(n):
         i, j = idx[pi[q]], idx[pj[q]]
@@ -515,7 +525,14 @@ def crossing_candidates(idx, pi, pj, state, paths, margin, horizon):
                                          sample_reach(who, longest, horizon, margin))  # fmt: skip
         s_i, s_j = samples[pi[q]], samples[pj[q]]
         u_i, u_j = pair_conflict(who_i, who_j, s_i, s_j, margin, horizon)
-        if u_j == np.inf:
+        if u_j == np.inf:  # no crossing; one behind another that stands, on another path?
+            for p, w_p, s_p, o, w_o, s_o in ((pi[q], who_i, s_i, pj[q], who_j, s_j),
+                                             (pj[q], who_j, s_j, pi[q], who_i, s_i)):  # fmt: skip
+                if w_o[4] < STANDING_SPEED:
+                    u = _into_where_it_stands(w_p, w_o, s_p, s_o, margin, horizon)
+                    if u < np.inf:
+                        a[m], b[m], gap[m], held[m] = p, o, u, True
+                        m += 1
             continue
         vi, vj = max(f.v[i], 1.0), max(f.v[j], 1.0)
         soonest[pi[q]] = min(soonest[pi[q]], max(u_i, 0.0) / vi)
@@ -524,25 +541,35 @@ def crossing_candidates(idx, pi, pj, state, paths, margin, horizon):
             here_i = _into_where_it_stands(who_i, who_j, s_i, s_j, margin, horizon)
             here_j = _into_where_it_stands(who_j, who_i, s_j, s_i, margin, horizon)
             a[m], b[m], gap[m] = (pj[q], pi[q], 0.0) if here_i >= here_j else (pi[q], pj[q], 0.0)
+            held[m] = True
             m += 1
             continue
-        if u_i <= 0 or (u_j > 0 and u_i / vi <= u_j / vj):  # i goes, j waits
+        if _first_goes(u_i, u_j, vi, vj):  # i goes, j waits
             u_go, v_go, u_wait, v_wait, a[m], b[m] = u_i, vi, u_j, vj, pj[q], pi[q]
         else:
             u_go, v_go, u_wait, v_wait, a[m], b[m] = u_j, vj, u_i, vi, pi[q], pj[q]
         cleared = (max(u_go, 0.0) + f.length[i] + f.length[j] + 2 * margin) / v_go
         if u_wait / v_wait <= cleared + SWEEP_BUFFER:
-            gap[m] = u_wait
+            gap[m], held[m] = u_wait, u_go <= 0
             m += 1
-    keep = _unblocked(a[:m], b[:m], soonest)
+    keep = _unblocked(a[:m], b[:m], soonest, held[:m])
     return a[:m][keep], b[:m][keep], gap[:m][keep], np.zeros(int(keep.sum()))
 
 
 @kernel
-def _unblocked(wait, go, soonest):
+def _first_goes(u_i, u_j, v_i, v_j) -> bool:
+    """Whether of two participants meeting ``u_i`` and ``u_j`` [m] ahead (:func:`pair_conflict`)
+    at speeds ``v_i``, ``v_j`` [m/s] (at least 1 m/s) the first goes and the second waits: the
+    one already in the other's way goes, else the first to get there (the first on a tie)."""
+    return u_i <= 0 or (u_j > 0 and u_i / v_i <= u_j / v_j)
+
+
+@kernel
+def _unblocked(wait, go, soonest, held):
     """Which of the waits ``wait[e]`` -> ``go[e]`` (positions of participants) to keep so that
     none closes a circle: while some do, the participant of a circle with the lowest
-    ``soonest`` [s] (the first of those) stops waiting."""
+    ``soonest`` [s] (the first of those) stops waiting, of those whose waits are not
+    ``held`` (the one waited for standing in its way already) if the circle has any."""
     n, m = len(soonest), len(wait)
     keep = np.ones(m, np.bool_)
     while True:
@@ -572,10 +599,17 @@ def _unblocked(wait, go, soonest):
                     node = go[e]
                     break
         first = node  # on the circle: those visited from its first visit on
-        best = first
+        free_way = np.ones(n, np.bool_)  # no one stands in its way
+        for e in range(m):
+            if keep[e] and held[e]:
+                free_way[wait[e]] = False
+        best, best_free = first, free_way[first]
         for other in range(n):
-            if order[other] >= order[first] and soonest[other] < soonest[best]:
-                best = other
+            if order[other] >= order[first] and (
+                (free_way[other] and not best_free)
+                or (free_way[other] == best_free and soonest[other] < soonest[best])
+            ):
+                best, best_free = other, free_way[other]
         for e in range(m):
             if wait[e] == best:
                 keep[e] = False
@@ -583,11 +617,13 @@ def _unblocked(wait, go, soonest):
 
 @kernel
 def blocked(state, paths, i, margin, horizon, decel) -> bool:
-    """Whether generated participant ``i`` and another active one meet where their paths
-    cross with one in the other's way already (:func:`pair_conflict` 0) and the other unable
-    to stop short of it braking at ``decel`` [m/s^2]: a spawn to refuse (one of them would
-    drive into the other). Each looks at least as far ahead as it needs to stop (the
-    ``horizon`` [s] made longer where a car is faster than ``2 * decel * horizon``)."""
+    """Whether generated participant ``i`` and another active one would meet with the one
+    that must give way unable to stop short braking at ``decel`` [m/s^2]: where their paths
+    cross or merge (:func:`pair_conflict`; who waits: :func:`_first_goes`), or where one runs
+    into the other where it stands (one close behind the other on another path): a spawn to
+    refuse (one of them would drive into the other). Each looks at least as far ahead as it
+    needs to stop (the ``horizon`` [s] made longer where a car is faster than ``2 * decel *
+    horizon``)."""
     f = FleetState(*state)
     active = np.flatnonzero(f.active)
     fastest = 0.0
@@ -602,10 +638,17 @@ def blocked(state, paths, i, margin, horizon, decel) -> bool:
         if j == i or not f.active[j] or not near_pair(who_i, who_j, margin, horizon):
             continue
         other = _samples_of(state, paths, j, sample_reach(who_j, longest, horizon, margin))
+        stop_i, stop_j = f.v[i] ** 2 / (2 * decel), f.v[j] ** 2 / (2 * decel)
         u_i, u_j = pair_conflict(who_i, who_j, own, other, margin, horizon)
-        if (u_i <= 0 and u_j <= f.v[j] ** 2 / (2 * decel)) or (
-            u_j <= 0 and u_i <= f.v[i] ** 2 / (2 * decel)
-        ):
+        if u_j < np.inf:
+            if _first_goes(u_i, u_j, max(f.v[i], 1.0), max(f.v[j], 1.0)):
+                if u_j <= stop_j:
+                    return True
+            elif u_i <= stop_i:
+                return True
+        into_j = _into_where_it_stands(who_i, who_j, own, other, margin, horizon)
+        into_i = _into_where_it_stands(who_j, who_i, other, own, margin, horizon)
+        if into_j <= stop_i or into_i <= stop_j:
             return True
     return False
 

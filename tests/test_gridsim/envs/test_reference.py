@@ -113,7 +113,7 @@ def test_profile_chain_at_interpolates_as_numpy():
         assert offset == np.interp(t, chain.times[:n], chain.offsets[:n])
 
 
-@pytest.mark.parametrize("seed", [27, 56, 70, 77])
+@pytest.mark.parametrize("seed", [27, 56, 70, 94])
 def test_following_a_revised_reference_does_not_collide(seed):
     """Inner-city seeds whose reference would drive into crossing traffic without revisions."""
     env = GridSimEnv("inner_city", simulation={"duration": 30.0})

@@ -461,6 +461,99 @@ def test_a_car_is_not_spawned_in_front_of_one_that_cannot_stop():
     assert blocked(30.0, v=12.0)
 
 
+def _cars_on(paths_xy, before, speeds, seconds):
+    """Generated cars on the polylines ``paths_xy`` (each with a vertex at or nearest the
+    origin; arc length 0 at its start), each ``before`` [m] (its centre) before that vertex
+    at ``speeds`` [m/s], no ego. Returns the fleet, whether two footprints ever overlapped, and each
+    car's lowest speed [m/s] on the way."""
+    f = Fleet(len(paths_xy))
+    for k, xy in enumerate(paths_xy):
+        s = np.r_[0.0, np.cumsum(np.hypot(*np.diff(xy, axis=0).T))]
+        path = f.paths.add_path(xy, s)
+        v = speeds[k]
+        prof = f.profiles.add(np.array([0.0, 100.0]), np.array([[0, v, 0, 0], [100 * v, v, 0, 0]]))
+        at_origin = s[int(np.argmin(np.hypot(*xy.T)))]
+        f.place(k, path=path, s=at_origin - before[k], profile=prof, tau=0.0, geometric=False)
+    hit, slowest, n = False, np.array(speeds, float), len(paths_xy)
+    for _ in range(int(round(seconds / 0.1))):
+        f.tick(0.1, None)
+        boxes = [box_corners(f.x[k], f.y[k], f.psi[k], f.length[k], f.width[k]) for k in range(n)]
+        hit |= any(overlap(boxes[i], boxes[j]) for i in range(n) for j in range(i))
+        slowest = np.minimum(slowest, f.v)
+    return f, hit, slowest
+
+
+def _merge(angle: float) -> list[np.ndarray]:
+    """A straight path along x through the origin, and one joining it there at ``angle``
+    degrees from behind and below, going on along x."""
+    a = np.radians(angle)
+    main = np.array([[-200.0, 0.0], [0.0, 0.0], [200.0, 0.0]])
+    side = np.array([[-100.0 * np.cos(a), -100.0 * np.sin(a)], [0.0, 0.0], [200.0, 0.0]])
+    return [main, side]
+
+
+@pytest.mark.parametrize("angle", [12.0, 20.0, 28.0])
+@pytest.mark.parametrize("before", [(20.0, 20.0), (20.0, 18.0), (16.0, 21.0)])
+def test_generated_cars_merging_at_a_shallow_angle_take_turns(angle, before):
+    """Paths that merge at under 30 degrees were left to the leader search, which sees the
+    other car only once it is beside it (inner-city: two cars at 17-21 degrees standing in
+    each other, each the other's leader): the one that gets there later waits, they never
+    touch, and both get on."""
+    f, hit, slowest = _cars_on(_merge(angle), before, (8.0, 8.0), 12.0)
+    assert not hit
+    assert f.x.min() > 10.0  # both past the merge and on their way
+    assert slowest.min() < 8.0  # someone gave way
+
+
+def test_a_car_turning_past_one_that_stands_waits_for_it():
+    """A car whose path clips the corner of a car standing on another path (its centre line
+    more than half the widths away: not the standing car's follower) waits for it (inner-city:
+    a car turning left from behind one waiting in the intersection clipped its corner)."""
+    a = np.radians(20.0)
+    u, normal = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
+    passing = np.array([-60.0 * u, 0.0 * u, 60.0 * u]) + 2.3 * normal  # 2.3 m off its centre
+    standing = np.array([[-60.0, 0.0], [0.0, 0.0], [60.0, 0.0]])
+    f, hit, slowest = _cars_on([standing, passing], (0.0, 20.0), (0.0, 6.0), 8.0)
+    assert not hit and slowest[1] < 0.5  # it stops short of the corner
+    f, hit, slowest = _cars_on([standing, passing + 1.5 * normal], (0.0, 20.0), (0.0, 6.0), 8.0)
+    assert not hit and slowest[1] == pytest.approx(6.0)  # clear of the corner: it drives on
+
+
+def test_a_circle_of_waits_is_broken_where_the_way_is_free():
+    """Three cars each waiting for the next (a circle): the one let go is one whose way is
+    free, not one that another stands in the way of (it would drive into it), even when
+    that one is nearest its crossing."""
+    from gridsim.traffic.fleet_kernels import _unblocked
+
+    wait, go = np.array([0, 1, 2]), np.array([1, 2, 0])
+    soonest = np.array([0.0, 1.0, 2.0])
+    held = np.array([True, False, False])  # 1 stands in 0's way
+    assert _unblocked(wait, go, soonest, held).tolist() == [True, False, True]  # 1 goes
+    assert _unblocked(wait, go, soonest, np.zeros(3, bool)).tolist() == [False, True, True]
+
+
+def test_a_car_is_not_spawned_where_the_one_to_give_way_cannot_stop():
+    """:func:`~gridsim.traffic.fleet_kernels.blocked` beyond a car standing on the crossing:
+    two that would reach a merge together with the later one unable to stop short of it, and
+    a car close behind one standing on another path whose corner it would clip, are refused
+    (inner-city resets had spawned such pairs, which then drove into each other)."""
+    from gridsim.traffic import fleet_kernels
+
+    def blocked(paths, before, speeds) -> bool:
+        f, _, _ = _cars_on(paths, before, speeds, 0.0)
+        return fleet_kernels.blocked(f.state, f.paths.kernel_data(), 1, f.p.lateral_margin,
+                                     f.p.crossing_horizon, f.p.idm.b)  # fmt: skip
+
+    assert blocked(_merge(20.0), (6.0, 5.0), (6.0, 6.0))  # 9 m to stop at 6 m/s
+    assert not blocked(_merge(20.0), (6.0, 30.0), (6.0, 6.0))
+    a = np.radians(20.0)
+    u, normal = np.array([np.cos(a), np.sin(a)]), np.array([-np.sin(a), np.cos(a)])
+    passing = np.array([-60.0 * u, 0.0 * u, 60.0 * u]) + 2.3 * normal
+    standing = np.array([[-60.0, 0.0], [0.0, 0.0], [60.0, 0.0]])
+    assert blocked([standing, passing], (0.0, 8.0), (0.0, 6.0))
+    assert not blocked([standing, passing], (0.0, 20.0), (0.0, 6.0))
+
+
 def test_inner_city_traffic_does_not_drive_through_itself():
     """Following the human reference for 30 s (seeds 0-3), no two generated cars overlap by
     more than 0.3 m^2 (before they gave way to each other: 6, 33, 0 and 61 of 300 steps)."""
