@@ -143,17 +143,21 @@ def record_episode(
         if path is not None:
             video = stack.enter_context(VideoWriter(path, env.metadata.get("render_fps", 10)))
 
+        taken = [0]  # steps of this episode
+
         def film(env, info: dict) -> None:
             if video is not None:
                 name = label(env) if callable(label) else label
-                video.write(_frame(env, info, overlay, name, fitness.copy()))
+                stopped = steps is not None and taken[0] == steps
+                video.write(_frame(env, info, overlay, name, fitness.copy(), stopped))
 
         def start(env, info: dict) -> None:
-            fitness[:] = 0.0
+            fitness[:], taken[0] = 0.0, 0
             film(env, info)
 
         def observe(env, info: dict) -> None:
             fitness[:] += (info["l1"], info["l2"], info["l3"])
+            taken[0] += 1
             film(env, info)
             if on_step is not None:
                 on_step(env, info)
@@ -190,9 +194,11 @@ def policy_name(policy: Policy) -> str:
     return "a lambda policy" if name == "<lambda>" else name
 
 
-def _frame(env, info: dict, overlay: bool, label: str | None, fitness: np.ndarray) -> np.ndarray:
-    """``env.render()``, annotated if ``overlay`` (see :func:`record_episode`)."""
+def _frame(env, info: dict, overlay: bool, label: str | None, fitness: np.ndarray,
+           stopped: bool = False) -> np.ndarray:  # fmt: skip
+    """``env.render()``, annotated if ``overlay`` (see :func:`record_episode`; ``stopped``: the
+    episode's last step, at the caller's steps limit)."""
     from gridsim.render.annotations import annotate_env_frame
 
     frame = env.render()
-    return annotate_env_frame(env, frame, info, label, fitness) if overlay else frame
+    return annotate_env_frame(env, frame, info, label, fitness, stopped) if overlay else frame

@@ -78,11 +78,13 @@ def run_policy(
     )
 
     def stepped(env, info) -> None:  # (a collection's scene is drawn at the reset)
+        if bar.n == 0:  # the episode's own length, when shorter (a recorded track's)
+            bar.total = min(steps, round(env.time_limit / env.cfg.env.decision_period))
         bar.set_description(f"{policy} on {env.scenario.name}", refresh=False)
         bar.update()
 
     def label(env) -> str:
-        return f"{policy} policy, {env.unwrapped.scenario.name}"
+        return f"{policy} policy, {env.unwrapped.scenario.name}, seed {seed}"
 
     episode, path = record_episode(env, pol, video, steps, seed, on_step=stepped,
                                    overlay=overlay, label=label)  # fmt: skip

@@ -176,7 +176,8 @@ class GridSimEnv(gym.Env):
         )
         h = len(self._setpoint_times)
         self._ref_future, self._ref_future_grid = world[:h], grid[:h]
-        self._goal_grid = grid[-1]  # the destination observed: the last set-point's or beyond
+        # the destination observed: the last set-point's or beyond
+        self._goal_world, self._goal_grid = world[-1], grid[-1]
 
     def to_grid(self, points: np.ndarray) -> np.ndarray:
         """World points ``(N, 2)`` [m] in the ego's grid frame now (rear axle at the origin)."""
@@ -381,15 +382,15 @@ class GridSimEnv(gym.Env):
         # (l1 sums their squared distances: a plan that matches them covers them), before
         # the first step the human's next set-points.
         if self._scored is None:
-            overlay = [(self._ref_future, REFERENCE_COLOUR)]
+            overlay = [(self._ref_future, REFERENCE_COLOUR, "ring")]
         else:
             plan, reference = self._scored
-            overlay = [(reference, REFERENCE_COLOUR), (plan, PLAN_COLOUR)]
+            overlay = [(reference, REFERENCE_COLOUR, "ring"), (plan, PLAN_COLOUR, "dot")]
         sensor = self.cfg.sensor
         human = self.reference.positions(np.array([self.world.time]))[0]  # where it is now
         return self.renderer.render(self.world, self._grids[self._newest], overlay,
                                     grid_frame=(sensor.cell_size, sensor.orientation),
-                                    human=human)  # fmt: skip
+                                    human=human, destination=self._goal_world)  # fmt: skip
 
 
 #: The keywords of ``GridSimEnv`` and of ``gym.make_vec``'s default vector env: a misspelt one

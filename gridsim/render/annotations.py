@@ -16,6 +16,7 @@ import numpy as np
 
 from gridsim.render.grids import colourise
 from gridsim.render.topdown import (
+    DESTINATION_COLOUR,
     EGO_COLOUR,
     IDM_COLOUR,
     INSET_EGO_COLOUR,
@@ -30,14 +31,18 @@ _WHITE = (255, 255, 255)
 #: The colour of the caption's last line when the episode ended (RGB; bold).
 ENDED_COLOUR = (255, 120, 110)
 
-#: The picture's colours: name, RGB, drawn as a box (vehicles) or a dot (set-points).
+#: The picture's colours: name, RGB, drawn as a box (vehicles, the darker end their front),
+#: a ring or a dot (set-points) or a diamond (the destination).
 LEGEND: tuple[tuple[str, tuple[int, int, int], str], ...] = (
     ("ego", EGO_COLOUR, "box"),
     ("replayed traffic", TRAFFIC_COLOUR, "box"),
     ("traffic driven by IDM", IDM_COLOUR, "box"),
-    ("human's set-points", REFERENCE_COLOUR, "dot"),
+    ("human's set-points", REFERENCE_COLOUR, "ring"),
     ("planned set-points", PLAN_COLOUR, "dot"),
+    ("destination", DESTINATION_COLOUR, "diamond"),
 )
+#: The legend's shapes of what a frame without set-points does not draw.
+_SETPOINT_SHAPES = ("ring", "dot", "diamond")
 #: The grid inset's colours.
 GRID_LEGEND = (
     ("free", tuple(int(c) for c in colourise(np.uint8(FREE)))),
@@ -53,7 +58,7 @@ class Caption:
     simulated time [s], the ego's speed [m/s], the fitness terms summed so far ``[l1, l2,
     l3]`` (m^2, rad/s, m/s each step, summed), or None before the first step, and what ended
     the episode at this step (``ended``: ``"collision"``, ``"off the road"``, ``"destination
-    reached"``), if anything did."""
+    reached"``, ``"time limit"``, ``"steps limit"``), if anything did."""
 
     label: str | None
     time: float
@@ -63,11 +68,11 @@ class Caption:
 
     @classmethod
     def from_info(cls, info: dict, label: str | None, fitness: np.ndarray | None,
-                  timed_out: bool = False) -> Caption:  # fmt: skip
+                  timed_out: bool = False, stopped: bool = False) -> Caption:  # fmt: skip
         """The caption of a GridSim-v0 step's ``info`` (its time, pose and how it ended;
-        ``timed_out``: it reached its time limit)."""
+        ``timed_out``: it reached its time limit; ``stopped``: the caller's last step)."""
         ended = next((text for key, text in _ENDINGS if info.get(key)), None)
-        ended = ended or ("time limit" if timed_out else None)
+        ended = ended or ("time limit" if timed_out else "steps limit" if stopped else None)
         return cls(label, float(info["time"]), float(info["pose"][3]), fitness, ended)
 
     def lines(self) -> list[str]:
@@ -75,7 +80,8 @@ class Caption:
         out.append(f"t {self.time:5.1f} s    speed {self.speed:4.1f} m/s")
         if self.fitness is not None:
             l1, l2, l3 = (float(v) for v in self.fitness)
-            out.append(f"summed so far: l1 {l1:.1f} m^2  l2 {l2:.2f} rad/s  l3 {l3:.0f} m/s")
+            out.append("fitness so far, each summed over the ticks:")
+            out.append(f"  l1 {l1:.1f} m^2   l2 {l2:.2f} rad/s   l3 {l3:.0f} m/s")
         return out
 
 
@@ -97,7 +103,7 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
         text.append((f"episode over: {caption.ended} at {caption.time:.1f} s", ENDED_COLOUR,
                      "alert"))  # fmt: skip
     _band(img, 0, 0, text)
-    legend = LEGEND if setpoints else tuple(e for e in LEGEND if e[2] != "dot")
+    legend = LEGEND if setpoints else tuple(e for e in LEGEND if e[2] not in _SETPOINT_SHAPES)
     _band(img, 0, img.shape[0] - _STEP * len(legend) - 8, legend)
     if inset_size:
         grid = [("sensor grid:", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
@@ -136,7 +142,11 @@ def _band(img: np.ndarray, x: int, y: int, lines, width: int | None = None) -> N
             cv2.rectangle(img, (x + 6, base - 9), (x + 17, base - 1), colour, -1)
         elif shape == "dot":
             cv2.circle(img, (x + 12, base - 5), 4, colour, -1, cv2.LINE_AA)
-        marked = shape in ("box", "dot")
+        elif shape == "ring":
+            cv2.circle(img, (x + 12, base - 5), 5, colour, 2, cv2.LINE_AA)
+        elif shape == "diamond":
+            cv2.drawMarker(img, (x + 12, base - 5), colour, cv2.MARKER_DIAMOND, 11, 2, cv2.LINE_AA)
+        marked = shape in ("box", "dot", "ring", "diamond")
         cv2.putText(img, text, (x + 24 if marked else x + 8, base), _FONT, _SCALE,
                     colour if shape == "alert" else _WHITE, _thickness(shape),
                     cv2.LINE_AA)  # fmt: skip
@@ -163,11 +173,12 @@ def _scale_bar(img: np.ndarray, pixels_per_metre: float) -> None:
 
 
 def annotate_env_frame(env, frame: np.ndarray, info: dict, label: str | None,
-                       fitness: np.ndarray) -> np.ndarray:  # fmt: skip
+                       fitness: np.ndarray, stopped: bool = False) -> np.ndarray:  # fmt: skip
     """:func:`annotate` a GridSim-v0 ``frame`` (of ``env``, wrapped or not) with the caption of
-    its step's ``info`` and the ``fitness`` summed so far, at the env renderer's scale."""
+    its step's ``info`` and the ``fitness`` summed so far, at the env renderer's scale
+    (``stopped``: the last step the caller takes, its steps limit)."""
     u = env.unwrapped
     renderer = u.renderer
     timed_out = u.world is not None and u.world.time >= u.time_limit - 1e-9  # (as step says)
-    caption = Caption.from_info(info, label, fitness, timed_out)
+    caption = Caption.from_info(info, label, fitness, timed_out, stopped)
     return annotate(frame, caption, renderer.view.pixels_per_metre, renderer.view.inset_size)

@@ -22,10 +22,16 @@ _MARK = (235, 235, 235)
 EGO_COLOUR = (230, 30, 30)
 TRAFFIC_COLOUR = (40, 90, 220)
 IDM_COLOUR = (250, 160, 40)
-#: Set-points: the human reference's next ones, the last commanded (planned) ones.
-REFERENCE_COLOUR = (255, 255, 255)
+#: Set-points: the human reference's next ones (rings, drawn first: a plan that matches
+#: them fills them), the last commanded (planned) ones (dots); the destination (a diamond).
+REFERENCE_COLOUR = (255, 80, 255)
 POINTER_OUTLINE = (20, 20, 20)  # behind the arrow to a human out of view, and its label
 PLAN_COLOUR = (255, 220, 0)
+DESTINATION_COLOUR = (255, 255, 255)
+#: A vehicle's front quarter is drawn in its colour darkened by this share (its heading).
+NOSE_SHADE = 0.55
+#: Pixel radii of a set-point's dot and of a reference set-point's ring.
+DOT_RADIUS, RING_RADIUS = 3, 6
 #: The view leads the ego by what it drives in this long [s], at most LEAD_MAX [m].
 LEAD_SECONDS, LEAD_MAX = 0.8, 12.0
 #: The ego's outline in the grid inset (the grid's own colours are green, red and black).
@@ -63,17 +69,20 @@ class TopDownRenderer:
         self,
         world,
         grid: np.ndarray | None = None,
-        overlay: list[tuple[np.ndarray, tuple[int, int, int]]] | None = None,
+        overlay: list[tuple[np.ndarray, tuple[int, int, int], str]] | None = None,
         rays: np.ndarray | None = None,
         grid_frame: tuple[float, str] | None = None,
         human: np.ndarray | None = None,
+        destination: np.ndarray | None = None,
     ) -> np.ndarray:
-        """One frame, centred ahead of the ego (:meth:`centre`). ``grid`` adds an
-        occupancy-grid inset (top right), with the ego's outline in it if ``grid_frame`` =
-        ``(cell size [m], orientation)`` says where it is; ``overlay`` is a list of ``(points
-        (K, 2) [m, world], RGB colour)`` drawn as dots joined by a line (e.g. set-points);
+        """One frame, centred ahead of the ego (:meth:`centre`); each vehicle's front quarter
+        darker (its heading). ``grid`` adds an occupancy-grid inset (top right), with the
+        ego's outline in it if ``grid_frame`` = ``(cell size [m], orientation)`` says where it
+        is; ``overlay`` is a list of ``(points (K, 2) [m, world], RGB colour, "dot" |
+        "ring")`` drawn as dots or rings joined by a line, in order (e.g. set-points);
         ``rays`` ``(R, 2)`` world end points are drawn as lines from the ego; ``human`` [m,
-        world], where the human is now, gets an arrow at the frame's edge when out of view."""
+        world], where the human is now, gets an arrow at the frame's edge when out of view;
+        ``destination`` [m, world] a diamond."""
         v = self.view
         ego_xy = world.ego[:2]
         a = self._affine(self.centre(world))
@@ -87,9 +96,9 @@ class TopDownRenderer:
         f = world.traffic.fleet
         act = np.flatnonzero(f.active)
         boxes = box_corners(f.x[act], f.y[act], f.psi[act], f.length[act], f.width[act])
-        for j, quad in zip(act, boxes, strict=True):
-            colour = IDM_COLOUR if f.mode[j] else TRAFFIC_COLOUR
-            cv2.fillConvexPoly(img, self._px(a, quad), colour, cv2.LINE_AA, shift=4)
+        noses = _noses(f.x[act], f.y[act], f.psi[act], f.length[act], f.width[act])
+        for j, quad, nose in zip(act, boxes, noses, strict=True):
+            self._vehicle(img, a, quad, nose, IDM_COLOUR if f.mode[j] else TRAFFIC_COLOUR)
         if rays is not None:
             origin = self._px(a, ego_xy[None])[0]
             for end in self._px(a, rays):
@@ -97,17 +106,35 @@ class TopDownRenderer:
         c = world.ego_center()
         p = world.ego_params
         ego_box = box_corners(c[0], c[1], world.ego[2], p.length, p.width)
-        cv2.fillConvexPoly(img, self._px(a, ego_box), EGO_COLOUR, cv2.LINE_AA, shift=4)
-        for points, colour in overlay or []:  # each a path: a line through its dots
+        ego_nose = _noses(c[0], c[1], world.ego[2], p.length, p.width)
+        self._vehicle(img, a, ego_box, ego_nose, EGO_COLOUR)
+        for points, colour, style in overlay or []:  # each a path: a line through its dots
             px = self._px(a, np.asarray(points, float).reshape(-1, 2))
             cv2.polylines(img, [px], False, colour, 1, cv2.LINE_AA, shift=4)
             for q in px:
-                cv2.circle(img, tuple(q), 3 * 16, colour, -1, cv2.LINE_AA, shift=4)
+                if style == "ring":  # dark behind: legible on the road and the lane marks
+                    cv2.circle(img, tuple(q), RING_RADIUS * 16, POINTER_OUTLINE, 4, cv2.LINE_AA,
+                               shift=4)  # fmt: skip
+                    cv2.circle(img, tuple(q), RING_RADIUS * 16, colour, 2, cv2.LINE_AA, shift=4)
+                else:
+                    cv2.circle(img, tuple(q), DOT_RADIUS * 16, colour, -1, cv2.LINE_AA, shift=4)
+        if destination is not None:
+            u, v = (np.asarray(destination, float) @ a[:, :2].T + a[:, 2]).round().astype(int)
+            for colour, thickness in ((POINTER_OUTLINE, 4), (DESTINATION_COLOUR, 2)):
+                cv2.drawMarker(img, (int(u), int(v)), colour, cv2.MARKER_DIAMOND, 14, thickness,
+                               cv2.LINE_AA)  # fmt: skip
         if human is not None:
             self._pointer(img, a, np.asarray(human, float))
         if grid is not None:
             self._inset(img, grid, (world, ego_box) if grid_frame else None, grid_frame)
         return img
+
+    def _vehicle(self, img, a, box: np.ndarray, nose: np.ndarray, colour) -> None:
+        """A vehicle's footprint ``box`` (4, 2) [m, world] in ``colour``, its ``nose`` (the
+        front quarter) darker."""
+        cv2.fillConvexPoly(img, self._px(a, box), colour, cv2.LINE_AA, shift=4)
+        dark = tuple(int(c * NOSE_SHADE) for c in colour)
+        cv2.fillConvexPoly(img, self._px(a, nose), dark, cv2.LINE_AA, shift=4)
 
     def centre(self, world) -> np.ndarray:
         """The view's centre [m, world]: ahead of the ego by what it drives in
@@ -158,3 +185,11 @@ class TopDownRenderer:
         x0 = img.shape[1] - tw - 8
         img[8 : 8 + th, x0 : x0 + tw] = tile
         cv2.rectangle(img, (x0 - 1, 7), (x0 + tw, 8 + th), (255, 255, 255), 1)
+
+
+def _noses(x, y, psi, length, width) -> np.ndarray:
+    """The front quarters of footprints centred at ``(x, y)`` [m] heading ``psi`` [rad]
+    (arrays or scalars): boxes ``(..., 4, 2)`` as :func:`box_corners` gives."""
+    shift = 0.375 * np.asarray(length, float)
+    return box_corners(x + shift * np.cos(psi), y + shift * np.sin(psi), psi,
+                       0.25 * np.asarray(length, float), width)  # fmt: skip

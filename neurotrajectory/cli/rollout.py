@@ -87,6 +87,7 @@ def rollout(
               f"{episode} decisions ({env.cfg.simulation.duration:g} s; --seconds makes it "
               f"longer): the episode ends at {episode}", file=sys.stderr)  # fmt: skip
     label = f"NeuroTrajectory, {pick} member {member['member']} of {Path(run_dir).name}"
+    label += f", seed {seed}" if seed is not None else ""  # (to drive it again)
     driven, path = record_episode(env, policy, video, min(steps or episode, episode), seed=seed,
                                   overlay=overlay, label=label)  # fmt: skip
     s = driven.summary()

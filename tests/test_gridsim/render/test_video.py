@@ -33,12 +33,15 @@ def test_a_plan_is_drawn_beside_the_human_set_points_it_was_scored_against():
     )
     _, info = env.reset(seed=0)
     env.render()
-    assert [colour for _, colour in drawn[-1]] == [(255, 255, 255)]  # the human's, no plan
+    assert [style for *_, style in drawn[-1]] == ["ring"]  # the human's, no plan
     for _ in range(3):
         _, _, _, _, info = env.step(info["reference_setpoints"])
         env.render()
-        (reference, white), (plan, yellow) = drawn[-1]
-        assert white == (255, 255, 255) and yellow == (255, 220, 0)
+        (reference, magenta, ring), (plan, yellow, dot) = drawn[-1]  # the plan over the rings
+        assert (magenta, ring) == ((255, 80, 255), "ring") and (yellow, dot) == (
+            (255, 220, 0),
+            "dot",
+        )
         assert info["l1"] < 1e-6 and np.abs(plan - reference).max() < 1e-3  # one on the other
         assert np.abs(reference - env.unwrapped._ref_future).max() > 0.3  # not the next ones
 
@@ -273,8 +276,8 @@ def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     differs = np.any(plain != annotated, axis=2)
     h, w = differs.shape
     regions = np.zeros_like(differs)
-    regions[:70, :330] = True  # caption
-    regions[h - 100 :, :200] = True  # colour legend
+    regions[:90, :330] = True  # caption
+    regions[h - 120 :, :200] = True  # colour legend
     regions[:110, w - 310 : w - 170] = True  # the grid's legend, beside the inset
     regions[h - 45 :, w - 130 :] = True  # scale bar
     assert differs[:60, :250].mean() > 0.05 and differs[h - 90 :, :150].mean() > 0.05
@@ -283,13 +286,14 @@ def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     assert not differs[~regions].any()  # the picture itself is untouched
     # a caption too wide for the grid's legend beside the inset: it goes to the bottom,
     # beside the colours' (under the inset it hid the road ahead)
-    wide = _frame(env, info, True, "my planner " + "x" * 40, np.array([1.5e6, 0.25, 80.0]))
+    wide = _frame(env, info, True, "my planner " + "x" * 50, np.array([1.5e6, 0.25, 80.0]))
     differs = np.any(plain != wide, axis=2)
     assert not differs[170:300, w - 170 :].any()  # nothing under the inset
     assert differs[h - 90 :, 150:300].mean() > 0.05 and not differs[h - 100 :, 310 : w - 140].any()
     lines = Caption.from_info(info, "my planner", np.array([1.5, 0.25, 80.0])).lines()
     assert lines == ["my planner", "t   0.0 s    speed  8.0 m/s",
-                     "summed so far: l1 1.5 m^2  l2 0.25 rad/s  l3 80 m/s"]  # fmt: skip
+                     "fitness so far, each summed over the ticks:",
+                     "  l1 1.5 m^2   l2 0.25 rad/s   l3 80 m/s"]  # fmt: skip
     path, infos = record_rollout(env, Reference(), tmp_path / "o.gif", 3, seed=0)
     frames = iio.imread(path, index=None)
     bare, _ = record_rollout(env, Reference(), tmp_path / "p.gif", 3, seed=0, overlay=False)
@@ -359,3 +363,68 @@ def test_the_view_leads_the_ego_and_points_to_a_human_out_of_it():
     changed = np.argwhere(np.any(here != far, axis=-1))
     assert len(changed) > 30  # the arrow and its label
     assert changed[:, 0].max() < 240  # in the upper half: the human is north
+
+
+def test_vehicles_show_their_heading_and_the_destination_is_marked():
+    """Each vehicle's front quarter is drawn darker (a plain box did not say which way it
+    drives), and the destination handed to the planner is a diamond."""
+    from gridsim.render.topdown import EGO_COLOUR, NOSE_SHADE, TopDownRenderer
+
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    env.reset(seed=0)
+    world = env.unwrapped.world
+    view = TopDownRenderer()
+    frame = view.render(world)
+    a = view._affine(view.centre(world))
+    c, psi, length = world.ego_center(), world.ego[2], world.ego_params.length
+    ahead = np.array([np.cos(psi), np.sin(psi)])
+
+    def colour_at(point):
+        u, v = np.rint(point @ a[:, :2].T + a[:, 2]).astype(int)
+        return tuple(int(k) for k in frame[v, u])
+
+    assert colour_at(c + 0.45 * length * ahead) == tuple(int(k * NOSE_SHADE) for k in EGO_COLOUR)
+    assert colour_at(c - 0.3 * length * ahead) == EGO_COLOUR
+    goal = world.ego[:2] + 15.0 * ahead
+    marked = view.render(world, destination=goal)
+    u, v = np.rint(goal @ a[:, :2].T + a[:, 2]).astype(int)
+    changed = np.argwhere(np.any(marked != frame, axis=-1))
+    assert len(changed) > 20 and np.abs(changed - [v, u]).max() <= 11  # only around it
+
+
+def test_a_video_cut_by_its_steps_limit_says_so_on_its_last_frame(tmp_path, monkeypatch):
+    """An episode ended by the caller's steps limit (``gridsim run --steps``) got no
+    end-of-episode line, unlike one that ended itself: its last frame says "steps limit"."""
+    from gridsim import video
+    from gridsim.render.annotations import Caption
+
+    flags = []
+    frame = video._frame
+    monkeypatch.setattr(video, "_frame", lambda *a: flags.append(a[-1]) or frame(*a))
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    record_rollout(env, Reference(), tmp_path / "o.gif", 3, seed=0)
+    assert flags == [False, False, False, True]  # the first frame, then one a step
+    _, info = env.reset(seed=0)
+    assert Caption.from_info(info, None, None, stopped=True).ended == "steps limit"
+    assert Caption.from_info(info, None, None, True, True).ended == "time limit"
+
+
+def test_run_counts_its_progress_to_the_episodes_own_end(monkeypatch):
+    """``gridsim run --steps 300`` on a recorded track of a few seconds: the bar's total is
+    the episode's length (it showed 300 and stopped at 13 %), and the frames name the seed."""
+    from gridsim import outputs
+    from gridsim.cli.run import run_policy
+
+    bars, labels = [], []
+    make = outputs.progress_bar
+    monkeypatch.setattr(outputs, "progress_bar", lambda **kw: bars.append(make(**kw)) or bars[-1])
+    import gridsim.video
+
+    record = gridsim.video.record_episode
+    monkeypatch.setattr(gridsim.video, "record_episode", lambda *a, label, **kw: (
+        labels.append(label), record(*a, label=label, **kw))[1])  # fmt: skip
+    summary = run_policy("us101_4_1", "reference", 300, seed=5)
+    assert summary["ended_by"] != "steps limit" and summary["steps"] < 300
+    assert bars[0].total == round(summary["ego_track_s"] / 0.1) < 300  # the track's end
+    assert bars[0].n == summary["steps"]
+    assert labels[0](gym.make(ENV_ID).unwrapped).endswith(", seed 5")
