@@ -50,7 +50,11 @@ class Subcommand(argparse.ArgumentParser):
 
 
 def add_subcommands(parser: argparse.ArgumentParser, modules) -> None:
-    """The subcommands of ``parser``: each module's ``add_parser(sub)``, in order."""
+    """The subcommands of ``parser``: each module's ``add_parser(sub)``, in order; and
+    ``--version``."""
+    from gridsim import __version__
+
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, parser_class=Subcommand)
     for module in modules:
         module.add_parser(sub)

@@ -229,11 +229,33 @@ def _fig8(results, methods, out: Path) -> Path:
     return path
 
 
+def _worst_windows(ax, errors: list[np.ndarray], boxes: dict) -> None:
+    """Each method's worst window on a box plot ``boxes`` of ``errors``: a red x, or, above
+    the whiskers' range (the panel stays scaled to the boxes), a red triangle at the top
+    with the value [m]."""
+    ends = [float(np.max(w.get_ydata())) for w in boxes["whiskers"]] or [1.0]
+    top = 1.25 * max(ends)
+    ax.set_ylim(0.0, top)
+    for k, e in enumerate(errors, 1):
+        if not len(e):
+            continue
+        worst = float(e.max())
+        if worst <= top:
+            ax.plot(k, worst, "x", color="tab:red", ms=5)
+        else:
+            ax.plot(k, 0.97 * top, "^", color="tab:red", ms=5)
+            ax.annotate(f"{worst:.2g}", (k, 0.97 * top), xytext=(0, -11),
+                        textcoords="offset points", ha="center", fontsize=6,
+                        color="tab:red")  # fmt: skip
+
+
 def _fig9(results, methods, out: Path) -> Path:
     fig, axes = plt.subplots(1, len(results), figsize=(4.2 * len(results), 3.8), squeeze=False)
     for ax, r in zip(axes[0], results, strict=True):
         names = [m for m in methods if m in r.accuracy]
-        ax.boxplot([r.accuracy[m].window_rmse for m in names], showfliers=False)
+        errors = [np.asarray(r.accuracy[m].window_rmse, float) for m in names]
+        boxes = ax.boxplot(errors, showfliers=False)
+        _worst_windows(ax, errors, boxes)
         ax.set_xticks(np.arange(1, len(names) + 1),
                       [n.replace("NeuroTrajectory", "NT") for n in names], rotation=35,
                       ha="right", fontsize=7)  # fmt: skip
@@ -241,7 +263,8 @@ def _fig9(results, methods, out: Path) -> Path:
     axes[0, 0].set_ylabel("per-window RMSE [m]")
     said = textwrap.wrap(
         "box: the middle half of the held-out windows; orange: the median; whiskers: 1.5 box "
-        "lengths (farther windows not drawn); NT: NeuroTrajectory",
+        "lengths; red x: the worst window (a red triangle with its value where it lies above "
+        "the panel); NT: NeuroTrajectory",
         70 * len(results),
         break_long_words=False,
     )  # (a narrow figure: lines)

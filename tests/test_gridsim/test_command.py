@@ -5,6 +5,8 @@ import io
 import os
 import sys
 
+import pytest
+
 from gridsim.cli.command import run_command
 
 
@@ -207,3 +209,14 @@ def test_run_prints_its_summary_rounded(capsys):
     assert summary["steps"] == 5 and summary["collision"] is False
     figures = [summary["mean_speed"], *summary["fitness_sums"].values()]
     assert all(x == float(f"{x:.4g}") for x in figures)
+
+
+def test_both_commands_say_their_version(capsys):
+    from gridsim import __version__
+    from gridsim.cli import main as gridsim_main
+    from neurotrajectory.cli import main as nt_main
+
+    for main, prog in ((gridsim_main, "gridsim"), (nt_main, "neurotrajectory")):
+        with pytest.raises(SystemExit) as exc:
+            main(["--version"])
+        assert exc.value.code == 0 and capsys.readouterr().out == f"{prog} {__version__}\n"

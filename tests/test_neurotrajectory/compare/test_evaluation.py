@@ -456,3 +456,26 @@ def test_going_on_with_data_is_not_refused_for_windows_it_does_not_read(tmp_path
     _go_on_or_start(partial, {**then, "episodes": None, "episode_seconds": None,
                               "data": str(tmp_path / "sets")}, said.append)  # fmt: skip
     assert "going on with the interrupted evaluation" in said[0] and "--data" in said[0]
+
+
+def test_fig9_shows_each_methods_worst_window():
+    """The box plot's whiskers hid the worst windows ("farther windows not drawn": urban's
+    max e_x of 4.09 m went unseen): each method's worst is a red x, or a red triangle with
+    its value where it lies above the panel."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from neurotrajectory.compare.report import _worst_windows
+
+    rng = np.random.default_rng(0)
+    errors = [rng.uniform(0.2, 1.0, 200), np.r_[rng.uniform(0.2, 1.0, 200), 9.5]]
+    fig, ax = plt.subplots()
+    _worst_windows(ax, errors, ax.boxplot(errors, showfliers=False))
+    marks = [(line.get_marker(), *line.get_xydata()[0]) for line in ax.lines
+             if line.get_marker() in ("x", "^")]  # fmt: skip
+    assert marks[0] == ("x", 1.0, pytest.approx(errors[0].max()))
+    assert marks[1][:2] == ("^", 2.0) and marks[1][2] <= ax.get_ylim()[1]
+    assert [t.get_text() for t in ax.texts] == ["9.5"]
+    plt.close(fig)
