@@ -61,6 +61,10 @@ def plot_run(
             ax.scatter(np.full((~gone).sum(), g), f[~gone, k], s=8, alpha=0.4, color="tab:blue",
                        label="a member" if g == gens[0] else None)  # fmt: skip
         ax.plot(gens, [np.median(f[:, k]) for f in fit], color="tab:red", label="median")
+        if anchored:  # the members' reference, on the same episodes: luck of the draw aside
+            ax.plot(gens, [f[0, k] for f in fit], color="tab:orange", marker=".", ms=5,
+                    label="individual 0, on the same episodes: the "
+                          + ("centre" if centre else "warm start"))  # fmt: skip
         if k == 0 and logged:  # l1 spans decades; ticks at 1, 2 and 5 of each, written out
             ax.set_yscale("symlog")
             ax.yaxis.set_major_locator(SymmetricalLogLocator(base=10, linthresh=2, subs=(1, 2, 5)))
@@ -82,8 +86,9 @@ def plot_run(
         ax.set_title(NAMES[k] + ("\n(log scale)" if k == 0 and logged else ""), fontsize=9,
                      pad=10)  # fmt: skip
     fig.suptitle("every member of every generation, on that generation's training episodes "
-                 "(drawn anew each generation)", fontsize=10)  # fmt: skip
-    _legend_below(fig, axes[0], 3, 0.07)
+                 "(drawn anew each generation: compare members within a generation)",
+                 fontsize=10)  # fmt: skip
+    _legend_below(fig, axes[0], 4 if anchored else 3, 0.07)
     paths.append(_save(fig, folder / "objectives.png"))
 
     if final is None:

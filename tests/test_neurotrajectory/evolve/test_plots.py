@@ -84,3 +84,24 @@ def test_the_front_plot_is_scaled_to_the_members_that_completed(tmp_path, monkey
     labels = figures[1].legends[0].get_texts()
     assert any("lost an episode" in t.get_text() and "not to scale" in t.get_text()
                for t in labels)  # fmt: skip
+
+
+@pytest.mark.parametrize(("centre", "says"), [(False, "warm start"), (True, "centre")])
+def test_the_objectives_plot_draws_individual_0_beside_the_members(tmp_path, monkeypatch, centre,
+                                                                   says):  # fmt: skip
+    """Each generation's episodes are drawn anew, so the members' scores move with the
+    draw; in an anchored or evolution-strategies run individual 0 (the warm start, or the
+    centre) drives the same episodes: its line is the reference to read them against."""
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig) or path)
+    monkeypatch.setattr(plots, "generation_hypervolume", lambda *args: 1.0)
+    history = [{"generation": g, "fitness": [[50.0 * (g + 1) + i, 1.0, 1700.0] for i in range(4)],
+                "violation": [0.0] * 4, "rank": [0] * 4, "hypervolume": 1.0}
+               for g in range(3)]  # fmt: skip
+    plots.plot_run(tmp_path, history, anchored=True, centre=centre)
+    l1 = figures[0].axes[0]
+    (line,) = [ln for ln in l1.lines if ln.get_label().startswith("individual 0")]
+    assert line.get_label().endswith(says) and line.get_ydata().tolist() == [50.0, 100.0, 150.0]
+    figures.clear()
+    plots.plot_run(tmp_path, history)  # no warm start: no such line
+    assert not [ln for ln in figures[0].axes[0].lines if ln.get_label().startswith("individual")]
