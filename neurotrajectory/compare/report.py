@@ -98,9 +98,12 @@ def _write_markdown(results, methods, out: Path, run_info: dict) -> Path:
               for r in results if r.trained_test_tracks]  # fmt: skip
     if any(r.closed_loop for r in results):
         lines += ["## Closed loop in GridSim-v0", "",
-                  "Rates are shares of episodes; progress: distance driven / the human's in the "
-                  "same time; speed [m/s], steering rate [rad/s]; l1, l2, l3 "
-                  "are episode sums of the fitness vector.", ""]  # fmt: skip
+                  "Rates are shares of episodes; completed: ran to its end without a collision "
+                  "or leaving the road (a car that stands still completes: read it beside "
+                  "progress); progress: distance driven / the human's in the same time; speed "
+                  "[m/s], steering rate [rad/s]; l1, l2, l3 are episode sums of the fitness "
+                  "vector, over episodes of different lengths where some fail (compare methods "
+                  "on the episodes both complete: `heldout`'s paired figures).", ""]  # fmt: skip
         cols = ["group", "method", *LOOP_KEYS]
         lines += ["| " + " | ".join(cols) + " |", "|" + "---|" * len(cols)]
         for r in results:
