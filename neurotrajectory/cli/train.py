@@ -204,8 +204,9 @@ def _train(args: argparse.Namespace, out: str, started: float) -> int:
                   f"`neurotrajectory heldout --run {run.out} --out {stale}` drives this one",
                   file=sys.stderr)  # fmt: skip
         if heldout:
-            run.say(f"driving the knee, its warm start and the destination curve on {heldout} "
-                    "held-out episodes")  # fmt: skip
+            warm = ", its warm start" if run.warm_start_genome() is not None else ""
+            run.say(f"driving the knee{warm} and the destination curve on {heldout} held-out "
+                    "episodes")  # fmt: skip
             report_heldout(run, heldout, progress=not args.quiet)
         if video:  # an episode no generation trained on
             run.say(f"filming the knee on a held-out episode: {video}")

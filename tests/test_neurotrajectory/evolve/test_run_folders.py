@@ -282,6 +282,10 @@ def test_train_says_what_it_does_between_its_progress_bars(tmp_path, capsys):
                     "episodes", "filming the knee on a held-out episode"]  # fmt: skip
     assert main(["train", *flags, "--quiet", "--out", str(tmp_path / "b")]) == 0
     assert "neurotrajectory: " not in capsys.readouterr().err
+    cold = [*QUICK[:-1], "--generations", "1", "--validation-episodes", "2", "--heldout", "1"]
+    assert main(["train", *cold, "--out", str(tmp_path / "c")]) == 0  # no warm start
+    assert ("neurotrajectory: driving the knee and the destination curve on 1 held-out "
+            "episodes") in capsys.readouterr().err  # fmt: skip
 
 
 def test_a_run_resumes_only_on_the_files_it_began_with(tmp_path, capsys):
