@@ -72,7 +72,32 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     if not files:
         what = "in it" if path.is_dir() else "match the pattern"
         raise ScenarioError(f"{text}: no scenario files ({', '.join(SUFFIXES)}) {what}")
-    return sorted(files)
+    named = _files_named_by(files)  # a YAML's map beside it is its data, not a scenario
+    return sorted(f for f in files if f.suffix.lower() != ".xml" or f.resolve() not in named)
+
+
+def _files_named_by(files: list[Path]) -> set[Path]:
+    """The files (resolved) the YAML scenario files among ``files`` name as their map
+    (``road.map``) or track library (``traffic.library``), relative to each YAML file; a
+    YAML file that does not parse names none (loading it says why)."""
+    import yaml
+
+    named = set()
+    for f in files:
+        if f.suffix.lower() not in _YAML:
+            continue
+        try:
+            doc = yaml.safe_load(f.read_text())
+        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+            continue
+        if not isinstance(doc, dict):
+            continue
+        road, traffic = doc.get("road"), doc.get("traffic")
+        refs = [road.get("map")] if isinstance(road, dict) else []
+        library = traffic.get("library") if isinstance(traffic, dict) else None
+        refs += library if isinstance(library, list) else [library]
+        named |= {(f.parent / r).resolve() for r in refs if isinstance(r, str) and r}
+    return named
 
 
 def _is_list(text: str) -> bool:

@@ -259,6 +259,10 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
             return empty.format("scenario_id")
         if not row[track] or row[track].isspace():
             return empty.format("track_id")
+        if "/" in row[track]:
+            return (f"track_id {short_repr(row[track])} has a '/': a track of a collection of "
+                    "scenes is named SCENE/ID (`--track`, `ego.track`), so such an id cannot "
+                    "be told apart from one; replace the '/' (e.g. with '_')")  # fmt: skip
         return None
 
     short, why = next(((k, said) for k, row in enumerate(rows) if (said := problem(row))),

@@ -102,6 +102,12 @@ def execute(args: argparse.Namespace) -> int:
                 "tracks": tracks,
                 "group": manifest["group"],
                 "source": manifest["source"],
+                # (a scripted pipeline sees here what the warning said: files left out)
+                **(
+                    {"skipped": [s["file"] for s in manifest["skipped"]]}
+                    if manifest.get("skipped")
+                    else {}
+                ),  # fmt: skip
             },
             indent=1,
         )

@@ -117,6 +117,11 @@ def record_dataset(
     manifest = record_group_into(writer, name, episodes, seed, stride, duration, progress,
                                   source, goal_seconds, planned, state, checkpoints,
                                   files)  # fmt: skip
+    changed = input_changes(stamps, group_inputs(name, source))
+    if changed:  # (the windows mix the contents before and after: neither dataset)
+        raise DatasetError(f"{name}: files changed while they were recorded ({changed}): the "
+                           f"windows in {out} mix their contents before and after the change; "
+                           f"record again once they are final (remove {out} first)")  # fmt: skip
     manifest["inputs"] = stamps
     if split is None:
         done = writer.finish(manifest)

@@ -485,3 +485,19 @@ def test_a_track_of_a_skipped_file_s_scene_is_warned_about_not_refused(folder):
         'ego: {track: ["USA_US101-4_1_T-1/381", "Gone-1_1/3"]}\n')  # fmt: skip
     with pytest.warns(DataWarning, match=r"Gone-1_1/3.*may be of a skipped file's scene"):
         load_collection(str(folder), {"ego": {"vehicle": {"v_max": 25.0}}})
+
+
+def test_a_map_beside_the_yaml_that_names_it_is_not_a_scenario_of_its_own(tmp_path):
+    """The layout the docs show (``map: scene.xml`` beside the YAML file) made a folder of
+    one scene a collection of two: the XML was read as a scenario too, and its windows and
+    episodes counted twice. A file a YAML names as its map or library is its data; an XML
+    file no YAML names is still a scenario."""
+    shutil.copy(COMMONROAD / "straight_2020a.xml", tmp_path / "scene.xml")
+    shutil.copy(COMMONROAD / "straight_2018b.xml", tmp_path / "other.xml")
+    (tmp_path / "mine.yaml").write_text(
+        "name: mine\nroad: {type: recorded, map: scene.xml}\ntraffic: {library: [scene]}\n"
+    )
+    assert scenario_files(tmp_path) == [tmp_path / "mine.yaml", tmp_path / "other.xml"]
+    assert scenario_files(str(tmp_path / "*")) == [tmp_path / "mine.yaml", tmp_path / "other.xml"]
+    scenarios = load_collection(tmp_path)
+    assert sorted(s.name for s in scenarios) == ["mine", "other"]

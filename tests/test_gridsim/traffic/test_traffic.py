@@ -66,6 +66,10 @@ def test_user_csv_loads(tmp_path):
          r"tracks.csv:3: 10 column\(s\), the header has 9 \(a comma inside a text field"),
         (["s,,0,0,0,0,1,4.5,1.8", "s,,0.1,0,0,0,1,4.5,1.8"], HEADER,
          r"tracks.csv:2: column 'track_id' is empty"),
+        # (validated, then refused by record and --track as "of no scene here")
+        (["s,cam1/427,0,0,0,0,1,4.5,1.8", "s,cam1/427,0.1,0,0,0,1,4.5,1.8"], HEADER,
+         r"tracks.csv:2: track_id 'cam1/427' has a '/': a track of a collection of scenes is "
+         r"named SCENE/ID"),
         (["s,1,0,0,0,0,1,4.5,1.8", ",1,0.1,0,0,0,1,4.5,1.8"], HEADER,
          r"tracks.csv:3: column 'scenario_id' is empty"),
         (["s,1,0,0,0,0,-1,4.5,1.8", "s,1,0.1,x,0,0,1,4.5,1.8"], HEADER,
