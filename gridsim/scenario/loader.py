@@ -48,6 +48,18 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                     )  # fmt: skip
         return super().construct_mapping(node, deep=deep)
 
+    def construct_yaml_int(self, node):
+        """An integer, but one written with a leading zero (``00427``: a zero-padded track
+        id) as written, a string: YAML 1.1 reads it as octal (279), an id never written."""
+        if _ZERO_PADDED.match(node.value):
+            return node.value
+        return super().construct_yaml_int(node)
+
+
+#: A plain scalar YAML 1.1 reads as an octal integer: digits after a leading zero.
+_ZERO_PADDED = re.compile(r"^[-+]?0[0-9_]+$")
+_UniqueKeyLoader.add_constructor("tag:yaml.org,2002:int", _UniqueKeyLoader.construct_yaml_int)
+
 
 #: Bounds on a scenario YAML document (the built-in ones are under 4 KB, 300 nodes, depth 5),
 #: so that a hostile file (nested aliases, deep nesting) is refused at once: its size

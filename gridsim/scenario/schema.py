@@ -6,6 +6,7 @@ given to users (``fov``, ``yaw``, ``max_steer``...), radians nowhere in YAML.
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from types import UnionType
@@ -50,6 +51,10 @@ def _members(annotation: Any) -> list[Any]:
     return [_bare(annotation)]
 
 
+#: A number written with leading zeros (the YAML loader keeps ``00427`` as text: an id).
+_LEADING_ZERO = re.compile(r"^[-+]?0[0-9_]+$")
+
+
 def _is_number_type(annotation: Any) -> bool:
     """Whether a field of ``annotation`` holds a number (``int``, ``float``, or one of them or
     None)."""
@@ -89,8 +94,12 @@ class Strict(BaseModel):
             for loc, item in items:
                 # (other text fails pydantic's own check, which names the key)
                 if isinstance(item, bool) or (isinstance(item, str) and is_number(item)):
-                    what = "a YAML yes/no/true/false, which is a boolean" if isinstance(
-                        item, bool) else "text: write it without quotes"  # fmt: skip
+                    if isinstance(item, bool):
+                        what = "a YAML yes/no/true/false, which is a boolean"
+                    elif _LEADING_ZERO.match(item.strip()):  # (the loader keeps 010 as text)
+                        what = "text: write it without the leading zeros (YAML reads them as octal)"
+                    else:
+                        what = "text: write it without quotes"
                     said = PydanticCustomError("value_error", f"expects a number, not {what}")
                     wrong.append(InitErrorDetails(type=said, loc=loc, input=item))
         if wrong:

@@ -89,6 +89,26 @@ def test_missing_file(tmp_path, monkeypatch):
     assert str(err.value) == wanted
 
 
+def test_a_number_with_leading_zeros_is_kept_as_written(tmp_path):
+    """YAML 1.1 reads ``00427`` as octal 279: a zero-padded track id became an id never
+    written (a probe: "not in scene: 279"). It is kept as text; a number key given so says
+    to drop the zeros."""
+    from gridsim.scenario.loader import _load_yaml
+
+    doc = _load_yaml("a: 00427\nb: 0x1F\nc: 12\nd: 0\ne: -007\nf: [0401, 381]\n", "x")
+    assert doc == {"a": "00427", "b": 31, "c": 12, "d": 0, "e": "-007", "f": ["0401", 381]}
+    padded = tmp_path / "padded.yaml"
+    padded.write_text("name: p\nroad: {type: seamless}\nsimulation: {duration: 010}\n")
+    said = r"duration: expects a number, not text: write it without the leading zeros"
+    with pytest.raises(ScenarioError, match=said):
+        load_scenario(padded)
+    track = tmp_path / "track.yaml"
+    track.write_text("name: t\nroad: {type: recorded, map: 'builtin:USA_US101-3_3_T-1', "
+                     "scene: USA_US101-3_3_T-1}\nego: {track: [0401]}\n")  # fmt: skip
+    with pytest.raises(ScenarioError, match=r"not in scene.*: 0401"):  # as written, not 257
+        build_world(load_scenario(track))
+
+
 def test_malformed_yaml_names_file_and_line(tmp_path):
     p = tmp_path / "bad.yaml"
     p.write_text("name: x\nroad:\n  type: seamless\n  lanes: [3\n")
