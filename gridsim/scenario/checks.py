@@ -8,8 +8,9 @@ traffic but is not offered as the ego. When most of a scene's tracks have one
 steps): that is a **problem**, and the scene is refused by ``gym.make``, ``record``, ``train``,
 ``evaluate`` and ``gridsim validate`` alike. Each line names the file, the track and the
 numbers. Thresholds are module constants. (Impossible data, such as non-finite values or
-jumps no vehicle can make, is refused earlier, when the tracks are read:
-:func:`gridsim.traffic.track.track_data_problem`.)
+jumps no vehicle can make, is dealt with earlier, when the tracks are read:
+:func:`gridsim.traffic.track.track_data_problem`; a CSV's impossible tracks are left out,
+or the file refused when most are: :data:`gridsim.traffic.library.MAX_IMPOSSIBLE_SHARE`.)
 """
 
 from __future__ import annotations

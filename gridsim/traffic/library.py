@@ -184,7 +184,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
     order = np.lexsort((values[:, 0], group))  # by track, then time (stable: file order)
     values, group, line = values[order], group[order], np.concatenate(at)[order]
     bounds = np.flatnonzero(np.diff(group)) + 1
-    tracks, split, single, resized, repeated = [], [], [], [], []
+    tracks, split, single, resized, repeated, impossible = [], [], [], [], [], []
     for (sid, tid), a, rows_at in zip(index, np.split(values, bounds), np.split(line, bounds),
                                       strict=True):  # fmt: skip
         again = np.diff(a[:, 0]) <= 0  # (sorted by time: a time stamp given again)
@@ -210,10 +210,19 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             if len(piece) < 2:
                 single.append(f"({sid}, {name})")
                 continue
-            tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
-                                np.unwrap(piece[:, 3]), piece[:, 4], float(piece[0, 5]),
-                                float(piece[0, 6]), str(path)))  # fmt: skip
-    _warn_tracks(path, split, single, resized, repeated)
+            try:
+                tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
+                                    np.unwrap(piece[:, 3]), piece[:, 4], float(piece[0, 5]),
+                                    float(piece[0, 6]), str(path)))  # fmt: skip
+            except DataError as exc:  # impossible data: the track, or the file (below)
+                impossible.append(str(exc).removeprefix(f"{path}: "))
+    if len(impossible) > MAX_IMPOSSIBLE_SHARE * (len(tracks) + len(impossible)):
+        more = [f"... and {len(impossible) - 10} more"] if len(impossible) > 10 else []
+        raise DataError("\n    ".join([f"{path}: {len(impossible)} of its "
+                                       f"{len(tracks) + len(impossible)} tracks are impossible:",
+                                       *impossible[:10], *more]) if len(impossible) > 1
+                        else f"{path}: {impossible[0]}")  # fmt: skip
+    _warn_tracks(path, split, single, resized, repeated, impossible)
     if not tracks:
         raise DataError(f"{path}: no track with at least 2 states")
     return tracks
@@ -298,6 +307,12 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
     return values
 
 
+#: A file whose tracks are impossible data (non-finite, jumps no vehicle makes: see
+#: :func:`~gridsim.traffic.track.track_data_problem`) in more than this share is refused,
+#: naming them; fewer are left out with a warning naming each (one glitch of a recording of
+#: thousands of vehicles refused the file).
+MAX_IMPOSSIBLE_SHARE = 0.5
+
 #: s: a pause between two states of a track longer than this (and than ten of its usual
 #: steps) ends it: what follows is another vehicle under the same id (NGSIM reuses ids)
 SPLIT_GAP = 2.0
@@ -313,10 +328,15 @@ def _pieces(a: np.ndarray) -> list[np.ndarray]:
 
 
 def _warn_tracks(path: Path, split: list, single: list, resized: list,
-                 repeated: list) -> None:  # fmt: skip
-    """One :class:`DataWarning` naming the tracks cut at a pause, those left out, those
-    whose size varies, and the rows given twice (``(count, first line)`` per track)."""
+                 repeated: list, impossible: list) -> None:  # fmt: skip
+    """One :class:`DataWarning` naming the tracks cut at a pause, those left out (a single
+    state, or ``impossible`` data: each one's problem), those whose size varies, and the
+    rows given twice (``(count, first line)`` per track)."""
     parts = []
+    if impossible:
+        more = [f"... and {len(impossible) - 10} more"] if len(impossible) > 10 else []
+        parts.append("\n    ".join([f"{len(impossible)} track(s) left out, their data "
+                                    "impossible:", *impossible[:10], *more]))  # fmt: skip
     if repeated:
         count = sum(n for n, _ in repeated)
         parts.append(f"{count} row(s) repeat an earlier one exactly (the first at line "

@@ -1189,3 +1189,24 @@ def test_the_compiled_flat_tables_are_those_numpy_made():
                      (got_first, first), (got_last, last), (got_counts, counts)):  # fmt: skip
             np.testing.assert_array_equal(a, b)
             assert a.dtype == b.dtype
+
+
+def test_a_track_of_impossible_data_is_left_out_unless_most_are(tmp_path):
+    """One sample of one vehicle that leaps 80 m in 0.1 s refused the whole file (a probe:
+    a scene of 2,200 vehicles skipped whole, and only its first problem said): the track is
+    left out with a warning naming it; a file most of whose tracks are impossible is refused
+    naming every one."""
+
+    def rows(track: str, leap: float = 0.0) -> list[str]:
+        return [f"s,{track},{k / 10:g},{k + (leap if k == 5 else 0.0):g},{track},0,10,4.5,1.8"
+                for k in range(10)]  # fmt: skip
+
+    path = write_csv(tmp_path, rows("1") + rows("2", 80.0) + rows("3"), HEADER)
+    with pytest.warns(DataWarning, match=r"1 track\(s\) left out, their data impossible:\n    "
+                      r"track 2 of scene s: state 5 \(t = 0.5 s\): jumps 81"):  # fmt: skip
+        tracks = read_tracks_csv(path)
+    assert [t.track_id for t in tracks] == ["1", "3"]
+    path = write_csv(tmp_path, rows("1", 80.0) + rows("2", 90.0) + rows("3"), HEADER)
+    with pytest.raises(DataError, match=r"2 of its 3 tracks are impossible:\n    track 1 of "
+                       r"scene s: .*jumps 81.*\n    track 2 of scene s: .*jumps 91"):  # fmt: skip
+        read_tracks_csv(path)
