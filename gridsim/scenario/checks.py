@@ -10,7 +10,7 @@ steps): that is a **problem**, and the scene is refused by ``gym.make``, ``recor
 numbers. Thresholds are module constants. (Impossible data, such as non-finite values or
 jumps no vehicle can make, is dealt with earlier, when the tracks are read:
 :func:`gridsim.traffic.track.track_data_problem`; a CSV's impossible tracks are left out,
-or the file refused when most are: :data:`gridsim.traffic.library.MAX_IMPOSSIBLE_SHARE`.)
+or the file refused when most are: :data:`gridsim.traffic.track.MAX_IMPOSSIBLE_SHARE`.)
 """
 
 from __future__ import annotations

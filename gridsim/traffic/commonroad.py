@@ -18,9 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import DataError
+from gridsim.errors import DataError, warn_data
 from gridsim.road.lanelet import commonroad_root, iter_commonroad
-from gridsim.traffic.track import Track
+from gridsim.traffic.track import Track, impossible_note, refuse_mostly_impossible
 
 
 def _scene_id(root_attrib: dict, path: Path) -> str:
@@ -97,13 +97,16 @@ def _is_dynamic(obstacle: ET.Element) -> bool:
 
 
 def read_tracks_commonroad(path: str | Path) -> list[Track]:
-    """The dynamic obstacles of a CommonRoad file as tracks (file order); raise
-    :class:`DataError` naming the file, the obstacle and the state (impossible data: see
-    :func:`~gridsim.traffic.track.track_data_problem`). The file is streamed: memory grows
-    with the tracks, not with the XML."""
+    """The dynamic obstacles of a CommonRoad file as tracks (file order). An obstacle that
+    cannot be read or is impossible data (:func:`~gridsim.traffic.track.track_data_problem`)
+    is left out with a warning naming the file, the obstacle and the state, unless most are:
+    then a :class:`DataError` names them all (:func:`~gridsim.traffic.track.
+    refuse_mostly_impossible`). The file is streamed: memory grows with the tracks, not with
+    the XML."""
     path = Path(path)
     attrib = commonroad_root(path)
     tracks, dt, sid, seen = [], None, _scene_id(attrib, path), set()
+    impossible: list[str] = []
     for ob in iter_commonroad(path, ("obstacle", "dynamicObstacle")):
         if dt is None:
             dt = _time_step(attrib, path)
@@ -111,9 +114,16 @@ def read_tracks_commonroad(path: str | Path) -> list[Track]:
             raise DataError(f"{path}: obstacle id {ob.get('id')} appears twice (must be unique)")
         seen.add(ob.get("id"))
         if _is_dynamic(ob):
-            track = _track(ob, path, sid, dt)
+            try:
+                track = _track(ob, path, sid, dt)
+            except DataError as exc:  # the obstacle left out, or the file (below)
+                impossible.append(str(exc).removeprefix(f"{path}: "))
+                continue
             if track is not None:
                 tracks.append(track)
+    refuse_mostly_impossible(path, len(tracks), impossible)
+    if impossible:
+        warn_data(f"{path}: {impossible_note(impossible)}")
     return tracks
 
 

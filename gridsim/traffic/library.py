@@ -19,7 +19,7 @@ import numpy as np
 from gridsim.errors import DataError, archive_problem, warn_data
 from gridsim.outputs import atomic_text, short_repr
 from gridsim.traffic.commonroad import read_tracks_commonroad
-from gridsim.traffic.track import Track
+from gridsim.traffic.track import Track, impossible_note, refuse_mostly_impossible
 
 REQUIRED_COLUMNS = (
     "scenario_id",
@@ -216,12 +216,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
                                     float(piece[0, 6]), str(path)))  # fmt: skip
             except DataError as exc:  # impossible data: the track, or the file (below)
                 impossible.append(str(exc).removeprefix(f"{path}: "))
-    if len(impossible) > MAX_IMPOSSIBLE_SHARE * (len(tracks) + len(impossible)):
-        more = [f"... and {len(impossible) - 10} more"] if len(impossible) > 10 else []
-        raise DataError("\n    ".join([f"{path}: {len(impossible)} of its "
-                                       f"{len(tracks) + len(impossible)} tracks are impossible:",
-                                       *impossible[:10], *more]) if len(impossible) > 1
-                        else f"{path}: {impossible[0]}")  # fmt: skip
+    refuse_mostly_impossible(path, len(tracks), impossible)
     _warn_tracks(path, split, single, resized, repeated, impossible)
     if not tracks:
         raise DataError(f"{path}: no track with at least 2 states")
@@ -307,12 +302,6 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
     return values
 
 
-#: A file whose tracks are impossible data (non-finite, jumps no vehicle makes: see
-#: :func:`~gridsim.traffic.track.track_data_problem`) in more than this share is refused,
-#: naming them; fewer are left out with a warning naming each (one glitch of a recording of
-#: thousands of vehicles refused the file).
-MAX_IMPOSSIBLE_SHARE = 0.5
-
 #: s: a pause between two states of a track longer than this (and than ten of its usual
 #: steps) ends it: what follows is another vehicle under the same id (NGSIM reuses ids)
 SPLIT_GAP = 2.0
@@ -334,9 +323,7 @@ def _warn_tracks(path: Path, split: list, single: list, resized: list,
     rows given twice (``(count, first line)`` per track)."""
     parts = []
     if impossible:
-        more = [f"... and {len(impossible) - 10} more"] if len(impossible) > 10 else []
-        parts.append("\n    ".join([f"{len(impossible)} track(s) left out, their data "
-                                    "impossible:", *impossible[:10], *more]))  # fmt: skip
+        parts.append(impossible_note(impossible))
     if repeated:
         count = sum(n for n, _ in repeated)
         parts.append(f"{count} row(s) repeat an earlier one exactly (the first at line "

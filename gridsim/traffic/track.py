@@ -140,6 +140,39 @@ def track_data_problem(track: Track) -> str | None:
     return None
 
 
+#: A file whose tracks are impossible data (:func:`track_data_problem`, or a CommonRoad
+#: obstacle that cannot be read) in more than this share is refused, naming them; fewer are
+#: left out with a warning naming each (one glitch among thousands of vehicles refused the
+#: file, naming only the first).
+MAX_IMPOSSIBLE_SHARE = 0.5
+
+#: Problems named in full in one message (the rest counted).
+NAMED_PROBLEMS = 10
+
+
+def refuse_mostly_impossible(path, kept: int, impossible: list[str]) -> None:
+    """A :class:`DataError` naming every problem of ``impossible`` (one per track, without
+    the file's name) when they are more than :data:`MAX_IMPOSSIBLE_SHARE` of the file
+    ``path``'s tracks (``kept`` others)."""
+    if len(impossible) <= MAX_IMPOSSIBLE_SHARE * (kept + len(impossible)):
+        return
+    if len(impossible) == 1:
+        raise DataError(f"{path}: {impossible[0]}")
+    raise DataError(f"{path}: {len(impossible)} of its {kept + len(impossible)} tracks are "
+                    "impossible:" + _listed(impossible))  # fmt: skip
+
+
+def impossible_note(impossible: list[str]) -> str:
+    """What a warning says of the tracks ``impossible`` left out (their problems)."""
+    return f"{len(impossible)} track(s) left out, their data impossible:" + _listed(impossible)
+
+
+def _listed(problems: list[str]) -> str:
+    more = problems[NAMED_PROBLEMS:]
+    lines = [*problems[:NAMED_PROBLEMS], *([f"... and {len(more)} more"] if more else [])]
+    return "".join(f"\n    {line}" for line in lines)
+
+
 def track_name(scene: str, track_id: str) -> str:
     """A track's name across scenes, ``SCENE/ID`` (as datasets label their windows and as
     ``ego.track`` may name a track of a collection's scene)."""

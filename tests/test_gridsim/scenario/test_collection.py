@@ -155,14 +155,18 @@ def test_record_a_folder_as_a_named_group(folder, tmp_path):
 def add_unusable_files(folder: Path) -> dict[str, str]:
     """Files a real collection holds next to good ones, and the reason each is skipped."""
     text = (COMMONROAD / "straight_2018b.xml").read_text()
-    glitch = text.replace("<x>25.0000</x>", "<x>3000025.0</x>", 1)  # one jump of 3,000 km
+    # jumps of 3,000 km in two of its three vehicles (one alone is left out, with a warning)
+    glitch = text.replace("<x>25.0000</x>", "<x>3000025.0</x>")
     (folder / "glitch.xml").write_text(glitch.replace("Straight-1_1", "Glitch-1_1"))
     (folder / "truncated.xml").write_text(text[: len(text) // 2])
     head, _, _ = text.partition("<obstacle")
     (folder / "no_tracks.xml").write_text(head.replace("Straight-1_1", "Empty-1_1")
                                           + "</commonRoad>\n")  # fmt: skip
-    return {"glitch.xml": "jumps 3e+06 m in 0.1 s", "truncated.xml": "not well-formed XML",
-            "no_tracks.xml": "no vehicle tracks"}  # fmt: skip
+    return {
+        "glitch.xml": "2 of its 3 tracks are impossible",
+        "truncated.xml": "not well-formed XML",
+        "no_tracks.xml": "no vehicle tracks",
+    }
 
 
 def test_validate_and_scenarios_take_the_files_of_a_glob_the_shell_expanded(folder, capsys):

@@ -203,3 +203,27 @@ def test_import_never_overwrites_and_checks_before_writing(tmp_path, capsys):
     afile.write_text("x")
     assert main(["import", str(a / "scene.xml"), "--out", str(afile)]) == 2
     assert f"--out {afile}: is a file, expected a folder" in capsys.readouterr().err
+
+
+def test_one_impossible_obstacle_is_left_out_with_a_warning(tmp_path):
+    """One obstacle that jumps 3,000 km refused the whole file (as one glitch refused a CSV
+    of thousands of vehicles): it is left out, the warning naming it; most of them
+    impossible refuse the file, naming each."""
+    import warnings
+
+    from gridsim.errors import DataWarning
+
+    text = (COMMONROAD / "straight_2018b.xml").read_text()
+    one = tmp_path / "one.xml"
+    one.write_text(text.replace("<x>25.0000</x>", "<x>3000025.0</x>", 1))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        tracks = read_tracks_commonroad(one)
+    (said,) = [str(w.message) for w in caught if issubclass(w.category, DataWarning)]
+    assert said.startswith(f"{one}: 1 track(s) left out, their data impossible:\n    track 10 ")
+    assert "jumps 3e+06 m in 0.1 s" in said and [t.track_id for t in tracks] == ["11", "12"]
+    both = tmp_path / "both.xml"
+    both.write_text(text.replace("<x>25.0000</x>", "<x>3000025.0</x>"))
+    with pytest.raises(DataError, match=r"both.xml: 2 of its 3 tracks are impossible:\n    "
+                       r"track 10 .*jumps 3e\+06 m.*\n    track 12 .*jumps"):  # fmt: skip
+        read_tracks_commonroad(both)
