@@ -110,7 +110,7 @@ class Runner:
 
     def run(self, cpu_budget: float) -> dict:
         env, sample, n = self.env, self.env.action_space.sample, self.env.num_envs
-        steps = ends = 0
+        steps, ended_before = 0, len(self.episode_lengths)
         c0, w0 = time.process_time(), time.perf_counter()
         now = c0
         while now - c0 < cpu_budget:
@@ -118,7 +118,6 @@ class Runner:
             steps += n
             self.ep_steps += 1
             if terminated.any() or truncated.any():
-                ends += int((terminated | truncated).sum())
                 self._count_ends(terminated, truncated, info)
             now = time.process_time()
         cpu, wall = now - c0, time.perf_counter() - w0
@@ -133,7 +132,7 @@ class Runner:
             "sim_s_per_cpu_s": sim / cpu,
             "sim_s_per_wall_s": sim / wall,
             "steps": steps,
-            "episodes_ended": ends,
+            "episodes_ended": len(self.episode_lengths) - ended_before,
             "loadavg": os.getloadavg()[0],
         }
 

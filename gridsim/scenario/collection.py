@@ -26,7 +26,7 @@ import numpy as np
 from gridsim.errors import DataError, GridSimError, ScenarioError, UnselectedScene, warn_data
 from gridsim.outputs import counted
 from gridsim.scenario.build import build_world
-from gridsim.scenario.loader import load_scenario, names_a_file
+from gridsim.scenario.loader import load_scenario, names_a_file, scenario_document
 from gridsim.scenario.parts import matching_files
 from gridsim.scenario.schema import Scenario
 from gridsim.seeding import Salt, stream
@@ -79,16 +79,14 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
 def _files_named_by(files: list[Path]) -> set[Path]:
     """The files (resolved) the YAML scenario files among ``files`` name as their map
     (``road.map``) or track library (``traffic.library``), relative to each YAML file; a
-    YAML file that does not parse names none (loading it says why)."""
-    import yaml
-
+    YAML file that cannot be read names none (loading it says why)."""
     named = set()
     for f in files:
         if f.suffix.lower() not in _YAML:
             continue
         try:
-            doc = yaml.safe_load(f.read_text())
-        except (OSError, UnicodeDecodeError, yaml.YAMLError):
+            doc = scenario_document(f)  # (the loader's bounds: a hostile file is refused)
+        except ScenarioError:
             continue
         if not isinstance(doc, dict):
             continue

@@ -19,7 +19,7 @@ from pydantic import ValidationError
 from gridsim.errors import ScenarioError, archive_problem, warn_data
 from gridsim.outputs import counted
 from gridsim.scenario.family import FAMILIES, family_defaults
-from gridsim.scenario.schema import Scenario, ScenarioConfig, Strict
+from gridsim.scenario.schema import ZERO_PADDED, Scenario, ScenarioConfig, Strict
 
 _BUILTIN_DIR = ("data", "scenarios")
 
@@ -51,13 +51,11 @@ class _UniqueKeyLoader(yaml.SafeLoader):
     def construct_yaml_int(self, node):
         """An integer, but one written with a leading zero (``00427``: a zero-padded track
         id) as written, a string: YAML 1.1 reads it as octal (279), an id never written."""
-        if _ZERO_PADDED.match(node.value):
+        if ZERO_PADDED.match(node.value):
             return node.value
         return super().construct_yaml_int(node)
 
 
-#: A plain scalar YAML 1.1 reads as an octal integer: digits after a leading zero.
-_ZERO_PADDED = re.compile(r"^[-+]?0[0-9_]+$")
 _UniqueKeyLoader.add_constructor("tag:yaml.org,2002:int", _UniqueKeyLoader.construct_yaml_int)
 
 
@@ -549,6 +547,14 @@ def load_scenario(
         return commonroad_scenario(Path(name_or_path), overrides, shared)
     text, source, base = _read(name_or_path)
     return parse_scenario(_parse_yaml(text, source), source, base, overrides, shared)
+
+
+def scenario_document(path: str | Path) -> Any:
+    """The YAML document of the scenario file ``path``, read as :func:`load_scenario` reads
+    it (its bounds, duplicate keys refused, numbers with leading zeros kept as written),
+    not yet checked against the schema; a :class:`ScenarioError` if it cannot be read."""
+    text, source, _ = _read(path)
+    return _parse_yaml(text, source)
 
 
 def _parse_yaml(text: str, source: str) -> Any:

@@ -278,8 +278,9 @@ def library_data_report(scenario: Scenario, tracks: list[Track] | None = None) -
 def _library_data_report(tracks: tuple[Track, ...], source: str) -> SceneReport:
     """:func:`library_data_report` of a selection, made once per library and scenario (every
     reset of a generated road draws from it: 1.6 ms each time on the built-in library)."""
-    report = library_report(list(tracks), source)
-    hint = feet_hint(list(tracks))
+    selection = list(tracks)
+    report = library_report(selection, source)
+    hint = feet_hint(selection)
     if hint:
         said = f"{source}: traffic.library: {hint}"
         report = dataclasses.replace(report, warnings=(*report.warnings, said))

@@ -51,8 +51,9 @@ def _members(annotation: Any) -> list[Any]:
     return [_bare(annotation)]
 
 
-#: A number written with leading zeros (the YAML loader keeps ``00427`` as text: an id).
-_LEADING_ZERO = re.compile(r"^[-+]?0[0-9_]+$")
+#: A number written with leading zeros, which YAML 1.1 reads as octal: the scenario loader
+#: keeps it as written (``00427``: a zero-padded id), and a number key says to drop them.
+ZERO_PADDED = re.compile(r"^[-+]?0[0-9_]+$")
 
 
 def _is_number_type(annotation: Any) -> bool:
@@ -96,7 +97,7 @@ class Strict(BaseModel):
                 if isinstance(item, bool) or (isinstance(item, str) and is_number(item)):
                     if isinstance(item, bool):
                         what = "a YAML yes/no/true/false, which is a boolean"
-                    elif _LEADING_ZERO.match(item.strip()):  # (the loader keeps 010 as text)
+                    elif ZERO_PADDED.match(item.strip()):  # (the loader keeps 010 as text)
                         what = "text: write it without the leading zeros (YAML reads them as octal)"
                     else:
                         what = "text: write it without quotes"

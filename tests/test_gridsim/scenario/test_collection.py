@@ -505,3 +505,17 @@ def test_a_map_beside_the_yaml_that_names_it_is_not_a_scenario_of_its_own(tmp_pa
     assert scenario_files(str(tmp_path / "*")) == [tmp_path / "mine.yaml", tmp_path / "other.xml"]
     scenarios = load_collection(tmp_path)
     assert sorted(s.name for s in scenarios) == ["mine", "other"]
+
+
+def test_a_folder_listing_reads_its_yaml_files_within_the_loaders_bounds(tmp_path):
+    """The listing looks into each YAML file for the map it names, with the loader's own
+    reading (its bounds): a file nested thousands of brackets deep is refused at once
+    (YAML's own reader raised a RecursionError out of the listing) and still listed
+    (loading it says why)."""
+    from gridsim.scenario.loader import load_scenario
+
+    shutil.copy(COMMONROAD / "straight_2020a.xml", tmp_path / "scene.xml")
+    (tmp_path / "deep.yaml").write_text("road: " + "[" * 3000 + "]" * 3000 + "\n")
+    assert scenario_files(tmp_path) == [tmp_path / "deep.yaml", tmp_path / "scene.xml"]
+    with pytest.raises(ScenarioError, match="brackets nested 3000 levels deep"):
+        load_scenario(tmp_path / "deep.yaml")
