@@ -19,7 +19,12 @@ import numpy as np
 from gridsim.errors import DataError, archive_problem, warn_data
 from gridsim.outputs import atomic_text, short_repr
 from gridsim.traffic.commonroad import read_tracks_commonroad
-from gridsim.traffic.track import Track, impossible_note, refuse_mostly_impossible
+from gridsim.traffic.track import (
+    MAX_IMPOSSIBLE_SHARE,
+    Track,
+    impossible_note,
+    refuse_mostly_impossible,
+)
 
 REQUIRED_COLUMNS = (
     "scenario_id",
@@ -158,12 +163,16 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
         where = [header.index(c) for c in REQUIRED_COLUMNS]
         index: dict[tuple[str, str], int] = {}  # track -> its number, in order of first row
         blocks, groups, at, rows, lines = [], [], [], [], []
+        gaps = _MissingValues()
 
-        def convert() -> None:  # the rows read so far
-            blocks.append(_block(path, header, where, rows, lines))
-            at.append(np.array(lines, dtype=np.int64))
+        def convert() -> None:  # the rows read so far (those with a missing value left out)
+            values, missing = _block(path, header, where, rows, lines)
+            gaps.note(values, missing, lines)
+            keep = ~missing
+            blocks.append(values[keep])
+            at.append(np.array(lines, dtype=np.int64)[keep])
             groups.append([index.setdefault((r[where[0]], r[where[1]]), len(index))
-                           for r in rows])  # fmt: skip
+                           for r, kept in zip(rows, keep, strict=True) if kept])  # fmt: skip
             rows.clear()
             lines.clear()
 
@@ -179,6 +188,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             convert()
     if not blocks:
         raise DataError(f"{path}: no data rows")
+    gaps.refuse_most(path)
     values = np.concatenate(blocks)
     group = np.concatenate([np.array(g, dtype=np.int64) for g in groups])
     order = np.lexsort((values[:, 0], group))  # by track, then time (stable: file order)
@@ -217,7 +227,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             except DataError as exc:  # impossible data: the track, or the file (below)
                 impossible.append(str(exc).removeprefix(f"{path}: "))
     refuse_mostly_impossible(path, len(tracks), impossible)
-    _warn_tracks(path, split, single, resized, repeated, impossible)
+    _warn_tracks(path, split, single, resized, repeated, impossible, gaps.note_text())
     if not tracks:
         raise DataError(f"{path}: no track with at least 2 states")
     return tracks
@@ -243,11 +253,11 @@ _BLOCK = 1 << 16
 
 def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]],
            lines: list[int]) -> np.ndarray:  # fmt: skip
-    """The numbers ``(rows, 7)`` of a block of CSV ``rows`` (at file ``lines``), or a
-    :class:`DataError` naming the block's first bad row's first problem, as a row by row
-    reading finds it: a row cut short or with values past the header's columns, an empty
-    scene or track id, a cell that is not a finite number, a negative speed or a size not
-    above 0."""
+    """The numbers ``(rows, 7)`` of a block of CSV ``rows`` (at file ``lines``) and which
+    rows miss a value (a cell of :data:`MISSING`, read as NaN), or a :class:`DataError`
+    naming the block's first bad row's first problem, as a row by row reading finds it: a
+    row cut short or with values past the header's columns, an empty scene or track id, a
+    cell that is not a number or is infinite, a negative speed or a size not above 0."""
     need, width = max(where) + 1, len(header)
     scene, track = where[0], where[1]
     empty = "column {!r} is empty; every row names its scene and track"
@@ -279,12 +289,15 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
         raw = [row[where[c + 2]] for row in rows[:short]]
         try:
             values[:, c] = np.array(raw, dtype=np.float64)
-        except ValueError:
-            k = next(k for k, text in enumerate(raw) if not is_number(text))
+        except ValueError:  # an empty cell, "NA", ... or text: cell by cell
+            raw = ["nan" if text.strip().lower() in MISSING else text for text in raw]
+            k = next((k for k, text in enumerate(raw) if not is_number(text)), len(raw))
             values[:k, c] = np.array(raw[:k], dtype=np.float64)  # (the rows before it)
-            first_bad.append((k, c, f"column {name!r} is not a number: {short_repr(raw[k])}"))
+            if k < len(raw):
+                first_bad.append((k, c, f"column {name!r} is not a number: "
+                                        f"{short_repr(raw[k])}"))  # fmt: skip
         end = first_bad[-1][0] if first_bad and first_bad[-1][1] == c else len(raw)
-        bad = np.flatnonzero(~np.isfinite(values[:end, c]))
+        bad = np.flatnonzero(np.isinf(values[:end, c]))
         if len(bad):
             k = int(bad[0])
             first_bad.append((k, c, f"column {name!r} is {short_repr(raw[k])}; expected a "
@@ -299,7 +312,57 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
     if first_bad:
         k, _, message = min(first_bad)
         raise DataError(f"{path}:{lines[k]}: {message}")
-    return values
+    return values, np.isnan(values).any(axis=1)
+
+
+#: What a CSV cell that holds no value reads as (lower case, stripped): an empty cell and
+#: the words spreadsheets and data frames write for a missing value.
+MISSING = frozenset({"", "nan", "-nan", "na", "n/a", "#n/a", "null", "none"})
+
+
+class _MissingValues:
+    """The rows of a CSV left out for a missing value (:data:`MISSING`): how many of how
+    many, and the first one's line and column."""
+
+    def __init__(self) -> None:
+        self.rows = self.missing = 0
+        self.first: tuple[int, str] | None = None
+        self.per_column = np.zeros(len(_NUMERIC), np.int64)
+
+    def note(self, values: np.ndarray, missing: np.ndarray, lines: list[int]) -> None:
+        """Count a block's rows (``values`` at file ``lines``; ``missing``: which miss one)."""
+        self.rows += len(missing)
+        count = int(np.count_nonzero(missing))
+        if count and self.first is None:
+            k = int(np.argmax(missing))
+            column = _NUMERIC[int(np.argmax(np.isnan(values[k])))]
+            self.first = (lines[k], column)
+        self.missing += count
+        if count:
+            self.per_column += np.count_nonzero(np.isnan(values[missing]), axis=0)
+
+    def _what(self) -> str:
+        line, column = self.first or (0, "")
+        return (f"{self.missing} of its {self.rows} rows miss a value (an empty or NaN cell; "
+                f"the first at line {line}, column {column!r})")  # fmt: skip
+
+    def refuse_most(self, path: Path) -> None:
+        """A :class:`DataError` when more than :data:`MAX_IMPOSSIBLE_SHARE` of the rows
+        miss a value (a column not filled in, or the wrong file, rather than a glitch)."""
+        empty = [name for name, n in zip(_NUMERIC, self.per_column, strict=True)
+                 if n == self.rows]  # fmt: skip
+        if empty:
+            raise DataError(f"{path}: column(s) {', '.join(map(repr, empty))} hold no value in "
+                            "any row (empty or NaN cells)")  # fmt: skip
+        if self.missing > MAX_IMPOSSIBLE_SHARE * self.rows:
+            raise DataError(f"{path}: {self._what()}; fill them in, or leave out the rows "
+                            "that cannot be")  # fmt: skip
+
+    def note_text(self) -> str | None:
+        """What the file's warning says of the rows left out, if any."""
+        if not self.missing:
+            return None
+        return f"{self._what()}: those rows are left out, their tracks read without them"
 
 
 #: s: a pause between two states of a track longer than this (and than ten of its usual
@@ -317,11 +380,12 @@ def _pieces(a: np.ndarray) -> list[np.ndarray]:
 
 
 def _warn_tracks(path: Path, split: list, single: list, resized: list,
-                 repeated: list, impossible: list) -> None:  # fmt: skip
+                 repeated: list, impossible: list, missing: str | None) -> None:  # fmt: skip
     """One :class:`DataWarning` naming the tracks cut at a pause, those left out (a single
-    state, or ``impossible`` data: each one's problem), those whose size varies, and the
-    rows given twice (``(count, first line)`` per track)."""
-    parts = []
+    state, or ``impossible`` data: each one's problem), those whose size varies, the rows
+    given twice (``(count, first line)`` per track) and (``missing``) those left out for a
+    missing value."""
+    parts = [missing] if missing else []
     if impossible:
         parts.append(impossible_note(impossible))
     if repeated:

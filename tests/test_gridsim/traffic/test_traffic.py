@@ -48,10 +48,15 @@ def test_user_csv_loads(tmp_path):
     [
         (["s,1,0,0,0,0,10,4.5,1.8"], "scenario_id,track_id,time_s,x_m,y_m", "missing column"),
         (
-            ["s,1,0,0,0,0,10,4.5,1.8", "s,1,0.1,nan,0,0,10,4.5,1.8"],
+            ["s,1,0,0,0,0,10,4.5,1.8", "s,1,0.1,-inf,0,0,10,4.5,1.8"],
             HEADER,
-            r"tracks.csv:3: column 'x_m' is 'nan'",
+            r"tracks.csv:3: column 'x_m' is '-inf'; expected a finite number",
         ),
+        (["s,1,0,0,0,,10,4.5,1.8", "s,1,0.1,1,0,NaN,10,4.5,1.8"], HEADER,
+         r"tracks.csv: column\(s\) 'heading_rad' hold no value in any row"),
+        (["s,1,0,0,0,0,10,4.5,1.8", "s,1,0.1,,0,0,10,4.5,1.8", "s,1,0.2,NA,0,0,10,4.5,1.8"],
+         HEADER, r"tracks.csv: 2 of its 3 rows miss a value \(an empty or NaN cell; the first "
+         r"at line 3, column 'x_m'\); fill them in"),
         (["s,1,0,0,zero,0,10,4.5,1.8"], HEADER, "column 'y_m' is not a number"),
         (["s,1,0,0,0,0,-1,4.5,1.8"], HEADER, "speed_mps must be >= 0"),
         (["s,1,0,0,0,0,10,4.5,1.8", "s,1,0,1,0,0,10,4.5,1.8"], HEADER,
@@ -88,6 +93,26 @@ def test_user_csv_loads(tmp_path):
 def test_bad_csv_names_the_problem(tmp_path, rows, header, message):
     with pytest.raises(DataError, match=message):
         read_tracks_csv(write_csv(tmp_path, rows, header))
+
+
+def test_rows_with_a_missing_value_are_left_out_with_a_warning(tmp_path):
+    """An empty or NaN cell (a data frame's export of a dropped sample) leaves its row out,
+    with a warning counting them and naming the first; the rest of the file is read (one
+    such cell refused the whole file). Other text and infinities are still refused."""
+    rows = [f"s,{tid},{k * 0.1:.1f},{k},0,0,10,4.5,1.8" for tid in (1, 2) for k in range(10)]
+    rows[3] = "s,1,0.3,,0,0,10,4.5,1.8"
+    rows[12] = "s,2,0.2,2,NaN,0,10,4.5,1.8"
+    rows[15] = "s,2,0.5,5,0,n/a,10,4.5,1.8"
+    with pytest.warns(DataWarning) as caught:
+        first, second = read_tracks_csv(write_csv(tmp_path, rows))
+    (message,) = [str(w.message) for w in caught]
+    assert ("3 of its 20 rows miss a value (an empty or NaN cell; the first at line 5, column "
+            "'x_m'): those rows are left out" in message)  # fmt: skip
+    np.testing.assert_array_equal(first.x, [0, 1, 2, 4, 5, 6, 7, 8, 9])
+    np.testing.assert_array_equal(second.x, [0, 1, 3, 4, 6, 7, 8, 9])
+    rows[5] = "s,1,0.5,text,0,0,10,4.5,1.8"
+    with pytest.raises(DataError, match=r"tracks.csv:7: column 'x_m' is not a number: 'text'"):
+        read_tracks_csv(write_csv(tmp_path, rows))
 
 
 def test_trailing_commas_are_no_columns(tmp_path):
