@@ -23,6 +23,7 @@ from gridsim.traffic.track import (
     MAX_IMPOSSIBLE_SHARE,
     Track,
     impossible_note,
+    listed,
     refuse_mostly_impossible,
 )
 
@@ -143,8 +144,8 @@ def read_tracks_csv(path: str | Path) -> list[Track]:
 def _parse_tracks_csv(path: Path) -> list[Track]:
     """The tracks of a trajectory CSV, in the order of their first row; each track's rows
     sorted by time (rows may come in any order). Rows are converted a block at a time (a
-    file of a million rows reads in seconds, in little more memory than its numbers); the
-    first bad value is named by line and column."""
+    file of a million rows reads in seconds, in little more memory than its numbers); every
+    row that cannot be read is named, by line (and column)."""
     with path.open(newline="", encoding="utf-8-sig") as fh:  # a BOM (Excel) is skipped
         reader = csv.reader(fh)
         header = next(reader, None) or []
@@ -164,9 +165,11 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
         index: dict[tuple[str, str], int] = {}  # track -> its number, in order of first row
         blocks, groups, at, rows, lines = [], [], [], [], []
         gaps = _MissingValues()
+        problems: list[tuple[int, str]] = []  # the rows that cannot be read: all named
 
         def convert() -> None:  # the rows read so far (those with a missing value left out)
-            values, missing = _block(path, header, where, rows, lines)
+            values, missing, unreadable = _block(header, where, rows, lines)
+            problems.extend(unreadable)
             gaps.note(values, missing, lines)
             keep = ~missing
             blocks.append(values[keep])
@@ -186,6 +189,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
                     convert()
         if rows:
             convert()
+    _refuse_unreadable(path, problems)
     if not blocks:
         raise DataError(f"{path}: no data rows")
     gaps.refuse_most(path)
@@ -251,13 +255,13 @@ def _same_time_hint(a: np.ndarray, b: np.ndarray) -> str:
 _BLOCK = 1 << 16
 
 
-def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]],
-           lines: list[int]) -> np.ndarray:  # fmt: skip
-    """The numbers ``(rows, 7)`` of a block of CSV ``rows`` (at file ``lines``) and which
-    rows miss a value (a cell of :data:`MISSING`, read as NaN), or a :class:`DataError`
-    naming the block's first bad row's first problem, as a row by row reading finds it: a
+def _block(header: list[str], where: list[int], rows: list[list[str]],
+           lines: list[int]) -> tuple[np.ndarray, np.ndarray, list[tuple[int, str]]]:  # fmt: skip
+    """The numbers ``(rows, 7)`` of a block of CSV ``rows`` (at file ``lines``), which rows
+    miss a value (a cell of :data:`MISSING`, read as NaN), and ``(line, problem)`` of each
+    row that cannot be read, its first problem as a reading from left to right finds it: a
     row cut short or with values past the header's columns, an empty scene or track id, a
-    cell that is not a number or is infinite, a negative speed or a size not above 0."""
+    cell that is not a number or is infinite, then a negative speed or a size not above 0."""
     need, width = max(where) + 1, len(header)
     scene, track = where[0], where[1]
     empty = "column {!r} is empty; every row names its scene and track"
@@ -279,40 +283,57 @@ def _block(path: Path, header: list[str], where: list[int], rows: list[list[str]
                     "be told apart from one; replace the '/' (e.g. with '_')")  # fmt: skip
         return None
 
-    short, why = next(((k, said) for k, row in enumerate(rows) if (said := problem(row))),
-                      (len(rows), None))  # fmt: skip
-    values = np.empty((short, len(_NUMERIC)))
-    first_bad: list[tuple[int, int, str]] = []  # (row, column, message) of each column's
-    if why is not None:
-        first_bad.append((short, -1, why))
+    bad = {k: said for k, row in enumerate(rows) if (said := problem(row))}  # row -> problem
+    values = np.empty((len(rows), len(_NUMERIC)))
     for c, name in enumerate(_NUMERIC):
-        raw = [row[where[c + 2]] for row in rows[:short]]
+        at = where[c + 2]
+        if bad:  # (those rows' cells may be missing or slid: read as NaN)
+            raw = [row[at] if k not in bad else "nan" for k, row in enumerate(rows)]
+        else:
+            raw = [row[at] for row in rows]
         try:
             values[:, c] = np.array(raw, dtype=np.float64)
         except ValueError:  # an empty cell, "NA", ... or text: cell by cell
-            raw = ["nan" if text.strip().lower() in MISSING else text for text in raw]
-            k = next((k for k, text in enumerate(raw) if not is_number(text)), len(raw))
-            values[:k, c] = np.array(raw[:k], dtype=np.float64)  # (the rows before it)
-            if k < len(raw):
-                first_bad.append((k, c, f"column {name!r} is not a number: "
-                                        f"{short_repr(raw[k])}"))  # fmt: skip
-        end = first_bad[-1][0] if first_bad and first_bad[-1][1] == c else len(raw)
-        bad = np.flatnonzero(np.isinf(values[:end, c]))
-        if len(bad):
-            k = int(bad[0])
-            first_bad.append((k, c, f"column {name!r} is {short_repr(raw[k])}; expected a "
-                                    "finite number"))  # fmt: skip
-    end = min(first_bad)[0] if first_bad else short
-    speed, length, width = values[:end, 4], values[:end, 5], values[:end, 6]
-    bad = np.flatnonzero((speed < 0) | (length <= 0) | (width <= 0))
-    if len(bad):
-        k = int(bad[0])
-        raise DataError(f"{path}:{lines[k]}: speed_mps must be >= 0 and length_m, width_m > 0, "
-                        f"got {speed[k]}, {length[k]}, {width[k]}")  # fmt: skip
-    if first_bad:
-        k, _, message = min(first_bad)
-        raise DataError(f"{path}:{lines[k]}: {message}")
-    return values, np.isnan(values).any(axis=1)
+            for k, text in enumerate(raw):
+                if text.strip().lower() in MISSING:
+                    values[k, c] = np.nan
+                elif is_number(text):
+                    values[k, c] = float(text)
+                else:
+                    values[k, c] = np.nan
+                    bad.setdefault(k, f"column {name!r} is not a number: {short_repr(text)}")
+        for k in np.flatnonzero(np.isinf(values[:, c])).tolist():
+            bad.setdefault(k, f"column {name!r} is {short_repr(raw[k])}; expected a finite "
+                              "number")  # fmt: skip
+    speed, length, size = values[:, 4], values[:, 5], values[:, 6]
+    for k in np.flatnonzero((speed < 0) | (length <= 0) | (size <= 0)).tolist():
+        bad.setdefault(k, f"speed_mps must be >= 0 and length_m, width_m > 0, got {speed[k]}, "
+                          f"{length[k]}, {size[k]}")  # fmt: skip
+    problems = [(lines[k], bad[k]) for k in sorted(bad)]
+    return values, np.isnan(values).any(axis=1), problems
+
+
+def _refuse_unreadable(path: Path, problems: list[tuple[int, str]]) -> None:
+    """A :class:`DataError` naming the rows of ``path`` that cannot be read (``(line,
+    problem)`` each, in file order): the rows of one problem together, the first
+    :data:`~gridsim.traffic.track.NAMED_PROBLEMS` problems in full."""
+    if len(problems) == 1:
+        line, message = problems[0]
+        raise DataError(f"{path}:{line}: {message}")
+    if problems:
+        rows: dict[str, list[int]] = {}
+        for line, message in problems:
+            rows.setdefault(message, []).append(line)
+        raise DataError(
+            f"{path}: {len(problems)} rows cannot be read:"
+            + listed([f"{_lines(at)}: {message}" for message, at in rows.items()])
+        )
+
+
+def _lines(at: list[int], named: int = 5) -> str:
+    """``line 7``, ``lines 2, 3, 9`` or ``lines 2, 3, 4, 5, 6 and 12 more``."""
+    more = f" and {len(at) - named} more" if len(at) > named else ""
+    return f"line{'s' if len(at) > 1 else ''} {', '.join(map(str, at[:named]))}{more}"
 
 
 #: What a CSV cell that holds no value reads as (lower case, stripped): an empty cell and

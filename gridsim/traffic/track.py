@@ -159,15 +159,17 @@ def refuse_mostly_impossible(path, kept: int, impossible: list[str]) -> None:
     if len(impossible) == 1:
         raise DataError(f"{path}: {impossible[0]}")
     raise DataError(f"{path}: {len(impossible)} of its {kept + len(impossible)} tracks are "
-                    "impossible:" + _listed(impossible))  # fmt: skip
+                    "impossible:" + listed(impossible))  # fmt: skip
 
 
 def impossible_note(impossible: list[str]) -> str:
     """What a warning says of the tracks ``impossible`` left out (their problems)."""
-    return f"{len(impossible)} track(s) left out, their data impossible:" + _listed(impossible)
+    return f"{len(impossible)} track(s) left out, their data impossible:" + listed(impossible)
 
 
-def _listed(problems: list[str]) -> str:
+def listed(problems: list[str]) -> str:
+    """``problems`` one per indented line (the first :data:`NAMED_PROBLEMS`, the rest
+    counted)."""
     more = problems[NAMED_PROBLEMS:]
     lines = [*problems[:NAMED_PROBLEMS], *([f"... and {len(more)} more"] if more else [])]
     return "".join(f"\n    {line}" for line in lines)

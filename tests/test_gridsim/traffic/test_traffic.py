@@ -70,17 +70,21 @@ def test_user_csv_loads(tmp_path):
         (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0,0,1,1,4.5,1.8,x"], HEADER,  # values slid right
          r"tracks.csv:3: 10 column\(s\), the header has 9 \(a comma inside a text field"),
         (["s,,0,0,0,0,1,4.5,1.8", "s,,0.1,0,0,0,1,4.5,1.8"], HEADER,
-         r"tracks.csv:2: column 'track_id' is empty"),
+         r"tracks.csv: 2 rows cannot be read:\n    lines 2, 3: column 'track_id' is empty; "
+         r"every row names its scene and track$"),
         # (validated, then refused by record and --track as "of no scene here")
         (["s,cam1/427,0,0,0,0,1,4.5,1.8", "s,cam1/427,0.1,0,0,0,1,4.5,1.8"], HEADER,
-         r"tracks.csv:2: track_id 'cam1/427' has a '/': a track of a collection of scenes is "
+         r"tracks.csv: 2 rows cannot be read:\n    lines 2, 3: track_id 'cam1/427' has a '/': "
+         r"a track of a collection of scenes is "
          r"named SCENE/ID"),
         (["s,1,0,0,0,0,1,4.5,1.8", ",1,0.1,0,0,0,1,4.5,1.8"], HEADER,
          r"tracks.csv:3: column 'scenario_id' is empty"),
         (["s,1,0,0,0,0,-1,4.5,1.8", "s,1,0.1,x,0,0,1,4.5,1.8"], HEADER,
-         r"tracks.csv:2: speed_mps must be >= 0"),  # the first bad row's problem
+         r"tracks.csv: 2 rows cannot be read:\n    line 2: speed_mps must be >= 0 .*\n    "
+         r"line 3: column 'x_m' is not a number: 'x'"),  # each row's first problem
         (["s,1,0,inf,0,0,1,4.5,1.8", "s,1,0.1,abc,0,0,1,4.5,1.8"], HEADER,
-         r"tracks.csv:2: column 'x_m' is 'inf'"),  # before a later non-number
+         r"line 2: column 'x_m' is 'inf'; expected a finite number\n    line 3: column 'x_m' "
+         r"is not a number: 'abc'"),
         ([], HEADER, "no data rows"),
         (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,5e6,0,0,1,4.5,1.8"], HEADER,
          r"tracks.csv: track 1 of scene s: state 1 \(t = 0.1 s\): jumps 5e\+06 m in 0.1 s"),
@@ -113,6 +117,32 @@ def test_rows_with_a_missing_value_are_left_out_with_a_warning(tmp_path):
     rows[5] = "s,1,0.5,text,0,0,10,4.5,1.8"
     with pytest.raises(DataError, match=r"tracks.csv:7: column 'x_m' is not a number: 'text'"):
         read_tracks_csv(write_csv(tmp_path, rows))
+
+
+def test_every_row_that_cannot_be_read_is_named(tmp_path, monkeypatch):
+    """A file's unreadable rows are named together, across the blocks it is read in (only
+    the first was, so a user fixed a file one run at a time); rows of one problem are
+    grouped, more than ten problems counted."""
+    import gridsim.traffic.library as library
+
+    monkeypatch.setattr(library, "_BLOCK", 4)  # several blocks in a small file
+    rows = [f"s,1,{k * 0.1:.1f},{k},0,0,10,4.5,1.8" for k in range(30)]
+    for k in (3, 9, 17, 18, 19, 20, 21, 22, 23):
+        rows[k] = rows[k].replace(",10,4.5", ",-3,4.5")  # one problem, nine rows
+    rows[5] = "s,1,0.5,5,0"  # cut short
+    texts = (1, 2, 6, 24, 25, 26, 27, 28, 29)
+    for k, text in zip(texts, "abcdefghi", strict=True):  # other text in each
+        rows[k] = rows[k].replace(f",{k},0,0,", f",{text},0,0,")
+    with pytest.raises(DataError) as caught:
+        read_tracks_csv(write_csv(tmp_path, rows))
+    lines = str(caught.value).splitlines()
+    assert lines[0].endswith("tracks.csv: 19 rows cannot be read:")
+    assert lines[1:4] == ["    line 3: column 'x_m' is not a number: 'a'",
+                          "    line 4: column 'x_m' is not a number: 'b'",
+                          "    lines 5, 11, 19, 20, 21 and 4 more: speed_mps must be >= 0 and "
+                          "length_m, width_m > 0, got -3.0, 4.5, 1.8"]  # fmt: skip
+    assert lines[4] == "    line 7: 5 column(s), the header has 9 (a line cut short?)"
+    assert lines[-2:] == ["    line 30: column 'x_m' is not a number: 'h'", "    ... and 1 more"]
 
 
 def test_trailing_commas_are_no_columns(tmp_path):
