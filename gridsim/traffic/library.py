@@ -153,6 +153,9 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             raise DataError(f"{path}: the file is empty; a trajectory CSV starts with the header "
                             f"{','.join(REQUIRED_COLUMNS)}")  # fmt: skip
         missing = [c for c in REQUIRED_COLUMNS if c not in header]
+        if missing and (layout := _header_layout(header)):  # what is wrong, first
+            raise DataError(f"{path}: {layout} (the header a trajectory CSV starts with: "
+                            f"{','.join(REQUIRED_COLUMNS)})")  # fmt: skip
         if missing:
             raise DataError(f"{path}: missing column(s) {missing}; required: "
                             f"{list(REQUIRED_COLUMNS)}{_header_hint(header, missing)}")  # fmt: skip
@@ -174,7 +177,8 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             keep = ~missing
             blocks.append(values[keep])
             at.append(np.array(lines, dtype=np.int64)[keep])
-            groups.append([index.setdefault((r[where[0]], r[where[1]]), len(index))
+            groups.append([index.setdefault((r[where[0]].strip(), r[where[1]].strip()),
+                                            len(index))
                            for r, kept in zip(rows, keep, strict=True) if kept])  # fmt: skip
             rows.clear()
             lines.clear()
@@ -183,10 +187,11 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             # (blank lines are skipped, and so are lines of spaces or of empty fields only: a
             # spreadsheet's trailing ",,,,,," rows)
             if row and (row[0].strip() or any(f.strip() for f in row)):
+                if len(rows) == _BLOCK:  # (the file's last row stays in the last block)
+                    convert()
                 rows.append(row)
                 lines.append(reader.line_num)
-                if len(rows) == _BLOCK:
-                    convert()
+        cut = _cut_mid_write(path, header, where, rows, lines)
         if rows:
             convert()
     _refuse_unreadable(path, problems)
@@ -231,7 +236,8 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             except DataError as exc:  # impossible data: the track, or the file (below)
                 impossible.append(str(exc).removeprefix(f"{path}: "))
     refuse_mostly_impossible(path, len(tracks), impossible)
-    _warn_tracks(path, split, single, resized, repeated, impossible, gaps.note_text())
+    notes = [text for text in (cut, gaps.note_text()) if text]
+    _warn_tracks(path, split, single, resized, repeated, impossible, "; ".join(notes))
     if not tracks:
         raise DataError(f"{path}: no track with at least 2 states")
     return tracks
@@ -249,6 +255,23 @@ def _same_time_hint(a: np.ndarray, b: np.ndarray) -> str:
             "to 0.1 s? give them in full)"
         )
     return f" ({gap:.3g} m apart: two vehicles under one id?)"
+
+
+def _cut_mid_write(path: Path, header: list[str], where: list[int], rows: list[list[str]],
+                   lines: list[int]) -> str | None:  # fmt: skip
+    """When the file's last row is cut short and the file does not end with a line break (a
+    file cut while it was written, or copied before it was whole): that row taken off
+    ``rows`` (and ``lines``), and what the warning says of it; else None."""
+    if not rows or len(rows[-1]) >= max(where) + 1:
+        return None
+    with path.open("rb") as fh:
+        fh.seek(-1, 2)
+        if fh.read(1) in (b"\n", b"\r"):
+            return None
+    row, line = rows.pop(), lines.pop()
+    return (f"its last line, line {line}, is cut short ({len(row)} of the header's "
+            f"{len(header)} columns) and ends the file without a line break (a file cut while "
+            "it was written?): that line is left out")  # fmt: skip
 
 
 #: Rows converted at a time (a block's text is held in memory, not the file's).
@@ -401,12 +424,12 @@ def _pieces(a: np.ndarray) -> list[np.ndarray]:
 
 
 def _warn_tracks(path: Path, split: list, single: list, resized: list,
-                 repeated: list, impossible: list, missing: str | None) -> None:  # fmt: skip
+                 repeated: list, impossible: list, rows_left_out: str) -> None:  # fmt: skip
     """One :class:`DataWarning` naming the tracks cut at a pause, those left out (a single
     state, or ``impossible`` data: each one's problem), those whose size varies, the rows
-    given twice (``(count, first line)`` per track) and (``missing``) those left out for a
-    missing value."""
-    parts = [missing] if missing else []
+    given twice (``(count, first line)`` per track) and (``rows_left_out``, if not empty)
+    the rows left out (a missing value, a last line cut short)."""
+    parts = [rows_left_out] if rows_left_out else []
     if impossible:
         parts.append(impossible_note(impossible))
     if repeated:
@@ -450,13 +473,22 @@ def is_number(text: str) -> bool:
 _UNIT_SUFFIXES = {"s", "ms", "m", "ft", "mps", "mph", "kmh", "kph", "fps", "rad", "deg"}
 
 
-def _header_hint(header: list[str], missing: list[str]) -> str:
-    """Why a header may lack the ``missing`` columns: another separator, other letter case, a
-    misspelt name or another unit's."""
+def _header_layout(header: list[str]) -> str | None:
+    """What is wrong with a header that is not one of columns named by commas: a comment
+    line before it, or another separator; None when it is."""
     line = ",".join(header)
+    if line.lstrip().startswith("#"):
+        return (f"the first line is a comment ({short_repr(line)}): a trajectory CSV's first "
+                "line is its header; remove the comment lines")  # fmt: skip
     for sep, name in ((";", "semicolons"), ("\t", "tabs"), ("|", "bars")):
         if sep in line:
-            return f" (the header is separated by {name}; separate columns with commas)"
+            return f"the header is separated by {name}; separate columns with commas"
+    return None
+
+
+def _header_hint(header: list[str], missing: list[str]) -> str:
+    """Why a header may lack the ``missing`` columns: other letter case, a misspelt name or
+    another unit's."""
     if {h.strip().lower() for h in header} >= set(REQUIRED_COLUMNS):
         return " (column names are lower case, without spaces)"
     extra = [h for h in header if h not in REQUIRED_COLUMNS]

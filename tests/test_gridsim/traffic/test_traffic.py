@@ -145,6 +145,31 @@ def test_every_row_that_cannot_be_read_is_named(tmp_path, monkeypatch):
     assert lines[-2:] == ["    line 30: column 'x_m' is not a number: 'h'", "    ... and 1 more"]
 
 
+def test_a_last_line_cut_mid_write_is_left_out_with_a_warning(tmp_path):
+    """A file cut while it was written (its last line short, no line break at its end) is
+    read without that line, with a warning naming it (the whole file was refused); a short
+    line elsewhere, or a short last line the file ends properly, still refuses it."""
+    rows = [f"s,{tid},{k * 0.1:.1f},{k},0,0,10,4.5,1.8" for tid in (1, 2) for k in range(10)]
+    p = write_csv(tmp_path, rows)
+    p.write_text(p.read_text()[:-14])  # "s,2,0.9,9,0" (and no line break)
+    with pytest.warns(DataWarning, match=r"tracks.csv: its last line, line 21, is cut short "
+                      r"\(5 of the header's 9 columns\) and ends the file without a line "
+                      r"break"):  # fmt: skip
+        first, second = read_tracks_csv(p)
+    assert (len(first.t), len(second.t)) == (10, 9)
+    p.write_text(p.read_text() + "\n")
+    with pytest.raises(DataError, match=r"tracks.csv:21: 5 column\(s\), the header has 9"):
+        read_tracks_csv(p)
+
+
+def test_ids_are_read_without_surrounding_spaces(tmp_path):
+    """``"00373 "`` and ``"00373"`` are one vehicle (a trailing space made a second track of
+    the same car, overlapping itself, without a word)."""
+    rows = [f"s,{'7 ' if k % 2 else ' 7'},{k * 0.1:.1f},{k},0,0,10,4.5,1.8" for k in range(6)]
+    (track,) = read_tracks_csv(write_csv(tmp_path, rows))
+    assert (track.scenario_id, track.track_id, len(track.t)) == ("s", "7", 6)
+
+
 def test_trailing_commas_are_no_columns(tmp_path):
     """Empty fields past the header's columns (an export's trailing commas) are read."""
     rows = [f"s,1,{k * 0.1:g},{k:g},0,0,10,4.5,1.8,," for k in range(3)]
@@ -955,7 +980,13 @@ def test_a_csv_saved_by_excel_or_with_semicolons(tmp_path):
     p.write_bytes(b"\xef\xbb\xbf" + p.read_bytes())  # a UTF-8 byte order mark
     assert [t.track_id for t in read_tracks_csv(p)] == ["1"]
     p.write_text(HEADER.replace(",", ";") + "\n" + "\n".join(r.replace(",", ";") for r in rows))
-    with pytest.raises(DataError, match="separated by semicolons; separate columns with commas"):
+    with pytest.raises(DataError, match=r"tracks.csv: the header is separated by semicolons; "
+                       r"separate columns with commas \(the header a trajectory CSV starts "
+                       r"with: scenario_id,track_id,"):  # fmt: skip
+        read_tracks_csv(p)  # (the hint came last, after the columns listed twice)
+    p.write_text("# exported 2026-11-27\n" + HEADER + "\n" + "\n".join(rows))
+    with pytest.raises(DataError, match=r"the first line is a comment \('# exported "
+                       r"2026-11-27'\): a trajectory CSV's first line is its header"):  # fmt: skip
         read_tracks_csv(p)
     rows = ["s,1,0,0,0,0,1,4.5,1.8", "s,1,100,0.1,0,0,1,4.5,1.8"]  # 100 s apart: a gap
     with pytest.raises(DataError, match=r"state 1 \(t = 100 s\): 100 s after the previous"):
