@@ -414,13 +414,42 @@ class _MissingValues:
 SPLIT_GAP = 2.0
 
 
+#: s: a shorter pause (and longer than three of the track's usual steps) ends the track too
+#: where the vehicle comes back elsewhere than its motion on both sides takes it
+#: (:func:`_reappears_elsewhere`)
+SHORT_PAUSE = 0.5
+
+
 def _pieces(a: np.ndarray) -> list[np.ndarray]:
-    """A track's rows (sorted by time) cut where time pauses (:data:`SPLIT_GAP`)."""
+    """A track's rows (sorted by time) cut where time pauses (:data:`SPLIT_GAP`), or pauses
+    less and the vehicle reappears elsewhere (:data:`SHORT_PAUSE`)."""
     dt = np.diff(a[:, 0])
     if not len(dt):
         return [a]
-    cuts = np.flatnonzero(dt > max(SPLIT_GAP, 10.0 * float(np.median(dt)))) + 1
+    usual = float(np.median(dt))
+    long = dt > max(SPLIT_GAP, 10.0 * usual)
+    short = np.flatnonzero(~long & (dt > max(SHORT_PAUSE, 3.0 * usual)))
+    jumps = [k for k in short.tolist() if _reappears_elsewhere(a[:, 1:3], a[:, 4], dt, k)]
+    cuts = np.union1d(np.flatnonzero(long), np.array(jumps, dtype=np.int64)) + 1
     return np.split(a, cuts) if len(cuts) else [a]
+
+
+def _reappears_elsewhere(xy: np.ndarray, speed: np.ndarray, dt: np.ndarray, k: int) -> bool:
+    """Whether the move of a track's positions ``xy`` [m] over the pause between rows ``k``
+    and ``k + 1`` is more than 5 m and half its length off what its motion on both sides
+    predicts: the mean of the velocities of the steps before and after it (from positions,
+    not the heading column, which may be in degrees) times the pause; without a step on
+    either side, the recorded ``speed`` [m/s] only. Another vehicle under the same id
+    (NGSIM reuses ids) moves backwards or sideways; a vehicle whose samples drop out does
+    not."""
+    move = xy[k + 1] - xy[k]
+    sides = [(xy[i + 1] - xy[i]) / dt[i] for i in (k - 1, k + 1) if 0 <= i < len(dt)]
+    if sides:
+        predicted = 0.5 * (sides[0] + sides[-1]) * dt[k]
+        error = float(np.hypot(*(move - predicted)))
+        return error > max(5.0, 0.5 * float(np.hypot(*predicted)))
+    expected = 0.5 * float(speed[k] + speed[k + 1]) * dt[k]
+    return abs(float(np.hypot(*move)) - expected) > max(5.0, 0.5 * expected)
 
 
 def _warn_tracks(path: Path, split: list, single: list, resized: list,
@@ -446,8 +475,9 @@ def _warn_tracks(path: Path, split: list, single: list, resized: list,
                           for tid, times in split[:5])  # fmt: skip
         more = f" and {len(split) - 5} more" if len(split) > 5 else ""
         parts.append(
-            f"{len(split)} track id(s) pause more than {SPLIT_GAP:g} s and go on as "
-            f"another vehicle (a reused id?), split into ID, ID#2, ...: {named}{more}"
+            f"{len(split)} track id(s) pause more than {SPLIT_GAP:g} s (or {SHORT_PAUSE:g} s and "
+            f"come back elsewhere than their motion takes them) and go on as another vehicle "
+            f"(a reused id?), split into ID, ID#2, ...: {named}{more}"
         )
     if single:
         more = f" and {len(single) - 5} more" if len(single) > 5 else ""

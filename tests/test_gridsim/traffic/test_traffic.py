@@ -1155,6 +1155,30 @@ def test_the_csv_reader_reads_what_a_row_by_row_reading_did(tmp_path, monkeypatc
         read_tracks_csv(shuffled)
 
 
+def test_a_reused_id_after_a_short_pause_is_split_where_it_reappears_elsewhere():
+    """An id reused after a pause of 1 s (and one of exactly 2 s) by a vehicle 30 m behind
+    was kept as one car jumping backwards, whose windows became training labels driving
+    backwards; it is split. A car whose samples drop out for 1.5 s while it accelerates
+    comes back where its motion takes it: kept whole."""
+    from gridsim.traffic.library import _pieces
+
+    def track(times, x, speed=20.0):
+        a = np.zeros((len(times), 7))
+        a[:, 0], a[:, 1], a[:, 4], a[:, 5], a[:, 6] = times, x, speed, 4.5, 1.8
+        return a
+
+    before = np.arange(0, 3.05, 0.1)
+    for pause in (1.0, 2.0):
+        after = np.arange(3.0 + pause, 6.0 + pause, 0.1)
+        a = track(np.r_[before, after], np.r_[20 * before, 20 * after - 30 - 20 * pause])
+        pieces = _pieces(a)
+        assert [len(p) for p in pieces] == [len(before), len(after)]
+    dropped = np.r_[before, np.arange(4.5, 7.0, 0.1)]
+    speed = np.where(dropped < 3.0, 20.0, 20.0 + 2.0 * (dropped - 3.0))  # 2 m/s^2 from 3 s
+    x = np.where(dropped < 3.0, 20 * dropped, 60 + 20 * (dropped - 3) + (dropped - 3) ** 2)
+    assert len(_pieces(track(dropped, x, speed))) == 1
+
+
 def test_a_reused_id_is_split_and_single_states_are_left_out(tmp_path):
     """NGSIM reuses vehicle ids: a track that pauses 15 s and goes on elsewhere is two
     vehicles (468, 468#2), not one driving a ghost path through the gap; a track with one
@@ -1171,7 +1195,8 @@ def test_a_reused_id_is_split_and_single_states_are_left_out(tmp_path):
     assert [t.track_id for t in tracks] == ["468", "468#2", "7"]
     assert tracks[1].t[0] == pytest.approx(17.0) and tracks[0].t[-1] == pytest.approx(2.0)
     message = str(caught[0].message)
-    assert "1 track id(s) pause more than 2 s" in message and "468 at t = 17 s" in message
+    assert "1 track id(s) pause more than 2 s (or 0.5 s and come back elsewhere" in message
+    assert "468 at t = 17 s" in message
     assert "1 track(s) with a single state left out" in message and "(s, 389)" in message
     taken = rows + [f"s,468#2,{t:.1f},{10 * t:.1f},7,0,10,4.5,1.8" for t in np.arange(0, 2.05, 0.1)]
     with pytest.warns(DataWarning):
