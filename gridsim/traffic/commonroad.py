@@ -5,7 +5,8 @@ Both layouts are read: 2018 (``<obstacle>`` with ``<role>dynamic</role>``) and 2
 times the root's ``timeStepSize``. Values are ``<exact>`` or the middle of
 ``<intervalStart>``/``<intervalEnd>``; a missing ``<velocity>`` is derived from the positions.
 Shapes: ``<rectangle>`` (length, width) or ``<circle>`` (a square of its diameter).
-Obstacles with a single state (nothing to replay) and static obstacles are left out.
+Obstacles with a single state (nothing to replay; with a warning) and static obstacles are
+left out.
 
 The scene id of a file (:func:`scene_id`) is the root's ``benchmarkID`` attribute, else the
 file's stem; tracks read from it carry it as ``scenario_id``.
@@ -19,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.errors import DataError, warn_data
+from gridsim.outputs import short_repr
 from gridsim.road.lanelet import commonroad_root, iter_commonroad
 from gridsim.traffic.track import Track, impossible_note, refuse_mostly_impossible
 
@@ -107,6 +109,7 @@ def read_tracks_commonroad(path: str | Path) -> list[Track]:
     attrib = commonroad_root(path)
     tracks, dt, sid, seen = [], None, _scene_id(attrib, path), set()
     impossible: list[str] = []
+    single: list[str] = []  # dynamic obstacles with one state: nothing to replay
     for ob in iter_commonroad(path, ("obstacle", "dynamicObstacle")):
         if dt is None:
             dt = _time_step(attrib, path)
@@ -121,17 +124,29 @@ def read_tracks_commonroad(path: str | Path) -> list[Track]:
                 continue
             if track is not None:
                 tracks.append(track)
+            else:
+                single.append(str(ob.get("id")))
     refuse_mostly_impossible(path, len(tracks), impossible)
-    if impossible:
-        warn_data(f"{path}: {impossible_note(impossible)}")
+    notes = [impossible_note(impossible)] if impossible else []
+    if single:
+        more = f" and {len(single) - 5} more" if len(single) > 5 else ""
+        notes.append(f"{len(single)} dynamic obstacle(s) with a single state left out (at "
+                     f"least 2 are needed): {', '.join(single[:5])}{more}")  # fmt: skip
+    if notes:
+        warn_data(f"{path}: " + "; ".join(notes))
     return tracks
 
 
 def _time_step(attrib: dict, path: Path) -> float:
+    text = attrib.get("timeStepSize")
+    if text is None:
+        raise DataError(f"{path}: the root has no timeStepSize (the seconds per time step)")
     try:
-        dt = float(attrib.get("timeStepSize", ""))
+        dt = float(text)
     except ValueError:
-        raise DataError(f"{path}: the root lacks a numeric timeStepSize") from None
+        comma = " (a decimal point, not a comma)" if "," in text else ""
+        raise DataError(f"{path}: timeStepSize {short_repr(text)} is not a number"
+                        f"{comma}") from None  # fmt: skip
     if not dt > 0:
         raise DataError(f"{path}: timeStepSize must be > 0, got {dt}")
     return dt

@@ -97,6 +97,21 @@ def test_scene_library_needs_a_recorded_road():
         build_world(load_scenario("seamless", {"traffic": {"library": ["scene"]}}))
 
 
+def test_obstacles_with_a_single_state_are_left_out_with_a_warning(tmp_path):
+    """A dynamic obstacle with one state (or an empty trajectory) has nothing to replay: it
+    is left out, now with a warning naming it, as a CSV's single-state tracks are (it was
+    left out without a word: 20 tracks of 22 obstacles)."""
+    from gridsim.errors import DataWarning
+
+    single = OBSTACLE.format(shape=RECT, v=VELOCITY).replace('id="5"', 'id="9"')
+    single = single[: single.index("<trajectory>")] + "<trajectory/></dynamicObstacle>"
+    body = OBSTACLE.format(shape=RECT, v=VELOCITY) + single
+    with pytest.warns(DataWarning, match=r"scene.xml: 1 dynamic obstacle\(s\) with a single "
+                      r"state left out \(at least 2 are needed\): 9"):  # fmt: skip
+        (track,) = read_tracks_commonroad(write_xml(tmp_path, body))
+    assert track.track_id == "5"
+
+
 def test_missing_velocity_is_derived_from_positions(tmp_path):
     (tr,) = read_tracks_commonroad(write_xml(tmp_path, OBSTACLE.format(shape=RECT, v="")))
     np.testing.assert_allclose(tr.speed, [10.0, 10.0])
@@ -107,7 +122,10 @@ def test_missing_velocity_is_derived_from_positions(tmp_path):
 @pytest.mark.parametrize(
     ("body", "root", "message"),
     [
-        (OBSTACLE.format(shape=RECT, v=VELOCITY), "", "lacks a numeric timeStepSize"),
+        (OBSTACLE.format(shape=RECT, v=VELOCITY), "", r"the root has no timeStepSize \(the "
+         "seconds per time step"),
+        (OBSTACLE.format(shape=RECT, v=VELOCITY), 'timeStepSize="0,1"',
+         r"timeStepSize '0,1' is not a number \(a decimal point, not a comma\)"),
         (OBSTACLE.format(shape="<polygon/>", v=VELOCITY), 'timeStepSize="0.1"',
          "obstacle 5: <shape> must be a <rectangle> or a <circle>"),
         (OBSTACLE.format(shape=RECT, v=VELOCITY).replace("<x>11</x>", "<x>a</x>"),
