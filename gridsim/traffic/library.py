@@ -47,6 +47,7 @@ class TrajectoryLibrary:
     def __init__(self, tracks: list[Track]) -> None:
         if not tracks:
             raise DataError("the trajectory library is empty")
+        tracks = _joined_across_files(tracks)
         self.tracks = tracks
         self._by_key: dict[tuple[str, str], Track] = {}
         self._scenes: dict[str, list[Track]] = {}  # scene id -> its tracks (found once)
@@ -104,6 +105,60 @@ class TrajectoryLibrary:
     def select(self, min_duration: float = 0.0, max_length: float = np.inf) -> list[Track]:
         """Tracks at least ``min_duration`` seconds long and at most ``max_length`` metres."""
         return [t for t in self.tracks if t.duration >= min_duration and t.length <= max_length]
+
+
+def _joined_across_files(tracks: list[Track]) -> list[Track]:
+    """``tracks`` with the pieces of one vehicle that a recording split into files by time
+    (one scene and track id in several files, at times that do not overlap) joined, then cut
+    where a pause shows another vehicle under the same id (:func:`_pieces`: ``ID``,
+    ``ID#2``, ...), with a warning naming them; the same id at overlapping times is refused
+    (a :class:`DataError` naming both files)."""
+    groups: dict[tuple[str, str], list[Track]] = {}
+    for t in tracks:
+        groups.setdefault((t.scenario_id, t.track_id), []).append(t)
+    if all(len(group) == 1 for group in groups.values()):
+        return tracks
+    out, joined = [], {}  # (the files, in time order) -> the ids joined across them
+    for t in tracks:
+        group = groups[(t.scenario_id, t.track_id)]
+        if len(group) == 1:
+            out.append(t)
+        elif t is group[0]:  # the group in place of its first piece
+            group = sorted(group, key=lambda g: float(g.t[0]))
+            out += _join(group, groups)
+            files = tuple(g.source or "<tracks>" for g in group)
+            joined.setdefault(files, []).append(f"{t.scenario_id}/{t.track_id}")
+    said = []
+    for files, ids in joined.items():
+        more = f" and {len(ids) - 5} more" if len(ids) > 5 else ""
+        said.append(f"{len(ids)} from {' into '.join(files)}: {', '.join(ids[:5])}{more}")
+    warn_data(f"track(s) go on in another file at later times (a recording split into files by "
+              f"time?), each joined and cut again where it pauses as another vehicle under "
+              f"the same id: {'; '.join(said)}")  # fmt: skip
+    return out
+
+
+def _join(pieces: list[Track], taken: dict) -> list[Track]:
+    """One vehicle's ``pieces`` (in time order) as tracks: joined, cut at pauses; ``taken``:
+    the library's (scene, id) keys (a cut's ``ID#2`` avoids them)."""
+    for a, b in zip(pieces, pieces[1:], strict=False):
+        if b.t[0] <= a.t[-1]:
+            raise DataError(f"{b.source or '<tracks>'}: track {b.track_id} of scene "
+                            f"{b.scenario_id} is also in {a.source or '<tracks>'} at times that "
+                            f"overlap ({a.t[0]:g}-{a.t[-1]:g} s there, {b.t[0]:g}-{b.t[-1]:g} s "
+                            "here); a scene's track ids must be unique")  # fmt: skip
+    first = pieces[0]
+    rows = np.concatenate([np.column_stack([p.t, p.x, p.y, p.heading, p.speed]) for p in pieces])
+    source = ", ".join(dict.fromkeys(p.source for p in pieces if p.source))
+    out = []
+    for k, a in enumerate(_pieces(rows)):
+        name = first.track_id if k == 0 else f"{first.track_id}#{k + 1}"
+        while k and (first.scenario_id, name) in taken:
+            name += "#"
+        columns = [np.ascontiguousarray(c) for c in a.T]
+        columns[3] = np.unwrap(columns[3])  # (each file's pieces were unwrapped on their own)
+        out.append(Track(first.scenario_id, name, *columns, first.length, first.width, source))
+    return out
 
 
 _BUILTIN: TrajectoryLibrary | None = None

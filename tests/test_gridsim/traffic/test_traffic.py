@@ -234,13 +234,38 @@ def test_rows_given_twice_are_read_once_with_a_warning(tmp_path):
     assert track.t.tolist() == pytest.approx([0.0, 0.1, 0.2, 0.3, 0.4])
 
 
-def test_a_track_in_two_files_is_refused(tmp_path):
+def test_a_track_in_two_files_at_overlapping_times_is_refused(tmp_path):
     rows = ["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0.1,0,0,1,4.5,1.8"]
     first = write_csv(tmp_path, rows, HEADER)
     second = first.rename(tmp_path / "first.csv")
     again = write_csv(tmp_path, rows, HEADER)
-    with pytest.raises(DataError, match=r"tracks.csv: track 1 of scene s is also in .*first.csv"):
+    with pytest.raises(DataError, match=r"tracks.csv: track 1 of scene s is also in .*first.csv "
+                       r"at times that overlap \(0-0.1 s there, 0-0.1 s here\)"):  # fmt: skip
         TrajectoryLibrary.from_csv(second, again)
+
+
+def test_a_recording_split_into_files_by_time_is_joined(tmp_path):
+    """A vehicle that crosses the boundary of a recording split by time (NGSIM's periods)
+    is one track again (the scene was refused: "track ids must be unique"); the same id in
+    the later file on another vehicle, after a long pause, is cut off as ``ID#2``."""
+    rows = [f"s,{tid},{k * 0.1:.1f},{20 * k * 0.1 + tid:.2f},{tid},0,20,4.5,1.8"
+            for tid in (1, 2) for k in range(60)]  # fmt: skip
+    rows += [f"s,3,{k * 0.1:.1f},{k:.1f},9,0,10,4.5,1.8" for k in range(10)]  # before 1 s
+    rows += [f"s,3,{k * 0.1:.1f},{400 - k:.1f},-9,3.1416,10,4.5,1.8" for k in range(40, 60)]
+    whole = TrajectoryLibrary.from_csv(write_csv(tmp_path, rows))
+    early = tmp_path / "early.csv"
+    early.write_text(HEADER + "\n" + "\n".join(r for r in rows if float(r.split(",")[2]) < 3.05))
+    late = tmp_path / "late.csv"
+    late.write_text(HEADER + "\n" + "\n".join(r for r in rows if float(r.split(",")[2]) > 3.05))
+    with pytest.warns(DataWarning, match=r"track\(s\) go on in another file at later times.*: "
+                      r"3 from .*early.csv into .*late.csv: s/1, s/2, s/3"):  # fmt: skip
+        split = TrajectoryLibrary.from_csv(early, late)
+    assert [t.track_id for t in split.tracks] == ["1", "2", "3", "3#2"]
+    for a, b in zip(whole.tracks, split.tracks, strict=True):
+        assert (a.track_id, a.length, a.width) == (b.track_id, b.length, b.width)
+        for name in ("t", "x", "y", "heading", "speed"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    assert split.tracks[0].source == f"{early}, {late}"
 
 
 def test_missing_csv_file(tmp_path):
