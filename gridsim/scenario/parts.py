@@ -203,7 +203,7 @@ def _library(files: tuple) -> TrajectoryLibrary:
         except DataError as exc:
             if not found:
                 raise
-            skipped.append(f"{f[0]}: {str(exc).removeprefix(f'{f[0]}: ')}")
+            skipped.append((f[0], str(exc).removeprefix(f"{f[0]}: ")))
         for w in said:  # a file's notes (rows given twice, single states, ...)
             if issubclass(w.category, DataWarning):
                 notes.append(str(w.message))
@@ -211,7 +211,7 @@ def _library(files: tuple) -> TrajectoryLibrary:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     _say_notes(notes, sum(f != "builtin" for f, _ in files))
     if skipped:
-        lines = "\n".join(f"  - {line}" for line in skipped)
+        lines = "\n".join(f"  - {file}: {reason}" for file, reason in skipped)
         if not tracks:
             raise DataError(f"traffic.library: none of its {len(files)} files can be read:\n"
                             f"{lines}")  # fmt: skip
@@ -219,7 +219,9 @@ def _library(files: tuple) -> TrajectoryLibrary:
             f"traffic.library: skipped {len(skipped)} of {len(files)} trajectory files "
             f"that cannot be read:\n{lines}"
         )
-    return TrajectoryLibrary(tracks)
+    library = TrajectoryLibrary(tracks)
+    library.skipped = tuple(skipped)
+    return library
 
 
 #: A library's file notes shown in full; those of more files are named in one line.

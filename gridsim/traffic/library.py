@@ -49,6 +49,8 @@ class TrajectoryLibrary:
             raise DataError("the trajectory library is empty")
         tracks = _joined_across_files(tracks)
         self.tracks = tracks
+        #: ``(file, reason)`` of the files of a folder or glob left out (they cannot be read)
+        self.skipped: tuple[tuple[str, str], ...] = ()
         self._by_key: dict[tuple[str, str], Track] = {}
         self._scenes: dict[str, list[Track]] = {}  # scene id -> its tracks (found once)
         for t in tracks:

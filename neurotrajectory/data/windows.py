@@ -52,6 +52,7 @@ from gridsim.scenario.families.recorded import (
 )
 from gridsim.scenario.family import family_of
 from gridsim.scenario.loader import load_scenario
+from gridsim.scenario.parts import library_for
 from gridsim.seeding import Salt, stream
 from gridsim.traffic.track import scene_ids, track_name
 from neurotrajectory.data.commands import implied_commands
@@ -701,7 +702,7 @@ def record_group_into(
             if m.get(key) != first.get(key):
                 raise DatasetError(f"group {name!r}: scenarios differ in {key}")
     same = ("horizon", "history", "setpoint_period", "decision_period", "sensor", "vehicle")
-    unused = unloaded + skipped
+    unused = unloaded + skipped + _library_files_skipped([m["scenario"] for m in metas])
     return {
         "format": FORMAT_VERSION,
         "group": name,
@@ -713,6 +714,16 @@ def record_group_into(
         **({"skipped": [{"file": str(f), "reason": r} for f, r in unused]} if unused else {}),
         "versions": package_versions(),
     }
+
+
+def _library_files_skipped(scenarios: list[str]) -> list[tuple[Path, str]]:
+    """``(file, reason)`` of the ``traffic.library`` files of ``scenarios`` that were left
+    out because they cannot be read (each once)."""
+    out: dict[str, str] = {}
+    for scenario in scenarios:
+        for file, reason in library_for(load_scenario(scenario)).skipped:
+            out.setdefault(file, f"a traffic.library file that cannot be read: {reason}")
+    return [(Path(f), reason) for f, reason in out.items()]
 
 
 def _source(replays: dict[str, bool]) -> str:

@@ -327,7 +327,9 @@ def test_a_library_folder_skips_the_files_it_cannot_read(tmp_path):
     (tmp_path / "days").mkdir()
     (tmp_path / "days" / "a.csv").write_text("\n".join(lines) + "\n")
     (tmp_path / "days" / "b.csv").write_text("")
-    (tmp_path / "days" / "c.csv").write_text("\n".join(lines[:3]) + "\n" + lines[3][:20])
+    (tmp_path / "days" / "c.csv").write_text(
+        "\n".join([*lines[:3], lines[3][:20], *lines[4:6]]) + "\n"
+    )  # (one cut at the very end: read)
     path = tmp_path / "mine.yaml"
     path.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [days]}\n")
     said = r"skipped 2 of 3 trajectory files that cannot be read:\n  - .*b.csv: the file is empty"
@@ -341,6 +343,32 @@ def test_a_library_folder_skips_the_files_it_cannot_read(tmp_path):
     path.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [days]}\n")
     with pytest.raises(DataError, match=r"traffic.library: none of its 2 files can be read"):
         library_for(load_scenario(path))
+
+
+def test_a_dataset_s_manifest_lists_the_library_files_left_out(tmp_path, capsys):
+    """``record``'s manifest lists, under ``skipped``, the ``traffic.library`` files of a
+    folder left out because they cannot be read (its ``inputs`` listed them with their
+    digests, as if they were used; only a warning said otherwise)."""
+    from importlib import resources
+
+    from neurotrajectory.cli import main as nt_main
+    from neurotrajectory.data.storage import load_dataset
+
+    source = resources.files("gridsim").joinpath("data", "ngsim", "ngsim_trajectories.csv")
+    (tmp_path / "days").mkdir()
+    (tmp_path / "days" / "a.csv").write_text(source.read_text())
+    (tmp_path / "days" / "b.csv").write_text("")
+    path = tmp_path / "mine.yaml"
+    path.write_text("name: mine\nroad: {type: seamless}\ntraffic: {library: [days]}\n")
+    code = nt_main(["record", "--scenario", str(path), "--out", str(tmp_path / "ds"),
+                    "--episodes", "1", "--episode-seconds", "4", "--quiet"])  # fmt: skip
+    assert code == 0, capsys.readouterr().err
+    (skipped,) = load_dataset(tmp_path / "ds").manifest["skipped"]
+    assert skipped == {"file": str(tmp_path / "days" / "b.csv"),
+                       "reason": "a traffic.library file that cannot be read: the file is "
+                                 "empty; a trajectory CSV starts with the header "
+                                 "scenario_id,track_id,time_s,x_m,y_m,heading_rad,speed_mps,"
+                                 "length_m,width_m"}  # fmt: skip
 
 
 def test_validate_says_how_many_tracks_a_random_ego_is_not_drawn_from(capsys):
