@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -27,12 +28,17 @@ def add_parser(sub) -> None:
 
 def execute(args: argparse.Namespace) -> int:
     summary = drive(args.scenario, args.seconds, args.seed, Path(args.out), progress=not args.quiet)
+    if summary["simulated_s"] < args.seconds - 1e-9:
+        print(f"gridsim: drove {summary['simulated_s']:g} s, not {args.seconds:g}: the recording "
+              f"of ego track {summary['ego_track']} ends there (its traffic and map end with "
+              "it)", file=sys.stderr)  # fmt: skip
     print(json.dumps(rounded(summary), indent=2))
     return 0
 
 
 def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = True) -> dict:
-    """Drive ``seconds`` of simulated time; write ``grids.npz`` (uint8 ``(T, H, W)`` grids and
+    """Drive ``seconds`` of simulated time (on a recorded scene at most until its ego track's
+    recording ends, as an episode does); write ``grids.npz`` (uint8 ``(T, H, W)`` grids and
     their times), a few colour grid PNGs (``grid_TICK.png``, named by their tick),
     ``topdown.png`` (last frame) and ``summary.json`` into ``out``. Returns the summary."""
     from gridsim.outputs import progress_bar
@@ -54,7 +60,9 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     track = world.ego_track
     speed = float(track.speed.mean()) if track is not None else 0.9 * sc.config.ego.vehicle.v_max
     driver = LaneFollower(speed=speed)
-    steps = int(round(seconds / world.dt))
+    if track is not None:  # beyond it the scene is empty and the map may end
+        seconds = min(seconds, float(track.duration))
+    steps = max(1, int(round(seconds / world.dt)))
     if steps > MAX_TICKS:
         raise GridSimError(f"--seconds {seconds:g} is {steps:,} ticks of {world.dt:g} s; at most "
                            f"{MAX_TICKS:,} (the grids are kept in memory)")  # fmt: skip
@@ -104,6 +112,14 @@ def _write(out, sc, seed, world, grids, times, steps, start, distance, collision
         "ticks_in_collision": int(collisions),
         "ticks_off_road": int(off_road),
         "traffic_active": int(world.traffic.fleet.active.sum()),
+        **(
+            {
+                "ego_track": world.ego_track.track_id,
+                "ego_track_s": round(float(world.ego_track.duration), 3),
+            }
+            if world.ego_track is not None
+            else {}
+        ),  # fmt: skip
         "outputs": sorted(
             [p.name for p in out.iterdir() if not p.name.startswith(".")] + ["summary.json"]
         ),  # (this file, written next)

@@ -97,6 +97,20 @@ def test_drive_command_writes_outputs(tmp_path, capsys):
     assert summary["outputs"] == sorted(p.name for p in out.iterdir())  # itself included
 
 
+def test_drive_stops_where_a_recorded_ego_track_ends(tmp_path, capsys):
+    """On a recorded scene ``drive`` stops where its ego track's recording ends, saying so
+    (20 s drove on past the recording: 142 of 200 ticks off the map, no traffic left)."""
+    out = tmp_path / "drive"
+    assert main(["drive", "--scenario", "us101_4_1", "--seed", "1", "--out", str(out),
+                 "--quiet"]) == 0  # fmt: skip
+    summary = json.loads((out / "summary.json").read_text())
+    err = capsys.readouterr().err
+    assert summary["simulated_s"] == pytest.approx(summary["ego_track_s"], abs=0.05)
+    assert summary["simulated_s"] < 20
+    assert f"drove {summary['simulated_s']:g} s, not 20: the recording of ego track " in err
+    assert summary["ticks_off_road"] == 0
+
+
 def test_drive_rejects_bad_arguments(tmp_path, capsys):
     for bad in ("-1", "nan", "1e12"):
         assert main(["drive", "--seconds", bad, "--out", str(tmp_path / "x"), "--quiet"]) == 2
