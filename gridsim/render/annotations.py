@@ -1,6 +1,6 @@
 """What a video frame says besides the picture, so that a person understands it without the
 code: who drives, the time, the speed, the fitness so far (top left); what each colour is
-(bottom left, and the grid inset's beside it, top right); a scale bar (bottom right).
+(bottom left, the grid inset's beside it); a scale bar (bottom right).
 
 Frames come from :class:`~gridsim.render.topdown.TopDownRenderer`; :func:`annotate` writes on
 them in place. Used by every video export (:func:`gridsim.video.record_episode`) and by
@@ -95,9 +95,9 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
     """Write ``caption`` (with how the episode ended, if it did, as its last line, in light
     red and bold: the scene itself is left clear at the moment that matters), the colour
     legend (without the set-points' colours unless ``setpoints``: a frame that draws none),
-    the grid inset's legend (beside an inset of ``inset_size`` pixels at the top right, if
-    any; at the bottom beside the colour legend when the caption is too wide) and a scale
-    bar on ``img`` (in place); returns ``img``."""
+    the grid inset's legend (of an inset of ``inset_size`` pixels at the top right, if any;
+    at the bottom beside the colour legend) and a scale bar on ``img`` (in place); returns
+    ``img``."""
     text = [(t, None, "") for t in caption.lines()]
     if caption.ended:
         text.append((f"episode over: {caption.ended} at {caption.time:.1f} s", ENDED_COLOUR,
@@ -105,17 +105,10 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
     _band(img, 0, 0, text)
     legend = LEGEND if setpoints else tuple(e for e in LEGEND if e[2] not in _SETPOINT_SHAPES)
     _band(img, 0, img.shape[0] - _STEP * len(legend) - 8, legend)
-    if inset_size:
+    if inset_size:  # at the bottom beside the colours' legend: beside the inset (top middle)
+        # it hid the road ahead of an ego driving up the picture, under it one driving right
         grid = [("sensor grid:", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
-        width = _width(grid)
-        # beside the inset, in the top band, where the caption leaves room; else at the
-        # bottom beside the colours' legend (under the inset it hid the road ahead, which
-        # often runs across the middle of the picture)
-        beside = img.shape[1] - inset_size - 16 - width
-        if beside >= _width(text) + 8:
-            _band(img, beside, 8, grid, width)
-        else:
-            _band(img, _width(legend) + 8, img.shape[0] - _STEP * len(grid) - 8, grid, width)
+        _band(img, _width(legend) + 8, img.shape[0] - _STEP * len(grid) - 8, grid)
     _scale_bar(img, pixels_per_metre)
     return img
 

@@ -262,9 +262,10 @@ def test_run_command(tmp_path, capsys):
 
 def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     """Exported frames say who drives, the time, speed and fitness so far (top left), what the
-    colours are (bottom left, and the grid's beside its inset, in the top band: under the
-    inset it hid the road ahead), and carry a scale bar (bottom right); nothing else of the
-    picture changes. --no-overlay leaves them plain."""
+    colours are (bottom left, the grid's beside them: beside the inset, top middle, it hid
+    the road ahead of an ego driving up the picture, under it one driving right), and carry
+    a scale bar (bottom right); nothing else of the picture changes, whatever the caption's
+    width. --no-overlay leaves them plain."""
     from gridsim.envs.wrappers import CaptionedRender
     from gridsim.render.annotations import Caption
     from gridsim.video import _frame
@@ -278,18 +279,16 @@ def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     regions = np.zeros_like(differs)
     regions[:90, :330] = True  # caption
     regions[h - 120 :, :200] = True  # colour legend
-    regions[:110, w - 310 : w - 170] = True  # the grid's legend, beside the inset
+    regions[h - 100 :, 140:300] = True  # the grid's legend, beside the colours'
     regions[h - 45 :, w - 130 :] = True  # scale bar
     assert differs[:60, :250].mean() > 0.05 and differs[h - 90 :, :150].mean() > 0.05
-    assert differs[10:100, w - 300 : w - 180].mean() > 0.05  # the grid's legend is there
+    assert differs[h - 90 :, 150:280].mean() > 0.05  # the grid's legend is there
     assert differs[h - 30 :, w - 100 :].any()
     assert not differs[~regions].any()  # the picture itself is untouched
-    # a caption too wide for the grid's legend beside the inset: it goes to the bottom,
-    # beside the colours' (under the inset it hid the road ahead)
+    assert not differs[:, 300 : w - 140].any()  # the middle band, top to bottom, stays clear
     wide = _frame(env, info, True, "my planner " + "x" * 50, np.array([1.5e6, 0.25, 80.0]))
     differs = np.any(plain != wide, axis=2)
-    assert not differs[170:300, w - 170 :].any()  # nothing under the inset
-    assert differs[h - 90 :, 150:300].mean() > 0.05 and not differs[h - 100 :, 310 : w - 140].any()
+    assert not differs[90:, 300 : w - 140].any() and differs[h - 90 :, 150:280].mean() > 0.05
     lines = Caption.from_info(info, "my planner", np.array([1.5, 0.25, 80.0])).lines()
     assert lines == ["my planner", "t   0.0 s    speed  8.0 m/s",
                      "fitness so far, each summed over the ticks:",
