@@ -40,7 +40,8 @@ def drive_episodes(
     """One row of statistics per episode of ``policy`` on ``scenario`` (episodes of
     ``seconds``, one per seed; ``ego`` overrides the scenario's ego section, ``goal_seconds``
     its ``env.goal_seconds``); with ``video``, the first episode is also exported there,
-    annotated with ``label`` as the driver's name. ``progress(1)`` after each episode."""
+    annotated with ``label`` as the driver's name and the episode's seed. ``progress(1)``
+    after each episode."""
     more = ({"ego": ego} if ego else {}) | goal_overrides(goal_seconds)
     env = GridSimEnv(scenario, action_type=policy.action_type,
                      render_mode="rgb_array" if video else None,
@@ -48,8 +49,9 @@ def drive_episodes(
     dt = env.cfg.simulation.dt
     rows = []
     for k, seed in enumerate(seeds):
+        named = None if label is None else f"{label}, seed {seed}"  # (drives it again)
         episode, _ = record_episode(env, policy, video if k == 0 else None, seed=seed,
-                                    label=label)  # fmt: skip
+                                    label=named)  # fmt: skip
         s, fitness = episode.summary(), episode.fitness
         ref = env.reference
         driven = np.vstack([ref.xy[:1], episode.poses()[1:, :2]])
@@ -105,9 +107,10 @@ def closed_loop(
         rows = drive_episodes(scenario, policy, seeds, seconds, video,
                               goal_seconds=goal_seconds, label=label)  # fmt: skip
         return summarise(rows) | {"per_episode": rows}
+    named = {track: None if label is None else f"{label}, track {track}" for track in tracks}
     rows = [{**row, "track": track}
             for k, (track, seed) in enumerate(zip(tracks, seeds, strict=True))
             for row in drive_episodes(scenario, policy, [seed], seconds,
                                       video if k == 0 else None, ego={"track": track},
-                                      goal_seconds=goal_seconds, label=label)]  # fmt: skip
+                                      goal_seconds=goal_seconds, label=named[track])]  # fmt: skip
     return summarise(rows) | {"per_episode": rows}

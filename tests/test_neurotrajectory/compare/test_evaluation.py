@@ -427,6 +427,30 @@ def test_an_evaluation_video_names_its_scene():
     assert _video_label("DWA", "mine", "my/scenes/a.yaml") == "DWA, mine (a)"
 
 
+def test_an_evaluation_video_names_its_seed_and_track(tmp_path, monkeypatch):
+    """The video's caption names the seed (and on a recorded scene the track) that drives its
+    episode again (it named the method and group only; the seed was in results.json)."""
+    from neurotrajectory.compare import closed_loop
+
+    labels = []
+    real = closed_loop.record_episode
+
+    def spy(env, policy, video, seed=None, label=None, **kw):
+        labels.append((video is not None, label))
+        return real(env, policy, None, seed=seed, label=label, **kw)
+
+    monkeypatch.setattr(closed_loop, "record_episode", spy)
+    from gridsim.policies import Reference
+
+    closed_loop.closed_loop("seamless", Reference(), [5, 6], 1.0, tmp_path / "v.mp4",
+                            label="DWA, seamless")  # fmt: skip
+    assert labels == [(True, "DWA, seamless, seed 5"), (False, "DWA, seamless, seed 6")]
+    labels.clear()
+    closed_loop.closed_loop("us101_4_1", Reference(), [5], 1.0, tmp_path / "w.mp4",
+                            label="DWA, highway", tracks=["395"])  # fmt: skip
+    assert labels == [(True, "DWA, highway, track 395, seed 5")]
+
+
 def test_a_group_too_small_to_split_says_which_and_how(tmp_path):
     """``--episodes 1`` gave "need windows from >= 2 tracks to split, got 1" alone."""
     from neurotrajectory.compare import evaluation
