@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import warnings
 
 from gridsim.cli.flags import at_least, overlay_flag, quiet_flag, scenario_flag, seed_flag
 from gridsim.errors import GridSimError
@@ -67,11 +68,15 @@ def run_policy(
         raise GridSimError(f"--video {video}: {problem}")  # before any work
     pol = POLICIES[policy]()
     ego = {"ego": {"track": str(track)}} if track is not None else {}
-    env = GridSimEnv(scenario, render_mode="rgb_array" if video else None,
-                     action_type=pol.action_type, **ego)  # fmt: skip
+    with warnings.catch_warnings(record=True) as said:  # (said after the check below: a
+        warnings.simplefilter("always")  # warning that ego.track is ignored, then an error)
+        env = GridSimEnv(scenario, render_mode="rgb_array" if video else None,
+                         action_type=pol.action_type, **ego)  # fmt: skip
     if track is not None and not is_recorded(env.scenario):
         raise GridSimError(f"--track {track}: {scenario} is a generated scenario, it has no "
                            "recorded tracks to drive (drop --track)")  # fmt: skip
+    for w in said:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     env.action_space.seed(seed)
     bar = progress_bar(
         total=steps, desc=f"{policy} on {scenario}", unit="step", disable=not progress
