@@ -25,6 +25,7 @@ def execute(args: argparse.Namespace) -> int:
     for src in args.sources:
         found = scenario_files(src)
         files += [Path(src)] if found is None else [f for f in found if f.suffix == ".xml"]
-    for path in import_files(files, args.out):
-        print(f"wrote {path}")
+    for path in import_files(files, args.out):  # (the scenario, its tracks and its map)
+        print(f"wrote {path}, {path.with_suffix('.csv')} and "
+              f"{path.parent / 'maps' / (path.stem + '.xml')}")  # fmt: skip
     return 0

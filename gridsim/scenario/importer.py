@@ -16,6 +16,7 @@ import yaml
 from gridsim.errors import GridSimError, OutputError, ScenarioError
 from gridsim.outputs import output_problem, write_text
 from gridsim.scenario.collection import report_skipped
+from gridsim.scenario.family import FAMILIES
 from gridsim.scenario.loader import commonroad_defaults, deep_merge
 from gridsim.traffic.commonroad import read_tracks_commonroad, scene_id
 from gridsim.traffic.library import write_tracks_csv
@@ -82,6 +83,9 @@ def _write(xml: Path, tracks, scene: str, out: Path) -> Path:
         "road": {"type": "recorded", "map": f"maps/{xml.name}", "scene": scene},
         **deep_merge(commonroad_defaults(), {"traffic": {"library": [f"{stem}.csv"]}}),
     }
+    for key in FAMILIES["recorded"].ignores:  # (a default a recorded scene never reads)
+        section, name = key.split(".")
+        doc.get(section, {}).pop(name, None)
     path = out / f"{stem}.yaml"
     header = (
         f"# Imported from {xml.name} by `gridsim import`; edit freely, check with "

@@ -179,10 +179,14 @@ def test_import_writes_yaml_and_csv_that_give_the_same_worlds(tmp_path, capsys):
     for f in COMMONROAD.glob("*.xml"):
         (src / f.name).write_bytes(f.read_bytes())
     assert main(["import", str(src), "--out", str(tmp_path / "out")]) == 0
-    assert capsys.readouterr().out.count("wrote") == 2
+    said = capsys.readouterr().out
     out = tmp_path / "out"
+    assert said.count("wrote") == 2  # each file's three outputs named (only its YAML was)
+    assert (f"wrote {out / 'straight_2020a.yaml'}, {out / 'straight_2020a.csv'} and "
+            f"{out / 'maps' / 'straight_2020a.xml'}") in said  # fmt: skip
     assert (out / "maps" / "straight_2020a.xml").is_file()
     doc = yaml.safe_load((out / "straight_2020a.yaml").read_text())
+    assert "speed" not in doc["ego"]  # (a default recorded scenes never read)
     assert doc["traffic"]["library"] == ["straight_2020a.csv"]
     assert doc["road"]["scene"] == "ZAM_Straight-1_2_T-1"
     imported, original = (
