@@ -21,7 +21,7 @@ change).
 Compiling all kernels takes about 30 s; ``pip install .`` does it while it builds the package
 (``gridsim compile``), so that a user's first environment starts at once. When a kernel is
 compiled at run time all the same (an editable install, another CPU, another numba), one
-line on stderr says so, once per process (:data:`NOTICE`).
+line on stderr says so, once per process and the processes it starts (:data:`NOTICE`).
 """
 
 from __future__ import annotations
@@ -40,13 +40,17 @@ from numba.core import event  # noqa: E402
 from numba.extending import register_jitable  # noqa: E402
 
 #: What a process prints (stderr) when it first compiles one of GridSim's kernels.
-NOTICE = ("gridsim: compiling the simulator's kernels for this machine, once (about 30 s; "
-          "later runs load them from the cache; `gridsim compile` does it ahead)")  # fmt: skip
+NOTICE = ("gridsim: compiling the simulator's kernels for this machine, once (up to "
+          "about 30 s; later runs load them from the cache; `gridsim compile` does it "
+          "ahead)")  # fmt: skip
+#: Set in the environment once a process has printed :data:`NOTICE`: the worker processes it
+#: starts then do not print it again (a trainer printed it three times).
+NOTICED_VARIABLE = "GRIDSIM_COMPILE_NOTICED"
 
 _KERNELS: list = []  # every kernel defined so far
 #: Kernels compiled (not loaded from the cache) in this process, and whether the notice
 #: was printed (a test session sets it, so that no test's stderr depends on the order).
-_COMPILED = {"count": 0, "noticed": False}
+_COMPILED = {"count": 0, "noticed": os.environ.get(NOTICED_VARIABLE) == "1"}
 
 
 class _CompileNotice(event.Listener):
@@ -59,6 +63,7 @@ class _CompileNotice(event.Listener):
         if not _COMPILED["noticed"]:
             print(NOTICE, file=sys.stderr, flush=True)
             _COMPILED["noticed"] = True
+            os.environ[NOTICED_VARIABLE] = "1"  # (for the processes this one starts)
         _COMPILED["count"] += 1
 
     def on_end(self, e) -> None:

@@ -48,6 +48,7 @@ def test_the_first_compile_of_a_gridsim_kernel_prints_one_notice(monkeypatch, ca
     from gridsim import jit
 
     monkeypatch.setattr(jit, "_COMPILED", {"count": 0, "noticed": False})
+    monkeypatch.delenv(jit.NOTICED_VARIABLE, raising=False)
     listener = jit._CompileNotice()
 
     def event(module: str):
@@ -60,6 +61,20 @@ def test_the_first_compile_of_a_gridsim_kernel_prints_one_notice(monkeypatch, ca
     listener.on_start(event("gridsim.sensors.rays"))
     assert jit.compiled_kernels()["compiled"] == 2
     assert capsys.readouterr().err == jit.NOTICE + "\n"
+    # the processes it starts (a trainer's workers) inherit that it was said: said once
+    import subprocess
+    import sys
+
+    code = ("from types import SimpleNamespace as N; from gridsim import jit; "
+            "jit._CompileNotice().on_start(N(data={'dispatcher': N(py_func=N("
+            "__module__='gridsim.sensors.rays'))}))")  # fmt: skip
+    child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           check=True)  # fmt: skip
+    assert child.stderr == ""
+    monkeypatch.delenv(jit.NOTICED_VARIABLE)
+    child = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                           check=True)  # fmt: skip
+    assert child.stderr == jit.NOTICE + "\n"
 
 
 def test_gridsim_compile_readies_every_kernel_of_the_built_in_scenarios(capsys):
