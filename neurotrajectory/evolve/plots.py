@@ -51,45 +51,15 @@ def plot_run(
     paths = []
 
     lost = [np.array(h.get("violation", np.zeros(len(h["fitness"])))) > 0 for h in history]
-    any_lost = any(gone.any() for gone in lost)
-    l1 = np.concatenate([f[:, 0] for f in fit])
-    # l1 may span decades (a member that lost an episode): a log scale, where it does
-    logged = not (l1.min() > 0 and l1.max() < 10 * l1.min())
-    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
-    for k, ax in enumerate(axes):
-        for g, f, gone in zip(gens, fit, lost, strict=True):
-            ax.scatter(np.full((~gone).sum(), g), f[~gone, k], s=8, alpha=0.4, color="tab:blue",
-                       label="a member" if g == gens[0] else None)  # fmt: skip
-        ax.plot(gens, [np.median(f[:, k]) for f in fit], color="tab:red", label="median")
-        if anchored:  # the members' reference, on the same episodes: luck of the draw aside
-            ax.plot(gens, [f[0, k] for f in fit], color="tab:orange", marker=".", ms=5,
-                    label="individual 0, on the same episodes: the "
-                          + ("centre" if centre else "warm start"))  # fmt: skip
-        if k == 0 and logged:  # l1 spans decades; ticks at 1, 2 and 5 of each, written out
-            ax.set_yscale("symlog")
-            ax.yaxis.set_major_locator(SymmetricalLogLocator(base=10, linthresh=2, subs=(1, 2, 5)))
-            ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
-        # the axes span the members that completed every episode: a padded score (the
-        # episode's remaining steps at the worst values) would flatten the rest
-        if k > 0:
-            _span(ax, np.concatenate([f[~gone, k] for f, gone in zip(fit, lost, strict=True)]))
-        # a padded score is drawn at the worse edge: the top for l2, the bottom for l3
-        top = None if k == 0 else ax.get_ylim()[1 if k == 1 else 0]
-        for g, f, gone in zip(gens, fit, lost, strict=True):
-            y = f[gone, k] if top is None else np.full(gone.sum(), top)
-            ax.scatter(np.full(gone.sum(), g), y, s=14, marker="x", color="black", clip_on=False,
-                       label="a member that lost an episode" + ("" if top is None else
-                             " (not drawn to scale)") if g == gens[0] and any_lost
-                             else None)  # fmt: skip
-        ax.set_xlabel("generation")
-        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
-        ax.set_title(NAMES[k] + ("\n(log scale)" if k == 0 and logged else ""), fontsize=9,
-                     pad=10)  # fmt: skip
-    fig.suptitle("every member of every generation, on that generation's training episodes "
-                 "(drawn anew each generation: compare members within a generation)",
-                 fontsize=10)  # fmt: skip
-    _legend_below(fig, axes[0], 4 if anchored else 3, 0.07)
-    paths.append(_save(fig, folder / "objectives.png"))
+    paths.append(
+        _objectives(
+            folder / "objectives.png",
+            gens,
+            fit,
+            lost,
+            ("centre" if centre else "warm start") if anchored else None,
+        )
+    )
 
     if final is None:
         last, rank = fit[-1], np.array(history[-1]["rank"])
@@ -151,6 +121,88 @@ def plot_run(
     return paths + ([curve] if curve else [])
 
 
+def _objectives(path: Path, gens: np.ndarray, fit: list[np.ndarray], lost: list[np.ndarray],
+                reference: str | None) -> Path:  # fmt: skip
+    """Every member of every generation (``fit``: each generation's fitness ``(K, 3)``,
+    ``lost``: which members lost an episode), each objective a panel (the paper's Fig. 6).
+    With a ``reference`` (individual 0 is the warm start or the centre, on the same episodes
+    as the others), each member as its change from individual 0 [%]: the episodes, drawn
+    anew each generation, move every member's scores together far more than members differ
+    (an l3 spread of 1 % hid under a line that swung 40 % from one draw to the next);
+    without one, the scores themselves."""
+    left_out = 0  # generations whose individual 0 lost an episode: no reference to draw
+    if reference is not None:
+        whole = np.array([not gone[0] for gone in lost])
+        left_out = int((~whole).sum())
+        gens, lost = gens[whole], [gone for gone, ok in zip(lost, whole, strict=True) if ok]
+        fit = [100.0 * (f - f[0]) / np.where(f[0] != 0, np.abs(f[0]), 1.0)
+               for f, ok in zip(fit, whole, strict=True) if ok]  # fmt: skip
+        if not fit:
+            gens, fit, lost = np.zeros(1, int), [np.zeros((1, 3))], [np.zeros(1, bool)]
+    l1 = np.concatenate([f[:, 0] for f in fit])
+    # l1 may span decades (a member that lost an episode): a log scale, where it does
+    logged = reference is None and not (l1.min() > 0 and l1.max() < 10 * l1.min())
+    any_lost = any(gone.any() for gone in lost)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 3.8))
+    for k, ax in enumerate(axes):
+        for g, f, gone in zip(gens, fit, lost, strict=True):
+            ax.scatter(np.full((~gone).sum(), g), f[~gone, k], s=8, alpha=0.4, color="tab:blue",
+                       label="a member" if g == gens[0] else None)  # fmt: skip
+        ax.plot(gens, [np.median(f[:, k]) for f in fit], color="tab:red", label="median")
+        if reference is not None:  # the members' reference, on the same episodes
+            ax.axhline(
+                0.0,
+                color="tab:orange",
+                lw=1.5,
+                label=f"individual 0, on the same episodes: the {reference}",
+            )
+        if k == 0 and logged:  # l1 spans decades; ticks at 1, 2 and 5 of each, written out
+            ax.set_yscale("symlog")
+            ax.yaxis.set_major_locator(SymmetricalLogLocator(base=10, linthresh=2, subs=(1, 2, 5)))
+            ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:g}"))
+        # the axes span the members that completed every episode: a padded score (the
+        # episode's remaining steps at the worst values) would flatten the rest
+        padded_to_edge = k > 0 or reference is not None
+        if padded_to_edge:
+            _span(
+                ax,
+                np.concatenate(
+                    [f[~gone, k] for f, gone in zip(fit, lost, strict=True)]
+                    + ([np.zeros(1)] if reference is not None else [])
+                ),
+            )
+        # a padded score is drawn at the worse edge: the top for l1 and l2, the bottom for l3
+        top = ax.get_ylim()[0 if k == 2 else 1] if padded_to_edge else None
+        for g, f, gone in zip(gens, fit, lost, strict=True):
+            y = f[gone, k] if top is None else np.full(gone.sum(), top)
+            ax.scatter(np.full(gone.sum(), g), y, s=14, marker="x", color="black", clip_on=False,
+                       label="a member that lost an episode" + ("" if top is None else
+                             " (not drawn to scale)") if g == gens[0] and any_lost
+                             else None)  # fmt: skip
+        ax.set_xlabel("generation")
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+        name = NAMES[k]  # (relative: the quantity, then the change on a line of its own)
+        if reference is not None:
+            better = "higher" if k == 2 else "lower"
+            name = (f"{name[: name.index(' [')]}\nchange from individual 0 [%] ({better} "
+                    "better)")  # fmt: skip
+        ax.set_title(name + ("\n(log scale)" if logged and k == 0 else ""), fontsize=9,
+                     pad=10)  # fmt: skip
+    if reference is None:
+        said = (
+            "every member of every generation, on that generation's training episodes "
+            "(drawn anew each generation: compare members within a generation)"
+        )
+    else:
+        said = (f"every member of every generation against individual 0 (the {reference}) on "
+                "the same training episodes, drawn anew each generation"
+                + (f"\n({left_out} generation(s) where individual 0 lost an episode left out)"
+                   if left_out else ""))  # fmt: skip
+    fig.suptitle(said, fontsize=10)
+    _legend_below(fig, axes[0], 4 if reference is not None else 3, 0.07)
+    return _save(fig, path)
+
+
 def _hypervolume(path: Path, history: list[dict], anchored: bool) -> Path:
     """Each generation's hypervolume against a reference on the same episodes
     (:func:`~neurotrajectory.evolve.pareto.hypervolume_ratio`): individual 0 (the warm start or
@@ -165,10 +217,10 @@ def _hypervolume(path: Path, history: list[dict], anchored: bool) -> Path:
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylim(bottom=0)
     ax.set_ylabel(f"hypervolume / {'individual 0' if anchored else 'that member'}'s alone")
-    ax.set_title(f"how much better the generation's members do than {who} alone\n(the "
-                 "objective space they dominate, on that generation's episodes, objectives "
-                 f"as ratios to it, up to {HV_MARGIN:g}x;\n1: no member does better on any "
-                 "objective)", fontsize=8)  # fmt: skip
+    ax.set_title(f"the objective space the generation's members dominate, relative to\n{who}"
+                 f" alone on the same episodes (objectives as ratios to it, up to {HV_MARGIN:g}x)"
+                 "\n1: no member does better on any objective; it moves with each draw",
+                 fontsize=8)  # fmt: skip
     ax.legend(fontsize=8)
     fig.tight_layout()
     return _save(fig, path)

@@ -5,6 +5,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 
+import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from neurotrajectory.evolve import plots  # noqa: E402
@@ -91,17 +92,29 @@ def test_the_objectives_plot_draws_individual_0_beside_the_members(tmp_path, mon
                                                                    says):  # fmt: skip
     """Each generation's episodes are drawn anew, so the members' scores move with the
     draw; in an anchored or evolution-strategies run individual 0 (the warm start, or the
-    centre) drives the same episodes: its line is the reference to read them against."""
+    centre) drives the same episodes: each member is drawn as its change from individual 0
+    [%] (absolute scores swung with the draw and hid an l3 spread of 1 %); a generation
+    whose individual 0 lost an episode has no reference and is left out, said so."""
     figures = []
     monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig) or path)
     monkeypatch.setattr(plots, "generation_hypervolume", lambda *args: 1.0)
-    history = [{"generation": g, "fitness": [[50.0 * (g + 1) + i, 1.0, 1700.0] for i in range(4)],
+    history = [{"generation": g, "fitness": [[50.0 * (g + 1) + i, 1.0, 1700.0 + 17 * i]
+                                             for i in range(4)],
                 "violation": [0.0] * 4, "rank": [0] * 4, "hypervolume": 1.0}
                for g in range(3)]  # fmt: skip
+    history[1]["violation"][0] = 0.2
     plots.plot_run(tmp_path, history, anchored=True, centre=centre)
-    l1 = figures[0].axes[0]
+    l1, _, l3 = figures[0].axes
     (line,) = [ln for ln in l1.lines if ln.get_label().startswith("individual 0")]
-    assert line.get_label().endswith(says) and line.get_ydata().tolist() == [50.0, 100.0, 150.0]
+    assert line.get_label().endswith(says) and list(line.get_ydata()) == [0.0, 0.0]
+    members = np.concatenate([c.get_offsets() for c in l1.collections if len(c.get_offsets())])
+    assert sorted(map(tuple, members.round(6).tolist())) == sorted(
+        (g, round(100 * i / (50 * (g + 1)), 6)) for g in (0, 2) for i in range(4))
+    members = np.concatenate([c.get_offsets() for c in l3.collections if len(c.get_offsets())])
+    assert members[:, 1].max() == pytest.approx(3.0)  # l3 1 % apart per member: visible
+    assert "change from individual 0 [%] (higher better)" in l3.get_title()
+    assert "1 generation(s) where individual 0 lost an episode left out" in \
+        figures[0]._suptitle.get_text()  # fmt: skip
     figures.clear()
     plots.plot_run(tmp_path, history)  # no warm start: no such line
     assert not [ln for ln in figures[0].axes[0].lines if ln.get_label().startswith("individual")]
