@@ -1,4 +1,4 @@
-"""Ctrl-C deferred to the end of the simulator step it arrives in, for commands.
+"""Ctrl-C (and SIGTERM) deferred to the end of the simulator step it arrives in, for commands.
 
 Python raises ``KeyboardInterrupt`` between bytecodes; arriving while a compiled (numba)
 call returns, it can leave the interpreter in a bad state: the command ends in a
@@ -8,6 +8,9 @@ interrupting ``record`` and ``train --backend local``). Commands install
 <gridsim.envs.gridsim_env.GridSimEnv.step>` and ``reset`` is a critical section
 (:func:`enter` ... :func:`leave`), at whose end a Ctrl-C that arrived inside it is raised.
 Outside such sections, and in programs that do not install it, Ctrl-C is Python's own.
+SIGTERM (``kill``, a job scheduler's stop, a container's) is handled alike, as
+:class:`Terminated`: the command ends as after Ctrl-C, saying what it kept (the default
+action ended the process without a word).
 """
 
 from __future__ import annotations
@@ -17,7 +20,12 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 
-_STATE = {"depth": 0, "pending": False}
+_STATE: dict = {"depth": 0, "pending": None}  # pending: the interrupt to raise at leave()
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where Ctrl-C's ``KeyboardInterrupt`` would be (a kind of it: work
+    that handles Ctrl-C handles it too)."""
 
 
 def enter() -> None:
@@ -28,29 +36,36 @@ def enter() -> None:
 def leave() -> None:
     """End a critical section; a Ctrl-C that arrived inside it is raised now."""
     _STATE["depth"] -= 1
-    if not _STATE["depth"] and _STATE["pending"]:
-        _STATE["pending"] = False
-        raise KeyboardInterrupt
+    if not _STATE["depth"] and _STATE["pending"] is not None:
+        pending, _STATE["pending"] = _STATE["pending"], None
+        raise pending()
 
 
 def _handler(signum, frame) -> None:
+    interrupt = Terminated if signum == signal.SIGTERM else KeyboardInterrupt
     if _STATE["depth"]:
-        _STATE["pending"] = True  # raised by leave()
+        _STATE["pending"] = _STATE["pending"] or interrupt  # raised by leave()
     else:
-        raise KeyboardInterrupt
+        raise interrupt()
 
 
 @contextmanager
 def deferred() -> Iterator[None]:
     """Within it, a Ctrl-C inside a critical section waits for the section's end (in the main
-    thread, if Ctrl-C is Python's default there; else nothing changes)."""
+    thread, if Ctrl-C is Python's default there; else nothing changes), and so does a
+    SIGTERM, raised as :class:`Terminated` (if its handling is the default)."""
     if (threading.current_thread() is not threading.main_thread()
             or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):  # fmt: skip
         yield
         return
     previous = signal.signal(signal.SIGINT, _handler)
+    term = signal.getsignal(signal.SIGTERM)
+    if term == signal.SIG_DFL:
+        signal.signal(signal.SIGTERM, _handler)
     try:
         yield
     finally:
         signal.signal(signal.SIGINT, previous)
-        _STATE["pending"] = False
+        if term == signal.SIG_DFL:
+            signal.signal(signal.SIGTERM, term)
+        _STATE["pending"] = None

@@ -92,9 +92,8 @@ def run_command(
         except errors as exc:
             print(f"{parser.prog}: error: {exc}", file=sys.stderr)
             return 2
-        except KeyboardInterrupt:
-            print(f"{parser.prog}: interrupted", file=sys.stderr)
-            return 130
+        except KeyboardInterrupt as exc:
+            return _interrupted(parser.prog, exc)
         except Exception as exc:
             if isinstance(exc, BrokenPipeError) and _stdout_closed():
                 return 141  # the reader went away (`| head`): stop quietly, as a shell tool
@@ -110,6 +109,16 @@ def run_command(
                   f"This is a bug, not a problem of your input. Please report it to {REPORT_TO} "
                   f"with the traceback saved in {saved}", file=sys.stderr)  # fmt: skip
             return 3
+
+
+def _interrupted(prog: str, exc: KeyboardInterrupt) -> int:
+    """Say that Ctrl-C (130) or SIGTERM (143, :class:`~gridsim.interrupts.Terminated`) ended
+    the command; its exit status."""
+    if isinstance(exc, interrupts.Terminated):
+        print(f"{prog}: terminated (SIGTERM)", file=sys.stderr)
+        return 143
+    print(f"{prog}: interrupted", file=sys.stderr)
+    return 130
 
 
 def _stdout_closed() -> bool:

@@ -101,6 +101,41 @@ def test_a_ctrl_c_inside_a_simulator_step_waits_for_its_end():
     assert reached == ["the step's end"]
 
 
+def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path, monkeypatch, capsys):
+    """SIGTERM (``kill``, a scheduler's stop) inside a step waits for the step's end, as
+    Ctrl-C does, and the command ends saying so, with status 143 (the default action ended
+    the process without a word, skipping what Ctrl-C's handling keeps); outside commands
+    SIGTERM keeps its own handling."""
+    import signal
+
+    from gridsim import interrupts
+    from gridsim.cli import main
+    from gridsim.world.scripted_drivers import LaneFollower
+
+    with interrupts.deferred():
+        interrupts.enter()
+        os.kill(os.getpid(), signal.SIGTERM)
+        with pytest.raises(interrupts.Terminated):
+            interrupts.leave()
+        with pytest.raises(KeyboardInterrupt):  # (a kind of Ctrl-C's)
+            os.kill(os.getpid(), signal.SIGTERM)
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL  # put back
+    calls = []
+    drive = LaneFollower.__call__
+
+    def signalled(self, world):  # a SIGTERM as the 20th tick is computed
+        calls.append(1)
+        if len(calls) == 20:
+            os.kill(os.getpid(), signal.SIGTERM)
+        return drive(self, world)
+
+    monkeypatch.setattr(LaneFollower, "__call__", signalled)
+    assert main(["drive", "--out", str(tmp_path / "d"), "--quiet"]) == 143
+    assert capsys.readouterr().err.strip().endswith("gridsim: terminated (SIGTERM)")
+    assert len(calls) == 20 and not (tmp_path / "d").exists()
+    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+
+
 def test_a_full_disk_is_named_not_called_a_bug(capsys):
     import errno
 
