@@ -108,7 +108,14 @@ def test_drive_stops_where_a_recorded_ego_track_ends(tmp_path, capsys):
     assert summary["simulated_s"] == pytest.approx(summary["ego_track_s"], abs=0.05)
     assert summary["simulated_s"] < 20
     assert f"drove {summary['simulated_s']:g} s, not 20: the recording of ego track " in err
-    assert summary["ticks_off_road"] == 0
+    assert summary["ticks_off_road"] == 0 and summary["cut_at_track_end"]
+    # a time that is no whole number of ticks is no cut (it said so, and on a generated
+    # scene failed looking for the track)
+    assert main(["drive", "--seconds", "1.04", "--out", str(tmp_path / "g"), "--quiet"]) == 0
+    assert "drove" not in capsys.readouterr().err
+    assert main(["drive", "--scenario", "us101_4_1", "--seed", "1", "--seconds", "1.04",
+                 "--out", str(tmp_path / "r"), "--quiet"]) == 0  # fmt: skip
+    assert "drove" not in capsys.readouterr().err
 
 
 def test_drive_rejects_bad_arguments(tmp_path, capsys):
