@@ -28,7 +28,7 @@ def add_parser(sub) -> None:
 
 def execute(args: argparse.Namespace) -> int:
     summary = drive(args.scenario, args.seconds, args.seed, Path(args.out), progress=not args.quiet)
-    if summary["simulated_s"] < args.seconds - 1e-9:
+    if summary.get("cut_at_track_end"):
         print(f"gridsim: drove {summary['simulated_s']:g} s, not {args.seconds:g}: the recording "
               f"of ego track {summary['ego_track']} ends there (its traffic and map end with "
               "it)", file=sys.stderr)  # fmt: skip
@@ -60,8 +60,9 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     track = world.ego_track
     speed = float(track.speed.mean()) if track is not None else 0.9 * sc.config.ego.vehicle.v_max
     driver = LaneFollower(speed=speed)
-    if track is not None:  # beyond it the scene is empty and the map may end
-        seconds = min(seconds, float(track.duration))
+    cut = track is not None and track.duration < seconds  # (past its end the scene is
+    if cut:  # empty and the map may end)
+        seconds = float(track.duration)
     steps = max(1, int(round(seconds / world.dt)))
     if steps > MAX_TICKS:
         raise GridSimError(f"--seconds {seconds:g} is {steps:,} ticks of {world.dt:g} s; at most "
@@ -80,12 +81,13 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         times[k] = round(world.time, 9)  # a sum of ticks, to the nanosecond (as info["time"])
     with new_folder(out) as partial:  # out appears whole
         return _write(partial, sc, seed, world, grids, times, steps, start, distance,
-                      collisions, off_road)  # fmt: skip
+                      collisions, off_road, cut)  # fmt: skip
 
 
 def _write(out, sc, seed, world, grids, times, steps, start, distance, collisions,
-           off_road) -> dict:  # fmt: skip
-    """Write the drive's files into ``out``; the summary."""
+           off_road, cut: bool) -> dict:  # fmt: skip
+    """Write the drive's files into ``out``; the summary (``cut``: it stopped where its ego
+    track's recording ends, before the time asked for)."""
     import cv2
 
     from gridsim.render.annotations import Caption, annotate
@@ -116,6 +118,7 @@ def _write(out, sc, seed, world, grids, times, steps, start, distance, collision
             {
                 "ego_track": world.ego_track.track_id,
                 "ego_track_s": round(float(world.ego_track.duration), 3),
+                "cut_at_track_end": cut,
             }
             if world.ego_track is not None
             else {}
