@@ -124,6 +124,13 @@ def progress_bar(*args: Any, **kwargs: Any):
     return bar
 
 
+def named(items: list, shown: int = 5, sep: str = ", ") -> str:
+    """The first ``shown`` of ``items`` joined by ``sep``, the rest counted: ``"a, b, c, d, e
+    and 7 more"``."""
+    more = f" and {len(items) - shown} more" if len(items) > shown else ""
+    return sep.join(map(str, items[:shown])) + more
+
+
 def counted(count: int, noun: str) -> str:
     """``count`` and ``noun``, plural unless it is 1: ``"1 epoch"``, ``"25 epochs"``."""
     return f"{count} {noun}{'' if count == 1 else 's'}"

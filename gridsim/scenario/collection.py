@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from gridsim.errors import DataError, GridSimError, ScenarioError, UnselectedScene, warn_data
-from gridsim.outputs import counted
+from gridsim.outputs import counted, named
 from gridsim.scenario.build import build_world
 from gridsim.scenario.loader import load_scenario, names_a_file, scenario_document
 from gridsim.scenario.parts import matching_files
@@ -195,7 +195,7 @@ def usable_files(
 
 def shared_names_message(first: Path, other: Path, scene: str, ids: list[str]) -> str:
     """What :func:`shared_track_names` found, and what to do."""
-    shown = ", ".join(ids[:5]) + (f" and {len(ids) - 5} more" if len(ids) > 5 else "")
+    shown = named(ids)
     return (
         f"{other} and {first} are other recordings of scene {scene} with {len(ids)} track "
         f"id(s) in common ({shown}): windows, the train/test split by track and --track "

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.errors import DataError, DataWarning, ScenarioError, warn_data
+from gridsim.outputs import named
 from gridsim.road.polyline import Polyline
 from gridsim.scenario.checks import SceneReport, feet_hint, library_report
 from gridsim.scenario.family import is_recorded
@@ -239,10 +240,9 @@ def _say_notes(notes: list[str], files: int) -> None:
     noted = [note.split(": ", 1)[0] for note in notes]  # each note's file
     said = len(set(noted))
     rest = list(dict.fromkeys(noted[NOTES_SHOWN:]))
-    named = ", ".join(rest[:10]) + (f" and {len(rest) - 10} more" if len(rest) > 10 else "")
     shown = "\n".join(f"  - {note}" for note in notes[:NOTES_SHOWN])
     warn_data(f"traffic.library: {said} of its {files} trajectory files have notes; the "
-              f"first {NOTES_SHOWN}:\n{shown}\n  and likewise: {named}")  # fmt: skip
+              f"first {NOTES_SHOWN}:\n{shown}\n  and likewise: {named(rest, 10)}")  # fmt: skip
 
 
 def seed_streams(seed: int) -> tuple[int, np.random.Generator, np.random.Generator]:

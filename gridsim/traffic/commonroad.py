@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.errors import DataError, warn_data
-from gridsim.outputs import short_repr
+from gridsim.outputs import named, short_repr
 from gridsim.road.lanelet import commonroad_root, iter_commonroad
 from gridsim.traffic.track import Track, impossible_note, refuse_mostly_impossible
 
@@ -129,9 +129,8 @@ def read_tracks_commonroad(path: str | Path) -> list[Track]:
     refuse_mostly_impossible(path, len(tracks), impossible)
     notes = [impossible_note(impossible)] if impossible else []
     if single:
-        more = f" and {len(single) - 5} more" if len(single) > 5 else ""
         notes.append(f"{len(single)} dynamic obstacle(s) with a single state left out (at "
-                     f"least 2 are needed): {', '.join(single[:5])}{more}")  # fmt: skip
+                     f"least 2 are needed): {named(single)}")  # fmt: skip
     if notes:
         warn_data(f"{path}: " + "; ".join(notes))
     return tracks

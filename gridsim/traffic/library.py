@@ -17,10 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from gridsim.errors import DataError, archive_problem, warn_data
-from gridsim.outputs import atomic_text, short_repr
+from gridsim.outputs import atomic_text, named, short_repr
 from gridsim.traffic.commonroad import read_tracks_commonroad
 from gridsim.traffic.track import (
-    MAX_IMPOSSIBLE_SHARE,
     Track,
     impossible_note,
     listed,
@@ -110,57 +109,93 @@ class TrajectoryLibrary:
 
 
 def _joined_across_files(tracks: list[Track]) -> list[Track]:
-    """``tracks`` with the pieces of one vehicle that a recording split into files by time
-    (one scene and track id in several files, at times that do not overlap) joined, then cut
-    where a pause shows another vehicle under the same id (:func:`_pieces`: ``ID``,
-    ``ID#2``, ...), with a warning naming them; the same id at overlapping times is refused
-    (a :class:`DataError` naming both files)."""
+    """``tracks`` with the vehicles a recording split into files by time joined: the rows of
+    every piece of one scene and recorded id in several files (their times may share only
+    identical rows at the boundary) put together and cut again where a pause shows another
+    vehicle under the id (:func:`_pieces`: ``ID``, ``ID#2``, ...), with a warning; a piece
+    of one state or of impossible data is left out, said in the warning (as a file's own
+    are). The same id at overlapping times is refused (a :class:`DataError` naming both
+    files)."""
     groups: dict[tuple[str, str], list[Track]] = {}
     for t in tracks:
-        groups.setdefault((t.scenario_id, t.track_id), []).append(t)
-    if all(len(group) == 1 for group in groups.values()):
+        groups.setdefault((t.scenario_id, t.recorded_id or t.track_id), []).append(t)
+    split = {key for key, group in groups.items() if len({g.source for g in group}) > 1}
+    if not split:
         return tracks
-    out, joined = [], {}  # (the files, in time order) -> the ids joined across them
+    taken = {(t.scenario_id, t.track_id) for t in tracks  # (the joined pieces' names freed)
+             if (t.scenario_id, t.recorded_id or t.track_id) not in split}  # fmt: skip
+    out, joined, left_out = [], {}, []  # joined: (the files, in time order) -> the ids
     for t in tracks:
-        group = groups[(t.scenario_id, t.track_id)]
-        if len(group) == 1:
+        key = (t.scenario_id, t.recorded_id or t.track_id)
+        if key not in split:
             out.append(t)
-        elif t is group[0]:  # the group in place of its first piece
-            group = sorted(group, key=lambda g: float(g.t[0]))
-            out += _join(group, groups)
-            files = tuple(g.source or "<tracks>" for g in group)
-            joined.setdefault(files, []).append(f"{t.scenario_id}/{t.track_id}")
-    said = []
-    for files, ids in joined.items():
-        more = f" and {len(ids) - 5} more" if len(ids) > 5 else ""
-        said.append(f"{len(ids)} from {' into '.join(files)}: {', '.join(ids[:5])}{more}")
-    warn_data(f"track(s) go on in another file at later times (a recording split into files by "
-              f"time?), each joined and cut again where it pauses as another vehicle under "
-              f"the same id: {'; '.join(said)}")  # fmt: skip
+        elif t is groups[key][0]:  # the vehicle in place of its first piece
+            pieces = sorted(groups[key], key=lambda g: float(g.t[0]))
+            out += _join(key, pieces, taken, left_out)
+            files = tuple(dict.fromkeys(g.source or "<tracks>" for g in pieces))
+            joined.setdefault(files, []).append(f"{key[0]}/{key[1]}")
+    said = [f"{len(ids)} from {' into '.join(files)}: {named(ids)}"
+            for files, ids in joined.items()]  # fmt: skip
+    notes = [f"track(s) go on in another file at later times (a recording split into files "
+             f"by time?), each joined and cut again where it pauses as another vehicle under "
+             f"the same id: {'; '.join(said)}"]  # fmt: skip
+    if left_out:
+        notes.append(f"of those, {len(left_out)} piece(s) left out: {named(left_out)}")
+    warn_data("; ".join(notes))
     return out
 
 
-def _join(pieces: list[Track], taken: dict) -> list[Track]:
-    """One vehicle's ``pieces`` (in time order) as tracks: joined, cut at pauses; ``taken``:
-    the library's (scene, id) keys (a cut's ``ID#2`` avoids them)."""
+def _join(key: tuple[str, str], pieces: list[Track], taken: set,
+          left_out: list[str]) -> list[Track]:  # fmt: skip
+    """The tracks of one vehicle (``key``: scene and recorded id) from its ``pieces`` (of
+    several files, in time order): their rows joined (an identical row in two files once),
+    cut at pauses, each piece sized and sourced by its first row's file; ``taken``: the
+    library's (scene, id) pairs (a cut's ``ID#2`` avoids them, and takes its own); a piece
+    that cannot be a track is named in ``left_out``."""
+    sid, rid = key
     for a, b in zip(pieces, pieces[1:], strict=False):
-        if b.t[0] <= a.t[-1]:
-            raise DataError(f"{b.source or '<tracks>'}: track {b.track_id} of scene "
-                            f"{b.scenario_id} is also in {a.source or '<tracks>'} at times that "
-                            f"overlap ({a.t[0]:g}-{a.t[-1]:g} s there, {b.t[0]:g}-{b.t[-1]:g} s "
-                            "here); a scene's track ids must be unique")  # fmt: skip
-    first = pieces[0]
-    rows = np.concatenate([np.column_stack([p.t, p.x, p.y, p.heading, p.speed]) for p in pieces])
-    source = ", ".join(dict.fromkeys(p.source for p in pieces if p.source))
+        shared = (a.t >= b.t[0]) & (a.t <= min(a.t[-1], b.t[-1]))
+        same = a.source == b.source or (  # (one file's own pieces never overlap)
+            shared.sum() <= 1 and (not shared.any() or _same_state(a, b, int(np.argmax(shared))))
+        )
+        if not same:
+            raise DataError(f"{b.source or '<tracks>'}: track {rid} of scene {sid} is also in "
+                            f"{a.source or '<tracks>'} at times that overlap ({a.t[0]:g}-"
+                            f"{a.t[-1]:g} s there, {b.t[0]:g}-{b.t[-1]:g} s here); a scene's "
+                            "track ids must be unique")  # fmt: skip
+    # rows: t, x, y, heading, speed, length, width, piece
+    rows = np.concatenate([np.column_stack([p.t, p.x, p.y, p.heading, p.speed,
+                                            np.full(len(p.t), p.length),
+                                            np.full(len(p.t), p.width),
+                                            np.full(len(p.t), k)])
+                           for k, p in enumerate(pieces)])  # fmt: skip
+    rows = rows[np.argsort(rows[:, 0], kind="stable")]
+    rows = rows[np.concatenate(([True], np.diff(rows[:, 0]) > 0))]  # a boundary row once
     out = []
     for k, a in enumerate(_pieces(rows)):
-        name = first.track_id if k == 0 else f"{first.track_id}#{k + 1}"
-        while k and (first.scenario_id, name) in taken:
-            name += "#"
-        columns = [np.ascontiguousarray(c) for c in a.T]
-        columns[3] = np.unwrap(columns[3])  # (each file's pieces were unwrapped on their own)
-        out.append(Track(first.scenario_id, name, *columns, first.length, first.width, source))
+        name = rid
+        if k:
+            name = f"{rid}#{k + 1}"
+            while (sid, name) in taken:
+                name += "#"
+            taken.add((sid, name))
+        first = pieces[int(a[0, 7])]
+        if len(a) < 2:
+            left_out.append(f"{sid}/{name} (a single state)")
+            continue
+        try:
+            out.append(Track(sid, name, *(np.ascontiguousarray(a[:, c]) for c in range(3)),
+                             np.unwrap(a[:, 3]), np.ascontiguousarray(a[:, 4]), float(a[0, 5]),
+                             float(a[0, 6]), first.source, rid))  # fmt: skip
+        except DataError as exc:  # impossible data: this piece
+            left_out.append(str(exc))
     return out
+
+
+def _same_state(a: Track, b: Track, k: int) -> bool:
+    """Whether state ``k`` of ``a`` is ``b``'s first, exactly (a boundary row in both files)."""
+    return all(float(getattr(a, f)[k]) == float(getattr(b, f)[0])
+               for f in ("t", "x", "y", "speed"))  # fmt: skip
 
 
 _BUILTIN: TrajectoryLibrary | None = None
@@ -230,6 +265,10 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
         def convert() -> None:  # the rows read so far (those with a missing value left out)
             values, missing, unreadable = _block(header, where, rows, lines)
             problems.extend(unreadable)
+            if problems:  # the file is refused: its numbers are not kept
+                rows.clear()
+                lines.clear()
+                return
             gaps.note(values, missing, lines)
             keep = ~missing
             blocks.append(values[keep])
@@ -246,9 +285,11 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             if row and (row[0].strip() or any(f.strip() for f in row)):
                 if len(rows) == _BLOCK:  # (the file's last row stays in the last block)
                     convert()
+                    if len(problems) >= MAX_UNREADABLE:
+                        break
                 rows.append(row)
                 lines.append(reader.line_num)
-        cut = _cut_mid_write(path, header, where, rows, lines)
+        cut = None if problems else _cut_mid_write(path, header, where, rows, lines)
         if rows:
             convert()
     _refuse_unreadable(path, problems)
@@ -289,7 +330,7 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             try:
                 tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
                                     np.unwrap(piece[:, 3]), piece[:, 4], float(piece[0, 5]),
-                                    float(piece[0, 6]), str(path)))  # fmt: skip
+                                    float(piece[0, 6]), str(path), tid))  # fmt: skip
             except DataError as exc:  # impossible data: the track, or the file (below)
                 impossible.append(str(exc).removeprefix(f"{path}: "))
     refuse_mostly_impossible(path, len(tracks), impossible)
@@ -332,6 +373,8 @@ def _cut_mid_write(path: Path, header: list[str], where: list[int], rows: list[l
 
 
 #: Rows converted at a time (a block's text is held in memory, not the file's).
+#: Unreadable rows after which a refused file is read no further.
+MAX_UNREADABLE = 10_000
 _BLOCK = 1 << 16
 
 
@@ -401,20 +444,23 @@ def _refuse_unreadable(path: Path, problems: list[tuple[int, str]]) -> None:
         line, message = problems[0]
         raise DataError(f"{path}:{line}: {message}")
     if problems:
+        head = f"{path}: {len(problems)} rows cannot be read:"
+        if len(problems) >= MAX_UNREADABLE:  # (reading stopped there)
+            head = f"{path}: {len(problems):,} rows or more cannot be read (read no further):"
         rows: dict[str, list[int]] = {}
         for line, message in problems:
             rows.setdefault(message, []).append(line)
-        raise DataError(
-            f"{path}: {len(problems)} rows cannot be read:"
-            + listed([f"{_lines(at)}: {message}" for message, at in rows.items()])
-        )
+        raise DataError(head + listed([f"{_lines(at)}: {message}" for message, at in rows.items()]))
 
 
-def _lines(at: list[int], named: int = 5) -> str:
+def _lines(at: list[int]) -> str:
     """``line 7``, ``lines 2, 3, 9`` or ``lines 2, 3, 4, 5, 6 and 12 more``."""
-    more = f" and {len(at) - named} more" if len(at) > named else ""
-    return f"line{'s' if len(at) > 1 else ''} {', '.join(map(str, at[:named]))}{more}"
+    return f"line{'s' if len(at) > 1 else ''} {named(at)}"
 
+
+#: A CSV most of whose rows miss a value (more than this share) is refused: a column not
+#: filled in, or the wrong file, rather than a glitch.
+MAX_MISSING_SHARE = 0.5
 
 #: What a CSV cell that holds no value reads as (lower case, stripped): an empty cell and
 #: the words spreadsheets and data frames write for a missing value.
@@ -448,14 +494,14 @@ class _MissingValues:
                 f"the first at line {line}, column {column!r})")  # fmt: skip
 
     def refuse_most(self, path: Path) -> None:
-        """A :class:`DataError` when more than :data:`MAX_IMPOSSIBLE_SHARE` of the rows
+        """A :class:`DataError` when more than :data:`MAX_MISSING_SHARE` of the rows
         miss a value (a column not filled in, or the wrong file, rather than a glitch)."""
         empty = [name for name, n in zip(_NUMERIC, self.per_column, strict=True)
                  if n == self.rows]  # fmt: skip
         if empty:
             raise DataError(f"{path}: column(s) {', '.join(map(repr, empty))} hold no value in "
                             "any row (empty or NaN cells)")  # fmt: skip
-        if self.missing > MAX_IMPOSSIBLE_SHARE * self.rows:
+        if self.missing > MAX_MISSING_SHARE * self.rows:
             raise DataError(f"{path}: {self._what()}; fill them in, or leave out the rows "
                             "that cannot be")  # fmt: skip
 
@@ -475,6 +521,12 @@ SPLIT_GAP = 2.0
 #: where the vehicle comes back elsewhere than its motion on both sides takes it
 #: (:func:`_reappears_elsewhere`)
 SHORT_PAUSE = 0.5
+#: m, and share of the move predicted: how far off the prediction a vehicle must come back
+#: across a short pause to be another (the larger of the two)
+REAPPEAR_OFF, REAPPEAR_SHARE = 5.0, 0.5
+#: s: the span over which the velocity on each side of a pause is measured (single steps
+#: carry the positions' noise: 0.1 m over 0.1 s is 1 m/s)
+VELOCITY_SPAN = 0.5
 
 
 def _pieces(a: np.ndarray) -> list[np.ndarray]:
@@ -486,27 +538,28 @@ def _pieces(a: np.ndarray) -> list[np.ndarray]:
     usual = float(np.median(dt))
     long = dt > max(SPLIT_GAP, 10.0 * usual)
     short = np.flatnonzero(~long & (dt > max(SHORT_PAUSE, 3.0 * usual)))
-    jumps = [k for k in short.tolist() if _reappears_elsewhere(a[:, 1:3], a[:, 4], dt, k)]
+    jumps = [k for k in short.tolist() if _reappears_elsewhere(a[:, 0], a[:, 1:3], k)]
     cuts = np.union1d(np.flatnonzero(long), np.array(jumps, dtype=np.int64)) + 1
     return np.split(a, cuts) if len(cuts) else [a]
 
 
-def _reappears_elsewhere(xy: np.ndarray, speed: np.ndarray, dt: np.ndarray, k: int) -> bool:
-    """Whether the move of a track's positions ``xy`` [m] over the pause between rows ``k``
-    and ``k + 1`` is more than 5 m and half its length off what its motion on both sides
-    predicts: the mean of the velocities of the steps before and after it (from positions,
-    not the heading column, which may be in degrees) times the pause; without a step on
-    either side, the recorded ``speed`` [m/s] only. Another vehicle under the same id
-    (NGSIM reuses ids) moves backwards or sideways; a vehicle whose samples drop out does
-    not."""
-    move = xy[k + 1] - xy[k]
-    sides = [(xy[i + 1] - xy[i]) / dt[i] for i in (k - 1, k + 1) if 0 <= i < len(dt)]
-    if sides:
-        predicted = 0.5 * (sides[0] + sides[-1]) * dt[k]
-        error = float(np.hypot(*(move - predicted)))
-        return error > max(5.0, 0.5 * float(np.hypot(*predicted)))
-    expected = 0.5 * float(speed[k] + speed[k + 1]) * dt[k]
-    return abs(float(np.hypot(*move)) - expected) > max(5.0, 0.5 * expected)
+def _reappears_elsewhere(t: np.ndarray, xy: np.ndarray, k: int) -> bool:
+    """Whether the move of a track's positions ``xy`` [m] at times ``t`` [s] over the pause
+    between rows ``k`` and ``k + 1`` is off what its motion on both sides predicts by more
+    than :data:`REAPPEAR_OFF` and :data:`REAPPEAR_SHARE` of the prediction: the mean of the
+    velocities over :data:`VELOCITY_SPAN` before and after it (from positions, not the
+    heading column, which may be in degrees; without samples on one side, the other's)
+    times the pause. Another vehicle under the same id (NGSIM reuses ids) comes back
+    behind, ahead or beside; a vehicle whose samples drop out does not."""
+    before = int(np.searchsorted(t, t[k] - VELOCITY_SPAN, side="right")) - 1
+    before = min(max(before, 0), k - 1)  # (at least one step, within the track)
+    after = int(np.searchsorted(t, t[k + 1] + VELOCITY_SPAN, side="left"))
+    after = max(min(after, len(t) - 1), k + 2)
+    sides = [(xy[b] - xy[a]) / (t[b] - t[a]) for a, b in ((before, k), (k + 1, after))
+             if 0 <= a < b < len(t)]  # fmt: skip
+    predicted = 0.5 * (sides[0] + sides[-1]) * (t[k + 1] - t[k])
+    error = float(np.hypot(*(xy[k + 1] - xy[k] - predicted)))
+    return error > max(REAPPEAR_OFF, REAPPEAR_SHARE * float(np.hypot(*predicted)))
 
 
 def _warn_tracks(path: Path, split: list, single: list, resized: list,
@@ -523,25 +576,19 @@ def _warn_tracks(path: Path, split: list, single: list, resized: list,
         parts.append(f"{count} row(s) repeat an earlier one exactly (the first at line "
                      f"{min(first for _, first in repeated)}): each is read once")  # fmt: skip
     if resized:
-        more = f" and {len(resized) - 5} more" if len(resized) > 5 else ""
         parts.append(f"{len(resized)} track(s) change size by more than 10 % from row to row "
                      f"(a vehicle has one size: its first row's is used): "
-                     f"{', '.join(resized[:5])}{more}")  # fmt: skip
+                     f"{named(resized)}")  # fmt: skip
     if split:
-        named = "; ".join(f"{tid} at t = {', '.join(f'{t:g}' for t in times)} s"
-                          for tid, times in split[:5])  # fmt: skip
-        more = f" and {len(split) - 5} more" if len(split) > 5 else ""
+        cuts = [f"{tid} at t = {', '.join(f'{t:g}' for t in times)} s" for tid, times in split]
         parts.append(
             f"{len(split)} track id(s) pause more than {SPLIT_GAP:g} s (or {SHORT_PAUSE:g} s and "
             f"come back elsewhere than their motion takes them) and go on as another vehicle "
-            f"(a reused id?), split into ID, ID#2, ...: {named}{more}"
+            f"(a reused id?), split into ID, ID#2, ...: {named(cuts, sep='; ')}"
         )
     if single:
-        more = f" and {len(single) - 5} more" if len(single) > 5 else ""
-        parts.append(
-            f"{len(single)} track(s) with a single state left out (at least 2 are "
-            f"needed): {', '.join(single[:5])}{more}"
-        )
+        parts.append(f"{len(single)} track(s) with a single state left out (at least 2 are "
+                     f"needed): {named(single)}")  # fmt: skip
     if parts:
         warn_data(f"{path}: " + "; ".join(parts))
 

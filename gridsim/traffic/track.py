@@ -40,6 +40,9 @@ class Track:
     width: float
     #: Where the track was read from (a file path), for messages.
     source: str = ""
+    #: The id as its file gives it, when ``track_id`` is a piece of it (``ID#2``: the id
+    #: reused after a pause); "" when the same
+    recorded_id: str = ""
 
     def __post_init__(self) -> None:
         problem = track_data_problem(self)

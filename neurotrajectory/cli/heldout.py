@@ -9,7 +9,7 @@ from contextlib import nullcontext
 from pathlib import Path
 
 from gridsim.cli.flags import at_least
-from gridsim.outputs import output_problem, write_json
+from gridsim.outputs import named, output_problem, write_json
 from neurotrajectory.cli.flags import episode_seconds, pick_flag, plan_smoothing_flag, run_flag
 from neurotrajectory.evolve.runs import Run, RunError, run_folder
 
@@ -114,7 +114,6 @@ def _print_failures(run: Run, pick: str, report: dict, shown: int = 3) -> None:
         on = f", track {e['track']}" if "track" in e else ""
         return f"seed {e['seed']}{on} ({how} at {e['seconds']:.1f} s)"
 
-    more = f" and {len(failed) - shown} more" if len(failed) > shown else ""
     first = failed[0]
     argv = ["neurotrajectory", "rollout", "--run", str(run.out), "--pick", pick, "--seed",
             str(first["seed"]), "--seconds", repr(report["episode_seconds"])]  # fmt: skip
@@ -122,5 +121,5 @@ def _print_failures(run: Run, pick: str, report: dict, shown: int = 3) -> None:
     if report["plan_smoothing"] != run.net_config.smoothing:  # heldout --plan-smoothing
         argv += ["--plan-smoothing", repr(report["plan_smoothing"])]
     argv += ["--video", "episode.mp4"]
-    print(f"  not completed by the {pick} member: {', '.join(map(name, failed[:shown]))}{more}; "
+    print(f"  not completed by the {pick} member: {named([name(e) for e in failed], shown)}; "
           f"watch one: {shlex.join(argv)}")  # fmt: skip

@@ -32,7 +32,7 @@ from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError, ScenarioError, UnfitEgoWarning, warn_data
 from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
-from gridsim.outputs import counted
+from gridsim.outputs import counted, named
 from gridsim.policies import Reference
 from gridsim.scenario.checks import flawed_tracks
 from gridsim.scenario.collection import (
@@ -252,8 +252,7 @@ def _followable(scenario, chosen: list) -> list:
     fast = [t for t, out in zip(chosen, too_fast, strict=True) if out]
     if fast:
         top = math.ceil(10 * max(float(t.speed.max()) for t in fast)) / 10  # (to cover it)
-        shown = ", ".join(t.track_id for t in fast[:8]) + (
-            f" and {len(fast) - 8} more" if len(fast) > 8 else "")  # fmt: skip
+        shown = named([t.track_id for t in fast], 8)
         warn_data(f"{scenario.source}: {len(fast)} of the {len(chosen)} tracks to drive as the "
                   f"ego are faster than ego.vehicle.v_max "
                   f"{scenario.config.ego.vehicle.v_max:g} m/s (up to {top:.1f} m/s): the ego "
@@ -270,7 +269,7 @@ def _say_unfit_egos(scenario, chosen: list, tracks: list, road) -> None:
     fit = {t.track_id for t in ego_candidates(scenario, tracks, road)}
     unfit = [t.track_id for t in chosen if t.track_id not in fit]
     if unfit:
-        shown = ", ".join(unfit[:8]) + (f" and {len(unfit) - 8} more" if len(unfit) > 8 else "")
+        shown = named(unfit, 8)
         why = why_unfit(scenario, tracks, road, set(unfit))
         warn_data(
             f"{scenario.source}: {len(unfit)} of the {len(chosen)} tracks driven as the ego are "

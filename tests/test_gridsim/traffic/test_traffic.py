@@ -143,6 +143,11 @@ def test_every_row_that_cannot_be_read_is_named(tmp_path, monkeypatch):
                           "length_m, width_m > 0, got -3.0, 4.5, 1.8"]  # fmt: skip
     assert lines[4] == "    line 7: 5 column(s), the header has 9 (a line cut short?)"
     assert lines[-2:] == ["    line 30: column 'x_m' is not a number: 'h'", "    ... and 1 more"]
+    # a file wrong throughout (another format) is read no further than 10,000 such rows
+    monkeypatch.setattr(library, "MAX_UNREADABLE", 6)
+    with pytest.raises(DataError, match=r"tracks.csv: 6 rows or more cannot be read \(read no "
+                       r"further\):\n    line 3: "):  # fmt: skip
+        read_tracks_csv(write_csv(tmp_path, rows))
 
 
 def test_a_last_line_cut_mid_write_is_left_out_with_a_warning(tmp_path):
@@ -246,26 +251,34 @@ def test_a_track_in_two_files_at_overlapping_times_is_refused(tmp_path):
 
 def test_a_recording_split_into_files_by_time_is_joined(tmp_path):
     """A vehicle that crosses the boundary of a recording split by time (NGSIM's periods)
-    is one track again (the scene was refused: "track ids must be unique"); the same id in
-    the later file on another vehicle, after a long pause, is cut off as ``ID#2``."""
+    is one track again (the scene was refused: "track ids must be unique"), also when the
+    boundary row is in both files; an id the first file already cut at a pause (another
+    vehicle, a truck, under it) is joined as the vehicle it is: the pieces match the whole
+    file's, sizes and all."""
     rows = [f"s,{tid},{k * 0.1:.1f},{20 * k * 0.1 + tid:.2f},{tid},0,20,4.5,1.8"
-            for tid in (1, 2) for k in range(60)]  # fmt: skip
-    rows += [f"s,3,{k * 0.1:.1f},{k:.1f},9,0,10,4.5,1.8" for k in range(10)]  # before 1 s
-    rows += [f"s,3,{k * 0.1:.1f},{400 - k:.1f},-9,3.1416,10,4.5,1.8" for k in range(40, 60)]
+            for tid in (1, 2) for k in range(100)]  # fmt: skip
+    rows += [f"s,3,{k * 0.1:.1f},{k:.1f},9,0,10,4.5,1.8" for k in range(10)]  # a car, 0-0.9 s
+    rows += [f"s,3,{k * 0.1:.1f},{900 - k:.1f},-9,3.1416,10,12,2.5" for k in range(40, 100)]
     whole = TrajectoryLibrary.from_csv(write_csv(tmp_path, rows))
-    early = tmp_path / "early.csv"
-    early.write_text(HEADER + "\n" + "\n".join(r for r in rows if float(r.split(",")[2]) < 3.05))
-    late = tmp_path / "late.csv"
-    late.write_text(HEADER + "\n" + "\n".join(r for r in rows if float(r.split(",")[2]) > 3.05))
-    with pytest.warns(DataWarning, match=r"track\(s\) go on in another file at later times.*: "
-                      r"3 from .*early.csv into .*late.csv: s/1, s/2, s/3"):  # fmt: skip
+    assert [t.track_id for t in whole.tracks] == ["1", "2", "3", "3#2"]
+    at = [float(r.split(",")[2]) for r in rows]
+    early, late = tmp_path / "early.csv", tmp_path / "late.csv"
+    boundary = [r for r, t in zip(rows, at, strict=True) if t == 6.0 and r.startswith("s,1,")]
+    early.write_text(HEADER + "\n" + "\n".join(r for r, t in zip(rows, at, strict=True)
+                                                if t <= 6.0))  # fmt: skip
+    late.write_text(HEADER + "\n" + "\n".join(boundary + [r for r, t in zip(rows, at, strict=True)
+                                                           if t > 6.0]))  # fmt: skip
+    with pytest.warns(DataWarning) as caught:
         split = TrajectoryLibrary.from_csv(early, late)
+    said = "\n".join(str(w.message) for w in caught)
+    assert "track(s) go on in another file at later times" in said
+    assert "3 from " in said and "early.csv into " in said and "s/1, s/2, s/3" in said
     assert [t.track_id for t in split.tracks] == ["1", "2", "3", "3#2"]
     for a, b in zip(whole.tracks, split.tracks, strict=True):
         assert (a.track_id, a.length, a.width) == (b.track_id, b.length, b.width)
         for name in ("t", "x", "y", "heading", "speed"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
-    assert split.tracks[0].source == f"{early}, {late}"
+    assert [t.source for t in split.tracks] == [str(early)] * 4  # (their first rows' file)
 
 
 def test_missing_csv_file(tmp_path):
@@ -1202,6 +1215,8 @@ def test_a_reused_id_after_a_short_pause_is_split_where_it_reappears_elsewhere()
     speed = np.where(dropped < 3.0, 20.0, 20.0 + 2.0 * (dropped - 3.0))  # 2 m/s^2 from 3 s
     x = np.where(dropped < 3.0, 20 * dropped, 60 + 20 * (dropped - 3) + (dropped - 3) ** 2)
     assert len(_pieces(track(dropped, x, speed))) == 1
+    noisy = x + np.random.default_rng(0).normal(0.0, 0.2, len(x))  # 0.2 m of noise: still
+    assert len(_pieces(track(dropped, noisy, speed))) == 1  # (single steps: 4 m/s off)
 
 
 def test_a_reused_id_is_split_and_single_states_are_left_out(tmp_path):
