@@ -28,6 +28,14 @@ class Terminated(KeyboardInterrupt):
     that handles Ctrl-C handles it too)."""
 
 
+def ended_by(exc: KeyboardInterrupt) -> tuple[str, int]:
+    """What a command says ended it, and its exit status: ``("interrupted", 130)`` for
+    Ctrl-C, ``("terminated (SIGTERM)", 143)`` for :class:`Terminated` (128 + the signal)."""
+    if isinstance(exc, Terminated):
+        return "terminated (SIGTERM)", 143
+    return "interrupted", 130
+
+
 def enter() -> None:
     """Begin a critical section (nested sections are one)."""
     _STATE["depth"] += 1
@@ -52,20 +60,22 @@ def _handler(signum, frame) -> None:
 @contextmanager
 def deferred() -> Iterator[None]:
     """Within it, a Ctrl-C inside a critical section waits for the section's end (in the main
-    thread, if Ctrl-C is Python's default there; else nothing changes), and so does a
-    SIGTERM, raised as :class:`Terminated` (if its handling is the default)."""
-    if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):  # fmt: skip
+    thread, if Ctrl-C is Python's default there), and so does a SIGTERM, raised as
+    :class:`Terminated` (if its handling is the default: also where Ctrl-C is ignored, as
+    in a shell's background job); else nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
         yield
         return
-    previous = signal.signal(signal.SIGINT, _handler)
-    term = signal.getsignal(signal.SIGTERM)
-    if term == signal.SIG_DFL:
+    ctrl_c = signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    term = signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+    previous = signal.signal(signal.SIGINT, _handler) if ctrl_c else None
+    if term:
         signal.signal(signal.SIGTERM, _handler)
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, previous)
-        if term == signal.SIG_DFL:
-            signal.signal(signal.SIGTERM, term)
+        if ctrl_c:
+            signal.signal(signal.SIGINT, previous)
+        if term:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
         _STATE["pending"] = None

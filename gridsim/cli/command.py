@@ -92,8 +92,10 @@ def run_command(
         except errors as exc:
             print(f"{parser.prog}: error: {exc}", file=sys.stderr)
             return 2
-        except KeyboardInterrupt as exc:
-            return _interrupted(parser.prog, exc)
+        except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM
+            said, status = interrupts.ended_by(exc)
+            print(f"{parser.prog}: {said}", file=sys.stderr)
+            return status
         except Exception as exc:
             if isinstance(exc, BrokenPipeError) and _stdout_closed():
                 return 141  # the reader went away (`| head`): stop quietly, as a shell tool
@@ -109,16 +111,6 @@ def run_command(
                   f"This is a bug, not a problem of your input. Please report it to {REPORT_TO} "
                   f"with the traceback saved in {saved}", file=sys.stderr)  # fmt: skip
             return 3
-
-
-def _interrupted(prog: str, exc: KeyboardInterrupt) -> int:
-    """Say that Ctrl-C (130) or SIGTERM (143, :class:`~gridsim.interrupts.Terminated`) ended
-    the command; its exit status."""
-    if isinstance(exc, interrupts.Terminated):
-        print(f"{prog}: terminated (SIGTERM)", file=sys.stderr)
-        return 143
-    print(f"{prog}: interrupted", file=sys.stderr)
-    return 130
 
 
 def _stdout_closed() -> bool:

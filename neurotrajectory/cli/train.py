@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from gridsim.cli.flags import at_least, quiet_flag, scenario_flag
-from gridsim.interrupts import Terminated
+from gridsim.interrupts import ended_by
 from gridsim.outputs import as_given, counted
 from gridsim.scenario.collection import absolute_ref
 from neurotrajectory.cli.flags import check_video, goal_flag, settings_flag
@@ -134,10 +134,10 @@ def execute(args: argparse.Namespace) -> int:
     had_warm_start = (Path(out) / WARM_START_FILE).exists()  # (a run there already)
     try:
         return _train(args, out, started)
-    except KeyboardInterrupt as exc:
-        ended = "terminated (SIGTERM)" if isinstance(exc, Terminated) else "interrupted"
-        print(f"neurotrajectory: {ended}; {kept_note(Path(out))}", file=sys.stderr)
-        return 143 if isinstance(exc, Terminated) else 130
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM
+        said, status = ended_by(exc)
+        print(f"neurotrajectory: {said}; {kept_note(Path(out))}", file=sys.stderr)
+        return status
     except Exception:  # a new run that failed after its warm start was saved: say it stays
         if not args.resume and not had_warm_start and (Path(out) / WARM_START_FILE).exists():
             print(f"neurotrajectory: note: {kept_note(Path(out))} once the cause below is "

@@ -208,9 +208,11 @@ class LocalBackend(Backend):
 
 
 def _serve(conn, spec: WorkerSpec) -> None:
-    """Worker process loop: commands arrive as (name, argument) pairs. Ctrl-C is the
-    trainer's to handle (it stops the workers): a worker ignores it."""
+    """Worker process loop: commands arrive as (name, argument) pairs. Ctrl-C and SIGTERM
+    (sent to the whole process group by a terminal, a job scheduler or systemd) are the
+    trainer's to handle (it stops the workers): a worker ignores them."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     warnings.simplefilter("ignore", DataWarning)  # the trainer's to give (see _data_checked)
     worker = Worker(spec)
     reply = ("ready", worker.genome_size)
@@ -330,13 +332,13 @@ class ProcessBackend(RemoteBackend):
         they read ``stop``."""
         for conn, proc in zip(self.conns, self.procs, strict=True):
             if self._waiting:
-                proc.terminate()
+                proc.kill()  # (a worker ignores SIGTERM: see _serve)
             else:
                 with contextlib.suppress(BrokenPipeError, OSError):
                     conn.send(("stop", None))
             proc.join(timeout=10)
             if proc.is_alive():
-                proc.terminate()
+                proc.kill()
 
 
 @contextlib.contextmanager

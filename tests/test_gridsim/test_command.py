@@ -113,6 +113,8 @@ def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path, monkeypatch, capsys):
     from gridsim.world.scripted_drivers import LaneFollower
 
     with interrupts.deferred():
+        # (checked first: without the handler a SIGTERM would end the test session)
+        assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL
         interrupts.enter()
         os.kill(os.getpid(), signal.SIGTERM)
         with pytest.raises(interrupts.Terminated):
@@ -120,12 +122,19 @@ def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path, monkeypatch, capsys):
         with pytest.raises(KeyboardInterrupt):  # (a kind of Ctrl-C's)
             os.kill(os.getpid(), signal.SIGTERM)
     assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL  # put back
+    ignored = signal.signal(signal.SIGINT, signal.SIG_IGN)  # a shell's background job
+    try:
+        with interrupts.deferred():  # (SIGTERM was left to kill it there)
+            assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL
+    finally:
+        signal.signal(signal.SIGINT, ignored)
     calls = []
     drive = LaneFollower.__call__
 
     def signalled(self, world):  # a SIGTERM as the 20th tick is computed
         calls.append(1)
         if len(calls) == 20:
+            assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL  # (see above)
             os.kill(os.getpid(), signal.SIGTERM)
         return drive(self, world)
 

@@ -174,11 +174,16 @@ def test_backends_give_identical_results(tmp_path):
     np.testing.assert_array_equal(results["local"], results["ray"])
 
 
-def test_ctrl_c_is_the_trainers_and_stops_the_process_workers_at_once(capfd):
-    """Ctrl-C reaches the whole process group (a terminal's): the workers ignore it, the
-    trainer's interrupted call stops them without waiting for their answers, and no worker
-    prints a traceback, nor when its trainer is gone without a word."""
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_ctrl_c_is_the_trainers_and_stops_the_process_workers_at_once(capfd, signum):
+    """Ctrl-C reaches the whole process group (a terminal's), and so may SIGTERM (a job
+    scheduler's, systemd's; the workers died of it and the trainer said a worker died):
+    the workers ignore them, the trainer's interrupted call stops them without waiting for
+    their answers, and no worker prints a traceback, nor when its trainer is gone without a
+    word."""
     import threading
+
+    from gridsim import interrupts
 
     spec = WorkerSpec("seamless", {"simulation": {"duration": 60.0}}, PRESETS["tiny"],
                       (5, 6, 7, 8))  # fmt: skip
@@ -187,12 +192,14 @@ def test_ctrl_c_is_the_trainers_and_stops_the_process_workers_at_once(capfd):
 
     def ctrl_c():
         for pid in [p.pid for p in backend.procs] + [os.getpid()]:
-            os.kill(pid, signal.SIGINT)
+            os.kill(pid, signum)
 
-    timer = threading.Timer(0.5, ctrl_c)
-    timer.start()
-    with pytest.raises(KeyboardInterrupt):
-        backend.evaluate(16, spec.seeds)  # 16 x 4 episodes of 60 s: far longer than this
+    with interrupts.deferred():  # (as a command: SIGTERM then raises as Ctrl-C does)
+        assert signal.getsignal(signum) not in (signal.SIG_DFL, signal.SIG_IGN)
+        timer = threading.Timer(0.5, ctrl_c)
+        timer.start()
+        with pytest.raises(KeyboardInterrupt):
+            backend.evaluate(16, spec.seeds)  # 16 x 4 episodes of 60 s: far longer than this
     time.sleep(0.5)
     assert all(p.is_alive() for p in backend.procs)  # the workers ignored it
     t0 = time.perf_counter()
