@@ -218,7 +218,7 @@ def test_gymnasium_record_video_wrapper(tmp_path):
     assert len(iio.imread(videos[0], index=None)) >= 20
 
 
-def test_run_drives_the_recorded_track_asked_for_and_names_it(capsys):
+def test_run_drives_the_recorded_track_asked_for_and_names_it(capsys, tmp_path):
     """A recorded scene's episode lasts as long as its ego's track (2-7 s on the shipped
     scenes): the summary names the track and its length, and ``--track`` picks one."""
     assert main(["run", "--scenario", "us101_3_3", "--track", "388", "--quiet"]) == 0
@@ -232,6 +232,12 @@ def test_run_drives_the_recorded_track_asked_for_and_names_it(capsys):
     err = capsys.readouterr().err
     assert "--track 3: seamless is a generated scenario" in err
     assert "ego.track not used" not in err  # (a warning that it is ignored came first)
+    fast = tmp_path / "fast.yaml"  # other warnings are given all the same
+    fast.write_text("name: x\nextends: seamless\ntraffic: {v_max: 45}\n"
+                    "ego: {vehicle: {v_max: 50}}\n")  # fmt: skip
+    assert main(["run", "--scenario", str(fast), "--track", "3", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert "traffic.v_max 45 m/s is 162 km/h" in err and "is a generated scenario" in err
     assert main(["run", "--steps", "3", "--quiet"]) == 0
     assert "ego_track" not in json.loads(capsys.readouterr().out)  # generated: no track
 
