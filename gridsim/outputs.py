@@ -100,8 +100,7 @@ LOG_INTERVAL = 30.0
 def progress_bar(*args: Any, **kwargs: Any):
     """A tqdm progress bar (its arguments), on stderr unless ``file`` says otherwise; where
     that stream is not a terminal it is first drawn after :data:`LOG_INTERVAL` seconds and
-    redrawn every :data:`LOG_INTERVAL` seconds at most. A ``unit`` is written after a space.
-    """
+    redrawn every :data:`LOG_INTERVAL` seconds at most."""
     import sys
 
     from tqdm import tqdm
@@ -115,8 +114,6 @@ def progress_bar(*args: Any, **kwargs: Any):
         kwargs.setdefault("mininterval", LOG_INTERVAL)
         kwargs.setdefault("maxinterval", LOG_INTERVAL)
         kwargs.setdefault("delay", LOG_INTERVAL)
-    if "unit" in kwargs and not kwargs["unit"].startswith(" "):  # "3 episode/s", and without
-        kwargs["unit"] = " " + kwargs["unit"]  # a total "0 episode", not "0episode"
     bar = tqdm(*args, **kwargs)
     if not terminal:  # a new postfix waits for the next redraw (each forced one, every epoch)
         postfix = bar.set_postfix
