@@ -19,13 +19,14 @@ def add_parser(sub) -> None:
 
 def execute(args: argparse.Namespace) -> int:
     from gridsim.scenario.collection import scenario_files
-    from gridsim.scenario.importer import import_files
+    from gridsim.scenario.importer import import_files, written
 
     files = []
     for src in args.sources:
         found = scenario_files(src)
         files += [Path(src)] if found is None else [f for f in found if f.suffix == ".xml"]
-    for path in import_files(files, args.out):  # (the scenario, its tracks and its map)
-        print(f"wrote {path}, {path.with_suffix('.csv')} and "
-              f"{path.parent / 'maps' / (path.stem + '.xml')}")  # fmt: skip
+    by_stem = {f.stem: f for f in files}  # (a scenario is named by its file's stem)
+    for path in import_files(files, args.out):
+        wrote = written(path, by_stem[path.stem])  # map, tracks, scenario
+        print(f"wrote {wrote[2]}, {wrote[1]} and {wrote[0]}")
     return 0

@@ -29,15 +29,17 @@ def import_commonroad(xml: str | Path, out: str | Path) -> Path:
 
 
 def _targets(xml: Path, out: Path) -> list[Path]:
+    """What importing ``xml`` into ``out`` writes: its map, its tracks and its scenario."""
     return [out / "maps" / xml.name, out / f"{xml.stem}.csv", out / f"{xml.stem}.yaml"]
 
 
 def import_files(files: list[str | Path], out: str | Path) -> list[Path]:
     """Import every CommonRoad file of ``files`` into folder ``out`` (see the module); the
-    YAML paths written. Checked before anything is written: ``out`` can be a folder, no two
-    files share a name, and no output exists already (an import never overwrites). Of
-    several files, one that cannot be read is skipped and named in a
-    :class:`~gridsim.errors.DataWarning`; nothing is written if none can."""
+    YAML paths written (:func:`written` names each one's files). Checked before anything
+    is written: ``out`` can be a folder, no two files share a name, and no output exists
+    already (an import never overwrites). Of several files, one that cannot be read is
+    skipped and named in a :class:`~gridsim.errors.DataWarning`; nothing is written if none
+    can."""
     paths, out = [Path(f) for f in files], Path(out)
     problem = output_problem(out, directory=True)
     if problem:
@@ -70,6 +72,12 @@ def import_files(files: list[str | Path], out: str | Path) -> list[Path]:
     report_skipped("import", skipped, len(paths), bool(read),
                    ("can be imported", "cannot be imported"))  # fmt: skip
     return [_write(xml, tracks, scene, out) for xml, tracks, scene in read]
+
+
+def written(yaml_path: Path, xml: Path) -> list[Path]:
+    """The files an import of ``xml`` wrote beside its scenario ``yaml_path``: map, tracks,
+    scenario."""
+    return _targets(xml, yaml_path.parent)
 
 
 def _write(xml: Path, tracks, scene: str, out: Path) -> Path:
