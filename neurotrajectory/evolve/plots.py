@@ -131,14 +131,13 @@ def _objectives(path: Path, gens: np.ndarray, fit: list[np.ndarray], lost: list[
     (an l3 spread of 1 % hid under a line that swung 40 % from one draw to the next);
     without one, the scores themselves."""
     left_out = 0  # generations whose individual 0 lost an episode: no reference to draw
+    whole = np.array([not gone[0] for gone in lost])
+    if reference is not None and not whole.any():  # (no generation to draw against it)
+        return _objectives(path, gens, fit, lost, None)
     if reference is not None:
-        whole = np.array([not gone[0] for gone in lost])
         left_out = int((~whole).sum())
         gens, lost = gens[whole], [gone for gone, ok in zip(lost, whole, strict=True) if ok]
-        fit = [100.0 * (f - f[0]) / np.where(f[0] != 0, np.abs(f[0]), 1.0)
-               for f, ok in zip(fit, whole, strict=True) if ok]  # fmt: skip
-        if not fit:
-            gens, fit, lost = np.zeros(1, int), [np.zeros((1, 3))], [np.zeros(1, bool)]
+        fit = [100.0 * (f - f[0]) / _scale(f) for f, ok in zip(fit, whole, strict=True) if ok]
     l1 = np.concatenate([f[:, 0] for f in fit])
     # l1 may span decades (a member that lost an episode): a log scale, where it does
     logged = reference is None and not (l1.min() > 0 and l1.max() < 10 * l1.min())
@@ -201,6 +200,16 @@ def _objectives(path: Path, gens: np.ndarray, fit: list[np.ndarray], lost: list[
     fig.suptitle(said, fontsize=10)
     _legend_below(fig, axes[0], 4 if reference is not None else 3, 0.07)
     return _save(fig, path)
+
+
+def _scale(f: np.ndarray) -> np.ndarray:
+    """What a generation's fitness ``f`` ``(K, 3)`` is a share of, per objective: individual
+    0's magnitude, or the members' median one where individual 0's is under a tenth of it
+    (an individual 0 that barely steers, l2 near 0, would make every other member's change
+    thousands of %); 1 where both are 0."""
+    own, median = np.abs(f[0]), np.median(np.abs(f), axis=0)
+    scale = np.where(own >= 0.1 * median, own, median)
+    return np.where(scale > 0, scale, 1.0)
 
 
 def _hypervolume(path: Path, history: list[dict], anchored: bool) -> Path:

@@ -115,6 +115,22 @@ def test_the_objectives_plot_draws_individual_0_beside_the_members(tmp_path, mon
     assert "change from individual 0 [%] (higher better)" in l3.get_title()
     assert "1 generation(s) where individual 0 lost an episode left out" in \
         figures[0]._suptitle.get_text()  # fmt: skip
+    # an individual 0 that barely steers (l2 ~ 0): the members' median is the scale, not it
+    for h in history:
+        h["fitness"] = [[100.0, 0.001 if i == 0 else 0.5 + 0.1 * i, 1700.0] for i in range(4)]
+    figures.clear()
+    plots.plt.close("all")  # (the figures are not saved, so not closed)
+    plots.plot_run(tmp_path, history, anchored=True, centre=centre)
+    l2 = figures[0].axes[1]
+    members = np.concatenate([c.get_offsets() for c in l2.collections if len(c.get_offsets())])
+    assert members[:, 1].max() == pytest.approx(100 * (0.8 - 0.001) / 0.65)
+    # individual 0 lost an episode in every generation: the scores themselves, not changes
+    for h in history:
+        h["violation"][0] = 0.2
+    figures.clear()
+    plots.plt.close("all")  # (the figures are not saved, so not closed)
+    plots.plot_run(tmp_path, history, anchored=True, centre=centre)
+    assert "change from" not in figures[0].axes[0].get_title()
     figures.clear()
     plots.plot_run(tmp_path, history)  # no warm start: no such line
     assert not [ln for ln in figures[0].axes[0].lines if ln.get_label().startswith("individual")]
