@@ -57,7 +57,6 @@ from neurotrajectory.data.windows import (
     has_recorded,
     is_recorded,
     scenario_episodes,
-    split_rows,
 )
 from neurotrajectory.evolve.backends import BACKENDS, WorkerSpec, make_backend
 from neurotrajectory.evolve.evolution import (
@@ -869,12 +868,10 @@ class Run:
                      f"{PRETRAIN_EPISODE_SECONDS:g} s on {cfg.scenario}")  # fmt: skip
         windows, source, episodes = self._pretrain_windows()
         start = initial_genome(probe, initial_recipes(cfg.ga, cfg.seed)[0].init_seed)
-        fitted = counted(len(windows), "window")
-        if cfg.pretrain_validation > 0 and len(np.unique(windows.track)) > 1:  # (the fit's split)
-            held = len(split_rows(windows, cfg.pretrain_validation, cfg.seed)[1])
-            fitted = (f"{len(windows) - held} of {fitted} (the other {held}, of other tracks, "
-                      "validate the fit)")  # fmt: skip
-        self.say(f"warm start: fitting the network to {fitted} "
+        held = "" if cfg.pretrain_validation <= 0 else (  # (split by track in the fit)
+            f", less the windows of {cfg.pretrain_validation:.0%} of their tracks, held out to "
+            "validate the fit")  # fmt: skip
+        self.say(f"warm start: fitting the network to {counted(len(windows), 'window')}{held} "
                  f"({counted(cfg.pretrain_epochs, 'epoch')} at most)")  # fmt: skip
 
         # a fit interrupted goes on from where it was saved; with DAgger rounds (several fits,

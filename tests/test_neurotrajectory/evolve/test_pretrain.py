@@ -290,11 +290,14 @@ def test_the_warm_start_says_which_epoch_it_kept(windows_dir, tmp_path, capsys):
     )
     assert re.search(r"warm start: validation MSE \S+ m\^2 on \d+ windows of held-out tracks "
                      rf"\({re.escape(kept)}; pretrain.json\)", said), said  # fmt: skip
-    # the windows fitted, as pretrain.json counts them (it said all of them were)
+    # the windows held out to validate are said to be (it said all were fitted)
     stats = json.loads((tmp_path / "run" / "pretrain.json").read_text())
-    fitted, held = stats["windows"], stats["validation_windows"]
-    assert (f"fitting the network to {fitted} of {fitted + held} windows (the other {held}, of "
-            "other tracks, validate the fit)") in said  # fmt: skip
+    share = json.loads((tmp_path / "run" / "config.json").read_text())["train"][
+        "pretrain_validation"
+    ]
+    assert (f"fitting the network to {stats['windows'] + stats['validation_windows']} windows, "
+            f"less the windows of {share:.0%} of their tracks, held out to validate the fit "
+            "(2 epochs at most)") in said  # fmt: skip
 
 
 def test_a_run_can_record_its_own_warm_start(tmp_path, capsys):
