@@ -101,7 +101,7 @@ def test_a_ctrl_c_inside_a_simulator_step_waits_for_its_end():
     assert reached == ["the step's end"]
 
 
-def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path, monkeypatch, capsys):
+def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path, monkeypatch, capsys, request):
     """SIGTERM (``kill``, a scheduler's stop) inside a step waits for the step's end, as
     Ctrl-C does, and the command ends saying so, with status 143 (the default action ended
     the process without a word, skipping what Ctrl-C's handling keeps); outside commands
@@ -112,9 +112,11 @@ def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path, monkeypatch, capsys):
     from gridsim.cli import main
     from gridsim.world.scripted_drivers import LaneFollower
 
+    before = signal.signal(signal.SIGTERM, signal.SIG_DFL)  # (as in a command's process:
+    request.addfinalizer(lambda: signal.signal(signal.SIGTERM, before))  # ray sets its own)
     with interrupts.deferred():
         # (checked first: without the handler a SIGTERM would end the test session)
-        assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL
+        assert signal.getsignal(signal.SIGTERM) is interrupts._handler
         interrupts.enter()
         os.kill(os.getpid(), signal.SIGTERM)
         with pytest.raises(interrupts.Terminated):
@@ -134,7 +136,7 @@ def test_sigterm_ends_a_command_as_ctrl_c_does(tmp_path, monkeypatch, capsys):
     def signalled(self, world):  # a SIGTERM as the 20th tick is computed
         calls.append(1)
         if len(calls) == 20:
-            assert signal.getsignal(signal.SIGTERM) is not signal.SIG_DFL  # (see above)
+            assert signal.getsignal(signal.SIGTERM) is interrupts._handler  # (see above)
             os.kill(os.getpid(), signal.SIGTERM)
         return drive(self, world)
 

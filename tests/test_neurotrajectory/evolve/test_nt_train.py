@@ -194,12 +194,17 @@ def test_ctrl_c_is_the_trainers_and_stops_the_process_workers_at_once(capfd, sig
         for pid in [p.pid for p in backend.procs] + [os.getpid()]:
             os.kill(pid, signum)
 
-    with interrupts.deferred():  # (as a command: SIGTERM then raises as Ctrl-C does)
-        assert signal.getsignal(signum) not in (signal.SIG_DFL, signal.SIG_IGN)
-        timer = threading.Timer(0.5, ctrl_c)
-        timer.start()
-        with pytest.raises(KeyboardInterrupt):
-            backend.evaluate(16, spec.seeds)  # 16 x 4 episodes of 60 s: far longer than this
+    # as in a command's process (an earlier test's ray.init leaves a SIGTERM handler of its own)
+    before = signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        with interrupts.deferred():  # (as a command: SIGTERM then raises as Ctrl-C does)
+            assert signal.getsignal(signum) not in (signal.SIG_DFL, signal.SIG_IGN)
+            timer = threading.Timer(0.5, ctrl_c)
+            timer.start()
+            with pytest.raises(KeyboardInterrupt):
+                backend.evaluate(16, spec.seeds)  # 16 x 4 episodes of 60 s: far longer
+    finally:
+        signal.signal(signal.SIGTERM, before)
     time.sleep(0.5)
     assert all(p.is_alive() for p in backend.procs)  # the workers ignored it
     t0 = time.perf_counter()
