@@ -171,25 +171,36 @@ def _join(key: tuple[str, str], pieces: list[Track], taken: set,
                            for k, p in enumerate(pieces)])  # fmt: skip
     rows = rows[np.argsort(rows[:, 0], kind="stable")]
     rows = rows[np.concatenate(([True], np.diff(rows[:, 0]) > 0))]  # a boundary row once
-    out = []
-    for k, a in enumerate(_pieces(rows)):
-        name = rid
-        if k:
-            name = f"{rid}#{k + 1}"
-            while (sid, name) in taken:
-                name += "#"
-            taken.add((sid, name))
-        first = pieces[int(a[0, 7])]
-        if len(a) < 2:
-            left_out.append(f"{sid}/{name} (a single state)")
+    cut = _pieces(rows)
+    out, single, impossible = _piece_tracks(sid, rid, cut, taken,
+                                            [pieces[int(a[0, 7])].source for a in cut])  # fmt: skip
+    taken.update((sid, t.track_id) for t in out)
+    left_out += [f"{sid}/{name} (a single state)" for name in single] + impossible
+    return out
+
+
+def _piece_tracks(sid: str, tid: str, pieces: list[np.ndarray], taken,
+                  sources: list[str]) -> tuple[list[Track], list[str], list[str]]:  # fmt: skip
+    """The tracks of the ``pieces`` (rows ``t, x, y, heading, speed, length, width``, by
+    time; :func:`_pieces`) of id ``tid`` of scene ``sid``: named ``tid``, ``tid#2``, ... (a
+    suffixed name already in ``taken``, (scene, id) pairs: another ``#``), each sized by its
+    first row and read from ``sources[k]``; with the names of the pieces of a single state,
+    left out, and the problems of those of impossible data, left out too."""
+    tracks, single, impossible = [], [], []
+    for k, piece in enumerate(pieces):
+        name = tid if k == 0 else f"{tid}#{k + 1}"
+        while k and (sid, name) in taken:  # an id the scene has already: another suffix
+            name += "#"
+        if len(piece) < 2:
+            single.append(name)
             continue
         try:
-            out.append(Track(sid, name, *(np.ascontiguousarray(a[:, c]) for c in range(3)),
-                             np.unwrap(a[:, 3]), np.ascontiguousarray(a[:, 4]), float(a[0, 5]),
-                             float(a[0, 6]), first.source, rid))  # fmt: skip
+            tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
+                                np.unwrap(piece[:, 3]), piece[:, 4], float(piece[0, 5]),
+                                float(piece[0, 6]), sources[k], tid))  # fmt: skip
         except DataError as exc:  # impossible data: this piece
-            left_out.append(str(exc))
-    return out
+            impossible.append(str(exc))
+    return tracks, single, impossible
 
 
 def _same_state(a: Track, b: Track, k: int) -> bool:
@@ -320,19 +331,11 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
         pieces = _pieces(a)
         if len(pieces) > 1:
             split.append((tid, [float(p[0, 0]) for p in pieces[1:]]))
-        for k, piece in enumerate(pieces):
-            name = tid if k == 0 else f"{tid}#{k + 1}"
-            while k and (sid, name) in index:  # an id the file has already: another suffix
-                name += "#"
-            if len(piece) < 2:
-                single.append(f"({sid}, {name})")
-                continue
-            try:
-                tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
-                                    np.unwrap(piece[:, 3]), piece[:, 4], float(piece[0, 5]),
-                                    float(piece[0, 6]), str(path), tid))  # fmt: skip
-            except DataError as exc:  # impossible data: the track, or the file (below)
-                impossible.append(str(exc).removeprefix(f"{path}: "))
+        mine, ones, bad = _piece_tracks(sid, tid, pieces, index, [str(path)] * len(pieces))
+        tracks += mine
+        single += [f"({sid}, {name})" for name in ones]
+        # impossible data: the track left out, or the file (below)
+        impossible += [problem.removeprefix(f"{path}: ") for problem in bad]
     refuse_mostly_impossible(path, len(tracks), impossible)
     notes = [text for text in (cut, gaps.note_text()) if text]
     _warn_tracks(path, split, single, resized, repeated, impossible, "; ".join(notes))
