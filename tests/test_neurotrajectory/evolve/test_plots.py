@@ -109,7 +109,8 @@ def test_the_objectives_plot_draws_individual_0_beside_the_members(tmp_path, mon
     assert line.get_label().endswith(says) and list(line.get_ydata()) == [0.0, 0.0]
     members = np.concatenate([c.get_offsets() for c in l1.collections if len(c.get_offsets())])
     assert sorted(map(tuple, members.round(6).tolist())) == sorted(
-        (g, round(100 * i / (50 * (g + 1)), 6)) for g in (0, 2) for i in range(4))
+        (g, round(100 * i / (50 * (g + 1)), 6)) for g in (0, 2) for i in range(4)
+    )
     members = np.concatenate([c.get_offsets() for c in l3.collections if len(c.get_offsets())])
     assert members[:, 1].max() == pytest.approx(3.0)  # l3 1 % apart per member: visible
     assert "change from individual 0 [%] (higher better)" in l3.get_title()
