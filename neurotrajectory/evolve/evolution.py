@@ -7,10 +7,9 @@ tie-break; carry the first front
 (at most ``elite_fraction`` of the population, the least crowded first) over unmodified;
 fill the rest with children of tournament-selected parents: uniform crossover of two parents
 with probability ``p_crossover``, additive Gaussian mutation (``sigma`` times a slice of the
-shared noise table) with probability ``p_mutation``; a child that drew neither is mutated.
-(A crossover without mutation whose two tournaments picked the same parent is still an
-exact copy of it: 3-6 % of the evaluations of small runs; not changed, as it would change
-every recorded run.) All draws come from a generator seeded by
+shared noise table) with probability ``p_mutation``; a child that drew neither is mutated, and
+so is one whose two tournaments picked the same parent (no crossover: a crossover of a parent
+with itself would evaluate an exact copy of it again). All draws come from a generator seeded by
 (run seed, generation): a run is reproducible and resumable. Generation 0 is drawn the same
 way (:func:`initial_recipes`), or around a warm start's genome (:func:`warm_start_recipes`,
 from a stream of its own).
@@ -150,6 +149,8 @@ def next_generation(
         cross = rng.random() < config.p_crossover
         mutate = rng.random() < config.p_mutation or not cross
         other = tournament() if cross else None
+        if other == a:  # a crossover of a parent with itself is the parent: mutate it instead
+            cross, other, mutate = False, None, True
         recipes.append(
             Recipe(
                 parent=a,

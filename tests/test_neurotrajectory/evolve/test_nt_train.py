@@ -23,7 +23,7 @@ from neurotrajectory.evolve.backends import BackendError, WorkerSpec, make_backe
 from neurotrajectory.evolve.fitness import Evaluator
 from neurotrajectory.evolve.genome import Recipe
 from neurotrajectory.evolve.pareto import pick_member
-from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
+from neurotrajectory.evolve.runs import Run, RunError, TrainConfig, _distinct
 from neurotrajectory.model import PRESETS
 
 #: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
@@ -56,20 +56,20 @@ def test_tiny_run_end_to_end_improves_the_front(tmp_path):
 
 def test_the_final_front_lists_a_network_once(tmp_path):
     """An elite carried over twice is one network: the front lists it once (the default
-    preset's run of 4 members and 2 generations had it twice, with the same scores)."""
+    preset's run of 4 members and 2 generations had it twice, with the same scores, when a
+    crossover of a parent with itself copied it); and the genetic algorithm no longer makes
+    such copies: that run's last generation holds each genome once."""
+    genomes = np.array([[1.0, 2.0], [3.0, 4.0], [1.0, 2.0], [5.0, 6.0], [3.0, 4.0]])
+    np.testing.assert_array_equal(_distinct(genomes, np.array([0, 1, 2, 4])), [0, 1])
+    np.testing.assert_array_equal(_distinct(genomes, np.array([2, 3, 0])), [2, 3])
     cfg = TrainConfig(population=4, generations=2, episodes=1, episode_seconds=5.0, seed=0)
     summary = Run.create(tmp_path / "run", cfg).train(progress=False)
     with np.load(tmp_path / "run" / "checkpoint.npz") as ckpt:
         population = ckpt["population"]
-    repeats = [
-        (i, j) for i in range(4) for j in range(i) if np.array_equal(population[i], population[j])
-    ]
-    assert repeats  # the case: a genome twice in the last generation
-    with np.load(tmp_path / "run" / "front.npz") as front:
-        genomes = front["genomes"]
-    assert len(genomes) == len(summary["front"]) >= 1
-    assert not any(np.array_equal(genomes[i], genomes[j]) for i in range(len(genomes))
+    assert not any(np.array_equal(population[i], population[j]) for i in range(4)
                    for j in range(i))  # fmt: skip
+    with np.load(tmp_path / "run" / "front.npz") as front:
+        assert len(front["genomes"]) == len(summary["front"]) >= 1
 
 
 def test_resume_gives_the_same_result_as_an_uninterrupted_run(tmp_path):
@@ -327,18 +327,23 @@ def test_episodes_are_drawn_anew_and_heldout_seeds_are_never_trained_on():
     assert fixed.episode_seeds(0) == fixed.episode_seeds(9)
 
 
-@pytest.mark.parametrize(("keep", "factor"), [(0.0, 0.5), (0.7, 0.75)])
+@pytest.mark.parametrize(("keep", "factor"), [(0.0, 0.7), (0.7, 0.8)])
 def test_training_improves_a_tiny_problem(tmp_path, keep, factor):
     """From networks that keep the ego's speed and heading (and their random residuals), on a
-    fixed episode, evolution brings the best l1 (distance to the human's set-points) well
-    down; less with plan smoothing, where each plan the car follows is only 30 % the
-    network's new one (measured: to 0.46 and 0.64 of the first generation's best)."""
-    cfg = TrainConfig(preset="tiny", prior="constant_velocity", population=8, generations=6,
-                      episodes=1, episode_seconds=3.0, seed=2, resample_episodes=False,
-                      plan_smoothing=keep)  # fmt: skip
-    Run.create(tmp_path / "run", cfg).train(progress=False)
-    best = [min(f[0] for f in g["fitness"]) for g in history(tmp_path / "run")]
-    assert best[-1] < factor * best[0], best
+    fixed episode, evolution brings the best l1 (distance to the human's set-points) down:
+    the last generation's best over the first's, averaged over run seeds 0, 1 and 2 (one
+    seed's ratio swings from 0.3 to 1.0 with 8 members: the elites, 2, may all be the
+    front's other extremes); less with plan smoothing, where each plan the car follows is
+    only 30 % the network's new one (measured: 0.61 and 0.70)."""
+    ratios = []
+    for seed in (0, 1, 2):
+        cfg = TrainConfig(preset="tiny", prior="constant_velocity", population=8,
+                          generations=6, episodes=1, episode_seconds=3.0, seed=seed,
+                          resample_episodes=False, plan_smoothing=keep)  # fmt: skip
+        Run.create(tmp_path / f"run{seed}", cfg).train(progress=False)
+        best = [min(f[0] for f in g["fitness"]) for g in history(tmp_path / f"run{seed}")]
+        ratios.append(best[-1] / best[0])
+    assert np.mean(ratios) < factor, ratios
 
 
 # -- run folders: nothing is written before every argument is checked ---------------------------
