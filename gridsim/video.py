@@ -194,6 +194,20 @@ def policy_name(policy: Policy) -> str:
     return "a lambda policy" if name == "<lambda>" else name
 
 
+def episode_name(env, seed: int | None) -> str:
+    """What a frame calls the episode of ``env`` (after its reset), so that it can be driven
+    again: the scene (a collection's drawn one), the recorded track the ego drives (on a
+    recorded scene) and the ``seed``, e.g. ``"us101_4_1, track 395, seed 0"``."""
+    u = env.unwrapped
+    parts = [u.scenario.name]
+    track = u.world.ego_track if u.world is not None else None
+    if track is not None:
+        parts.append(f"track {track.track_id}")
+    if seed is not None:
+        parts.append(f"seed {seed}")
+    return ", ".join(parts)
+
+
 def _frame(env, info: dict, overlay: bool, label: str | None, fitness: np.ndarray,
            stopped: bool = False) -> np.ndarray:  # fmt: skip
     """``env.render()``, annotated if ``overlay`` (see :func:`record_episode`; ``stopped``: the

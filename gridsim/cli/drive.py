@@ -101,7 +101,7 @@ def _write(out, sc, seed, world, grids, times, steps, start, distance, collision
     spec = sc.config.sensor
     frame = view.render(world, grids[-1], grid_frame=(spec.cell_size, spec.orientation))
     caption = Caption(f"lane follower, {sc.name} (seed {seed})", world.time, float(world.ego[3]))
-    annotate(frame, caption, view.view.pixels_per_metre, view.view.inset_size,
+    annotate(frame, caption, view.scale, view.view.inset_size,
              setpoints=False)  # (the drive draws no set-points)  # fmt: skip
     cv2.imwrite(str(out / "topdown.png"), frame[:, :, ::-1])
     summary = {
@@ -123,6 +123,7 @@ def _write(out, sc, seed, world, grids, times, steps, start, distance, collision
             if world.ego_track is not None
             else {}
         ),  # fmt: skip
+        "out": str(out),  # the folder of the outputs
         "outputs": sorted(
             [p.name for p in out.iterdir() if not p.name.startswith(".")] + ["summary.json"]
         ),  # (this file, written next)

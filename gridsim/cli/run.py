@@ -58,7 +58,7 @@ def run_policy(
     ego's track and how long it lasts: its episode lasts at most that)."""
     from gridsim.envs.gridsim_env import GridSimEnv
     from gridsim.outputs import progress_bar
-    from gridsim.video import record_episode, video_problem
+    from gridsim.video import episode_name, record_episode, video_problem
 
     if policy not in POLICIES:
         raise GridSimError(f"unknown policy {policy!r}; choose from {sorted(POLICIES)}")
@@ -97,7 +97,7 @@ def run_policy(
         bar.update()
 
     def label(env) -> str:
-        return f"{policy} policy, {env.unwrapped.scenario.name}, seed {seed}"
+        return f"{policy} policy, {episode_name(env, seed)}"
 
     episode, path = record_episode(env, pol, video, steps, seed, on_step=stepped,
                                    overlay=overlay, label=label)  # fmt: skip

@@ -16,8 +16,9 @@ def add_parser(sub) -> None:
 
 
 def execute(args: argparse.Namespace) -> int:
+    from gridsim.errors import GridSimError
     from gridsim.outputs import counted
-    from gridsim.scenario.collection import scenario_files, usable_files
+    from gridsim.scenario.collection import scenario_files
     from gridsim.scenario.loader import builtin_scenarios, load_scenario
 
     if not args.path:
@@ -25,17 +26,35 @@ def execute(args: argparse.Namespace) -> int:
             print(f"{name:16s} {desc}")
         return 0
     args.path = ",".join(args.path)  # several (a glob the shell expanded): a list of them
+    files = scenario_files(args.path)
+    if files is None:  # one file: it loads, or its error is the command's
+        files = [args.path]
     # every file that loads, whether or not its data is sound and they agree enough to run
-    # as one collection (gridsim validate says: it reads every map and recording)
-    scenarios = ([load_scenario(args.path)] if scenario_files(args.path) is None
-                 else usable_files(args.path, read_data=False)[0])  # fmt: skip
-    for sc in scenarios:
+    # as one collection (gridsim validate says: it reads every map and recording); those
+    # that do not load are listed too, with their first problem
+    listed, failed = 0, 0
+    for f in files:
+        try:
+            sc = load_scenario(f, shared=True)
+        except GridSimError as exc:
+            if len(files) == 1:
+                raise
+            failed += 1
+            lines = str(exc).splitlines()
+            first = lines[0].removeprefix(f"{f}: ")
+            if first.endswith(":") and len(lines) > 1:  # a list of problems: the first
+                first += " " + lines[1].strip().removeprefix("- ")
+            print(f"{f}: does not load: {first}")
+            continue
+        listed += 1
         print(f"{sc.source}: {sc.name} ({sc.config.road.type}{_scene(sc)}) "
               f"{sc.config.description}")  # fmt: skip
-    print(f"gridsim: {counted(len(scenarios), 'scenario')} listed; `gridsim validate "
-          f"{args.path}` reads "
-          "their maps and recordings and checks them", file=sys.stderr)  # fmt: skip
-    return 0
+    but = (f", {counted(failed, 'file')} that {'does' if failed == 1 else 'do'} not load"
+           if failed else "")  # fmt: skip
+    print(f"gridsim: {counted(listed, 'scenario')} listed{but}; `gridsim validate "
+          f"{args.path}` reads their maps and recordings and checks them, naming every "
+          "problem", file=sys.stderr)  # fmt: skip
+    return 1 if failed else 0
 
 
 def _scene(sc) -> str:

@@ -57,8 +57,10 @@ class Caption:
     """What the top-left band says: ``label`` (the driver: a method or a front member), the
     simulated time [s], the ego's speed [m/s], the fitness terms summed so far ``[l1, l2,
     l3]`` (m^2, rad/s, m/s each step, summed), or None before the first step, and what ended
-    the episode at this step (``ended``: ``"collision"``, ``"off the road"``, ``"destination
-    reached"``, ``"time limit"``, ``"steps limit"``), if anything did."""
+    the episode at this step (``ended``: ``"collision"``, ``"off the road"``, ``"the human's
+    end point reached"`` (the destination the episode ends at: where the human's whole path
+    ends, not the diamond, the planner's goal ahead), ``"time limit"``, ``"steps limit"``), if
+    anything did."""
 
     label: str | None
     time: float
@@ -87,7 +89,7 @@ class Caption:
 
 #: What ends an episode, by its ``info`` key, as a frame says it.
 _ENDINGS = (("collision", "collision"), ("off_road", "off the road"),
-            ("destination_reached", "destination reached"))  # fmt: skip
+            ("destination_reached", "the human's end point reached"))  # fmt: skip
 
 
 def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
@@ -174,4 +176,4 @@ def annotate_env_frame(env, frame: np.ndarray, info: dict, label: str | None,
     renderer = u.renderer
     timed_out = u.world is not None and u.world.time >= u.time_limit - 1e-9  # (as step says)
     caption = Caption.from_info(info, label, fitness, timed_out, stopped)
-    return annotate(frame, caption, renderer.view.pixels_per_metre, renderer.view.inset_size)
+    return annotate(frame, caption, renderer.scale, renderer.view.inset_size)

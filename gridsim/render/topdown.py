@@ -1,7 +1,8 @@
 """Top-down RGB rendering with OpenCV: road, lane markings, vehicles, ego, grid inset.
 
-The view is centred on the ego, north up, ``pixels_per_metre`` pixels per metre. Nothing is
-ever shown in a window; frames are numpy arrays ``(height, width, 3)`` uint8 RGB.
+The view is centred ahead of the ego, north up, ``pixels_per_metre`` pixels per metre (fewer
+when the set-points drawn would leave the frame). Nothing is ever shown in a window; frames
+are numpy arrays ``(height, width, 3)`` uint8 RGB.
 """
 
 from __future__ import annotations
@@ -28,12 +29,18 @@ REFERENCE_COLOUR = (255, 80, 255)
 POINTER_OUTLINE = (20, 20, 20)  # behind the arrow to a human out of view, and its label
 PLAN_COLOUR = (255, 220, 0)
 DESTINATION_COLOUR = (255, 255, 255)
+#: The outline of the ego and of the vehicles it touches, on a frame of a collision.
+COLLISION_COLOUR = (255, 255, 255)
 #: A vehicle's front quarter is drawn in its colour darkened by this share (its heading).
 NOSE_SHADE = 0.55
 #: Pixel radii of a set-point's dot and of a reference set-point's ring.
 DOT_RADIUS, RING_RADIUS = 3, 6
 #: The view leads the ego by what it drives in this long [s], at most LEAD_MAX [m].
 LEAD_SECONDS, LEAD_MAX = 0.8, 12.0
+#: The scales a frame may take, as shares of the view's ``pixels_per_metre``: the largest at
+#: which every set-point and the destination lie :data:`ZOOM_MARGIN` pixels inside the frame
+#: (a 2.5 s plan at highway speed, or a goal 5 s ahead, would leave an 80 m x 60 m view).
+ZOOM_STEPS, ZOOM_MARGIN = (1.0, 0.75, 0.5, 0.375, 0.25), 24
 #: The ego's outline in the grid inset (the grid's own colours are green, red and black).
 INSET_EGO_COLOUR = (255, 255, 255)
 
@@ -41,7 +48,8 @@ INSET_EGO_COLOUR = (255, 255, 255)
 @dataclass(frozen=True)
 class ViewSpec:
     """The frame [pixels] and its scale: 8 pixels per metre show 80 m x 60 m around the ego,
-    the road's lanes wide enough to see and a plan of 2.5 s at highway speed inside."""
+    the road's lanes wide enough to see (a frame whose set-points or destination lie
+    farther zooms out: :data:`ZOOM_STEPS`)."""
 
     width: int = 640
     height: int = 480
@@ -54,10 +62,11 @@ class TopDownRenderer:
 
     def __init__(self, view: ViewSpec | None = None) -> None:
         self.view = view or ViewSpec()
+        #: The scale [pixels per metre] of the last frame drawn (its scale bar's)
+        self.scale = self.view.pixels_per_metre
 
-    def _affine(self, center: np.ndarray) -> np.ndarray:
+    def _affine(self, center: np.ndarray, k: float) -> np.ndarray:
         v = self.view
-        k = v.pixels_per_metre
         return np.array(
             [[k, 0.0, v.width / 2 - k * center[0]], [0.0, -k, v.height / 2 + k * center[1]]]
         )
@@ -82,13 +91,19 @@ class TopDownRenderer:
         "ring")`` drawn as dots or rings joined by a line, in order (e.g. set-points);
         ``rays`` ``(R, 2)`` world end points are drawn as lines from the ego; ``human`` [m,
         world], where the human is now, gets an arrow at the frame's edge when out of view;
-        ``destination`` [m, world] a diamond."""
+        ``destination`` [m, world] a diamond. The scale is the view's, or smaller where the
+        set-points or the destination would leave the frame (:attr:`scale`)."""
         v = self.view
         ego_xy = world.ego[:2]
-        a = self._affine(self.centre(world))
+        centre = self.centre(world)
+        shown = [np.asarray(p, float).reshape(-1, 2) for p, _, _ in overlay or []]
+        if destination is not None:
+            shown.append(np.asarray(destination, float).reshape(1, 2))
+        self.scale = k = self._zoom(centre, shown)
+        a = self._affine(centre, k)
         img = np.empty((v.height, v.width, 3), np.uint8)
         img[:] = _BG
-        radius = 0.5 * np.hypot(v.width, v.height) / v.pixels_per_metre
+        radius = 0.5 * np.hypot(v.width, v.height) / k
         for poly in world.road.drivable_polygons(ego_xy, radius):
             cv2.fillPoly(img, [self._px(a, poly)], _ROAD, cv2.LINE_AA, shift=4)
         for line in world.road.lane_markings(ego_xy, radius):
@@ -123,6 +138,15 @@ class TopDownRenderer:
             for colour, thickness in ((POINTER_OUTLINE, 4), (DESTINATION_COLOUR, 2)):
                 cv2.drawMarker(img, (int(u), int(v)), colour, cv2.MARKER_DIAMOND, 14, thickness,
                                cv2.LINE_AA)  # fmt: skip
+        hit = [j for j in world.last.contact.vehicles if f.active[j]]
+        if hit:  # a collision: the ego and the cars it touches above the set-points, ringed
+            for j in hit:
+                quad = box_corners(f.x[j], f.y[j], f.psi[j], f.length[j], f.width[j])
+                nose = _noses(f.x[j], f.y[j], f.psi[j], f.length[j], f.width[j])
+                self._vehicle(img, a, quad, nose, IDM_COLOUR if f.mode[j] else TRAFFIC_COLOUR)
+                self._outline(img, a, quad)
+            self._vehicle(img, a, ego_box, ego_nose, EGO_COLOUR)
+            self._outline(img, a, ego_box)
         if human is not None:
             self._pointer(img, a, np.asarray(human, float))
         if grid is not None:
@@ -136,10 +160,35 @@ class TopDownRenderer:
         dark = tuple(int(c * NOSE_SHADE) for c in colour)
         cv2.fillConvexPoly(img, self._px(a, nose), dark, cv2.LINE_AA, shift=4)
 
+    def _outline(self, img, a, box: np.ndarray) -> None:
+        """A collision's mark around a footprint ``box`` (4, 2) [m, world]: white on dark."""
+        px = self._px(a, box)
+        for colour, thickness in ((POINTER_OUTLINE, 5), (COLLISION_COLOUR, 2)):
+            cv2.polylines(img, [px], True, colour, thickness, cv2.LINE_AA, shift=4)
+
+    def _zoom(self, centre: np.ndarray, points: list[np.ndarray]) -> float:
+        """The largest scale of :data:`ZOOM_STEPS` [pixels per metre] at which ``points``
+        ``(N, 2)`` [m, world] lie :data:`ZOOM_MARGIN` pixels inside a frame centred on
+        ``centre`` (the smallest when none does)."""
+        v = self.view
+        if not points:
+            return v.pixels_per_metre
+        off = np.abs(np.concatenate(points) - centre)
+        off = off[np.isfinite(off).all(axis=1)]
+        if not len(off):
+            return v.pixels_per_metre
+        reach_x, reach_y = off.max(axis=0)
+        for share in ZOOM_STEPS:
+            k = share * v.pixels_per_metre
+            if (reach_x * k <= v.width / 2 - ZOOM_MARGIN
+                    and reach_y * k <= v.height / 2 - ZOOM_MARGIN):  # fmt: skip
+                return k
+        return ZOOM_STEPS[-1] * v.pixels_per_metre
+
     def centre(self, world) -> np.ndarray:
         """The view's centre [m, world]: ahead of the ego by what it drives in
-        :data:`LEAD_SECONDS` (at most :data:`LEAD_MAX`), so that a plan of 2.5 s at highway
-        speed stays in the picture."""
+        :data:`LEAD_SECONDS` (at most :data:`LEAD_MAX`): more of the road ahead than
+        behind."""
         x, y, psi, speed = world.ego[:4]
         lead = min(max(float(speed), 0.0) * LEAD_SECONDS, LEAD_MAX)
         return np.array([x + lead * np.cos(psi), y + lead * np.sin(psi)])

@@ -319,6 +319,15 @@ def _without(doc: Mapping[str, Any], parts: tuple) -> dict[str, Any]:
     return out
 
 
+def _key_paths(doc: Mapping[str, Any], prefix: str = "") -> list[str]:
+    """The dotted paths of the leaves of ``doc`` (``traffic.participants``)."""
+    out = []
+    for k, v in doc.items():
+        path = f"{prefix}{k}"
+        out += _key_paths(v, path + ".") if isinstance(v, Mapping) and v else [path]
+    return out
+
+
 def deep_merge(base: Mapping[str, Any], overrides: Mapping[str, Any]) -> dict[str, Any]:
     """Recursively merge ``overrides`` into ``base`` (mappings merge, other values replace)."""
     out = dict(base)
@@ -358,7 +367,10 @@ def parse_scenario(
     family = road.get("type") if isinstance(road, Mapping) else None
     unused = _unused_keys(own if shared else doc, family)
     doc = deep_merge(family_defaults(family), doc)
-    scenario = Scenario(_validate(doc, source), source, base_dir)
+    given = source
+    if overrides:  # (a problem may be the overrides', not the file's)
+        given = f"{source} with the overrides {', '.join(_key_paths(overrides))}"
+    scenario = Scenario(_validate(doc, given), source, base_dir)
     _warn_fast_traffic(scenario, family)
     if unused:
         ignores, by_why = FAMILIES[family].ignores, {}

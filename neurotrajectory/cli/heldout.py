@@ -91,6 +91,12 @@ def report_heldout(
             )
     print("  (progress: of the human's path; steering: the mean |steering rate| a tick)")
     _print_failures(run, pick, report)
+    _print_paired(report, pick, which)
+    print(f"  (every episode's figures: {path})")
+
+
+def _print_paired(report: dict, pick: str, which: str) -> None:
+    """What the summary says of the episodes both the member and its warm start complete."""
     paired = report.get("paired")
     if paired is None:
         return

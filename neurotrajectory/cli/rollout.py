@@ -76,7 +76,7 @@ def rollout(
     ``track``, default as the run's generations; a held-out episode of ``heldout.json`` is
     its seed, track, episode_seconds and plan_smoothing) into ``video``, the plans smoothed
     as the run's (or by ``smoothing``); print and return a summary."""
-    from gridsim.video import record_episode
+    from gridsim.video import episode_name, record_episode
     from neurotrajectory.compare.front import episode_env, load_front_member
 
     run, policy, member = load_front_member(run_dir, pick, smoothing)
@@ -86,8 +86,11 @@ def rollout(
         print(f"neurotrajectory: note: --steps {steps} is more than the episode's "
               f"{episode} decisions ({env.cfg.simulation.duration:g} s; --seconds makes it "
               f"longer): the episode ends at {episode}", file=sys.stderr)  # fmt: skip
-    label = f"NeuroTrajectory, {pick} member {member['member']} of {Path(run_dir).name}"
-    label += f", seed {seed}" if seed is not None else ""  # (to drive it again)
+    name = f"NeuroTrajectory, {pick} member {member['member']} of {Path(run_dir).name}"
+
+    def label(env) -> str:  # the scene, the track and the seed: to drive it again
+        return f"{name}: {episode_name(env, seed)}"
+
     driven, path = record_episode(env, policy, video, min(steps or episode, episode), seed=seed,
                                   overlay=overlay, label=label)  # fmt: skip
     s = driven.summary()

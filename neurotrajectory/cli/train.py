@@ -258,9 +258,14 @@ def front_table(out: Path, summary: dict) -> str:
     head = (f"{out}: {counted(summary['generation'] + 1, 'generation')}; the front of {len(front)} "
             f"chosen on {summary['chosen_on']} (* the knee):")  # fmt: skip
     width = max(len(name) for name, _ in rows)
-    lines = [head, f"  {'':<{width}}  {'l1':>10}  {'l2':>8}  {'l3':>9}  {'time lost':>9}"]
-    lines += [f"  {name:<{width}}  {m['l1']:10.1f}  {m['l2']:8.3f}  {m['l3']:9.1f}  "
+    lines = [head, f"  {'':<{width}}  {'l1 [m^2]':>10}  {'l2 [rad/s]':>10}  {'l3 [m/s]':>9}  "
+                   f"{'time lost':>9}"]  # fmt: skip
+    lines += [f"  {name:<{width}}  {m['l1']:10.1f}  {m['l2']:10.3f}  {m['l3']:9.1f}  "
               f"{m['violation']:9.1%}" for name, m in rows]  # fmt: skip
-    lines.append("  (mean episode sums of the fitness vector, l1 and l2 lower and l3 higher "
-                 "better: front.json)")  # fmt: skip
+    if rows[knee][0].endswith("(= the warm start)"):
+        lines.append("  the knee is the warm start itself: evolution found no better trade-off "
+                     "on these episodes")  # fmt: skip
+    lines.append("  (mean episode sums of the fitness vector, each summed over the ticks; l1 "
+                 "and l2 lower and l3 higher better: front.json; plots in "
+                 f"{Path(out) / 'plots'})")  # fmt: skip
     return "\n".join(lines)

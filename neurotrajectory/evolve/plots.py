@@ -22,7 +22,7 @@ from neurotrajectory.evolve.pareto import (  # noqa: E402
 #: The objectives as plotted: a member's fitness is the mean over its episodes of each
 #: episode's sum of the per-step terms (l2 and l3 add one value per simulation tick).
 NAMES = (
-    "l1: episode sum of set-point errors [m^2] (min)",
+    "l1: episode sum of squared set-point errors [m^2] (min)",
     "l2: episode sum of |steering rate| per tick [rad/s] (min)",
     "l3: episode sum of speed per tick [m/s] (max)",
 )
@@ -226,8 +226,11 @@ def _hypervolume(path: Path, history: list[dict], anchored: bool) -> Path:
     ax.xaxis.set_major_locator(MaxNLocator(integer=True))
     ax.set_ylim(bottom=0)
     ax.set_ylabel(f"hypervolume / {'individual 0' if anchored else 'that member'}'s alone")
+    where = ("on the same episodes" if anchored else "on generation 0's episodes (later "
+             "generations may draw others:\nthen the curve moves with the draw as much as "
+             "with progress)")  # fmt: skip
     ax.set_title(f"the objective space the generation's members dominate, relative to\n{who}"
-                 f" alone on the same episodes (objectives as ratios to it, up to {HV_MARGIN:g}x)"
+                 f" alone {where} (objectives as ratios to it, up to {HV_MARGIN:g}x)"
                  "\n1: no member does better on any objective; it moves with each draw",
                  fontsize=8)  # fmt: skip
     ax.legend(fontsize=8)

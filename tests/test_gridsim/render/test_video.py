@@ -88,7 +88,7 @@ def test_frames_say_how_the_episode_ended_and_videos_who_drives():
     def with_and_without_ending(info):
         frame, fitness = short.render(), np.zeros(3)
         plain = annotate(frame.copy(), Caption.from_info(info, None, fitness),
-                         u.renderer.view.pixels_per_metre, u.renderer.view.inset_size)  # fmt: skip
+                         u.renderer.scale, u.renderer.view.inset_size)  # fmt: skip
         return annotate_env_frame(short, frame.copy(), info, None, fitness), plain
 
     _, info = short.reset(seed=0)
@@ -382,7 +382,7 @@ def test_vehicles_show_their_heading_and_the_destination_is_marked():
     world = env.unwrapped.world
     view = TopDownRenderer()
     frame = view.render(world)
-    a = view._affine(view.centre(world))
+    a = view._affine(view.centre(world), view.scale)
     c, psi, length = world.ego_center(), world.ego[2], world.ego_params.length
     ahead = np.array([np.cos(psi), np.sin(psi)])
 
@@ -435,3 +435,64 @@ def test_run_counts_its_progress_to_the_episodes_own_end(monkeypatch):
     assert bars[0].total == round(summary["ego_track_s"] / 0.1) < 300  # the track's end
     assert bars[0].n == summary["steps"]
     assert labels[0](gym.make(ENV_ID).unwrapped).endswith(", seed 5")
+
+
+def test_a_frame_zooms_out_to_show_every_set_point_and_the_destination():
+    """A 2.5 s plan at highway speed (70 m) left the 80 m x 60 m view: the frame zooms out
+    in steps until every set-point and the destination lie inside it, and its scale bar
+    says the scale it was drawn at; a short plan keeps the view's own scale."""
+    from gridsim.render.annotations import annotate_env_frame
+    from gridsim.render.topdown import ZOOM_MARGIN, TopDownRenderer
+
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    env.reset(seed=0)
+    world = env.unwrapped.world
+    view = TopDownRenderer()
+    psi = world.ego[2]
+    ahead = np.array([np.cos(psi), np.sin(psi)])
+    near = world.ego[:2] + np.outer([5.0, 10.0, 15.0], ahead)
+    view.render(world, overlay=[(near, (255, 0, 0), "dot")])
+    assert view.scale == view.view.pixels_per_metre
+    for reach in (70.0, 140.0):
+        far = world.ego[:2] + np.outer(np.linspace(14, reach, 5), ahead)
+        frame = view.render(world, overlay=[(far, (255, 0, 0), "dot")], destination=far[-1])
+        assert view.scale < view.view.pixels_per_metre
+        a = view._affine(view.centre(world), view.scale)
+        px = far @ a[:, :2].T + a[:, 2]
+        h, w = frame.shape[:2]
+        assert (px >= ZOOM_MARGIN - 1).all() and (px[:, 0] <= w - ZOOM_MARGIN + 1).all()
+        assert (px[:, 1] <= h - ZOOM_MARGIN + 1).all()
+    # the scale bar follows: a frame drawn at a quarter of the scale shows 50 m, not 10
+    _, info = env.reset(seed=0)
+    frame = env.unwrapped.renderer.render(world, overlay=[(far, (255, 0, 0), "dot")])
+    assert env.unwrapped.renderer.scale == view.view.pixels_per_metre / 4
+    marked = annotate_env_frame(env, frame.copy(), info, None, np.zeros(3))
+    bar = np.argwhere((marked[-30:, -330:] == 255).all(axis=-1))
+    assert bar[:, 1].max() - bar[:, 1].min() >= 100  # 50 m at 2 px/m (10 m at 8: 80 px)
+
+
+def test_a_collision_frame_rings_the_ego_and_the_car_it_hit_above_the_set_points():
+    """On a collision's frame the set-points drawn over the ego and the car it hit hid them:
+    both are drawn again above them, outlined."""
+    from gridsim.render.topdown import COLLISION_COLOUR, TopDownRenderer
+    from gridsim.world.collision import Contact
+
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    env.reset(seed=0)
+    world = env.unwrapped.world
+    f = world.traffic.fleet
+    j = int(np.flatnonzero(f.active)[0])
+    view = TopDownRenderer()
+    spots = np.array([[f.x[j], f.y[j]], world.ego_center()])
+    overlay = [(spots, (255, 220, 0), "dot")]
+    before = view.render(world, overlay=overlay)
+    last = world.last
+    world.last = type(last)(last.accel, last.steer_rate, Contact(vehicles=(j,)), False)
+    hit = view.render(world, overlay=overlay)
+    a = view._affine(view.centre(world), view.scale)
+    u, v = np.rint(spots @ a[:, :2].T + a[:, 2]).astype(int).T
+    plan = (255, 220, 0)
+    assert all(tuple(before[v[k], u[k]]) == plan for k in range(2))  # the dots hid them
+    assert all(tuple(hit[v[k], u[k]]) != plan for k in range(2))  # now drawn above
+    white = np.all(hit == COLLISION_COLOUR, axis=-1) & ~np.all(before == COLLISION_COLOUR, axis=-1)
+    assert white.sum() > 40  # the outlines

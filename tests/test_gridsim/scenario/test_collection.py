@@ -519,3 +519,18 @@ def test_a_folder_listing_reads_its_yaml_files_within_the_loaders_bounds(tmp_pat
     assert scenario_files(tmp_path) == [tmp_path / "deep.yaml", tmp_path / "scene.xml"]
     with pytest.raises(ScenarioError, match="brackets nested 3000 levels deep"):
         load_scenario(tmp_path / "deep.yaml")
+
+
+def test_scenarios_lists_a_folder_with_a_file_that_does_not_load(folder, capsys):
+    """One misspelt key in one file of a folder listed nothing (the error alone): the other
+    files are listed, the broken one with its first problem, and the status is 1."""
+    (folder / "typo.yaml").write_text("extends: seamless\nname: typo\ntraffic:\n  participant: 5\n")
+    assert main(["scenarios", str(folder)]) == 1
+    out = capsys.readouterr()
+    lines = out.out.splitlines()
+    assert len(lines) == 3 and lines[0].startswith(str(folder / "straight_2018b.xml"))
+    assert lines[2] == (f"{folder / 'typo.yaml'}: does not load: invalid scenario (1 problem): "
+                        "traffic.participant: unknown key (did you mean "
+                        "'traffic.participants'?) (got 5)")  # fmt: skip
+    assert "2 scenarios listed, 1 file that does not load" in out.err
+    assert main(["scenarios", str(folder / "typo.yaml")]) == 2  # one file: its error

@@ -17,6 +17,7 @@ from gridsim.scenario.families.seamless import SeamlessRoadConfig
 from gridsim.scenario.loader import (
     absolute_paths,
     builtin_scenarios,
+    deep_merge,
     load_scenario,
     parse_scenario,
 )
@@ -185,6 +186,10 @@ def test_validation_errors_name_the_key_path(patch, message):
     doc = yaml.safe_load(open_builtin("seamless"))
     with pytest.raises(ScenarioError, match=message) as err:
         parse_scenario(doc, "mine.yaml", overrides=patch)
+    # the file and the overrides it was given (a problem may be theirs, not the file's)
+    assert str(err.value).startswith(f"mine.yaml with the overrides {next(iter(patch))}")
+    with pytest.raises(ScenarioError, match=message) as err:
+        parse_scenario(deep_merge(doc, patch), "mine.yaml")  # the same, in the file
     assert str(err.value).startswith("mine.yaml: invalid scenario")
 
 
