@@ -97,6 +97,27 @@ def read_manifest(
 LOG_INTERVAL = 30.0
 
 
+class _LogLines:
+    """A progress bar's stream that is not a terminal, written a line per redraw: tqdm
+    returns to the line's start (``\\r``) to redraw it, which a log keeps as one long line,
+    and a message printed after a redraw was glued to it (``...23/29 [00:01<00:00,
+    19.3episode/s]neurotrajectory: copying ...``)."""
+
+    def __init__(self, stream) -> None:
+        self.stream = stream
+
+    def write(self, text: str) -> None:
+        line = text.replace("\r", "").rstrip()
+        if line:  # (a clearing of the line, or the bar's closing line break: nothing)
+            self.stream.write(line + "\n")
+
+    def flush(self) -> None:
+        self.stream.flush()
+
+    def __getattr__(self, name: str):  # (encoding, isatty, ...: the stream's)
+        return getattr(self.stream, name)
+
+
 def progress_bar(*args: Any, **kwargs: Any):
     """A tqdm progress bar (its arguments), on stderr unless ``file`` says otherwise; where
     that stream is not a terminal it is first drawn after :data:`LOG_INTERVAL` seconds and
@@ -114,6 +135,7 @@ def progress_bar(*args: Any, **kwargs: Any):
         kwargs.setdefault("mininterval", LOG_INTERVAL)
         kwargs.setdefault("maxinterval", LOG_INTERVAL)
         kwargs.setdefault("delay", LOG_INTERVAL)
+        kwargs["file"] = _LogLines(stream)
     bar = tqdm(*args, **kwargs)
     if not terminal:  # a new postfix waits for the next redraw (each forced one, every epoch)
         postfix = bar.set_postfix

@@ -96,7 +96,8 @@ def _write(out, sc, seed, world, grids, times, steps, start, distance, collision
 
     write_npz(out / "grids.npz", compressed=True, grids=grids, times=times)
     for k in np.linspace(0, steps - 1, min(steps, 5)).astype(int):
-        cv2.imwrite(str(out / f"grid_{k:05d}.png"), colourise(grids[k])[:, :, ::-1])
+        # (grid k is the world after tick k + 1, at times[k]: named by that tick)
+        cv2.imwrite(str(out / f"grid_{k + 1:05d}.png"), colourise(grids[k])[:, :, ::-1])
     view = TopDownRenderer()
     spec = sc.config.sensor
     frame = view.render(world, grids[-1], grid_frame=(spec.cell_size, spec.orientation))

@@ -137,3 +137,24 @@ def test_progress_bars_in_a_log_are_redrawn_every_half_minute():
     # per-epoch bars wrote 15.7 kB of them; 0.5 kB now); on a terminal it is, to the end
     assert log.getvalue() == "" and "3/3" in terminal.getvalue()
     assert bar.delay == LOG_INTERVAL and live.delay == 0
+
+
+def test_progress_bars_in_a_log_write_a_line_per_redraw():
+    """In a log, tqdm's redraws (a return to the line's start) made one long line, and a
+    message printed after a redraw was glued to it: each redraw is now a line of its own."""
+    import io
+
+    from gridsim.outputs import progress_bar
+
+    log = io.StringIO()
+    with progress_bar(total=3, file=log, desc="record x", unit="episode", mininterval=0,
+                      maxinterval=0, delay=0) as bar:  # fmt: skip
+        for _ in range(3):
+            bar.update()
+        bar.refresh()
+        log.write("neurotrajectory: copying ...\n")
+    lines = log.getvalue().splitlines()
+    assert "\r" not in log.getvalue() and len(lines) >= 4
+    assert lines[0].startswith("record x:") and "0/3" in lines[0]
+    assert "neurotrajectory: copying ..." in lines  # on a line of its own
+    assert lines[-1].startswith("record x: 100%") and "3/3" in lines[-1]
