@@ -299,12 +299,34 @@ def _beside(path: Path) -> Iterator[str]:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
     try:
-        yield tmp
+        try:
+            yield tmp
+        except OSError as exc:  # a full disk: the file it was writing named
+            if exc.errno in DISK_FULL and not exc.filename:
+                raise OSError(exc.errno, exc.strerror, str(path)) from exc
+            raise
         os.chmod(tmp, _mode_for(path))  # mkstemp's files are private (0600)
+        _sync(tmp)  # on disk before the rename: a power cut leaves the old file or the new
         os.replace(tmp, path)
+        _sync(path.parent)  # and the rename itself
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
+
+
+def _sync(path: str | Path) -> None:
+    """``fsync`` a file or a folder (what the file system cannot do, e.g. a folder on some
+    network file systems, is skipped: the rename is still atomic for the processes)."""
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def atomic_write(path: str | Path, write: Callable[[str], Any]) -> Path:

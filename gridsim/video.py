@@ -88,10 +88,18 @@ class VideoWriter:
             try:
                 writer.close()
             except BaseException:
+                _drop(writer)
                 self._partial.unlink(missing_ok=True)
                 raise
-            if self._partial.exists():  # (a writer given no frame may write no file)
-                os.replace(self._partial, self.path)
+            if not self._partial.exists():  # (a writer given no frame may write no file)
+                return
+            if self.frames and (problem := _unfinished(self._partial)):
+                # (ffmpeg says its error on stderr and exits; the writer does not raise)
+                self._partial.unlink(missing_ok=True)
+                raise GridSimError(f"video {self.path}: {problem}; nothing was written (a file "
+                                   "there before is left as it was): free some space, or "
+                                   "write the video elsewhere")  # fmt: skip
+            os.replace(self._partial, self.path)
 
     def abort(self) -> None:
         """Stop without a video: the frames so far are deleted, :attr:`path` left as it was
@@ -192,6 +200,47 @@ def policy_name(policy: Policy) -> str:
         return policy_name(policy.func)
     name = getattr(policy, "__name__", None) or type(policy).__name__
     return "a lambda policy" if name == "<lambda>" else name
+
+
+def _unfinished(path: Path) -> str | None:
+    """Why the video file ``path`` that its encoder closed without an error cannot be played
+    (an MP4 without its index, the ``moov`` box ffmpeg writes last: a disk that filled up; a GIF
+    without its trailer), or None."""
+    with path.open("rb") as fh:
+        if path.suffix.lower() == ".gif":
+            fh.seek(0, os.SEEK_END)
+            if fh.tell() == 0:
+                return "the encoder wrote an empty file (a disk full?)"
+            fh.seek(-1, os.SEEK_END)
+            return None if fh.read(1) == b"\x3b" else "the GIF is cut short (a disk full?)"
+        boxes = set()
+        while head := fh.read(8):  # MP4 top-level boxes: size (4 bytes), type (4)
+            if len(head) < 8:
+                break
+            size, kind = int.from_bytes(head[:4], "big"), head[4:]
+            boxes.add(kind)
+            if size == 1:  # a 64-bit size follows
+                size = int.from_bytes(fh.read(8), "big") - 8
+            if size == 0 or size < 8:  # to the end of the file (or not a box)
+                break
+            fh.seek(size - 8, os.SEEK_CUR)
+    if b"moov" not in boxes:
+        return "the encoder did not finish the MP4 file (no index: a disk full?)"
+    return None
+
+
+def _drop(writer) -> None:
+    """An imageio writer whose close failed, let go: its buffered frames (a GIF's, all of
+    them) dropped, so that its finaliser does not try to write them again (a traceback per
+    try, after the error was said)."""
+    instance = getattr(writer, "instance", None)
+    pending = getattr(instance, "images_to_write", None)
+    if isinstance(pending, list):
+        pending.clear()
+    with contextlib.suppress(Exception):
+        writer.close()
+    with contextlib.suppress(Exception):
+        writer.closed = True
 
 
 def episode_name(env, seed: int | None) -> str:

@@ -19,7 +19,7 @@ import numpy as np
 
 from gridsim.cli.flags import at_least, quiet_flag, scenario_flag
 from gridsim.interrupts import ended_by
-from gridsim.outputs import as_given, counted
+from gridsim.outputs import DISK_FULL, as_given, counted
 from gridsim.scenario.collection import absolute_ref
 from neurotrajectory.cli.flags import check_video, goal_flag, settings_flag
 from neurotrajectory.cli.heldout import report_heldout
@@ -138,10 +138,15 @@ def execute(args: argparse.Namespace) -> int:
         said, status = ended_by(exc)
         print(f"neurotrajectory: {said}; {kept_note(Path(out))}", file=sys.stderr)
         return status
-    except Exception:  # a new run that failed after its warm start was saved: say it stays
-        if not args.resume and not had_warm_start and (Path(out) / WARM_START_FILE).exists():
-            print(f"neurotrajectory: note: {kept_note(Path(out))} once the cause below is "
-                  "fixed (or remove it to start again)", file=sys.stderr)  # fmt: skip
+    except Exception as exc:  # a full disk, or a new run that failed after its warm start
+        # was saved: say what stays
+        full = isinstance(exc, OSError) and exc.errno in DISK_FULL
+        if (Path(out) / "config.json").exists() and (full or (
+                not args.resume and not had_warm_start
+                and (Path(out) / WARM_START_FILE).exists())):  # fmt: skip
+            fixed = "space is freed" if full else "the cause below is fixed"
+            print(f"neurotrajectory: note: {kept_note(Path(out))} once {fixed} (or remove it "
+                  "to start again)", file=sys.stderr)  # fmt: skip
         raise
 
 

@@ -56,7 +56,9 @@ def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[T
     run = Run.open(run_dir)
     path = run.out / "front.npz"
     if not path.exists():
-        raise RunError(f"{run.out}: no front.npz yet (the run has not finished)")
+        raise RunError(f"{run.out}: no front.npz (the run has not finished, or the file was "
+                       f"removed): `neurotrajectory train --resume {run.out}` chooses it from "
+                       "the last generation")  # fmt: skip
     try:
         with np.load(path) as data:
             genomes, fitness = data["genomes"], data["fitness"]
@@ -100,6 +102,10 @@ def load_warm_start(run: Run, smoothing: float | None = None) -> NetPolicy | Non
     run's, or by ``smoothing``), or None for a run without one."""
     genome = run.warm_start_genome()
     if genome is None:
+        if run.config.pretrain or run.config.pretrain_episodes:  # it had one: removed
+            warn_data(f"{run.out / 'warm_start.npz'} is missing: the run's warm start is not "
+                      "driven beside its members (restore it from a copy of the run to "
+                      "compare them)")  # fmt: skip
         return None
     cfg = scenario_net_config(run.config.scenario, run.config.overrides, run.net_config)
     return NetPolicy(_net(cfg, genome, run.out / "warm_start.npz"), smoothing)

@@ -29,7 +29,7 @@ import numpy as np
 from pydantic import BeforeValidator, Field, model_validator
 from tqdm import tqdm
 
-from gridsim.errors import GridSimError, flagged
+from gridsim.errors import GridSimError, flagged, warn_data
 from gridsim.outputs import (
     counted,
     empty_folder,
@@ -103,6 +103,24 @@ WARM_START_FILE = "warm_start.npz"  # the warm start's genome in a run folder
 WARM_START_FIT_FILE = "warm_start_fit.pt"
 #: The SHA-256 of the files the run's scenario is read from when it began (resumes check them).
 INPUTS_FILE = "inputs.json"
+
+
+def code_digest() -> dict[str, str]:
+    """The code a run is trained by: the package's version and a SHA-256 of the Python
+    sources of ``gridsim`` and ``neurotrajectory`` (a resume with other code goes on with
+    another algorithm: its result is then neither code's uninterrupted run)."""
+    import gridsim
+    import neurotrajectory
+
+    h = hashlib.sha256()
+    for package in (gridsim, neurotrajectory):
+        root = Path(package.__file__).resolve().parent
+        for f in sorted(root.rglob("*.py")):
+            h.update(f.relative_to(root.parent).as_posix().encode() + b"\0")
+            h.update(f.read_bytes())
+    return {"version": gridsim.__version__, "sources": h.hexdigest()[:16]}
+
+
 #: Runs with a warm start: the best validated knee of any generation.
 BEST_KNEE_FILE = "best_knee.npz"
 
@@ -435,8 +453,8 @@ Made by `{command}` on {date}.
 
 - `config.json`: every setting of the run (`"train"`), what train does after the
   generations (`"after"`) and the settings' digest (`"run"`)
-- `inputs.json`: the SHA-256 of the scenario's files when the run began (a resume on
-  other data is refused)
+- `inputs.json`: the SHA-256 of the scenario's files and of the code when the run began (a
+  resume on other data is refused; with other code, warned about)
 - `checkpoint.npz`: the last complete generation, its genomes and fitness
 - `history.json`: every generation's fitness, Pareto ranks, hypervolume, timing, and the
   knee's validation score (the learning curve)
@@ -497,8 +515,7 @@ class Run:
         run._write_config()
         from gridsim.scenario.collection import input_digest
 
-        write_json(out / INPUTS_FILE, {"scenario": config.scenario,
-                                       "files": input_digest(config.scenario)})  # fmt: skip
+        run._write_inputs(input_digest(config.scenario))
         write_text(out / "README.md", RUN_README.format(
             command=command or "the Python API (neurotrajectory.evolve.runs.Run)",
             date=time.strftime("%Y-%m-%d %H:%M"), out=out))  # fmt: skip
@@ -584,25 +601,47 @@ class Run:
             run._write_config()
         return run
 
+    def _write_inputs(self, files: dict[str, str], code: dict | None = None) -> None:
+        """:data:`INPUTS_FILE`: the scenario's files (``files``, their digests) and the code
+        (:func:`code_digest`, unless ``code``: the one the run began with)."""
+        write_json(self.out / INPUTS_FILE, {"scenario": self.config.scenario, "files": files,
+                                            "code": code or code_digest()})  # fmt: skip
+
     def check_inputs(self) -> None:
         """A :class:`RunError` when the files the run's scenario is read from changed since
-        it began (:data:`INPUTS_FILE`): its next generations would train on other data. A run
-        that began before they were kept is not checked."""
-        path = self.out / INPUTS_FILE
-        if not path.exists():
-            return
-        try:
-            kept = json.loads(path.read_text())["files"]
-            if not isinstance(kept, dict):
-                raise TypeError(f"'files' is a {type(kept).__name__}, not a mapping")
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise RunError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
+        it began (:data:`INPUTS_FILE`): its next generations would train on other data. A
+        warning when the code did (:func:`code_digest`; not kept by runs begun before it
+        was), or when :data:`INPUTS_FILE` is missing from a run that has generations (then
+        nothing can be checked: it is written again, of the files and code of now)."""
         from gridsim.scenario.collection import input_changes, input_digest
 
+        path = self.out / INPUTS_FILE
         try:
             now = input_digest(self.config.scenario)
         except GridSimError as exc:
             raise RunError(flagged("--scenario", self.config.scenario, exc)) from None
+        if not path.exists():
+            if self.completed_generations():
+                warn_data(f"{path} is missing: whether the run's scenario files and code are "
+                          "those it began with cannot be checked (if they changed, its next "
+                          "generations train on other data or by other code); it is written "
+                          "again, of them as they are now")  # fmt: skip
+                self._write_inputs(now)
+            return
+        try:
+            doc = json.loads(path.read_text())
+            kept = doc["files"]
+            if not isinstance(kept, dict):
+                raise TypeError(f"'files' is a {type(kept).__name__}, not a mapping")
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise RunError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
+        began, code = doc.get("code"), code_digest()
+        if isinstance(began, dict) and began != code:
+            warn_data(f"{self.out} began with other code (gridsim {began.get('version')}, "
+                      f"sources {began.get('sources')}; now {code['version']}, "
+                      f"{code['sources']}): its next generations are trained by the code of "
+                      "now, so its result is that of neither code's run from the start (resume "
+                      "it with the code it began with to get that)")  # fmt: skip
         what = input_changes(kept, now)
         if what:
             raise RunError(f"{self.out}: the files of --scenario {self.config.scenario} are not "
@@ -643,17 +682,25 @@ class Run:
                            f"({self.config.population})")  # fmt: skip
         return gen, pop, fit, violation
 
-    def _history_of_checkpoint(self, found: int, kept: int) -> list[dict]:
-        """The history the checkpoint of ``kept`` generations holds, written again as
-        ``history.json`` (which has ``found``: the run stopped between the two writes); a
-        :class:`RunError` when it holds none (a checkpoint from before it did) or another
-        count."""
+    def _checkpoint_history(self) -> dict | None:
+        """The copy of ``history.json`` the checkpoint holds, or None (no checkpoint, or
+        one from before it held it)."""
         path = self.out / "checkpoint.npz"
+        if not path.exists():
+            return None
         try:
             with np.load(path) as data:
                 doc = json.loads(str(data["history"])) if "history" in data else None
         except Exception as exc:
             raise RunError(f"{path}: corrupt checkpoint ({exc})") from None
+        return doc if isinstance(doc, dict) and "generations" in doc else None
+
+    def _history_of_checkpoint(self, found: int, kept: int) -> list[dict]:
+        """The history the checkpoint of ``kept`` generations holds, written again as
+        ``history.json`` (which has ``found``: the run stopped between the two writes); a
+        :class:`RunError` when it holds none (a checkpoint from before it did) or another
+        count."""
+        doc = self._checkpoint_history()
         if doc is None or len(doc.get("generations", ())) != kept:
             raise RunError(f"{self.out}: history.json has {found} generations, checkpoint.npz "
                            f"{kept}: they disagree; restore both or start a new run with "
@@ -680,14 +727,26 @@ class Run:
         return [generation_hypervolume(h, history[0], self.config.anchored) for h in history]
 
     def load_history(self) -> list[dict]:
+        """The generations' records (``history.json``); where it is missing or cannot be
+        read, the copy the checkpoint holds, said (nothing without either)."""
         path = self.out / "history.json"
-        if not path.exists():
-            return []
         try:
+            if not path.exists():
+                raise FileNotFoundError("missing")
             doc = json.loads(path.read_text())
             generations = doc["generations"]
-        except (json.JSONDecodeError, KeyError, TypeError) as exc:
-            raise RunError(f"{path}: corrupt history ({exc})") from None
+        except (FileNotFoundError, ValueError, KeyError, TypeError) as exc:
+            kept = self._checkpoint_history()
+            if kept is None:
+                if isinstance(exc, FileNotFoundError):
+                    return []
+                raise RunError(f"{path}: corrupt history ({type(exc).__name__}: {exc}); the "
+                               "checkpoint holds no copy: restore it, or start a new run "
+                               "with another --out") from None  # fmt: skip
+            why = "is missing" if isinstance(exc, FileNotFoundError) else "cannot be read"
+            warn_data(f"{path} {why}: the copy of the history the checkpoint holds is used "
+                      f"({counted(len(kept['generations']), 'generation')})")  # fmt: skip
+            doc, generations = kept, kept["generations"]
         if doc.get("run", self.fingerprint) != self.fingerprint:
             raise RunError(f"{path}: the history of another run (run {doc['run']}; this run is "
                            f"{self.fingerprint}): restore this run's history.json, or start a "

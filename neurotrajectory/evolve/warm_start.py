@@ -27,6 +27,7 @@ import numpy as np
 import torch
 
 from gridsim import interrupts
+from gridsim.errors import warn_data
 from gridsim.outputs import atomic_write, progress_bar
 from gridsim.seeding import Salt, stream
 from neurotrajectory.data.scratch import concat_windows
@@ -170,7 +171,9 @@ def _read_fit(path: Path, key: dict, size: int, epochs: int, batches: int) -> _F
                           [float(v) for v in saved["scores"]], saved["best"].numpy().copy(),
                           float(saved.get("before", math.nan)), saved["genome"].numpy().copy(),
                           saved["optimizer"])  # fmt: skip
-    except Exception:  # noqa: BLE001 - a damaged file: the fit starts over
+    except Exception as exc:  # noqa: BLE001 - a damaged file: the fit starts over, said
+        warn_data(f"{path}: the warm start's saved fit cannot be read ({type(exc).__name__}: "
+                  f"{str(exc)[:120]}): the fit starts over")  # fmt: skip
         return None
     started = (state.epochs, state.batch) != (0, 0)
     within = 0 <= state.epochs < epochs and 0 <= state.batch <= batches

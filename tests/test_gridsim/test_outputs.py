@@ -158,3 +158,23 @@ def test_progress_bars_in_a_log_write_a_line_per_redraw():
     assert lines[0].startswith("record x:") and "0/3" in lines[0]
     assert "neurotrajectory: copying ..." in lines  # on a line of its own
     assert lines[-1].startswith("record x: 100%") and "3/3" in lines[-1]
+
+
+def test_a_full_disk_names_the_file_it_was_writing(tmp_path):
+    """A full disk while a file was written said only "No space left on device" (a write to
+    an open file carries no name): the error names the file, and the old one stays."""
+    import errno
+    from pathlib import Path
+
+    from gridsim.outputs import atomic_write, write_text
+
+    path = write_text(tmp_path / "checkpoint.json", "old")
+
+    def full(tmp: str) -> None:
+        Path(tmp).write_text("half")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with pytest.raises(OSError) as err:
+        atomic_write(path, full)
+    assert err.value.errno == errno.ENOSPC and err.value.filename == str(path)
+    assert path.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == [path.name]

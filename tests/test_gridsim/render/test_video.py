@@ -496,3 +496,42 @@ def test_a_collision_frame_rings_the_ego_and_the_car_it_hit_above_the_set_points
     assert all(tuple(hit[v[k], u[k]]) != plan for k in range(2))  # now drawn above
     white = np.all(hit == COLLISION_COLOUR, axis=-1) & ~np.all(before == COLLISION_COLOUR, axis=-1)
     assert white.sum() > 40  # the outlines
+
+
+def test_a_video_the_encoder_did_not_finish_is_refused_and_the_old_one_kept(tmp_path):
+    """A full disk: ffmpeg says "Error writing trailer" on its stderr and exits, the writer
+    does not raise, and an MP4 without its index (the moov box, written last) replaced the
+    good video at the path with exit status 0. Now that is an error naming the file, and the
+    earlier video stays."""
+    from gridsim.video import _unfinished
+
+    rng = np.random.default_rng(0)
+    good = tmp_path / "good.mp4"
+    with VideoWriter(good, 10) as w:
+        for _ in range(5):
+            w.write(rng.integers(0, 255, (64, 64, 3), dtype=np.uint8))
+    data = good.read_bytes()
+    assert _unfinished(good) is None and b"moov" in data
+    cut = tmp_path / "cut.mp4"
+    cut.write_bytes(data[: data.rindex(b"moov") - 4])  # what a full disk leaves
+    assert "did not finish the MP4 file" in _unfinished(cut)
+    gif = tmp_path / "a.gif"
+    with VideoWriter(gif, 10) as w:
+        w.write(rng.integers(0, 255, (16, 16, 3), dtype=np.uint8))
+    assert _unfinished(gif) is None
+    gif.write_bytes(gif.read_bytes()[:-1])
+    assert "cut short" in _unfinished(gif)
+
+    w = VideoWriter(good, 10)
+    w.write(rng.integers(0, 255, (64, 64, 3), dtype=np.uint8))
+    close = w._writer.close
+
+    def full_disk():  # the encoder ends without its index, and without an error
+        close()
+        w._partial.write_bytes(w._partial.read_bytes()[:100])
+
+    w._writer.close = full_disk
+    with pytest.raises(GridSimError, match=r"good\.mp4: the encoder did not finish the MP4"):
+        w.close()
+    assert good.read_bytes() == data  # the earlier video, as it was
+    assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []

@@ -18,6 +18,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from gridsim.errors import DataWarning
 from neurotrajectory.cli import main
 from neurotrajectory.evolve.backends import BackendError, WorkerSpec, make_backend
 from neurotrajectory.evolve.fitness import Evaluator
@@ -1062,3 +1063,54 @@ def test_the_front_table_says_which_member_is_the_warm_start():
     lines = front_table(Path("run"), summary).splitlines()
     assert "member 0 (= the warm start)" in lines[2] and "member 1  " in lines[3]
     assert "warm start" not in lines[3]
+
+
+def test_a_full_disk_says_what_the_run_keeps(tmp_path, capsys, monkeypatch):
+    """A full disk after some generations printed only "No space left on device" (Ctrl-C
+    says what the run keeps and how to go on): it says so too."""
+    import errno
+
+    from neurotrajectory.evolve import runs
+
+    out = tmp_path / "run"
+    assert cli(["train", *QUICK, "--out", str(out)]) == 0
+    capsys.readouterr()
+
+    def full(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device", str(out / "checkpoint.npz"))
+
+    monkeypatch.setattr(runs.Run, "train", full)
+    assert cli(["train", "--resume", str(out), "--generations", "2", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert (
+        f"neurotrajectory: note: {out} keeps its 1 finished generation; go on with: "
+        f"neurotrajectory train --resume {out} once space is freed"
+    ) in err
+    assert f"error: {out / 'checkpoint.npz'}: No space left on device; free some space" in err
+
+
+def test_a_damaged_or_missing_history_falls_back_on_the_checkpoints_copy(tmp_path, capsys):
+    """history.json cut short or garbage refused every resume, and missing it made `plots`
+    say "no generation yet" of a finished run, though the checkpoint holds a copy: the
+    copy is used, said in a warning; the resumed run ends as an uninterrupted one."""
+    cfg = TrainConfig(generations=3, **TINY)
+    Run.create(tmp_path / "a", cfg).train(progress=False)
+    b = tmp_path / "b"
+    Run.create(b, cfg).train(progress=False, stop_after=2)
+    kept = history(b)
+    (b / "history.json").write_bytes(b"\x92 not json")
+    with pytest.warns(DataWarning, match=r"history\.json cannot be read: the copy of the "
+                      r"history the checkpoint holds is used \(2 generations\)"):  # fmt: skip
+        assert Run.open(b).load_history() == kept
+    (b / "history.json").unlink()
+    assert cli(["plots", "--run", str(b)]) == 0
+    said = capsys.readouterr()
+    assert "learning_curve.png" in said.out and "history.json is missing: the copy" in said.err
+    with pytest.warns(DataWarning, match="the copy of the history the checkpoint holds"):
+        Run.open(b).train(progress=False)
+    assert [h["fitness"] for h in history(tmp_path / "a")] == [h["fitness"] for h in history(b)]
+    (b / "history.json").write_text("{")
+    (b / "checkpoint.npz").unlink()
+    with pytest.raises(RunError, match=r"corrupt history \(JSONDecodeError: .*the checkpoint "
+                       "holds no copy"):  # fmt: skip
+        Run.open(b).load_history()

@@ -652,6 +652,7 @@ def test_a_fit_interrupted_inside_an_epoch_goes_on_from_its_batch(windows_dir, t
 def test_a_saved_fit_of_another_length_or_position_is_not_used(windows_dir, tmp_path):
     """A fit file whose position lies outside the fit asked for (more epochs than it has, a
     batch past the epoch's end) or that is damaged starts the fit over."""
+    from gridsim.errors import DataWarning
     from neurotrajectory.evolve import warm_start
 
     w = load_dataset(windows_dir).windows
@@ -672,8 +673,10 @@ def test_a_saved_fit_of_another_length_or_position_is_not_used(windows_dir, tmp_
     assert warm_start._read_fit(saved, key, size, 2, 100).batch == 5
     assert warm_start._read_fit(saved, {"inputs": "y"}, size, 2, 100) is None
     saved.write_bytes(b"damaged")
-    assert warm_start._read_fit(saved, key, size, 2, 100) is None
-    again, _ = pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
+    with pytest.warns(DataWarning, match=r"fit\.pt: the warm start's saved fit cannot be read"):
+        assert warm_start._read_fit(saved, key, size, 2, 100) is None  # (hours lost: said)
+    with pytest.warns(DataWarning, match="the fit starts over"):
+        again, _ = pretrain_genome(_tiny_net(), start, w, checkpoint=saved, **kwargs)
     np.testing.assert_array_equal(again, whole)
 
 

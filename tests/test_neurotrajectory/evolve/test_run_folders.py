@@ -313,9 +313,35 @@ def test_a_run_resumes_only_on_the_files_it_began_with(tmp_path, capsys):
     assert (f"are not those the run began with (changed: {csv}; added: "
             f"{scenes / 'another.yaml'})" in err)  # fmt: skip
     assert "would train on other data" in err
-    (run / "inputs.json").unlink()  # a run from before the files were kept: not checked
+    # inputs.json deleted: nothing can be checked (the edited file trains): said, and it is
+    # written again, of the files as they are now
+    (run / "inputs.json").unlink()
     (scenes / "another.yaml").unlink()
     assert main(resume) == 0
+    err = capsys.readouterr().err
+    assert f"{run / 'inputs.json'} is missing: whether the run's scenario files and code" in err
+    assert sorted(json.loads((run / "inputs.json").read_text())["files"]) == sorted(kept)
+
+
+def test_a_run_resumed_with_other_code_says_so(tmp_path, capsys, monkeypatch):
+    """A run stopped, the package upgraded, the run resumed: it went on silently with
+    another algorithm (its result neither code's uninterrupted run). inputs.json keeps the
+    code it began with; a resume with other code warns, naming both."""
+    from neurotrajectory.evolve import runs
+
+    run = tmp_path / "run"
+    flags = [*QUICK[:-1], "--heldout", "0", "--quiet"]
+    assert main(["train", *flags, "--out", str(run)]) == 0
+    began = json.loads((run / "inputs.json").read_text())["code"]
+    assert began == runs.code_digest() and len(began["sources"]) == 16
+    resume = ["train", "--resume", str(run), "--generations", "2", "--quiet"]
+    monkeypatch.setattr(runs, "code_digest", lambda: {"version": "9.9", "sources": "f" * 16})
+    assert main(resume) == 0
+    err = capsys.readouterr().err
+    assert (
+        f"{run} began with other code (gridsim {began['version']}, sources "
+        f"{began['sources']}; now 9.9, {'f' * 16}): its next generations"
+    ) in err
 
 
 def test_a_skipped_file_is_named_once_by_train_and_its_workers(tmp_path, capfd):

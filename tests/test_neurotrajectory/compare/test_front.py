@@ -1,0 +1,25 @@
+"""Front members and the warm start loaded from a run folder."""
+
+import warnings
+
+import pytest
+
+
+def test_a_removed_warm_start_is_said_not_dropped_silently(tmp_path):
+    """A run trained from a warm start whose warm_start.npz was removed: its held-out report
+    silently lost the warm start's comparison; now a warning says so (a run without a warm
+    start says nothing)."""
+    from types import SimpleNamespace
+
+    from gridsim.errors import DataWarning
+    from neurotrajectory.compare.front import load_warm_start
+
+    def run(pretrain_episodes):
+        config = SimpleNamespace(pretrain=None, pretrain_episodes=pretrain_episodes)
+        return SimpleNamespace(out=tmp_path, config=config, warm_start_genome=lambda: None)
+
+    with pytest.warns(DataWarning, match=r"warm_start\.npz is missing: the run's warm start"):
+        assert load_warm_start(run(12)) is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert load_warm_start(run(0)) is None
