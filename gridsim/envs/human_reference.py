@@ -16,6 +16,7 @@ same seeds advance one shadow world.
 from __future__ import annotations
 
 import math
+import threading
 from collections import OrderedDict
 
 import numpy as np
@@ -33,6 +34,7 @@ from gridsim.world.collision import CollisionChecker
 from gridsim.world.scripted_drivers import HumanDriver
 
 _CACHE: OrderedDict[tuple[str, int], HumanReference] = OrderedDict()
+_CACHE_LOCK = threading.Lock()  # (envs stepped in threads share the cache)
 _CACHE_SIZE = 64
 #: A destination counts as reached after driving this share of the reference's length.
 REACHED_SHARE = 0.9
@@ -217,6 +219,9 @@ class HumanReference(ReferenceTrajectory):
         #: Samples whose (near) collision no revision could avoid.
         self.collisions: list[int] = []
         self._yielding = np.zeros(n + 1, bool)  # per tick: whether some revision covers it
+        #: One thread at a time drives the shadow world (envs in threads share a reference:
+        #: two advancing it at once broke it for the rest of the process)
+        self._lock = threading.RLock()
         self._restart()
         self._ready = 0
         self._known_length = 0.0  # running sum of the final path's length [m]
@@ -261,6 +266,10 @@ class HumanReference(ReferenceTrajectory):
         self._front, _ = self._shadow.advance(self._front, start, self._yielding, record=False)
 
     def _advance(self, ready: int) -> None:
+        with self._lock:
+            self._advance_locked(ready)
+
+    def _advance_locked(self, ready: int) -> None:
         n = len(self.t)
         ready = min(ready, n)
         while self._ready < ready:  # whole blocks, each ending at a fixed tick
@@ -281,9 +290,10 @@ class HumanReference(ReferenceTrajectory):
         def short() -> bool:
             return travelled < REACHED_SHARE * self._known_length - tolerance - 1e-6
 
-        while not self.complete and not short():
-            self._advance(self._ready + 1)
-        return self.complete or not short()
+        with self._lock:
+            while not self.complete and not short():
+                self._advance(self._ready + 1)
+            return self.complete or not short()
 
 
 def reference_from_track(track: Track, center_offset: float) -> ReferenceTrajectory:
@@ -295,11 +305,12 @@ def reference_from_track(track: Track, center_offset: float) -> ReferenceTraject
 def human_reference(scenario: Scenario, seed: int, duration: float) -> HumanReference:
     """The (shared, lazily advanced) reference of a generated scene for ``seed``."""
     key = (scenario.config.model_dump_json() + f"|{duration}", int(seed))
-    ref = _CACHE.get(key)
-    if ref is not None:
-        _CACHE.move_to_end(key)
+    with _CACHE_LOCK:
+        ref = _CACHE.get(key)
+        if ref is not None:
+            _CACHE.move_to_end(key)
+            return ref
+        ref = _CACHE[key] = HumanReference(scenario, seed, duration)
+        if len(_CACHE) > _CACHE_SIZE:
+            _CACHE.popitem(last=False)
         return ref
-    ref = _CACHE[key] = HumanReference(scenario, seed, duration)
-    if len(_CACHE) > _CACHE_SIZE:
-        _CACHE.popitem(last=False)
-    return ref

@@ -20,16 +20,26 @@ def refuse_scalar_reward_vectorization() -> None:
     :func:`~gridsim.envs.vector.make_vector_env`: the single-env entry point, which calls
     this, is the only GridSim code it runs. So the call's
     arguments are read from ``make_vec``'s frame on the stack (nothing is raised elsewhere).
-    ``wrappers`` are trusted to scalarise the reward (e.g. ``LinearScalarization``).
+    ``wrappers`` are trusted to scalarise the reward (e.g. ``LinearScalarization``), unless
+    every one is a GridSim wrapper known to keep the vector (``MaximisedObjectives``,
+    ``PlanSmoothing``, ``CaptionedRender``). The id may name the module
+    (``"gridsim:GridSim-v0"``) or be the env's spec.
     """
+    from gridsim.envs.wrappers import VECTOR_REWARD_WRAPPERS
+
     frame = sys._getframe(1)
     while frame is not None and frame.f_code is not gym.make_vec.__code__:
         frame = frame.f_back
-    if frame is None or frame.f_locals.get("wrappers"):
+    if frame is None:
+        return
+    wrappers = frame.f_locals.get("wrappers") or ()
+    if any(not (isinstance(w, type) and issubclass(w, VECTOR_REWARD_WRAPPERS))
+           for w in wrappers):  # fmt: skip
         return
     env_id = frame.f_locals.get("id")
-    if getattr(env_id, "id", env_id) != ENV_ID:  # another env that wraps GridSim-v0
-        return
+    env_id = getattr(env_id, "id", env_id)
+    if not isinstance(env_id, str) or env_id.rpartition(":")[2] != ENV_ID:
+        return  # another env (one that wraps GridSim-v0 is its author's to vectorise)
     mode = frame.f_locals.get("vectorization_mode")
     vector_kwargs = frame.f_locals.get("vector_kwargs") or {}
     fixes = (

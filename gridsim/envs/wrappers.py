@@ -35,7 +35,7 @@ class _FitnessReward(gym.RewardWrapper):
         return obs, self.reward(reward), terminated, truncated, info
 
 
-class LinearScalarization(_FitnessReward):
+class LinearScalarization(_FitnessReward, gym.utils.RecordConstructorArgs):
     """Scalar reward ``w . [l1, l2, l3]`` for single-objective RL libraries.
 
     Use negative weights for the minimised objectives (l1, l2) and a positive one for l3.
@@ -43,7 +43,8 @@ class LinearScalarization(_FitnessReward):
     """
 
     def __init__(self, env: gym.Env, weights: Sequence[float] = DEFAULT_WEIGHTS) -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, weights=weights)
+        _FitnessReward.__init__(self, env)
         w = np.asarray(weights, dtype=np.float64)
         if w.shape != (3,) or not np.all(np.isfinite(w)):
             raise ValueError(f"weights must be 3 finite numbers for [l1, l2, l3], got {weights!r}")
@@ -68,14 +69,15 @@ def make_scalar_env(weights: Sequence[float] = DEFAULT_WEIGHTS, **kwargs) -> Lin
 MAXIMISED_SIGNS = np.array([-1.0, -1.0, 1.0], np.float32)
 
 
-class MaximisedObjectives(_FitnessReward):
+class MaximisedObjectives(_FitnessReward, gym.utils.RecordConstructorArgs):
     """The reward vector ``[-l1, -l2, l3]``: every objective maximised, as MO-Gymnasium and
     MORL libraries (MORL-Baselines' Pareto filters, hypervolumes) assume; GridSim-v0's own
     ``[l1, l2, l3]`` minimises l1 and l2. ``reward_space`` is ``Box([-inf, -inf, 0], [0, 0,
     inf])``; the paper's vector is still in ``info["fitness"]``."""
 
     def __init__(self, env: gym.Env) -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self)
+        _FitnessReward.__init__(self, env)
         own = env.get_wrapper_attr("reward_space")
         low, high = own.low * MAXIMISED_SIGNS + 0.0, own.high * MAXIMISED_SIGNS + 0.0  # (no -0)
         self.reward_space = gym.spaces.Box(np.minimum(low, high), np.maximum(low, high),
@@ -85,13 +87,14 @@ class MaximisedObjectives(_FitnessReward):
         return np.asarray(reward, np.float32) * MAXIMISED_SIGNS + np.float32(0.0)  # (no -0)
 
 
-class PlanSmoothing(gym.ActionWrapper):
+class PlanSmoothing(gym.ActionWrapper, gym.utils.RecordConstructorArgs):
     """Steps GridSim-v0 (trajectory action) with each action blended with the plan before it:
     ``keep`` is the share of the previous plan kept (see :mod:`gridsim.envs.plan_smoothing`).
     The reward's ``l1`` and ``info`` describe the plan followed, the blended one."""
 
     def __init__(self, env: gym.Env, keep: float) -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, keep=keep)
+        gym.ActionWrapper.__init__(self, env)
         if getattr(env.unwrapped, "action_type", None) != "trajectory":
             raise ValueError("PlanSmoothing blends trajectory actions: make the environment "
                              "with action_type='trajectory'")  # fmt: skip
@@ -101,13 +104,14 @@ class PlanSmoothing(gym.ActionWrapper):
         return self.smoother(self.env, action)
 
 
-class CaptionedRender(gym.Wrapper):
+class CaptionedRender(gym.Wrapper, gym.utils.RecordConstructorArgs):
     """``render()`` frames annotated as the exported videos are (:mod:`gridsim.render.annotations`:
     ``label`` for the driver, time, speed, the fitness summed since the reset, a colour legend,
     a scale bar). The env must be made with ``render_mode="rgb_array"``."""
 
     def __init__(self, env: gym.Env, label: str | None = None) -> None:
-        super().__init__(env)
+        gym.utils.RecordConstructorArgs.__init__(self, label=label)
+        gym.Wrapper.__init__(self, env)
         if env.render_mode != "rgb_array":
             raise ValueError("CaptionedRender annotates rgb_array frames: make the environment "
                              "with render_mode='rgb_array'")  # fmt: skip
@@ -133,3 +137,8 @@ class CaptionedRender(gym.Wrapper):
         if frame is None or self._info is None:
             return frame
         return annotate_env_frame(self.env, frame, self._info, self.label, self._fitness.copy())
+
+
+#: GridSim's wrappers whose reward is still a vector (``gym.make_vec``'s sync and async
+#: modes cannot stack it: :func:`~gridsim.envs.vector_guard.refuse_scalar_reward_vectorization`).
+VECTOR_REWARD_WRAPPERS = (MaximisedObjectives, PlanSmoothing, CaptionedRender)

@@ -565,6 +565,47 @@ def test_make_vec_refuses_gymnasium_vector_envs_that_drop_the_reward_vector(mode
     assert "LinearScalarization" in message
 
 
+@pytest.mark.parametrize(
+    ("env_id", "wrappers"),
+    [
+        ("gridsim:GridSim-v0", None),  # the id with its module (the docs show it)
+        (ENV_ID, ["MaximisedObjectives"]),  # a wrapper that keeps the vector
+        (ENV_ID, ["PlanSmoothing", "CaptionedRender"]),
+    ],
+)
+def test_make_vec_refuses_them_whatever_the_id_and_with_wrappers_that_keep_the_vector(
+    env_id, wrappers
+):
+    """The guard compared the id with "GridSim-v0" and trusted any wrapper: the module's
+    id and GridSim's own vector-keeping wrappers built gymnasium's vector envs that failed
+    at the first step (sync) or at an autoreset (async), or stacked [0.0, 0.0]."""
+    from gridsim.envs import wrappers as ours
+
+    given = None if wrappers is None else [getattr(ours, name) for name in wrappers]
+    for mode in ("sync", "async"):
+        with pytest.raises(ValueError, match=f"builds gymnasium's {mode.capitalize()}VectorEnv"):
+            gym.make_vec(env_id, num_envs=2, vectorization_mode=mode, wrappers=given, **SHORT)
+
+
+def test_gridsims_wrappers_record_their_arguments_so_that_gym_make_rebuilds_them():
+    """gymnasium's check_env refused LinearScalarization (and the spec lost ``weights``
+    and ``keep``: ``gym.make(env.spec)`` raised): they record their arguments."""
+    from gymnasium.utils.env_checker import check_env
+
+    from gridsim.envs.wrappers import CaptionedRender, MaximisedObjectives, PlanSmoothing
+
+    env = LinearScalarization(gym.make(ENV_ID), weights=(-0.01, -0.5, 0.1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)  # (check_env: "use env.unwrapped")
+        check_env(env)
+    again = gym.make(env.spec)
+    assert isinstance(again, LinearScalarization) and list(again.weights) == [-0.01, -0.5, 0.1]
+    assert gym.make(PlanSmoothing(gym.make(ENV_ID), 0.5).spec).smoother.keep == 0.5
+    assert isinstance(gym.make(MaximisedObjectives(gym.make(ENV_ID)).spec), MaximisedObjectives)
+    shown = CaptionedRender(gym.make(ENV_ID, render_mode="rgb_array"), label="mine")
+    assert gym.make(shown.spec).label == "mine"
+
+
 def test_make_vec_does_not_refuse_another_env_that_wraps_gridsim():
     # a scalar-reward env registered under its own id may build GridSim-v0 inside
     env_id = "ScalarGridSimForTests-v0"

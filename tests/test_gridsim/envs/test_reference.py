@@ -52,6 +52,49 @@ def test_samples_do_not_depend_on_the_order_of_requests():
     assert ahead.revisions == step_by_step.revisions != []
 
 
+def test_a_reference_shared_by_envs_in_threads_gives_every_thread_the_same_samples():
+    """Envs stepped in threads share a reference: two threads advancing its shadow world at
+    once raised IndexError, or gave each thread other samples, and the broken reference
+    stayed cached for the process. One thread at a time advances it now: threads that ask
+    for its samples step by step, interleaved, get those of a reference asked alone, and
+    the cache hands every thread the same one."""
+    import threading
+
+    sc = load_scenario("inner_city", {"simulation": {"duration": 20.0}})
+    seed = 5517670  # needs a revision: the shadow world is rebuilt and replayed
+    alone = HumanReference(sc, seed, 22.5)
+    expected = alone.positions(np.arange(0.0, 22.5, 0.1))
+    shared = HumanReference(sc, seed, 22.5)
+    got, errors, start = {}, [], threading.Barrier(4)
+
+    def ask(k: int) -> None:
+        try:
+            start.wait()
+            times = np.arange(0.0, 22.5, 0.1)
+            got[k] = np.concatenate([shared.positions(times[i : i + 1 + k])[:1]
+                                     for i in range(len(times))])  # fmt: skip
+        except Exception as exc:  # noqa: BLE001 - reported below
+            errors.append(exc)
+
+    threads = [threading.Thread(target=ask, args=(k,)) for k in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert errors == []
+    for k in range(4):
+        np.testing.assert_array_equal(got[k], expected)
+    assert shared.revisions == alone.revisions != []
+    refs = []
+    cached = [threading.Thread(target=lambda: refs.append(human_reference(sc, 91, 22.5)))
+              for _ in range(4)]  # fmt: skip
+    for t in cached:
+        t.start()
+    for t in cached:
+        t.join()
+    assert len(refs) == 4 and all(r is refs[0] for r in refs)
+
+
 @pytest.mark.parametrize("seed", [788269980, 1837343323])  # reset(seed=56), reset(seed=132)
 def test_a_second_revision_does_not_depend_on_the_order_of_requests(seed):
     """A revision found while a revision is replayed may reach back before the samples
