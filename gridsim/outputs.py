@@ -8,6 +8,7 @@ import fcntl
 import json
 import math
 import os
+import re
 import reprlib
 import shutil
 import tempfile
@@ -97,6 +98,9 @@ def read_manifest(
 LOG_INTERVAL = 30.0
 
 
+_CURSOR_MOVES = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+
+
 class _LogLines:
     """A progress bar's stream that is not a terminal, written a line per redraw: tqdm
     returns to the line's start (``\\r``) to redraw it, which a log keeps as one long line,
@@ -107,7 +111,8 @@ class _LogLines:
         self.stream = stream
 
     def write(self, text: str) -> None:
-        line = text.replace("\r", "").rstrip()
+        # (a bar below another moves the cursor up and back: not a line of a log)
+        line = _CURSOR_MOVES.sub("", text.replace("\r", "")).rstrip()
         if line:  # (a clearing of the line, or the bar's closing line break: nothing)
             self.stream.write(line + "\n")
 
@@ -301,30 +306,38 @@ def _beside(path: Path) -> Iterator[str]:
     try:
         try:
             yield tmp
-        except OSError as exc:  # a full disk: the file it was writing named
-            if exc.errno in DISK_FULL and not exc.filename:
+        except OSError as exc:  # a full disk: the file it was writing named (not the hidden one)
+            if exc.errno in DISK_FULL and exc.filename in (None, "", tmp):
                 raise OSError(exc.errno, exc.strerror, str(path)) from exc
             raise
         os.chmod(tmp, _mode_for(path))  # mkstemp's files are private (0600)
-        _sync(tmp)  # on disk before the rename: a power cut leaves the old file or the new
-        os.replace(tmp, path)
+        _sync(tmp, strict=True)  # on disk before the rename: a power cut leaves the old
+        os.replace(tmp, path)  # file or the new
         _sync(path.parent)  # and the rename itself
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
 
 
-def _sync(path: str | Path) -> None:
-    """``fsync`` a file or a folder (what the file system cannot do, e.g. a folder on some
-    network file systems, is skipped: the rename is still atomic for the processes)."""
+#: What ``fsync`` says where a file system (or the platform: Windows, a read-only descriptor)
+#: cannot sync: nothing to do.
+_CANNOT_SYNC = (errno.EINVAL, errno.ENOTSUP, errno.EBADF, errno.EACCES, errno.EPERM)
+
+
+def _sync(path: str | Path, strict: bool = False) -> None:
+    """``fsync`` a file or a folder. Where the file system or the platform cannot, nothing
+    is done (the rename is still atomic for the processes); another error of a file's sync
+    (``strict``: an I/O error, a full disk on a network file system) is raised: its data may
+    not be on disk, and it must not replace the file there."""
     try:
         fd = os.open(path, os.O_RDONLY)
     except OSError:
         return
     try:
         os.fsync(fd)
-    except OSError:
-        pass
+    except OSError as exc:
+        if strict and exc.errno not in _CANNOT_SYNC:
+            raise
     finally:
         os.close(fd)
 

@@ -213,19 +213,24 @@ def _unfinished(path: Path) -> str | None:
                 return "the encoder wrote an empty file (a disk full?)"
             fh.seek(-1, os.SEEK_END)
             return None if fh.read(1) == b"\x3b" else "the GIF is cut short (a disk full?)"
-        boxes = set()
-        while head := fh.read(8):  # MP4 top-level boxes: size (4 bytes), type (4)
-            if len(head) < 8:
+        end = fh.seek(0, os.SEEK_END)
+        at, whole = 0, set()  # the top-level boxes that end within the file
+        while at + 8 <= end:  # a box: size (4 bytes, big-endian), type (4), [64-bit size]
+            fh.seek(at)
+            head = fh.read(16)
+            size, kind = int.from_bytes(head[:4], "big"), head[4:8]
+            if size == 1:
+                size = int.from_bytes(head[8:16], "big")
+            elif size == 0:  # to the end of the file
+                size = end - at
+            if size < 8 or at + size > end:  # not a box, or one cut short
                 break
-            size, kind = int.from_bytes(head[:4], "big"), head[4:]
-            boxes.add(kind)
-            if size == 1:  # a 64-bit size follows
-                size = int.from_bytes(fh.read(8), "big") - 8
-            if size == 0 or size < 8:  # to the end of the file (or not a box)
-                break
-            fh.seek(size - 8, os.SEEK_CUR)
-    if b"moov" not in boxes:
-        return "the encoder did not finish the MP4 file (no index: a disk full?)"
+            whole.add(kind)
+            at += size
+    if b"moov" not in whole or at != end:
+        return (
+            "the encoder did not finish the MP4 file (its index missing or cut short: a disk full?)"
+        )
     return None
 
 

@@ -27,7 +27,8 @@ def execute(args: argparse.Namespace) -> int:
         return 0
     args.path = ",".join(args.path)  # several (a glob the shell expanded): a list of them
     files = scenario_files(args.path)
-    if files is None:  # one file: it loads, or its error is the command's
+    one = files is None  # one file: it loads, or its error is the command's
+    if one:
         files = [args.path]
     # every file that loads, whether or not its data is sound and they agree enough to run
     # as one collection (gridsim validate says: it reads every map and recording); those
@@ -37,7 +38,7 @@ def execute(args: argparse.Namespace) -> int:
         try:
             sc = load_scenario(f, shared=True)
         except GridSimError as exc:
-            if len(files) == 1:
+            if one:
                 raise
             failed += 1
             lines = str(exc).splitlines()

@@ -41,6 +41,9 @@ LEAD_SECONDS, LEAD_MAX = 0.8, 12.0
 #: which every set-point and the destination lie :data:`ZOOM_MARGIN` pixels inside the frame
 #: (a 2.5 s plan at highway speed, or a goal 5 s ahead, would leave an 80 m x 60 m view).
 ZOOM_STEPS, ZOOM_MARGIN = (1.0, 0.75, 0.5, 0.375, 0.25), 24
+#: A frame zooms back in only when its points fit with this much more room (points that
+#: hover at a step's edge would switch the scale every frame).
+ZOOM_BACK = 1.15
 #: The ego's outline in the grid inset (the grid's own colours are green, red and black).
 INSET_EGO_COLOUR = (255, 255, 255)
 
@@ -178,12 +181,17 @@ class TopDownRenderer:
         if not len(off):
             return v.pixels_per_metre
         reach_x, reach_y = off.max(axis=0)
-        for share in ZOOM_STEPS:
-            k = share * v.pixels_per_metre
-            if (reach_x * k <= v.width / 2 - ZOOM_MARGIN
-                    and reach_y * k <= v.height / 2 - ZOOM_MARGIN):  # fmt: skip
-                return k
-        return ZOOM_STEPS[-1] * v.pixels_per_metre
+
+        def fits(k: float, room: float = 1.0) -> bool:
+            return (reach_x * room * k <= v.width / 2 - ZOOM_MARGIN
+                    and reach_y * room * k <= v.height / 2 - ZOOM_MARGIN)  # fmt: skip
+
+        chosen = next((share * v.pixels_per_metre for share in ZOOM_STEPS
+                       if fits(share * v.pixels_per_metre)),
+                      ZOOM_STEPS[-1] * v.pixels_per_metre)  # fmt: skip
+        if chosen > self.scale and not fits(chosen, ZOOM_BACK):
+            return self.scale  # (points at a step's edge: no zooming in and out every frame)
+        return chosen
 
     def centre(self, world) -> np.ndarray:
         """The view's centre [m, world]: ahead of the ego by what it drives in

@@ -7,7 +7,7 @@ import difflib
 import os
 import re
 import typing
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -271,8 +271,9 @@ def _description(parts: list, family: str | None) -> str | None:
     return None
 
 
-def _validate(doc: dict[str, Any], source: str) -> ScenarioConfig:
-    """``doc`` validated; else a :class:`ScenarioError` listing every problem at once. The
+def _validate(doc: dict[str, Any], source: str, given: Sequence[str] = ()) -> ScenarioConfig:
+    """``doc`` validated; else a :class:`ScenarioError` listing every problem at once (those
+    about a key path of ``given``, the keyword overrides, said to be theirs). The
     checks across keys run only on keys that are valid each on its own, so a failed document
     is checked again with its failing keys left to their defaults (up to 3 times), and the
     problems that this finds about keys that did not fail are added."""
@@ -296,6 +297,8 @@ def _validate(doc: dict[str, Any], source: str) -> ScenarioConfig:
         for parts in paths:
             doc = _without(doc, parts)
             removed.append(".".join(map(str, parts)))
+    problems = [f"(keyword override) {line}" if any(_about(line, p) for p in given) else line
+                for line in problems]  # fmt: skip
     raise ScenarioError(_format_validation(source, problems))
 
 
@@ -367,10 +370,8 @@ def parse_scenario(
     family = road.get("type") if isinstance(road, Mapping) else None
     unused = _unused_keys(own if shared else doc, family)
     doc = deep_merge(family_defaults(family), doc)
-    given = source
-    if overrides:  # (a problem may be the overrides', not the file's)
-        given = f"{source} with the overrides {', '.join(_key_paths(overrides))}"
-    scenario = Scenario(_validate(doc, given), source, base_dir)
+    given = _key_paths(overrides) if overrides else []  # (a problem may be theirs)
+    scenario = Scenario(_validate(doc, source, given), source, base_dir)
     _warn_fast_traffic(scenario, family)
     if unused:
         ignores, by_why = FAMILIES[family].ignores, {}

@@ -116,8 +116,15 @@ def code_digest() -> dict[str, str]:
     for package in (gridsim, neurotrajectory):
         root = Path(package.__file__).resolve().parent
         for f in sorted(root.rglob("*.py")):
-            h.update(f.relative_to(root.parent).as_posix().encode() + b"\0")
-            h.update(f.read_bytes())
+            name = f.relative_to(root.parent)
+            # (an editor's lock file, a notebook's checkpoint: not the package's code)
+            if any(part.startswith(".") for part in name.parts) or not f.is_file():
+                continue
+            try:
+                text = f.read_bytes().replace(b"\r\n", b"\n")  # (a Windows checkout's)
+            except OSError:
+                continue
+            h.update(name.as_posix().encode() + b"\0" + text)
     return {"version": gridsim.__version__, "sources": h.hexdigest()[:16]}
 
 
@@ -493,6 +500,8 @@ class Run:
         self.after = {**AFTER_DEFAULTS, **(after or {})}
         self._windows = None  # the pre-training windows, once loaded
         self._progress = False  # say what it does between the progress bars (train)
+        #: The checkpoint's copy of a missing or damaged history.json, once read in its place
+        self._history_repaired: dict | None = None
 
     # -- run directory ------------------------------------------------------------------------
     @classmethod
@@ -615,18 +624,20 @@ class Run:
         nothing can be checked: it is written again, of the files and code of now)."""
         from gridsim.scenario.collection import input_changes, input_digest
 
+        def files_now() -> dict[str, str]:
+            try:
+                return input_digest(self.config.scenario)
+            except GridSimError as exc:
+                raise RunError(flagged("--scenario", self.config.scenario, exc)) from None
+
         path = self.out / INPUTS_FILE
-        try:
-            now = input_digest(self.config.scenario)
-        except GridSimError as exc:
-            raise RunError(flagged("--scenario", self.config.scenario, exc)) from None
         if not path.exists():
             if self.completed_generations():
                 warn_data(f"{path} is missing: whether the run's scenario files and code are "
                           "those it began with cannot be checked (if they changed, its next "
                           "generations train on other data or by other code); it is written "
                           "again, of them as they are now")  # fmt: skip
-                self._write_inputs(now)
+                self._write_inputs(files_now())
             return
         try:
             doc = json.loads(path.read_text())
@@ -642,7 +653,7 @@ class Run:
                       f"{code['sources']}): its next generations are trained by the code of "
                       "now, so its result is that of neither code's run from the start (resume "
                       "it with the code it began with to get that)")  # fmt: skip
-        what = input_changes(kept, now)
+        what = input_changes(kept, files_now())
         if what:
             raise RunError(f"{self.out}: the files of --scenario {self.config.scenario} are not "
                            f"those the run began with ({what}): its next generations would "
@@ -747,6 +758,7 @@ class Run:
             warn_data(f"{path} {why}: the copy of the history the checkpoint holds is used "
                       f"({counted(len(kept['generations']), 'generation')})")  # fmt: skip
             doc, generations = kept, kept["generations"]
+            self._history_repaired = kept  # (the training loop writes it back)
         if doc.get("run", self.fingerprint) != self.fingerprint:
             raise RunError(f"{path}: the history of another run (run {doc['run']}; this run is "
                            f"{self.fingerprint}): restore this run's history.json, or start a "
@@ -772,6 +784,8 @@ class Run:
         cfg = self.config
         probe = TrajectoryNet(scenario_net_config(cfg.scenario, cfg.overrides, self.net_config))
         history = self.load_history()
+        if self._history_repaired is not None:  # written back: later readers need no copy
+            write_json(self.out / "history.json", self._history_repaired)
         ckpt = self.load_checkpoint()
         if ckpt is None and history:
             raise RunError(f"{self.out}: history.json has {len(history)} generations but "

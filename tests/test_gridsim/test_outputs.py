@@ -158,6 +158,17 @@ def test_progress_bars_in_a_log_write_a_line_per_redraw():
     assert lines[0].startswith("record x:") and "0/3" in lines[0]
     assert "neurotrajectory: copying ..." in lines  # on a line of its own
     assert lines[-1].startswith("record x: 100%") and "3/3" in lines[-1]
+    nested = io.StringIO()  # a bar below another moves the cursor (an escape): no such line
+    with progress_bar(total=2, file=nested, desc="outer", mininterval=0, maxinterval=0,
+                      delay=0) as outer:  # fmt: skip
+        for _ in range(2):
+            with progress_bar(total=2, file=nested, desc="inner", leave=False, position=1,
+                              mininterval=0, maxinterval=0, delay=0) as inner:  # fmt: skip
+                inner.update(2)
+            outer.update()
+    said = nested.getvalue().splitlines()
+    assert "\x1b" not in nested.getvalue() and all(line.strip() for line in said)
+    assert said[-1].startswith("outer: 100%")
 
 
 def test_a_full_disk_names_the_file_it_was_writing(tmp_path):
@@ -178,3 +189,38 @@ def test_a_full_disk_names_the_file_it_was_writing(tmp_path):
         atomic_write(path, full)
     assert err.value.errno == errno.ENOSPC and err.value.filename == str(path)
     assert path.read_text() == "old" and [p.name for p in tmp_path.iterdir()] == [path.name]
+
+    def full_named(tmp: str) -> None:  # an error that names the hidden file: the path instead
+        raise OSError(errno.ENOSPC, "No space left on device", tmp)
+
+    with pytest.raises(OSError) as err:
+        atomic_write(path, full_named)
+    assert err.value.filename == str(path)
+
+
+def test_an_atomic_write_is_synced_and_a_failed_sync_keeps_the_old_file(tmp_path, monkeypatch):
+    """The file is synced before its rename and the folder after (a power cut left empty
+    checkpoints); an I/O error of the file's sync keeps the old file, while a file system
+    that cannot sync (EINVAL, Windows' EBADF) is no error."""
+    import errno
+    import os
+
+    from gridsim import outputs
+
+    synced, fail = [], {}
+
+    def fsync(fd):
+        synced.append(os.readlink(f"/proc/self/fd/{fd}"))
+        if fail:
+            raise OSError(fail["errno"], os.strerror(fail["errno"]))
+
+    monkeypatch.setattr(outputs.os, "fsync", fsync)
+    path = outputs.write_text(tmp_path / "a.json", "old")
+    assert synced[0].startswith(str(tmp_path / ".a.json.")) and synced[1] == str(tmp_path)
+    fail["errno"] = errno.EIO
+    with pytest.raises(OSError, match="Input/output error"):
+        outputs.write_text(path, "new")
+    assert path.read_text() == "old" and len(list(tmp_path.iterdir())) == 1
+    fail["errno"] = errno.EINVAL
+    outputs.write_text(path, "new")
+    assert path.read_text() == "new"

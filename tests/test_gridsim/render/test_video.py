@@ -462,6 +462,15 @@ def test_a_frame_zooms_out_to_show_every_set_point_and_the_destination():
         h, w = frame.shape[:2]
         assert (px >= ZOOM_MARGIN - 1).all() and (px[:, 0] <= w - ZOOM_MARGIN + 1).all()
         assert (px[:, 1] <= h - ZOOM_MARGIN + 1).all()
+    # points hovering at a step's edge do not switch the scale every frame: zooming back in
+    # waits for some room
+    view.render(world, overlay=[(near, (255, 0, 0), "dot")])
+    centre = view.centre(world)
+    scales = []
+    for d in (36.9, 37.1, 36.9, 37.1, 36.9, 20.0):
+        view.render(world, overlay=[(centre + np.outer([d], ahead), (255, 0, 0), "dot")])
+        scales.append(view.scale)
+    assert scales == [8.0, 6.0, 6.0, 6.0, 6.0, 8.0]
     # the scale bar follows: a frame drawn at a quarter of the scale shows 50 m, not 10
     _, info = env.reset(seed=0)
     frame = env.unwrapped.renderer.render(world, overlay=[(far, (255, 0, 0), "dot")])
@@ -513,8 +522,10 @@ def test_a_video_the_encoder_did_not_finish_is_refused_and_the_old_one_kept(tmp_
     data = good.read_bytes()
     assert _unfinished(good) is None and b"moov" in data
     cut = tmp_path / "cut.mp4"
-    cut.write_bytes(data[: data.rindex(b"moov") - 4])  # what a full disk leaves
-    assert "did not finish the MP4 file" in _unfinished(cut)
+    moov = data.rindex(b"moov") - 4
+    for end in (moov, moov + 8, moov + 100, len(data) - 1):  # what a full disk leaves
+        cut.write_bytes(data[:end])
+        assert "did not finish the MP4 file" in _unfinished(cut), end
     gif = tmp_path / "a.gif"
     with VideoWriter(gif, 10) as w:
         w.write(rng.integers(0, 255, (16, 16, 3), dtype=np.uint8))

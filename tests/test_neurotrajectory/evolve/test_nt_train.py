@@ -1109,6 +1109,10 @@ def test_a_damaged_or_missing_history_falls_back_on_the_checkpoints_copy(tmp_pat
     with pytest.warns(DataWarning, match="the copy of the history the checkpoint holds"):
         Run.open(b).train(progress=False)
     assert [h["fitness"] for h in history(tmp_path / "a")] == [h["fitness"] for h in history(b)]
+    (tmp_path / "a" / "history.json").unlink()  # a finished run resumed: written back
+    with pytest.warns(DataWarning, match="history.json is missing"):
+        Run.open(tmp_path / "a").train(progress=False)
+    assert [h["fitness"] for h in history(tmp_path / "a")] == [h["fitness"] for h in history(b)]
     (b / "history.json").write_text("{")
     (b / "checkpoint.npz").unlink()
     with pytest.raises(RunError, match=r"corrupt history \(JSONDecodeError: .*the checkpoint "

@@ -334,6 +334,20 @@ def test_a_run_resumed_with_other_code_says_so(tmp_path, capsys, monkeypatch):
     assert main(["train", *flags, "--out", str(run)]) == 0
     began = json.loads((run / "inputs.json").read_text())["code"]
     assert began == runs.code_digest() and len(began["sources"]) == 16
+    # an editor's lock file (a dangling link) or a hidden scratch file is not the code
+    from pathlib import Path
+
+    import gridsim
+
+    package = Path(gridsim.__file__).parent
+    lock, scratch = package / ".#outputs.py", package / ".scratch.py"
+    try:
+        lock.symlink_to("nobody@host.1234:1700000000")
+        scratch.write_text("x = 1\n")
+        assert runs.code_digest() == began
+    finally:
+        lock.unlink(missing_ok=True)
+        scratch.unlink(missing_ok=True)
     resume = ["train", "--resume", str(run), "--generations", "2", "--quiet"]
     monkeypatch.setattr(runs, "code_digest", lambda: {"version": "9.9", "sources": "f" * 16})
     assert main(resume) == 0
