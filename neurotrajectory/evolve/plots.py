@@ -82,7 +82,9 @@ def plot_run(
         shown = kept & (rank > 0)
         ax.scatter(last[shown, i], last[shown, j], s=10, color="0.6", label="dominated")
         shown = kept & (rank == 0)
-        ax.scatter(last[shown, i], last[shown, j], s=18, color="tab:red", label="Pareto front")
+        # (above the warm start's star: a front that is the warm start itself shows)
+        ax.scatter(last[shown, i], last[shown, j], s=18, color="tab:red", label="Pareto front",
+                   zorder=4)  # fmt: skip
         # the axes span the members that completed every episode: a padded score (the
         # episode's remaining steps at the worst values) would squash them into a dot
         if kept.any():  # (and the warm start, if it completed every episode)
