@@ -102,7 +102,7 @@ def load_warm_start(run: Run, smoothing: float | None = None) -> NetPolicy | Non
     run's, or by ``smoothing``), or None for a run without one."""
     genome = run.warm_start_genome()
     if genome is None:
-        if run.config.pretrain or run.config.pretrain_episodes:  # it had one: removed
+        if run.config.warm_started:  # it had one: removed
             warn_data(f"{run.out / 'warm_start.npz'} is missing: the run's warm start is not "
                       "driven beside its members (restore it from a copy of the run to "
                       "compare them)")  # fmt: skip

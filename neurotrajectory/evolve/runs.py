@@ -320,7 +320,7 @@ class TrainConfig(Settings):
     @model_validator(mode="after")
     def _together(self) -> TrainConfig:
         """The checks across fields (each field was valid on its own)."""
-        warm = bool(self.pretrain or self.pretrain_episodes)
+        warm = self.warm_started
         problems = []
         if self.pretrain and self.pretrain_episodes:
             problems.append("give either --pretrain (a dataset) or --pretrain-episodes, not both")
@@ -358,6 +358,12 @@ class TrainConfig(Settings):
             count = f"{len(problems)} problems: " if len(problems) > 1 else ""
             raise ValueError(count + "; ".join(problems))
         return self
+
+    @property
+    def warm_started(self) -> bool:
+        """Generation 0 is made from a network fitted to human windows first (a dataset,
+        ``pretrain``, or ``pretrain_episodes`` recorded now)."""
+        return bool(self.pretrain or self.pretrain_episodes)
 
     @property
     def anchored(self) -> bool:
@@ -610,11 +616,11 @@ class Run:
             run._write_config()
         return run
 
-    def _write_inputs(self, files: dict[str, str], code: dict | None = None) -> None:
+    def _write_inputs(self, files: dict[str, str]) -> None:
         """:data:`INPUTS_FILE`: the scenario's files (``files``, their digests) and the code
-        (:func:`code_digest`, unless ``code``: the one the run began with)."""
+        (:func:`code_digest`)."""
         write_json(self.out / INPUTS_FILE, {"scenario": self.config.scenario, "files": files,
-                                            "code": code or code_digest()})  # fmt: skip
+                                            "code": code_digest()})  # fmt: skip
 
     def check_inputs(self) -> None:
         """A :class:`RunError` when the files the run's scenario is read from changed since
@@ -742,8 +748,6 @@ class Run:
         read, the copy the checkpoint holds, said (nothing without either)."""
         path = self.out / "history.json"
         try:
-            if not path.exists():
-                raise FileNotFoundError("missing")
             doc = json.loads(path.read_text())
             generations = doc["generations"]
         except (FileNotFoundError, ValueError, KeyError, TypeError) as exc:
@@ -798,7 +802,7 @@ class Run:
             history = self._history_of_checkpoint(len(history), ckpt[0] + 1)
         if ckpt is not None:
             source = Source.CHECKPOINT
-        elif cfg.pretrain or cfg.pretrain_episodes:
+        elif cfg.warm_started:
             source = Source.WARM_START
         else:
             source = Source.RANDOM

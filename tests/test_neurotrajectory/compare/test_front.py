@@ -13,9 +13,10 @@ def test_a_removed_warm_start_is_said_not_dropped_silently(tmp_path):
 
     from gridsim.errors import DataWarning
     from neurotrajectory.compare.front import load_warm_start
+    from neurotrajectory.evolve.runs import TrainConfig
 
     def run(pretrain_episodes):
-        config = SimpleNamespace(pretrain=None, pretrain_episodes=pretrain_episodes)
+        config = TrainConfig(pretrain_episodes=pretrain_episodes)
         return SimpleNamespace(out=tmp_path, config=config, warm_start_genome=lambda: None)
 
     with pytest.warns(DataWarning, match=r"warm_start\.npz is missing: the run's warm start"):
