@@ -36,8 +36,8 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_DISABLE_INTEL_SVML", "1")  # read when numba is first imported
 
 import numba  # noqa: E402
-from numba.core import event  # noqa: E402
-from numba.extending import register_jitable  # noqa: E402
+from numba.core import event, types  # noqa: E402
+from numba.extending import intrinsic, register_jitable  # noqa: E402
 
 #: What a process prints (stderr) when it first compiles one of GridSim's kernels.
 NOTICE = ("gridsim: compiling the simulator's kernels for this machine, once (up to "
@@ -161,6 +161,17 @@ def kernel(fn: Callable) -> Callable:
 def jitable(fn: Callable) -> Callable:
     """``fn`` unchanged for Python callers, compiled inline when a kernel calls it."""
     return register_jitable(fn)
+
+
+@intrinsic
+def fma32(typingctx, a, b, c):
+    """``a * b + c`` of three float32, rounded once (a fused multiply-add: the CPU's
+    instruction, or the C library's ``fmaf`` where there is none; the same bits everywhere),
+    for kernels that must give the sums of BLAS and oneDNN, which fuse them."""
+    f32 = types.float32
+    if not (a == f32 and b == f32 and c == f32):
+        return None
+    return f32(f32, f32, f32), lambda context, builder, signature, args: builder.fma(*args)
 
 
 @jitable

@@ -36,7 +36,7 @@ from torch import nn
 
 from gridsim.envs.plan_smoothing import PlanSmoother, check_keep
 from gridsim.frames import EGO_ACCEL, EGO_COS, EGO_SIN, EGO_SPEED, EGO_STEERING
-from gridsim.sensors.occupancy_kernels import block_sums
+from gridsim.sensors.occupancy_kernels import block_sums, pooled_convolution
 from neurotrajectory.curves import CurveLimits, destination_curves
 
 ACTIVATIONS = {"sigmoid": nn.Sigmoid, "relu": nn.ReLU, "tanh": nn.Tanh}
@@ -398,8 +398,9 @@ def size_mismatch(cfg: NetConfig, windows) -> str | None:
 #   per individual with all ``E`` rows, finished episodes included: MKL does not compute a
 #   row alike for different row counts), and every convolution one ``conv2d`` call per
 #   individual on its ``E`` frames, or, from the first or the second convolution on, one
-#   grouped call for the batch where a probe shows it gives those bits (and is the faster;
-#   :meth:`PopulationNet.grouped_from`);
+#   grouped call for the batch, the first one possibly compiled (each output's sum in
+#   ``conv2d``'s order), where a probe shows it gives those bits (and is the faster;
+#   :meth:`PopulationNet.convolutions`);
 # * MKL's result for an item also depends on the 64-byte alignment of its operands, so every
 #   item starts at the same alignment: weights live in 64-byte aligned rows (the population
 #   store, and a per-batch copy of the small parameters, each at an aligned offset), and
@@ -415,6 +416,9 @@ def size_mismatch(cfg: NetConfig, windows) -> str | None:
 
 _CONVS = ((2, 2), (2, 1), (2, 1))  # stride, padding of GridEncoder.cnn's convolutions
 _CONV_NAMES = ("encoder.cnn.0", "encoder.cnn.2", "encoder.cnn.4")
+#: :meth:`PopulationNet.convolutions`' choice of the first convolution compiled
+#: (:func:`~gridsim.sensors.occupancy_kernels.pooled_convolution`), the others grouped.
+COMPILED_FIRST = "compiled"
 ALIGN = 16  # floats: 64 bytes
 #: Parameters of at least this many numbers are not copied per batch: products with them
 #: run on views into the population store, one ``bmm`` per run of consecutive individuals.
@@ -521,7 +525,7 @@ class PopulationNet:
         self.n_cnn = cfg.channels[2] * (cfg.grid_size // cfg.pool // 8) ** 2
         self.times = template.times.clone()
         self.act = _PW_ACTIVATIONS[cfg.activation]
-        self._grouped_from: dict[tuple[int, int], int | None] = {}  # see :meth:`grouped_from`
+        self._convolutions: dict[tuple[int, int], int | str | None] = {}  # :meth:`convolutions`
 
     # -- parameters ---------------------------------------------------------------------------
     def store(self, population) -> torch.Tensor:
@@ -589,14 +593,21 @@ class PopulationNet:
     # -- the forward pass, in three parts -----------------------------------------------------
     def frame_features(self, params: dict, frames: np.ndarray) -> torch.Tensor:
         """CNN features ``(K, E, n_cnn)`` of ``frames`` uint8 ``(K, E, H, W)`` (one frame per
-        environment of each individual)."""
+        environment of each individual), computed as :meth:`convolutions` says."""
+        k, e = frames.shape[:2]
+        plan = self.convolutions(k, e)
+        if plan == COMPILED_FIRST:
+            return self._features_compiled(params, frames)
+        x = self._pooled(frames)
+        if plan is None:
+            return self._features_per_individual(params, x)
+        return self._features_grouped(params, x, plan)
+
+    def _pooled(self, frames: np.ndarray) -> torch.Tensor:
+        """``frames`` uint8 ``(K, E, H, W)`` pooled and scaled to 0-1: ``(K, E, 1, H/p, W/p)``."""
         k, e, h, w = frames.shape
         p = self.cfg.pool
-        x = (block_means(frames.reshape(k * e, h, w), p) / 255.0).view(k, e, 1, h // p, w // p)
-        first = self.grouped_from(k, e)
-        if first is None:
-            return self._features_per_individual(params, x)
-        return self._features_grouped(params, x, first)
+        return (block_means(frames.reshape(k * e, h, w), p) / 255.0).view(k, e, 1, h // p, w // p)
 
     def _features_grouped(self, params: dict, x: torch.Tensor, first: int) -> torch.Tensor:
         """:meth:`frame_features` of the pooled frames ``x`` ``(K, E, 1, h, w)``, convolution
@@ -608,8 +619,31 @@ class PopulationNet:
         else:  # the first convolution per individual
             y = torch.stack([self._conv(x[i], params, _CONV_NAMES[0], i, 0) for i in range(k)], 1)
             y = y.view(e, k * y.shape[2], *y.shape[3:])
+        return self._grouped_after(params, y, k, first)
+
+    def _features_compiled(self, params: dict, frames: np.ndarray) -> torch.Tensor:
+        """:meth:`frame_features` of ``frames`` uint8 ``(K, E, H, W)``: pooling and the first
+        convolution in one compiled call (:func:`~gridsim.sensors.occupancy_kernels.
+        pooled_convolution`), the others as one grouped call for all individuals."""
+        k, e, h, w = frames.shape
+        name = _CONV_NAMES[0]
+        weight = params[name + ".weight"]  # (K, C, 1, kh, kw)
+        (stride, pad), kh = _CONVS[0], weight.shape[3]
+        side = h // self.cfg.pool
+        out_side = (side + 2 * pad - kh) // stride + 1
+        y = torch.empty(e, k * weight.shape[1], out_side, out_side)
+        pooled_convolution(np.ascontiguousarray(frames), self.cfg.pool,
+                           np.ascontiguousarray(weight[:, :, 0].numpy()),
+                           np.ascontiguousarray(params[name + ".bias"].numpy()), stride, pad,
+                           y.numpy())  # fmt: skip
+        return self._grouped_after(params, y, k, 1)
+
+    def _grouped_after(self, params: dict, y: torch.Tensor, k: int, first: int) -> torch.Tensor:
+        """Convolutions ``first`` and after, as one grouped call for the ``k`` individuals, on
+        ``y`` ``(E, K * channels, h, w)`` (their input); their features ``(K, E, n_cnn)``."""
         for layer, name in enumerate(_CONV_NAMES[first:], first):
             y = self._conv(y, params, name, None, layer, groups=k)
+        e = y.shape[0]
         return y.reshape(e, k, -1).transpose(0, 1).contiguous()
 
     def _features_per_individual(self, params: dict, x: torch.Tensor) -> torch.Tensor:
@@ -635,23 +669,24 @@ class PopulationNet:
         stride, pad = _CONVS[layer]
         return torch.nn.functional.conv2d(x, weight, bias, stride, pad, 1, groups).relu_()
 
-    def grouped_from(self, k: int, e: int) -> int | None:
-        """From which convolution on :meth:`frame_features` of ``k`` individuals on ``e``
-        frames each runs one grouped call for all individuals (0: every convolution, 1: the
-        second and later; None: one call per individual throughout): of the choices where
-        oneDNN's grouped convolution gives the bits of one call per individual, the fastest.
-        A probe on random weights and frames of these shapes decides once per ``(k, e)``
-        (oneDNN picks its kernels by shape and CPU, never by values, so every choice it
-        allows gives the same results; only the time differs). One frame per individual:
-        None (torch then convolves each individual without oneDNN)."""
+    def convolutions(self, k: int, e: int) -> int | str | None:
+        """How :meth:`frame_features` of ``k`` individuals on ``e`` frames each runs the
+        convolutions: from convolution 0 or 1 on as one grouped call for all individuals (those
+        before, one call per individual), :data:`COMPILED_FIRST` (the first compiled, the others
+        grouped), or None (one call per individual throughout). Of the choices that give the
+        bits of one call per individual, the fastest: a probe on random weights and frames of
+        these shapes decides once per ``(k, e)`` (oneDNN picks its kernels by shape and CPU,
+        never by values, so every choice it allows gives the same results; only the time
+        differs). One frame per individual: None (torch then convolves each individual
+        without oneDNN)."""
         if e < 2:
             return None
-        if (k, e) not in self._grouped_from:
-            self._grouped_from[(k, e)] = self._probe_grouped(k, e)
-        return self._grouped_from[(k, e)]
+        if (k, e) not in self._convolutions:
+            self._convolutions[(k, e)] = self._probe_convolutions(k, e)
+        return self._convolutions[(k, e)]
 
-    def _probe_grouped(self, k: int, e: int) -> int | None:
-        """:meth:`grouped_from`'s probe: the bits of each choice, then the times of those
+    def _probe_convolutions(self, k: int, e: int) -> int | str | None:
+        """:meth:`convolutions`' probe: the bits of each choice, then the times of those
         that give the bits of one call per individual (the best of 5 runs each)."""
         g = torch.Generator().manual_seed(0)
         params = {}
@@ -660,19 +695,22 @@ class PopulationNet:
             params[name + ".weight"] = 0.2 * torch.randn(w_shape, generator=g)
             params[name + ".bias"] = 0.1 * torch.randn(w_shape[:2], generator=g)
         params |= _grouped_convolutions(params)
-        side = self.cfg.grid_size // self.cfg.pool
-        x = torch.rand(k, e, 1, side, side, generator=g)
+        size = self.cfg.grid_size
+        frames = torch.randint(0, 256, (k, e, size, size), generator=g, dtype=torch.uint8).numpy()
+        x = self._pooled(frames)
+        choices = {1: lambda: self._features_grouped(params, x, 1),
+                   0: lambda: self._features_grouped(params, x, 0),
+                   COMPILED_FIRST: lambda: self._features_compiled(params, frames)}  # fmt: skip
         reference = self._features_per_individual(params, x)
-        allowed = [f for f in (1, 0)
-                   if torch.equal(self._features_grouped(params, x, f), reference)]  # fmt: skip
+        allowed = [c for c, run in choices.items() if torch.equal(run(), reference)]
         if len(allowed) < 2:
             return allowed[0] if allowed else None
-        best = {f: math.inf for f in allowed}
+        best = {c: math.inf for c in allowed}
         for _ in range(5):  # alternated, so that a slower moment of the machine hits both
-            for f in allowed:
+            for c in allowed:
                 t0 = time.perf_counter()
-                self._features_grouped(params, x, f)
-                best[f] = min(best[f], time.perf_counter() - t0)
+                choices[c]()
+                best[c] = min(best[c], time.perf_counter() - t0)
         return min(allowed, key=best.__getitem__)
 
     def grid_part(self, params: dict, feats: torch.Tensor) -> torch.Tensor:

@@ -82,12 +82,15 @@ def compile_kernels(report: Callable[[str], None] = print) -> dict:
     from gridsim.vehicle.kinematics import BicycleParams, step_bicycle
 
     step_bicycle(np.zeros((2, 5)), np.zeros(2), np.zeros(2), BicycleParams(), 0.1)
-    # the trainer's: pooled grids, the destination curves of a batch (its prior, the
-    # destination-curve baseline)
-    from gridsim.sensors.occupancy_kernels import block_sums
+    # the trainer's: pooled grids and their first convolution, the destination curves of a
+    # batch (its prior, the destination-curve baseline)
+    from gridsim.sensors.occupancy_kernels import block_sums, pooled_convolution
     from gridsim.vehicle.curve_kernels import curves_many
 
     block_sums(np.zeros((1, 2, 2), np.uint8), 2, np.empty((1, 1, 1), np.float32))
+    f32 = np.float32
+    pooled_convolution(np.zeros((1, 2, 4, 4), np.uint8), 2, np.zeros((1, 1, 3, 3), f32),
+                       np.zeros((1, 1), f32), 2, 1, np.empty((2, 1, 1, 1), f32))  # fmt: skip
 
     one = np.ones(2)
     curves_many(

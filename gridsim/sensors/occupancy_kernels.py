@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gridsim.jit import kernel
+from gridsim.jit import fma32, kernel
 
 # Corner signs along the length and the width (rear-right, front-right, front-left,
 # rear-left), as in box_corners.
@@ -124,3 +124,66 @@ def block_sums(frames, p, out) -> None:
             for b in range(1, p):
                 for j in range(cols):
                     o[j] += acc[j * p + b]
+
+
+@kernel
+def pooled_convolution(frames, p, weight, bias, stride, pad, out) -> None:
+    """A network's first convolution of grids and its ReLU, for ``K`` sets of weights on
+    ``E`` grids each: grids ``frames`` uint8 ``(K, E, H, W)`` pooled in ``p x p`` blocks and
+    scaled to 0-1 (:func:`block_sums`, then divided by ``p * p`` and by 255 in float32),
+    zero-padded by ``pad`` cells, convolved at ``stride`` with ``weight[k]`` float32 ``(C, kh,
+    kw)`` (one input channel) plus ``bias[k]`` ``(C,)``, into ``out`` float32 ``(E, K * C,
+    OH, OW)`` (set ``k``'s channels of grid ``e`` at ``out[e, k * C:(k + 1) * C]``: the layout
+    of a grouped convolution that follows).
+
+    Each output sums its ``kh * kw`` products from zero in the taps' row-major order, each
+    product fused with the sum (:func:`~gridsim.jit.fma32`), then adds the bias: the order in
+    which oneDNN's and im2col + BLAS's ``conv2d`` sum a one-channel convolution. The input is
+    split into ``stride x stride`` phase planes, so that each tap is one contiguous pass."""
+    n_k, n_e, rows, cols = frames.shape
+    h, w = rows // p, cols // p
+    n_c, kh, kw = weight.shape[1], weight.shape[2], weight.shape[3]
+    oh, ow = out.shape[2], out.shape[3]
+    # plane (pa, pb) holds the padded input's rows pa, pa + stride, ... and columns pb, pb +
+    # stride, ...; a tap's pass runs over oh plane rows of wp cells (the last columns unused), and
+    # may run past the last row's end by at most one row
+    wp = (w + 2 * pad + stride - 1) // stride
+    hp = max((h + 2 * pad + stride - 1) // stride, oh + (kh - 1) // stride + 1)
+    planes = np.zeros((stride, stride, hp * wp), np.float32)
+    acc = np.empty(oh * wp, np.float32)
+    n = oh * wp
+    # a block's value for each sum of its cells: (sum / (p * p)) / 255 in float32
+    scaled = np.empty(p * p * 255 + 1, np.float32)
+    for total in range(len(scaled)):
+        scaled[total] = np.float32(total) / np.float32(p * p) / np.float32(255.0)
+    sums = np.empty((n_e, h, w), np.float32)
+    for k in range(n_k):
+        block_sums(frames[k], p, sums)
+        for e in range(n_e):
+            for pa in range(stride):
+                for pb in range(stride):
+                    plane = planes[pa, pb]
+                    for i in range(hp):
+                        r = pa + i * stride - pad
+                        if r < 0 or r >= h:
+                            continue
+                        row = sums[e, r]
+                        for j in range(wp):
+                            q = pb + j * stride - pad
+                            if 0 <= q < w:
+                                plane[i * wp + j] = scaled[int(row[q])]
+            for c in range(n_c):
+                acc[:] = 0.0
+                for ky in range(kh):
+                    for kx in range(kw):
+                        wt = weight[k, c, ky, kx]
+                        off = (ky // stride) * wp + kx // stride
+                        src = planes[ky % stride, kx % stride, off : off + n]
+                        for i in range(n):
+                            acc[i] = fma32(wt, src[i], acc[i])
+                b = bias[k, c]
+                o = out[e, k * n_c + c]
+                for oy in range(oh):
+                    for ox in range(ow):
+                        v = acc[oy * wp + ox] + b
+                        o[oy, ox] = np.float32(0.0) if v <= 0.0 else v

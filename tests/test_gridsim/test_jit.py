@@ -92,14 +92,19 @@ def test_gridsim_compile_readies_every_kernel_of_the_built_in_scenarios(capsys):
     before = compiled_kernels()["compiled"]
     for function, arity in libm.ARITY.items():
         function(*[np.linspace(0.1, 0.9, 3, dtype=np.float32)] * arity)
-    pytest.importorskip("torch")  # the trainer's extra
+    torch = pytest.importorskip("torch")  # the trainer's extra
     from neurotrajectory.curves import CurveLimits, destination_curves
-    from neurotrajectory.model import block_means
+    from neurotrajectory.model import PRESETS, PopulationNet, TrajectoryNet, block_means
 
     ego = np.tile(np.float32([10, 0, 0, 0, 1, 0]), (3, 1))
     times = np.float32([0.5, 1.0])
     destination_curves(ego, np.ones((3, 2), np.float32), times, CurveLimits(), 5.0)
     block_means(np.zeros((2, 4, 4), np.uint8), 2)
+    net = PopulationNet(PRESETS["tiny"])  # its first convolution, compiled
+    genomes = torch.nn.utils.parameters_to_vector(TrajectoryNet(net.cfg).parameters())
+    store = net.store(genomes.detach().repeat(2, 1))
+    params = net.params(store, net.small_copy(store), np.arange(2))
+    net._features_compiled(params, np.zeros((2, 2, 128, 128), np.uint8))
     assert compiled_kernels()["compiled"] == before
 
 

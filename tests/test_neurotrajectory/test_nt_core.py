@@ -8,6 +8,7 @@ import pytest
 import torch
 from pymoo.operators.survival.rank_and_crowding.metrics import calc_crowding_distance
 
+from gridsim.sensors.occupancy_kernels import pooled_convolution
 from neurotrajectory.curves import CurveLimits, destination_curves
 from neurotrajectory.evolve.evolution import GAConfig, initial_recipes, next_generation
 from neurotrajectory.evolve.genome import (
@@ -252,6 +253,30 @@ def test_block_means_are_avg_pool_bit_for_bit(p):
     if p > 1:
         with pytest.raises(ValueError, match=f"do not split into blocks of {p} x {p}"):
             block_means(frames[:, 1:], p)
+
+
+@pytest.mark.parametrize(
+    ("p", "size", "stride", "pad"),
+    [(2, 5, 2, 2), (1, 5, 2, 2), (4, 3, 2, 1), (2, 3, 1, 1), (1, 4, 3, 0), (2, 5, 3, 1)],
+)
+def test_pooled_convolution_gives_the_bits_of_conv2d(p, size, stride, pad):
+    """The rollouts' compiled first convolution (pooling, scaling, ``conv2d`` with one input
+    channel and its ReLU, for several sets of weights) gives torch's bits: each output sums
+    its products in ``conv2d``'s order, fused. Weights are read through strided views."""
+    rng = np.random.default_rng(size * 10 + stride)
+    k, e, c, side = 3, 2, 4, 24 * p
+    frames = rng.choice(np.array([0, 128, 255], np.uint8), size=(k, e, side, side))
+    frames[0, 0] = rng.integers(0, 256, size=(side, side))
+    frames[1, 1] = 255  # the largest sums
+    weight = rng.standard_normal((k, c, 2, size, size)).astype(np.float32)[:, :, 1]  # strided
+    bias = 0.1 * rng.standard_normal((k, c)).astype(np.float32)
+    x = block_means(frames.reshape(k * e, side, side), p) / 255.0
+    want = torch.stack([torch.nn.functional.conv2d(
+        x[i * e : (i + 1) * e], torch.from_numpy(weight[i][:, None].copy()),
+        torch.from_numpy(bias[i]), stride, pad).relu_() for i in range(k)], 1)  # fmt: skip
+    out = np.full((e, k * c, *want.shape[3:]), np.nan, np.float32)
+    pooled_convolution(frames, p, weight, bias, stride, pad, out)
+    assert torch.equal(torch.from_numpy(out).view(want.shape), want)
 
 
 def test_networks_drive_and_predict_on_one_thread_whatever_the_caller_set():

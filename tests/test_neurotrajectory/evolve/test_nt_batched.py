@@ -69,9 +69,10 @@ def test_population_forward_matches_trajectorynet_and_ignores_the_batch(preset):
 
 @pytest.mark.parametrize("preset", ["default", "paper"])
 def test_frame_features_are_those_of_one_convolution_call_per_individual(preset):
-    """Every grouped choice the probe allows (all convolutions, or those after the first, as
-    one call for all individuals) gives the bits of one call per individual (on other frames
-    and weights than the probe's); one frame per individual is never grouped."""
+    """Every choice of :meth:`PopulationNet.convolutions` (all convolutions, or those after
+    the first, as one grouped call for all individuals; the first compiled) gives the bits of
+    one call per individual (on other frames and weights than the probe's); one frame per
+    individual is never grouped."""
     torch.set_num_threads(1)
     cfg = PRESETS[preset]
     pnet = PopulationNet(cfg)
@@ -80,18 +81,17 @@ def test_frame_features_are_those_of_one_convolution_call_per_individual(preset)
     for k, e in ((1, 2), (3, 2), (16, 2), (5, 3), (4, 1)):
         params = pnet.params(store, pnet.small_copy(store), np.arange(k))
         frames = _inputs(k, e, cfg, seed=k)[0][:, :, 0]
-        p = cfg.pool
-        x = (model.block_means(frames.reshape(k * e, 128, 128), p) / 255.0).view(
-            k, e, 1, 128 // p, 128 // p
-        )
+        x = pnet._pooled(frames)
         one_per_individual = pnet._features_per_individual(params, x)
         assert torch.equal(pnet.frame_features(params, frames), one_per_individual)
-        first = pnet.grouped_from(k, e)
-        if first is not None:
-            assert torch.equal(pnet._features_grouped(params, x, first), one_per_individual)
-    assert pnet.grouped_from(4, 1) is None
+        if e > 1:  # (one frame: torch convolves each individual otherwise than grouped)
+            assert torch.equal(pnet._features_compiled(params, frames), one_per_individual)
+        plan = pnet.convolutions(k, e)
+        if plan in (0, 1):
+            assert torch.equal(pnet._features_grouped(params, x, plan), one_per_individual)
+    assert pnet.convolutions(4, 1) is None
     if "/AVX512/" in numerics_platform():  # where it was measured (Intel and AMD)
-        assert pnet.grouped_from(16, 2) is not None, "the grouped convolutions are no longer used"
+        assert pnet.convolutions(16, 2) is not None, "the grouped convolutions are no longer used"
 
 
 def _results(ev, pop):
