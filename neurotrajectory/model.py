@@ -453,6 +453,11 @@ def _items(x: torch.Tensor) -> torch.Tensor:
     return out
 
 
+def _check_blocks(h: int, w: int, p: int) -> None:
+    if h % p or w % p:
+        raise ValueError(f"grids of {h} x {w} cells do not split into blocks of {p} x {p}")
+
+
 def block_means(frames: np.ndarray, p: int) -> torch.Tensor:
     """The means of ``p x p`` blocks of ``frames`` uint8 ``(N, H, W)``: float32 ``(N, 1, H / p,
     W / p)``, bit for bit ``avg_pool2d`` of their float values (the integer sums are exact, then
@@ -460,8 +465,7 @@ def block_means(frames: np.ndarray, p: int) -> torch.Tensor:
     n, h, w = frames.shape
     if p == 1:
         return torch.from_numpy(frames).float()[:, None]
-    if h % p or w % p:
-        raise ValueError(f"grids of {h} x {w} cells do not split into blocks of {p} x {p}")
+    _check_blocks(h, w, p)
     total = np.empty((n, h // p, w // p), np.float32)
     block_sums(np.ascontiguousarray(frames), p, total)
     return torch.from_numpy(total)[:, None].div_(float(p * p))
@@ -626,13 +630,14 @@ class PopulationNet:
         convolution in one compiled call (:func:`~gridsim.sensors.occupancy_kernels.
         pooled_convolution`), the others as one grouped call for all individuals."""
         k, e, h, w = frames.shape
+        _check_blocks(h, w, self.cfg.pool)
         name = _CONV_NAMES[0]
         weight = params[name + ".weight"]  # (K, C, 1, kh, kw)
-        (stride, pad), kh = _CONVS[0], weight.shape[3]
-        side = h // self.cfg.pool
-        out_side = (side + 2 * pad - kh) // stride + 1
-        y = torch.empty(e, k * weight.shape[1], out_side, out_side)
-        pooled_convolution(np.ascontiguousarray(frames), self.cfg.pool,
+        (stride, pad), p = _CONVS[0], self.cfg.pool
+        sizes = zip((h, w), weight.shape[3:], strict=True)
+        out = [(n // p + 2 * pad - size) // stride + 1 for n, size in sizes]
+        y = torch.empty(e, k * weight.shape[1], *out)
+        pooled_convolution(np.ascontiguousarray(frames), p,
                            np.ascontiguousarray(weight[:, :, 0].numpy()),
                            np.ascontiguousarray(params[name + ".bias"].numpy()), stride, pad,
                            y.numpy())  # fmt: skip
