@@ -226,6 +226,15 @@ class HumanReference(ReferenceTrajectory):
         self._ready = 0
         self._known_length = 0.0  # running sum of the final path's length [m]
 
+    def __getstate__(self) -> dict:
+        """Copies and pickles (a copied or pickled env's) leave the lock out; each gets its own."""
+        with self._lock:
+            return {k: v for k, v in self.__dict__.items() if k != "_lock"}
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.RLock()
+
     def _restart(self) -> None:
         """A fresh shadow world at time 0 (sample 0 recorded)."""
         self._world = w = build_world(self._scenario, self._seed)

@@ -95,6 +95,34 @@ def test_a_reference_shared_by_envs_in_threads_gives_every_thread_the_same_sampl
     assert len(refs) == 4 and all(r is refs[0] for r in refs)
 
 
+@pytest.mark.parametrize("scenario", ["seamless", "inner_city"])
+def test_envs_on_generated_roads_copy_and_pickle_and_go_on_alike(scenario):
+    """An env's human reference holds a lock (envs in threads); ``copy.deepcopy`` and
+    ``pickle`` of an env on a generated road failed on it ("cannot pickle '_thread.RLock'").
+    Copies get a lock of their own and drive on exactly as the original."""
+    import copy
+    import pickle
+
+    env = GridSimEnv(scenario)
+    _, info = env.reset(seed=3)
+    for _ in range(5):
+        _, _, _, _, info = env.step(info["reference_setpoints"])
+    copies = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
+    for c in copies:
+        assert c.reference is not env.reference and c.reference._lock is not env.reference._lock
+    runs = []
+    for e in [env, *copies]:
+        rewards, i = [], info
+        for _ in range(40):  # the copies' shadow worlds drive on, beyond what was simulated
+            obs, reward, _, _, i = e.step(i["reference_setpoints"])
+            rewards.append(reward)
+        runs.append((np.array(rewards), obs["grids"], e.reference.positions(np.array([8.0]))))
+    for rewards, grids, ahead in runs[1:]:
+        np.testing.assert_array_equal(rewards, runs[0][0])
+        np.testing.assert_array_equal(grids, runs[0][1])
+        np.testing.assert_array_equal(ahead, runs[0][2])
+
+
 @pytest.mark.parametrize("seed", [788269980, 1837343323])  # reset(seed=56), reset(seed=132)
 def test_a_second_revision_does_not_depend_on_the_order_of_requests(seed):
     """A revision found while a revision is replayed may reach back before the samples
