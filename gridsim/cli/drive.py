@@ -80,31 +80,32 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         grids[k] = sensor.observe(world)
         times[k] = round(world.time, 9)  # a sum of ticks, to the nanosecond (as info["time"])
     with new_folder(out) as partial:  # out appears whole
-        return _write(partial, sc, seed, world, grids, times, steps, start, distance,
+        return _write(partial, out, sc, seed, world, grids, times, steps, start, distance,
                       collisions, off_road, cut)  # fmt: skip
 
 
-def _write(out, sc, seed, world, grids, times, steps, start, distance, collisions,
+def _write(partial, out, sc, seed, world, grids, times, steps, start, distance, collisions,
            off_road, cut: bool) -> dict:  # fmt: skip
-    """Write the drive's files into ``out``; the summary (``cut``: it stopped where its ego
-    track's recording ends, before the time asked for)."""
+    """Write the drive's files into ``partial``, the folder that becomes ``out`` once they are
+    all there; the summary (``cut``: it stopped where its ego track's recording ends, before
+    the time asked for)."""
     import cv2
 
     from gridsim.render.annotations import Caption, annotate
     from gridsim.render.grids import colourise
     from gridsim.render.topdown import TopDownRenderer
 
-    write_npz(out / "grids.npz", compressed=True, grids=grids, times=times)
+    write_npz(partial / "grids.npz", compressed=True, grids=grids, times=times)
     for k in np.linspace(0, steps - 1, min(steps, 5)).astype(int):
         # (grid k is the world after tick k + 1, at times[k]: named by that tick)
-        cv2.imwrite(str(out / f"grid_{k + 1:05d}.png"), colourise(grids[k])[:, :, ::-1])
+        cv2.imwrite(str(partial / f"grid_{k + 1:05d}.png"), colourise(grids[k])[:, :, ::-1])
     view = TopDownRenderer()
     spec = sc.config.sensor
     frame = view.render(world, grids[-1], grid_frame=(spec.cell_size, spec.orientation))
     caption = Caption(f"lane follower, {sc.name} (seed {seed})", world.time, float(world.ego[3]))
     annotate(frame, caption, view.scale, view.view.inset_size,
              setpoints=False)  # (the drive draws no set-points)  # fmt: skip
-    cv2.imwrite(str(out / "topdown.png"), frame[:, :, ::-1])
+    cv2.imwrite(str(partial / "topdown.png"), frame[:, :, ::-1])
     summary = {
         "scenario": sc.name,
         "seed": seed,
@@ -124,10 +125,10 @@ def _write(out, sc, seed, world, grids, times, steps, start, distance, collision
             if world.ego_track is not None
             else {}
         ),  # fmt: skip
-        "out": str(out),  # the folder of the outputs
+        "out": str(Path(out).absolute()),  # the folder of the outputs (once renamed)
         "outputs": sorted(
-            [p.name for p in out.iterdir() if not p.name.startswith(".")] + ["summary.json"]
+            [p.name for p in partial.iterdir() if not p.name.startswith(".")] + ["summary.json"]
         ),  # (this file, written next)
     }
-    write_json(out / "summary.json", summary, indent=2)
+    write_json(partial / "summary.json", summary, indent=2)
     return summary

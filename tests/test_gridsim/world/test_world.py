@@ -95,6 +95,7 @@ def test_drive_command_writes_outputs(tmp_path, capsys):
     assert (out / "topdown.png").stat().st_size > 1000
     assert json.loads(capsys.readouterr().out)["scenario"] == "inner_city"
     assert summary["outputs"] == sorted(p.name for p in out.iterdir())  # itself included
+    assert summary["out"] == str(out.absolute())  # (it named the temporary folder, renamed)
 
 
 def test_drive_stops_where_a_recorded_ego_track_ends(tmp_path, capsys):
