@@ -26,7 +26,12 @@ import numpy as np
 from gridsim.errors import DataError, GridSimError, ScenarioError, UnselectedScene, warn_data
 from gridsim.outputs import counted, named
 from gridsim.scenario.build import build_world
-from gridsim.scenario.loader import load_scenario, names_a_file, scenario_document
+from gridsim.scenario.loader import (
+    check_reference,
+    load_scenario,
+    names_a_file,
+    scenario_document,
+)
 from gridsim.scenario.parts import matching_files
 from gridsim.scenario.schema import Scenario
 from gridsim.seeding import Salt, stream
@@ -46,6 +51,7 @@ def scenario_files(ref: str | Path) -> list[Path] | None:
     path at all: :func:`load_scenario` then says so)."""
     if not isinstance(ref, str | os.PathLike):
         return None
+    check_reference(ref)  # ("" is no folder: Path("") is the current one)
     text = str(ref)
     path = Path(text)
     if path.is_dir():

@@ -589,11 +589,21 @@ def names_a_file(ref: str | Path) -> bool:
     return p.suffix in (".yaml", ".yml") or p.suffix.lower() == ".xml" or len(p.parts) > 1
 
 
-def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
-    if not isinstance(name_or_path, str | os.PathLike):
+def check_reference(ref: Any) -> None:
+    """A :class:`ScenarioError` unless ``ref`` can name scenarios: a non-empty string or path
+    (an empty one named the current folder)."""
+    if not isinstance(ref, str | os.PathLike):
         raise ScenarioError(f"scenario must be a built-in name, a YAML or XML path, a folder or "
                             f"glob of them, or a Scenario, got "
-                            f"{name_or_path!r} ({type(name_or_path).__name__})")  # fmt: skip
+                            f"{ref!r} ({type(ref).__name__})")  # fmt: skip
+    if not str(ref).strip():
+        raise ScenarioError(f"scenario is empty: give a built-in name "
+                            f"({', '.join(builtin_scenarios())}), a YAML or XML file, or a "
+                            "folder or glob of them")  # fmt: skip
+
+
+def _read(name_or_path: str | Path) -> tuple[str, str, Path | None]:
+    check_reference(name_or_path)
     p = Path(name_or_path)
     looks_like_path = names_a_file(p)
     if p.is_dir():

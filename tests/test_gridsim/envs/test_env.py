@@ -395,6 +395,13 @@ def test_a_scenario_that_is_not_a_name_or_path(scenario):
     )
 
 
+@pytest.mark.parametrize("scenario", ["", "  "])
+def test_an_empty_scenario_is_said_to_be_empty(scenario):
+    """An empty name was the current folder: ": no scenario files (.yaml, .yml, .xml) in it"."""
+    with pytest.raises(ScenarioError, match=r"^scenario is empty: give a built-in name \(inner_"):
+        gym.make(ENV_ID, scenario=scenario)
+
+
 def test_human_rendering_is_refused_with_the_alternatives():
     for make_it in (lambda: gym.make(ENV_ID, render_mode="human"),
                     lambda: GridSimEnv(render_mode="human")):  # fmt: skip
