@@ -20,15 +20,17 @@ obs, info = env.reset(seed=0)
 print("observation:", {k: v.shape for k, v in obs.items()})  # grids (5, 128, 128), ego, destination
 print("action: 5 set-points (x, y) [m] in the grid frame,", env.action_space)
 
-total = np.zeros(3)
+total, taken = np.zeros(3), 0
 steps = 30 if args.quick else 600
 for _ in range(steps):
     # the human's next 5 set-points: a perfect planner's action (l1 = 0)
     obs, fitness, terminated, truncated, info = env.step(info["reference_setpoints"])
-    total += fitness
+    total += fitness  # each step's fitness sums its ticks' (one tick a step by default)
+    taken += 1
     if terminated or truncated:
         break
 print(
-    f"after {info['time']:.1f} s: l1 {total[0]:.2f} m^2 (distance to the human), "
-    f"l2 {total[1]:.2f} rad/s (steering), l3 {total[2]:.1f} m/s (speed)"
+    f"after {info['time']:.1f} s, the fitness summed over {taken} steps: l1 {total[0]:.2f} m^2 "
+    f"(distance to the human), l2 {total[1]:.2f} rad/s (steering rate), l3 {total[2]:.1f} m/s "
+    f"(speed; a mean of {total[2] / taken:.1f} m/s a step)"
 )

@@ -40,7 +40,9 @@ class LaneFollow:
 
 
 class Random:
-    """Uniformly random controls from the action space (seeded by the environment)."""
+    """Uniformly random controls from the action space (seeded by the environment): the
+    acceleration is drawn from ``[-b_max, a_max]``, so it brakes on average (-2 m/s^2 with the
+    default limits) and the car soon stands; ``lane-follow`` drives on."""
 
     action_type = "control"
 

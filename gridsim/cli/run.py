@@ -21,7 +21,8 @@ def add_parser(sub) -> None:
         "--policy",
         default="reference",
         choices=list(POLICIES),
-        help="the driver: the human reference, lane following, random or idle",
+        help="the driver: the human reference, lane following, random (controls drawn uniformly "
+        "from the action space: it brakes on average and soon stands) or idle",
     )
     seed_flag(p)
     p.add_argument("--track", default=None, metavar="ID",
