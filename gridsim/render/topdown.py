@@ -39,7 +39,8 @@ DOT_RADIUS, RING_RADIUS = 3, 6
 LEAD_SECONDS, LEAD_MAX = 0.8, 12.0
 #: The scales a frame may take, as shares of the view's ``pixels_per_metre``: the largest at
 #: which every set-point and the destination lie :data:`ZOOM_MARGIN` pixels inside the frame
-#: (a 2.5 s plan at highway speed, or a goal 5 s ahead, would leave an 80 m x 60 m view).
+#: and clear of the grid inset (a 2.5 s plan at highway speed, or a goal 5 s ahead, would
+#: leave an 80 m x 60 m view; a road curving up to the right would pass under the inset).
 ZOOM_STEPS, ZOOM_MARGIN = (1.0, 0.75, 0.5, 0.375, 0.25), 24
 #: A frame zooms back in only when its points fit with this much more room (points that
 #: hover at a step's edge would switch the scale every frame).
@@ -102,7 +103,7 @@ class TopDownRenderer:
         shown = [np.asarray(p, float).reshape(-1, 2) for p, _, _ in overlay or []]
         if destination is not None:
             shown.append(np.asarray(destination, float).reshape(1, 2))
-        self.scale = k = self._zoom(centre, shown)
+        self.scale = k = self._zoom(centre, shown, inset=grid is not None)
         a = self._affine(centre, k)
         img = np.empty((v.height, v.width, 3), np.uint8)
         img[:] = _BG
@@ -169,22 +170,27 @@ class TopDownRenderer:
         for colour, thickness in ((POINTER_OUTLINE, 5), (COLLISION_COLOUR, 2)):
             cv2.polylines(img, [px], True, colour, thickness, cv2.LINE_AA, shift=4)
 
-    def _zoom(self, centre: np.ndarray, points: list[np.ndarray]) -> float:
+    def _zoom(self, centre: np.ndarray, points: list[np.ndarray], inset: bool = False) -> float:
         """The largest scale of :data:`ZOOM_STEPS` [pixels per metre] at which ``points``
         ``(N, 2)`` [m, world] lie :data:`ZOOM_MARGIN` pixels inside a frame centred on
-        ``centre`` (the smallest when none does)."""
+        ``centre``, and (``inset``: the frame has the grid inset) clear of the inset (the
+        smallest when none does)."""
         v = self.view
         if not points:
             return v.pixels_per_metre
-        off = np.abs(np.concatenate(points) - centre)
+        off = np.concatenate(points) - centre
         off = off[np.isfinite(off).all(axis=1)]
         if not len(off):
             return v.pixels_per_metre
-        reach_x, reach_y = off.max(axis=0)
+        # the inset's corner (top right) and its margin, from the frame's centre [pixels]
+        corner = (v.width / 2 - v.inset_size - 8 - ZOOM_MARGIN / 2,
+                  -(v.height / 2 - v.inset_size - 8 - ZOOM_MARGIN / 2))  # fmt: skip
 
         def fits(k: float, room: float = 1.0) -> bool:
-            return (reach_x * room * k <= v.width / 2 - ZOOM_MARGIN
-                    and reach_y * room * k <= v.height / 2 - ZOOM_MARGIN)  # fmt: skip
+            du, dv = off[:, 0] * room * k, -off[:, 1] * room * k  # pixels right, down
+            inside = ((np.abs(du) <= v.width / 2 - ZOOM_MARGIN).all()
+                      and (np.abs(dv) <= v.height / 2 - ZOOM_MARGIN).all())  # fmt: skip
+            return inside and not (inset and ((du >= corner[0]) & (dv <= corner[1])).any())
 
         chosen = next((share * v.pixels_per_metre for share in ZOOM_STEPS
                        if fits(share * v.pixels_per_metre)),

@@ -471,6 +471,18 @@ def test_a_frame_zooms_out_to_show_every_set_point_and_the_destination():
         view.render(world, overlay=[(centre + np.outer([d], ahead), (255, 0, 0), "dot")])
         scales.append(view.scale)
     assert scales == [8.0, 6.0, 6.0, 6.0, 6.0, 8.0]
+    # nor under the grid inset (top right): a road curving up to the right hid the human's
+    # set-points and the destination there
+    view.render(world)
+    under = centre + np.array([25.0, 15.0])  # 200 px right, 120 px up at 8 px/m
+    view.render(world, destination=under)
+    assert view.scale == view.view.pixels_per_metre  # (no inset)
+    grid = np.zeros((128, 128), np.uint8)
+    frame = view.render(world, grid=grid, destination=under)
+    assert view.scale == view.view.pixels_per_metre / 2
+    a = view._affine(centre, view.scale)
+    u, v = under @ a[:, :2].T + a[:, 2]
+    assert u < frame.shape[1] - view.view.inset_size - 8 or v > view.view.inset_size + 8
     # the scale bar follows: a frame drawn at a quarter of the scale shows 50 m, not 10
     _, info = env.reset(seed=0)
     frame = env.unwrapped.renderer.render(world, overlay=[(far, (255, 0, 0), "dot")])
