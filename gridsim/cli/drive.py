@@ -103,8 +103,8 @@ def _write(partial, out, sc, seed, world, grids, times, steps, start, distance, 
     spec = sc.config.sensor
     frame = view.render(world, grids[-1], grid_frame=(spec.cell_size, spec.orientation))
     caption = Caption(f"lane follower, {sc.name} (seed {seed})", world.time, float(world.ego[3]))
-    annotate(frame, caption, view.scale, view.view.inset_size,
-             setpoints=False)  # (the drive draws no set-points)  # fmt: skip
+    annotate(frame, caption, view.scale, view.view.inset_size, setpoints=False,
+             orientation=spec.orientation)  # (the drive draws no set-points)  # fmt: skip
     cv2.imwrite(str(partial / "topdown.png"), frame[:, :, ::-1])
     summary = {
         "scenario": sc.name,

@@ -93,13 +93,14 @@ _ENDINGS = (("collision", "collision"), ("off_road", "off the road"),
 
 
 def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
-             inset_size: int | None = None, setpoints: bool = True) -> np.ndarray:  # fmt: skip
+             inset_size: int | None = None, setpoints: bool = True,
+             orientation: str = "north_up") -> np.ndarray:  # fmt: skip
     """Write ``caption`` (with how the episode ended, if it did, as its last line, in light
     red and bold: the scene itself is left clear at the moment that matters), the colour
     legend (without the set-points' colours unless ``setpoints``: a frame that draws none),
     the grid inset's legend (of an inset of ``inset_size`` pixels at the top right, if any;
-    at the bottom beside the colour legend) and a scale bar on ``img`` (in place); returns
-    ``img``."""
+    at the bottom beside the colour legend; it says the grid's ``orientation``, "north up"
+    as the frame or "heading up") and a scale bar on ``img`` (in place); returns ``img``."""
     text = [(t, None, "") for t in caption.lines()]
     if caption.ended:
         text.append((f"episode over: {caption.ended} at {caption.time:.1f} s", ENDED_COLOUR,
@@ -109,10 +110,17 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
     _band(img, 0, img.shape[0] - _STEP * len(legend) - 8, legend)
     if inset_size:  # at the bottom beside the colours' legend: beside the inset (top middle)
         # it hid the road ahead of an ego driving up the picture, under it one driving right
-        grid = [("sensor grid:", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
+        grid = inset_legend(orientation)
         _band(img, _width(legend) + 8, img.shape[0] - _STEP * len(grid) - 8, grid)
     _scale_bar(img, pixels_per_metre)
     return img
+
+
+def inset_legend(orientation: str) -> list[tuple]:
+    """The grid inset's legend lines: its orientation ("north up", as the frame, or "heading
+    up": the inset then turns with the ego) and its colours."""
+    up = orientation.replace("_", " ")
+    return [(f"sensor grid ({up}):", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
 
 
 def _width(lines) -> int:
@@ -176,4 +184,10 @@ def annotate_env_frame(env, frame: np.ndarray, info: dict, label: str | None,
     renderer = u.renderer
     timed_out = u.world is not None and u.world.time >= u.time_limit - 1e-9  # (as step says)
     caption = Caption.from_info(info, label, fitness, timed_out, stopped)
-    return annotate(frame, caption, renderer.scale, renderer.view.inset_size)
+    return annotate(
+        frame,
+        caption,
+        renderer.scale,
+        renderer.view.inset_size,
+        orientation=u.cfg.sensor.orientation,
+    )

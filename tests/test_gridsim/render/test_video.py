@@ -116,6 +116,22 @@ def test_the_grid_inset_outlines_the_ego_where_the_grid_has_it():
     assert np.ptp(cols) > np.ptp(rows)  # the seamless ego starts heading east: lying flat
 
 
+def test_the_inset_legend_says_a_heading_up_grid_turns_with_the_ego(monkeypatch):
+    """A heading-up grid's inset points the ego up while the frame is north up: nothing said
+    so. The legend says the grid's orientation, and the frames of such a scenario use it."""
+    from gridsim.render import annotations
+
+    assert annotations.inset_legend("north_up")[0][0] == "sensor grid (north up):"
+    assert annotations.inset_legend("heading_up")[0][0] == "sensor grid (heading up):"
+    said = []
+    real = annotations.inset_legend
+    monkeypatch.setattr(annotations, "inset_legend", lambda o: said.append(o) or real(o))
+    env = gym.make(ENV_ID, render_mode="rgb_array", sensor={"orientation": "heading_up"})
+    _, info = env.reset(seed=0)
+    annotations.annotate_env_frame(env, env.render(), info, None, np.zeros(3))
+    assert said == ["heading_up"]
+
+
 def test_render_returns_frames_with_grid_inset_and_setpoints():
     env = gym.make(ENV_ID, render_mode="rgb_array")
     obs, info = env.reset(seed=0)
