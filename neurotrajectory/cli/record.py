@@ -60,7 +60,7 @@ def add_parser(sub) -> None:
 def execute(args: argparse.Namespace) -> int:
     from gridsim.outputs import progress_bar
     from neurotrajectory.data.recording import record_dataset
-    from neurotrajectory.data.windows import bar_callbacks, check_group
+    from neurotrajectory.data.windows import bar_callbacks, check_group, early_note
 
     if args.group is not None:
         raise RunError(f"record --group {args.group}: the dataset's group name is --name now "
@@ -94,6 +94,8 @@ def execute(args: argparse.Namespace) -> int:
                 bar.close()  # (not drawn again below the message)
                 print(_kept(partial), file=sys.stderr)
             raise
+    if manifest.get("ended_early"):
+        print(f"neurotrajectory: {early_note(manifest['ended_early'])}", file=sys.stderr)
     print(
         json.dumps(
             {
@@ -102,6 +104,7 @@ def execute(args: argparse.Namespace) -> int:
                 "tracks": tracks,
                 "group": manifest["group"],
                 "source": manifest["source"],
+                **({"ended_early": manifest["ended_early"]} if "ended_early" in manifest else {}),
                 # (a scripted pipeline sees here what the warning said: files left out)
                 **(
                     {"skipped": [s["file"] for s in manifest["skipped"]]}

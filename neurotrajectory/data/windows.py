@@ -343,13 +343,15 @@ def iter_windows(
     policy=None,
     progress: Callable[[int], None] | None = None,
     labels: str = "rejoin",
+    endings: dict | None = None,
 ) -> Iterator[Windows | None]:
     """The windows of each episode of ``episodes`` of ``scenario`` in turn (None for an
     episode that gives none), one every ``stride`` decisions while the reference covers the
     whole horizon. The ego drives the reference, or follows ``policy`` (a trajectory-action
     policy ``(env, obs, info) -> set-points``), as in DAgger; the label is the reference's
     next set-points from the ego's pose, with a policy as ``labels`` says
-    (:data:`DAGGER_LABELS`). ``progress(1)`` after each episode."""
+    (:data:`DAGGER_LABELS`). ``progress(1)`` after each episode; ``endings`` counts the
+    episodes that end early (:func:`_episode_windows`)."""
     if stride < 1:
         raise DatasetError(f"stride must be >= 1, got {stride}")
     if labels not in DAGGER_LABELS:
@@ -368,7 +370,8 @@ def iter_windows(
             if wanted != key:
                 env = None  # (released before the next is built)
                 env, key = GridSimEnv(scenario, **episode.overrides), wanted
-            windows = _episode_windows(env, episode.seed, stride, episode.track, policy, labels)
+            windows = _episode_windows(env, episode.seed, stride, episode.track, policy, labels,
+                                       endings)  # fmt: skip
         if progress:
             progress(1)
         yield windows
@@ -396,13 +399,32 @@ class _WindowTaker:
         self.decisions += 1
         return self.policy(env, obs, info)
 
+    def missed(self, env: GridSimEnv) -> int:
+        """The windows the episode would still have given from now on, had it not ended."""
+        period, horizon = env.cfg.env.decision_period, env.cfg.env.setpoint_times[-1]
+        t, k, count = env.world.time, self.decisions, 0
+        while t + horizon <= self.end + 1e-6:
+            count += k % self.stride == 0
+            t, k = t + period, k + 1
+        return count
+
+
+#: What ends an episode before its reference does (``Episode.ended_by``): the windows the
+#: rest of the reference would have given are not taken (counted in ``endings``).
+EARLY_ENDINGS = ("collision", "off road", "destination reached")
+
 
 def _episode_windows(
-    env: GridSimEnv, seed: int, stride: int, track: str, policy=None, labels: str = "rejoin"
-) -> Windows | None:
-    """One episode of :func:`drive_windows`."""
+    env: GridSimEnv, seed: int, stride: int, track: str, policy=None, labels: str = "rejoin",
+    endings: dict | None = None,
+) -> Windows | None:  # fmt: skip
+    """One episode of :func:`drive_windows`; an episode that ends early (:data:`EARLY_ENDINGS`)
+    is counted in ``endings`` (by how it ended, and the windows not taken)."""
     taker = _WindowTaker(stride, policy or Reference(), policy is not None and labels == "rejoin")
-    run_episode(env, taker, seed=seed, on_reset=taker.reset)
+    episode = run_episode(env, taker, seed=seed, on_reset=taker.reset)
+    if endings is not None and episode.ended_by in EARLY_ENDINGS:
+        endings[episode.ended_by] = endings.get(episode.ended_by, 0) + 1
+        endings["windows_not_taken"] = endings.get("windows_not_taken", 0) + taker.missed(env)
     rows, times, p = taker.rows, env.cfg.env.setpoint_times, env.world.ego_params
     if not rows:
         return None
@@ -470,12 +492,16 @@ def _record_scenario_into(
     planned: Callable[[int], None] | None,
     resume: tuple[int, int] = (0, 0),
     recorded: Callable[[int, int], None] | None = None,
+    endings: dict | None = None,
 ) -> dict:
     """:func:`record_scenario`, each episode's windows given to ``sink.add`` as they come;
     returns the provenance. ``resume`` ``(episode, windows)``: the episodes before
     ``episode``, which gave ``windows`` windows, were recorded before (by an interrupted
     :func:`~neurotrajectory.data.recording.record_dataset`); ``recorded(next episode,
-    windows so far)`` after each episode."""
+    windows so far)`` after each episode. ``endings``: the episodes ended early so far (those
+    before ``resume``), counted on (:func:`_episode_windows`); in the provenance's
+    ``ended_early`` when there are any."""
+    endings = {} if endings is None else endings
     plan, source = scenario_episodes(scenario, episodes, seed, duration, seeds,
                                      goal_seconds=goal_seconds)  # fmt: skip
     first, count = resume
@@ -483,7 +509,7 @@ def _record_scenario_into(
         planned(len(plan))
     if first and progress is not None:  # gone on with part-way: the bar counts those done
         progress(first)
-    driven = iter_windows(scenario, plan[first:], stride, progress=progress)
+    driven = iter_windows(scenario, plan[first:], stride, progress=progress, endings=endings)
     for k, windows in enumerate(driven, first + 1):
         if windows is not None:
             sink.add(windows)
@@ -500,7 +526,8 @@ def _record_scenario_into(
             "sensor": {"rows": cfg.sensor.rows, "cols": cfg.sensor.cols,
                        "cell_size": cfg.sensor.cell_size, "orientation": cfg.sensor.orientation},
             "vehicle": cfg.ego.vehicle.model_dump(),
-            **({"goal_seconds": goal} if goal is not None else {})}  # fmt: skip
+            **({"goal_seconds": goal} if goal is not None else {}),
+            **({"ended_early": dict(endings)} if endings else {})}  # fmt: skip
 
 
 class _Collected:
@@ -627,6 +654,8 @@ class GroupProgress:
     #: on where it was; they differ for a file that failed)
     episodes_planned: int = 0
     episodes_done: int = 0
+    #: the episodes of the scenario under way that ended early (see :func:`_episode_windows`)
+    endings: dict = field(default_factory=dict)
 
 
 def record_group_into(
@@ -677,7 +706,8 @@ def record_group_into(
         try:
             meta = _record_scenario_into(sink, scenario, episodes, seed, s, duration, progress,
                                          None, goal_seconds, planned_file,
-                                         (state.episode, state.windows), episode_done)  # fmt: skip
+                                         (state.episode, state.windows), episode_done,
+                                         state.endings)  # fmt: skip
         except GridSimError as exc:
             sink.rollback(state.mark)
             if len(scenarios) == 1:
@@ -690,6 +720,7 @@ def record_group_into(
         state.episodes_planned += plan[0]
         state.episodes_done += state.episode
         state.scenario, state.episode, state.windows, state.mark = i + 1, 0, 0, None
+        state.endings = {}
         if recorded is not None:
             recorded(True)
     metas, skipped = state.metas, [(Path(f), reason) for f, reason in state.skipped]
@@ -710,9 +741,33 @@ def record_group_into(
         **{k: first[k] for k in same},
         **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),
         "scenarios": metas,
+        **({"ended_early": ended_early(metas)} if ended_early(metas) else {}),
         **({"skipped": [{"file": str(f), "reason": r} for f, r in unused]} if unused else {}),
         "versions": package_versions(),
     }
+
+
+def ended_early(metas: list[dict]) -> dict[str, int]:
+    """The episodes of the scenarios ``metas`` (their provenance) that ended early, summed
+    by how they ended, and the windows not taken."""
+    total: dict[str, int] = {}
+    for meta in metas:
+        for key, n in meta.get("ended_early", {}).items():
+            total[key] = total.get(key, 0) + n
+    return total
+
+
+def early_note(early: dict[str, int]) -> str:
+    """What :func:`ended_early`'s counts mean, for a user."""
+    kinds = ", ".join(f"{early[k]} {k}" for k in EARLY_ENDINGS if early.get(k))
+    episodes = sum(early.get(k, 0) for k in EARLY_ENDINGS)
+    return (
+        f"{episodes} episode(s) ended before their reference did ({kinds}): the "
+        f"{early.get('windows_not_taken', 0)} window(s) the rest would have given were not "
+        "taken (with the ego driving the human's own track, a collision or leaving the "
+        "road is the recording's; the destination is reached where the human stands "
+        "near its end; manifest.json: ended_early)"
+    )
 
 
 def _library_files_skipped(scenarios: list[str]) -> list[tuple[Path, str]]:

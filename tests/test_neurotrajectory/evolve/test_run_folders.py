@@ -408,6 +408,43 @@ def test_record_interrupted_goes_on_when_run_again(tmp_path, monkeypatch, capsys
     assert {k: whole[k] for k in same} == {k: part[k] for k in same}
 
 
+def test_record_counts_the_windows_of_episodes_that_end_early(tmp_path, monkeypatch, capsys):
+    """An episode that ended before its reference (a collision, off the road, the destination
+    reached where a human crawls near its end) gave no more windows, and nothing said so:
+    on US-101 (4_1) 16 of 17 episodes end by reaching the destination, 167 windows of 773
+    not taken. ``record`` says how many and why (manifest and summary), every window is
+    either recorded or counted, and an interrupted recording goes on with the count."""
+    from gridsim.envs.gridsim_env import GridSimEnv
+    from neurotrajectory.data import recording, windows
+
+    argv = ["record", "--scenario", "us101_4_1", "--quiet", "--out"]
+    assert main([*argv, str(tmp_path / "whole")]) == 0
+    out, err = capsys.readouterr()
+    early = json.loads(out)["ended_early"]
+    assert early["destination reached"] >= 10 and early["windows_not_taken"] > 100
+    assert "episode(s) ended before their reference did (" in err
+    whole = json.loads((tmp_path / "whole" / "manifest.json").read_text())
+    assert whole["ended_early"] == whole["scenarios"][0]["ended_early"] == early
+    # every window of every track's reference, recorded or counted as not taken
+    plan, _ = windows.scenario_episodes("us101_4_1", 1, 0, None, None)
+    possible = 0
+    for episode in plan:
+        env = GridSimEnv("us101_4_1", **episode.overrides)
+        env.reset(seed=episode.seed)
+        end, horizon = env.reference.end_time, env.cfg.env.setpoint_times[-1]
+        possible += int(np.floor((end - horizon) / env.cfg.env.decision_period + 1e-6)) + 1
+    assert whole["count"] + early["windows_not_taken"] == possible
+    # interrupted after some episodes ended early: the count goes on
+    monkeypatch.setattr(recording, "CHECKPOINT_SECONDS", 0.0)
+    drive = windows._episode_windows
+    ctrl_c_at(monkeypatch, windows, "_episode_windows", 12)
+    assert main([*argv, str(tmp_path / "ds")]) == 130
+    monkeypatch.setattr(windows, "_episode_windows", drive)
+    assert main([*argv, str(tmp_path / "ds")]) == 0
+    part = json.loads((tmp_path / "ds" / "manifest.json").read_text())
+    assert part["ended_early"] == early and part["count"] == whole["count"]
+
+
 def test_a_warm_start_interrupted_goes_on_from_its_batch(tmp_path, monkeypatch, capsys):
     """A warm start can fit for many minutes on a large dataset: a real Ctrl-C (SIGINT) inside
     a batch of the first epoch waits for the batch's end, keeps the fit as far as it got, and
