@@ -54,6 +54,7 @@ class NetPredictor:
 def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[TrajectoryNet]]:
     """The run, its front's fitness ``(M, 3)`` and genomes, and one network per member."""
     run = Run.open(run_dir)
+    run.warn_changed_inputs()
     path = run.out / "front.npz"
     if not path.exists():
         raise RunError(f"{run.out}: no front.npz (the run has not finished, or the file was "

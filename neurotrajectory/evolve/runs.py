@@ -645,13 +645,7 @@ class Run:
                           "again, of them as they are now")  # fmt: skip
                 self._write_inputs(files_now())
             return
-        try:
-            doc = json.loads(path.read_text())
-            kept = doc["files"]
-            if not isinstance(kept, dict):
-                raise TypeError(f"'files' is a {type(kept).__name__}, not a mapping")
-        except (OSError, ValueError, KeyError, TypeError) as exc:
-            raise RunError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
+        doc = self._inputs()
         began, code = doc.get("code"), code_digest()
         if isinstance(began, dict) and began != code:
             warn_data(f"{self.out} began with other code (gridsim {began.get('version')}, "
@@ -659,12 +653,42 @@ class Run:
                       f"{code['sources']}): its next generations are trained by the code of "
                       "now, so its result is that of neither code's run from the start (resume "
                       "it with the code it began with to get that)")  # fmt: skip
-        what = input_changes(kept, files_now())
+        what = input_changes(doc["files"], files_now())
         if what:
             raise RunError(f"{self.out}: the files of --scenario {self.config.scenario} are not "
                            f"those the run began with ({what}): its next generations would "
                            "train on other data. Restore them, or start a new run with "
                            "another --out")  # fmt: skip
+
+    def _inputs(self) -> dict:
+        """:data:`INPUTS_FILE`, read and checked."""
+        path = self.out / INPUTS_FILE
+        try:
+            doc = json.loads(path.read_text())
+            kept = doc["files"]
+            if not isinstance(kept, dict):
+                raise TypeError(f"'files' is a {type(kept).__name__}, not a mapping")
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise RunError(f"{path}: unreadable ({type(exc).__name__}: {exc})") from None
+        return doc
+
+    def warn_changed_inputs(self) -> None:
+        """A warning when the files the run's scenario is read from changed since it began:
+        its members are then driven (held-out episodes, videos, evaluations) on other data
+        than they trained on. Nothing when that cannot be known (no :data:`INPUTS_FILE`, a
+        scenario that does not load: driving it says why)."""
+        from gridsim.scenario.collection import input_changes, input_digest
+
+        if not (self.out / INPUTS_FILE).exists():
+            return
+        try:
+            what = input_changes(self._inputs()["files"], input_digest(self.config.scenario))
+        except (GridSimError, RunError):  # (a scenario that does not load, unreadable inputs)
+            return
+        if what:
+            warn_data(f"{self.out}: the files of its scenario {self.config.scenario} are not "
+                      f"those it trained on ({what}): its members are driven on the data of "
+                      "now, and their figures are not the run's")  # fmt: skip
 
     def completed_generations(self) -> int:
         """How many generations the checkpoint holds (0 without one)."""

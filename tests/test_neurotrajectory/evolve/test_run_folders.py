@@ -313,6 +313,14 @@ def test_a_run_resumes_only_on_the_files_it_began_with(tmp_path, capsys):
     assert (f"are not those the run began with (changed: {csv}; added: "
             f"{scenes / 'another.yaml'})" in err)  # fmt: skip
     assert "would train on other data" in err
+    # its members driven on the files of now (heldout, rollout, evaluate --run) say so
+    out = tmp_path / "heldout.json"
+    (scenes / "another.yaml").unlink()
+    assert main(["heldout", "--run", str(run), "--episodes", "1", "--seconds", "2", "--out",
+                 str(out)]) == 0  # fmt: skip
+    assert f"are not those it trained on (changed: {csv}): its members are driven on the " in (
+        capsys.readouterr().err)  # fmt: skip
+    shutil.copy(scenario, scenes / "another.yaml")
     # inputs.json deleted: nothing can be checked (the edited file trains): said, and it is
     # written again, of the files as they are now
     (run / "inputs.json").unlink()
