@@ -44,6 +44,10 @@ MOVING = 1.0
 #: The direction of travel must agree with the recorded heading within this angle [deg]
 #: (median over moving samples): headings in degrees, or another convention, do not.
 MAX_HEADING_ERROR = 45.0
+#: A heading the same at every sample is a column left unfilled (zeros, say) where the
+#: direction of travel is farther off than this [deg] (median): on a road at 43 degrees a
+#: heading of 0 passes :data:`MAX_HEADING_ERROR`.
+CONSTANT_HEADING_ERROR = 15.0
 #: Implied speeds above this [m/s] (95th percentile) are implausible for road vehicles.
 MAX_SPEED = 70.0
 #: Implied accelerations above this [m/s^2] (median; the shipped tracks' is at most 4.5,
@@ -112,6 +116,12 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
                 f"{where}: it drives {error:.0f} degrees off its recorded heading (median; at "
                 f"most {MAX_HEADING_ERROR:g}); headings must be in radians, counter-clockwise "
                 f"from +x{hint}"
+            )
+        elif error > CONSTANT_HEADING_ERROR and np.ptp(track.heading) == 0:
+            out.append(
+                f"{where}: its recorded heading is {track.heading[0]:.3g} rad at every sample "
+                f"while it drives {error:.0f} degrees off it (median); is its heading column "
+                "filled in?"
             )
     fast = float(np.percentile(implied, 95))
     if fast > MAX_SPEED:

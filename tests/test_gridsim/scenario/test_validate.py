@@ -146,6 +146,13 @@ def test_a_heading_against_the_motion_is_a_flaw():
     (problem,) = track_problems(backwards)
     assert "it drives 180 degrees off its recorded heading (median; at most 45)" in problem
     assert track_problems(track("fine", X, np.full(41, -1.75))) == []
+    # a heading column left at 0 on a road at -43 degrees passed the 45-degree test
+    angle = np.radians(-43.0)
+    diagonal = track("zeros", X * np.cos(angle), X * np.sin(angle), heading=0.0)
+    (problem,) = track_problems(diagonal)
+    assert ("its recorded heading is 0 rad at every sample while it drives 43 degrees off it "
+            "(median); is its heading column filled in?") in problem  # fmt: skip
+    assert track_problems(track("filled", X * np.cos(angle), X * np.sin(angle), angle)) == []
 
 
 def test_a_position_that_leaps_off_its_neighbours_is_a_flaw(tmp_path, capsys):
