@@ -68,6 +68,14 @@ def archive_problem(path: str | os.PathLike) -> str | None:
     return next((said for magic, said in _ARCHIVES.items() if head.startswith(magic)), None)
 
 
+def not_there(path: str | os.PathLike) -> str:
+    """``path``, and, when it is a link to nothing (an unmounted share, a moved file), where
+    the link points: a missing file's name in messages."""
+    if os.path.islink(path) and not os.path.exists(path):
+        return f"{path} (a link to {os.readlink(path)}, which is not there)"
+    return str(path)
+
+
 def flagged(flag: str, value: object, message: object) -> str:
     """``"FLAG VALUE: MESSAGE"``, an error about a command-line flag's value; where the value
     is a path that the message names already (an error about a file names it), ``"FLAG:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import DataError
+from gridsim.errors import DataError, not_there
 from gridsim.frames import MAX_COORDINATE
 from gridsim.road.base import Lane, StaticRoad
 from gridsim.road.polyline import Polyline
@@ -67,7 +67,7 @@ def commonroad_root(path: str | Path) -> dict[str, str]:
     :class:`DataError` if the file is missing, malformed or not a CommonRoad file."""
     path = Path(path)
     if not path.is_file():
-        raise DataError(f"CommonRoad file not found: {path}")
+        raise DataError(f"CommonRoad file not found: {not_there(path)}")
     try:
         with open(path, "rb") as fh:  # (iterparse closes a file it opened only at its end)
             _, root = next(ET.iterparse(fh, events=("start",)))

@@ -16,7 +16,7 @@ import numpy as np
 import yaml
 from pydantic import ValidationError
 
-from gridsim.errors import ScenarioError, archive_problem, warn_data
+from gridsim.errors import ScenarioError, archive_problem, not_there, warn_data
 from gridsim.outputs import counted
 from gridsim.scenario.family import FAMILIES, family_defaults
 from gridsim.scenario.schema import ZERO_PADDED, Scenario, ScenarioConfig, Strict
@@ -529,6 +529,8 @@ def commonroad_defaults() -> dict[str, Any]:
 def _where(path: Path) -> str:
     """``path`` as given, and where it was looked for if relative ("x.yaml (looked for as
     /home/me/x.yaml)")."""
+    if path.is_symlink():
+        return not_there(path)
     return str(path) if path.is_absolute() else f"{path} (looked for as {path.resolve()})"
 
 

@@ -91,8 +91,12 @@ RECENT_SECONDS = 2.0
 def stamped(path: Path) -> tuple:
     """A file as a cache key, so that a file edited on disk is read again: its path,
     modification and change times, size and inode, and, if it changed in the last
-    :data:`RECENT_SECONDS` (when an edit may keep the time stamps), a digest of its content."""
-    st = path.stat()
+    :data:`RECENT_SECONDS` (when an edit may keep the time stamps), a digest of its content.
+    A file that is not there (a broken link) is its path and that (reading it says why)."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        return (str(path), "not there")
     key = (str(path), st.st_mtime_ns, st.st_ctime_ns, st.st_size, st.st_ino)
     if time.time_ns() - max(st.st_mtime_ns, st.st_ctime_ns) < RECENT_SECONDS * 1e9:
         key += (hashlib.blake2b(path.read_bytes(), digest_size=16).hexdigest(),)
@@ -140,13 +144,38 @@ def _library_refs(scenario: Scenario) -> list[tuple]:
 
 def matching_files(folder_or_pattern: Path | str, suffixes: tuple[str, ...]) -> list[Path]:
     """The files whose suffix (in any case) is one of ``suffixes`` in a folder, or matching a
-    glob pattern (``**`` recursive), sorted."""
+    glob pattern (``**`` recursive), sorted; a broken link among them too (reading it then
+    says so: an unmounted share's file was left out without a word). A file named twice
+    (links to it, a ``**`` glob through a link to a folder above) is listed once, by its
+    shortest name (not a link's, if it has one), and a warning says how many names were left
+    out."""
     path = Path(folder_or_pattern)
     if path.is_dir():
         found = path.iterdir()
     else:
         found = map(Path, glob.glob(str(folder_or_pattern), recursive=True))
-    return sorted(f for f in found if f.is_file() and f.suffix.lower() in suffixes)
+    named: dict[Path, Path] = {}  # each file's shortest name (the fewest folders, not a link)
+    repeated = 0
+    for f in sorted(found, key=lambda f: (len(f.parts), f.is_symlink(), f)):
+        if f.suffix.lower() not in suffixes or not (f.is_file() or f.is_symlink()):
+            continue
+        try:
+            try:
+                real = f.resolve(strict=True)
+            except FileNotFoundError:  # a broken link: itself, in its real folder
+                real = f.parent.resolve(strict=True) / f.name
+        except (OSError, RuntimeError):  # a name through too many links (a glob in a loop)
+            real = None
+        if real is None or real in named:
+            repeated += 1
+        else:
+            named[real] = f
+    files = sorted(named.values())
+    if repeated:
+        warn_data(f"{folder_or_pattern}: {repeated} of its paths name files listed already "
+                  "(links to one file, or a '**' glob through a link to a folder above): each "
+                  "file is read once")  # fmt: skip
+    return files
 
 
 #: What a folder or glob of trajectory files in ``traffic.library`` takes.

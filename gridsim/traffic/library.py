@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import DataError, archive_problem, warn_data
+from gridsim.errors import DataError, archive_problem, not_there, warn_data
 from gridsim.outputs import atomic_text, named, short_repr
 from gridsim.traffic.commonroad import read_tracks_commonroad
 from gridsim.traffic.track import (
@@ -232,7 +232,7 @@ def read_tracks_csv(path: str | Path) -> list[Track]:
     """Parse a trajectory CSV; raise :class:`DataError` naming the file, row and column."""
     path = Path(path)
     if not path.is_file():
-        raise DataError(f"trajectory file not found: {path}")
+        raise DataError(f"trajectory file not found: {not_there(path)}")
     try:
         return _parse_tracks_csv(path)
     except UnicodeDecodeError as exc:

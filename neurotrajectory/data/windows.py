@@ -419,12 +419,14 @@ def _episode_windows(
     endings: dict | None = None,
 ) -> Windows | None:  # fmt: skip
     """One episode of :func:`drive_windows`; an episode that ends early (:data:`EARLY_ENDINGS`)
-    is counted in ``endings`` (by how it ended, and the windows not taken)."""
+    before windows it would have given is counted in ``endings`` (by how it ended, and the
+    windows not taken)."""
     taker = _WindowTaker(stride, policy or Reference(), policy is not None and labels == "rejoin")
     episode = run_episode(env, taker, seed=seed, on_reset=taker.reset)
-    if endings is not None and episode.ended_by in EARLY_ENDINGS:
+    missed = taker.missed(env) if episode.ended_by in EARLY_ENDINGS else 0
+    if endings is not None and missed:
         endings[episode.ended_by] = endings.get(episode.ended_by, 0) + 1
-        endings["windows_not_taken"] = endings.get("windows_not_taken", 0) + taker.missed(env)
+        endings["windows_not_taken"] = endings.get("windows_not_taken", 0) + missed
     rows, times, p = taker.rows, env.cfg.env.setpoint_times, env.world.ego_params
     if not rows:
         return None

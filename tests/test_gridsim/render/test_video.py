@@ -303,13 +303,13 @@ def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     regions = np.zeros_like(differs)
     regions[:90, :330] = True  # caption
     regions[h - 120 :, :200] = True  # colour legend
-    regions[h - 100 :, 140:300] = True  # the grid's legend, beside the colours'
+    regions[h - 100 :, 140:340] = True  # the grid's legend, beside the colours'
     regions[h - 45 :, w - 130 :] = True  # scale bar
     assert differs[:60, :250].mean() > 0.05 and differs[h - 90 :, :150].mean() > 0.05
     assert differs[h - 90 :, 150:280].mean() > 0.05  # the grid's legend is there
     assert differs[h - 30 :, w - 100 :].any()
     assert not differs[~regions].any()  # the picture itself is untouched
-    assert not differs[:, 300 : w - 140].any()  # the middle band, top to bottom, stays clear
+    assert not differs[:, 310 : w - 140].any()  # the middle band, top to bottom, stays clear
     wide = _frame(env, info, True, "my planner " + "x" * 50, np.array([1.5e6, 0.25, 80.0]))
     differs = np.any(plain != wide, axis=2)
     assert not differs[90:, 300 : w - 140].any() and differs[h - 90 :, 150:280].mean() > 0.05

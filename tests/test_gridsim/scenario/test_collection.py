@@ -36,6 +36,25 @@ def test_folder_and_glob_list_their_scenario_files(folder):
         scenario_files(folder / "empty")
 
 
+def test_links_name_each_file_once_and_a_broken_link_is_said(folder, capsys):
+    """A '**' glob through a link to a folder above listed every file once per level (84
+    copies of a dataset were recorded); two links to one file counted it twice; a broken link
+    (an unmounted share) was left out without a word. Each file is listed once, by its
+    shortest name, saying how many names were left out; a broken link is listed, and loading
+    it says where it points."""
+    (folder / "loop").symlink_to(folder)
+    (folder / "again.xml").symlink_to(folder / "straight_2018b.xml")
+    (folder / "broken.xml").symlink_to(folder / "unmounted" / "scene.xml")
+    with pytest.warns(DataWarning, match=r"of its paths name files listed already"):
+        files = scenario_files(str(folder / "**" / "*.xml"))
+    assert [f.relative_to(folder).as_posix() for f in files] == [
+        "broken.xml", "straight_2018b.xml", "straight_2020a.xml"]  # fmt: skip
+    assert main(["scenarios", str(folder)]) == 1
+    out = capsys.readouterr().out
+    assert "broken.xml: does not load: scenario file not found" in out
+    assert str(folder / "unmounted" / "scene.xml") in out
+
+
 def test_a_comma_separated_list_is_a_collection_in_its_order(folder):
     """Built-in names, files and globs mix in a list; an empty or repeated item is refused."""
     xml = folder / "straight_2020a.xml"

@@ -419,7 +419,7 @@ def test_record_interrupted_goes_on_when_run_again(tmp_path, monkeypatch, capsys
 def test_record_counts_the_windows_of_episodes_that_end_early(tmp_path, monkeypatch, capsys):
     """An episode that ended before its reference (a collision, off the road, the destination
     reached where a human crawls near its end) gave no more windows, and nothing said so:
-    on US-101 (4_1) 16 of 17 episodes end by reaching the destination, 167 windows of 773
+    on US-101 (4_1) 5 of 17 episodes reach the destination seconds early, 167 windows of 773
     not taken. ``record`` says how many and why (manifest and summary), every window is
     either recorded or counted, and an interrupted recording goes on with the count."""
     from gridsim.envs.gridsim_env import GridSimEnv
@@ -429,7 +429,7 @@ def test_record_counts_the_windows_of_episodes_that_end_early(tmp_path, monkeypa
     assert main([*argv, str(tmp_path / "whole")]) == 0
     out, err = capsys.readouterr()
     early = json.loads(out)["ended_early"]
-    assert early["destination reached"] >= 10 and early["windows_not_taken"] > 100
+    assert early["destination reached"] >= 3 and early["windows_not_taken"] > 100
     assert "episode(s) ended before their reference did (" in err
     whole = json.loads((tmp_path / "whole" / "manifest.json").read_text())
     assert whole["ended_early"] == whole["scenarios"][0]["ended_early"] == early
