@@ -312,7 +312,7 @@ def test_videos_are_annotated_unless_asked_not_to(tmp_path):
     assert not differs[:, 310 : w - 140].any()  # the middle band, top to bottom, stays clear
     wide = _frame(env, info, True, "my planner " + "x" * 50, np.array([1.5e6, 0.25, 80.0]))
     differs = np.any(plain != wide, axis=2)
-    assert not differs[90:, 300 : w - 140].any() and differs[h - 90 :, 150:280].mean() > 0.05
+    assert not differs[90:, 310 : w - 140].any() and differs[h - 90 :, 150:280].mean() > 0.05
     lines = Caption.from_info(info, "my planner", np.array([1.5, 0.25, 80.0])).lines()
     assert lines == ["my planner", "t   0.0 s    speed  8.0 m/s",
                      "fitness so far, each summed over the ticks:",
