@@ -363,6 +363,12 @@ def write_text(path: str | Path, text: str) -> Path:
     return atomic_write(path, lambda tmp: Path(tmp).write_text(text))
 
 
+def summary_text(data: Any, indent: int = 2) -> str:
+    """A command's summary as the JSON it prints: paths and names as written (``ü``, not
+    ``\\u00fc``, which a user copying a path would get)."""
+    return json.dumps(data, indent=indent, ensure_ascii=False)
+
+
 def write_json(path: str | Path, data: Any, indent: int = 1) -> Path:
     """Write ``data`` as JSON to ``path`` atomically."""
     return write_text(path, json.dumps(data, indent=indent))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -11,7 +10,14 @@ import numpy as np
 
 from gridsim.cli.flags import quiet_flag, scenario_flag, seed_flag
 from gridsim.errors import GridSimError, OutputError
-from gridsim.outputs import new_folder, new_folder_problem, rounded, write_json, write_npz
+from gridsim.outputs import (
+    new_folder,
+    new_folder_problem,
+    rounded,
+    summary_text,
+    write_json,
+    write_npz,
+)
 
 
 def add_parser(sub) -> None:
@@ -32,7 +38,7 @@ def execute(args: argparse.Namespace) -> int:
         print(f"gridsim: drove {summary['simulated_s']:g} s, not {args.seconds:g}: the recording "
               f"of ego track {summary['ego_track']} ends there (its traffic and map end with "
               "it)", file=sys.stderr)  # fmt: skip
-    print(json.dumps(rounded(summary), indent=2))
+    print(summary_text(rounded(summary)))
     return 0
 
 

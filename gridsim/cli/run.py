@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
 import warnings
 
 from gridsim.cli.flags import at_least, overlay_flag, quiet_flag, scenario_flag, seed_flag
 from gridsim.errors import GridSimError
-from gridsim.outputs import rounded
+from gridsim.outputs import rounded, summary_text
 from gridsim.policies import POLICIES
 from gridsim.scenario.family import is_recorded
 
@@ -39,7 +38,7 @@ def execute(args: argparse.Namespace) -> int:
         args.scenario, args.policy, args.steps, args.seed, video=args.video,
         progress=not args.quiet, overlay=args.overlay, track=args.track,
     )  # fmt: skip
-    print(json.dumps(rounded(summary), indent=2))
+    print(summary_text(rounded(summary)))
     return 0
 
 

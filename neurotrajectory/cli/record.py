@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 import sys
 from pathlib import Path
 
 from gridsim.cli.flags import at_least, quiet_flag, seed_flag
-from gridsim.outputs import interrupted, new_folder
+from gridsim.outputs import interrupted, new_folder, summary_text
 from neurotrajectory.cli.flags import goal_flag, settings_flag
 from neurotrajectory.compare.evaluation import EvalConfig
 from neurotrajectory.data.recording import CHECKPOINT_SECONDS, checkpoint_windows
@@ -97,7 +96,7 @@ def execute(args: argparse.Namespace) -> int:
     if manifest.get("ended_early"):
         print(f"neurotrajectory: {early_note(manifest['ended_early'])}", file=sys.stderr)
     print(
-        json.dumps(
+        summary_text(
             {
                 "out": str(Path(args.out)),
                 "windows": manifest["count"],

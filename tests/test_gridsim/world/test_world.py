@@ -82,7 +82,7 @@ def test_traffic_count_is_kept_on_the_endless_road():
 
 
 def test_drive_command_writes_outputs(tmp_path, capsys):
-    out = tmp_path / "drive"
+    out = tmp_path / "drive ü"  # (printed as written, not as "\\u00fc")
     assert (
         main(["drive", "--scenario", "inner_city", "--seconds", "3", "--out", str(out), "--quiet"])
         == 0
@@ -93,7 +93,8 @@ def test_drive_command_writes_outputs(tmp_path, capsys):
     assert data["grids"].shape == (30, 128, 128) and data["grids"].dtype == np.uint8
     assert data["times"].tolist() == [round(0.1 * (k + 1), 9) for k in range(30)]  # as info's
     assert (out / "topdown.png").stat().st_size > 1000
-    assert json.loads(capsys.readouterr().out)["scenario"] == "inner_city"
+    printed = capsys.readouterr().out
+    assert json.loads(printed)["scenario"] == "inner_city" and "drive ü" in printed
     assert summary["outputs"] == sorted(p.name for p in out.iterdir())  # itself included
     assert summary["out"] == str(out.absolute())  # (it named the temporary folder, renamed)
 
