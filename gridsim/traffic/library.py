@@ -20,6 +20,7 @@ from gridsim.errors import DataError, archive_problem, not_there, warn_data
 from gridsim.outputs import atomic_text, named, short_repr
 from gridsim.traffic.commonroad import read_tracks_commonroad
 from gridsim.traffic.track import (
+    MAX_SPEED,
     Track,
     impossible_note,
     listed,
@@ -325,10 +326,12 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
                                 f"values{_same_time_hint(a[k], a[k + 1])}")  # fmt: skip
             repeated.append((int(np.count_nonzero(again)), int(rows_at[1:][again][0])))
             a = a[np.concatenate(([True], ~again))]  # rows given twice: read once
-        if np.any(np.ptp(a[:, 5:7], axis=0) > 0.1 * a[0, 5:7]):  # a size is the first row's
-            resized.append(f"{tid} ({a[:, 5].min():g}-{a[:, 5].max():g} x "
-                           f"{a[:, 6].min():g}-{a[:, 6].max():g} m)")  # fmt: skip
         pieces = _pieces(a)
+        for p in pieces:  # (each a vehicle) its size is its first row's
+            if np.any(np.ptp(p[:, 5:7], axis=0) > 0.1 * p[0, 5:7]):
+                resized.append(f"{tid} ({p[:, 5].min():g}-{p[:, 5].max():g} x "
+                               f"{p[:, 6].min():g}-{p[:, 6].max():g} m)")  # fmt: skip
+                break
         if len(pieces) > 1:
             split.append((tid, [float(p[0, 0]) for p in pieces[1:]]))
         mine, ones, bad = _piece_tracks(sid, tid, pieces, index, [str(path)] * len(pieces))
@@ -534,7 +537,8 @@ VELOCITY_SPAN = 0.5
 
 def _pieces(a: np.ndarray) -> list[np.ndarray]:
     """A track's rows (sorted by time) cut where time pauses (:data:`SPLIT_GAP`), or pauses
-    less and the vehicle reappears elsewhere (:data:`SHORT_PAUSE`)."""
+    less and the vehicle reappears elsewhere (:data:`SHORT_PAUSE`), or where, without a
+    pause, it moves on from somewhere no vehicle could reach (:func:`_handed_over`)."""
     dt = np.diff(a[:, 0])
     if not len(dt):
         return [a]
@@ -542,8 +546,25 @@ def _pieces(a: np.ndarray) -> list[np.ndarray]:
     long = dt > max(SPLIT_GAP, 10.0 * usual)
     short = np.flatnonzero(~long & (dt > max(SHORT_PAUSE, 3.0 * usual)))
     jumps = [k for k in short.tolist() if _reappears_elsewhere(a[:, 0], a[:, 1:3], k)]
+    jumps += _handed_over(a[:, 0], a[:, 1:3])
     cuts = np.union1d(np.flatnonzero(long), np.array(jumps, dtype=np.int64)) + 1
     return np.split(a, cuts) if len(cuts) else [a]
+
+
+def _handed_over(t: np.ndarray, xy: np.ndarray) -> list[int]:
+    """The steps ``k`` (rows ``k`` to ``k + 1``) across which an id passes to another vehicle
+    without a pause: a move faster than :data:`~gridsim.traffic.track.MAX_SPEED` that neither
+    row undoes (from row ``k - 1`` and to row ``k + 2`` it is as fast: not a one-row spike,
+    which the glitch check names)."""
+
+    def fast(i: np.ndarray, j: np.ndarray) -> np.ndarray:
+        return np.hypot(*(xy[j] - xy[i]).T) > MAX_SPEED * (t[j] - t[i])
+
+    k = np.arange(len(t) - 1)
+    out = fast(k, k + 1)
+    out[1:] &= fast(k[1:] - 1, k[1:] + 1)
+    out[:-1] &= fast(k[:-1], k[:-1] + 2)
+    return np.flatnonzero(out).tolist()
 
 
 def _reappears_elsewhere(t: np.ndarray, xy: np.ndarray, k: int) -> bool:
@@ -586,8 +607,9 @@ def _warn_tracks(path: Path, split: list, single: list, resized: list,
         cuts = [f"{tid} at t = {', '.join(f'{t:g}' for t in times)} s" for tid, times in split]
         parts.append(
             f"{len(split)} track id(s) pause more than {SPLIT_GAP:g} s (or {SHORT_PAUSE:g} s and "
-            f"come back elsewhere than their motion takes them) and go on as another vehicle "
-            f"(a reused id?), split into ID, ID#2, ...: {named(cuts, sep='; ')}"
+            f"come back elsewhere than their motion takes them, or jump farther than a "
+            f"vehicle drives) and go on as another vehicle (a reused id?), split into ID, "
+            f"ID#2, ...: {named(cuts, sep='; ')}"
         )
     if single:
         parts.append(f"{len(single)} track(s) with a single state left out (at least 2 are "

@@ -1219,6 +1219,28 @@ def test_a_reused_id_after_a_short_pause_is_split_where_it_reappears_elsewhere()
     assert len(_pieces(track(dropped, noisy, speed))) == 1  # (single steps: 4 m/s off)
 
 
+def test_an_id_handed_to_another_vehicle_without_a_pause_is_split_there(tmp_path):
+    """An id that passes to a vehicle 53 m away from one sample to the next (no pause) was one
+    track jumping at 536 m/s: left out as impossible, with the vehicles of both halves. It is
+    split there into two vehicles (each its own size); a one-row spike is not (the glitch
+    check names it)."""
+    from gridsim.errors import DataWarning
+    from gridsim.traffic.library import _pieces
+
+    first = [f"s,373,{t:.1f},{10 * t:.1f},0,0,10,4.5,1.8" for t in np.arange(0, 0.75, 0.1)]
+    second = [f"s,373,{t:.1f},{60 + 10 * t:.1f},3.5,0,10,5.2,2.4" for t in np.arange(0.8, 3, 0.1)]
+    with pytest.warns(DataWarning) as caught:
+        tracks = read_tracks_csv(write_csv(tmp_path, first + second))
+    assert [(t.track_id, t.length) for t in tracks] == [("373", 4.5), ("373#2", 5.2)]
+    message = str(caught[0].message)
+    assert "or jump farther than a vehicle drives) and go on as another vehicle" in message
+    assert "373 at t = 0.8 s" in message and "change size" not in message
+    a = np.zeros((30, 7))
+    a[:, 0], a[:, 1], a[:, 5], a[:, 6] = 0.1 * np.arange(30), 2.0 * np.arange(30), 4.5, 1.8
+    a[12, 2] = 40.0  # one row 40 m off, then back
+    assert len(_pieces(a)) == 1
+
+
 def test_a_reused_id_is_split_and_single_states_are_left_out(tmp_path):
     """NGSIM reuses vehicle ids: a track that pauses 15 s and goes on elsewhere is two
     vehicles (468, 468#2), not one driving a ghost path through the gap; a track with one
