@@ -277,7 +277,9 @@ def learning_curve(
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(name, fontsize=9, pad=10)
-    fig.suptitle("learning curve: on the validation episodes (none trained on)", fontsize=10)
+    fig.suptitle("learning curve: on the validation episodes (none trained on); the final "
+                 "front is sorted again on them, of the last generation's members and the best "
+                 "of these points (train's table, front.json)", fontsize=9)  # fmt: skip
     _legend_below(fig, axes[0], 3, 0.08)
     return _save(fig, path)
 
