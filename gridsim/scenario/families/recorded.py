@@ -237,16 +237,28 @@ def checked_ego_tracks(scenario: Scenario, tracks, wanted: str | list[str],
         if wanted not in have:
             ids = ", ".join(t.track_id for t in tracks)
             raise ScenarioError(
-                f"{scenario.source}: ego.track {wanted!r} is not in scene {scene!r}; tracks: {ids}"
+                f"{scenario.source}: ego.track {wanted!r} is not in scene {scene!r}; tracks: "
+                f"{ids}{_float_id_hint([wanted], have)}"
             )
         return [wanted]
     missing = sorted(set(wanted) - have)
     if missing:
         raise ScenarioError(
             f"{scenario.source}: ego.track lists {len(missing)} track(s) not in scene "
-            f"{scene!r}: {', '.join(missing[:10])}"
+            f"{scene!r}: {', '.join(missing[:10])}{_float_id_hint(missing, have)}"
         )
     return list(wanted)
+
+
+def _float_id_hint(missing: list[str], have: set[str]) -> str:
+    """A hint when the ids ``missing`` are in ``have`` as floats ("381" as "381.0": a track
+    file whose id column was saved as floats, by a spreadsheet or pandas)."""
+    if all(f"{m}.0" in have for m in missing):
+        return (
+            f" (the file's ids are floats: {missing[0]!r} is there as '{missing[0]}.0'; "
+            "write its id column as integers, or name the tracks as the file does)"
+        )
+    return ""
 
 
 def ego_track_ids(scenario: Scenario, scene: str | None = None) -> str | list[str]:

@@ -207,6 +207,25 @@ def test_overrides_are_merged_and_validated():
         load_scenario("seamless", {"traffic": {"participant": 3}})
 
 
+def test_track_ids_saved_as_floats_are_named_as_such():
+    """A track file whose id column a spreadsheet saved as floats ("381.0"): ego.track 381
+    was "not in scene" beside a list of 381.0, 383.0, ... with no word why."""
+    from types import SimpleNamespace
+
+    from gridsim.scenario.families.recorded import checked_ego_tracks
+
+    scenario = SimpleNamespace(source="x.yaml")
+    tracks = [SimpleNamespace(track_id=f"{i}.0") for i in (373, 381, 383)]
+    hint = "(the file's ids are floats: '381' is there as '381.0'; write its id column as"
+    for wanted in ("381", ["381", "383"]):
+        with pytest.raises(ScenarioError) as info:
+            checked_ego_tracks(scenario, tracks, wanted, "scene")
+        assert hint in str(info.value)
+    with pytest.raises(ScenarioError) as info:
+        checked_ego_tracks(scenario, tracks, "999", "scene")
+    assert "floats" not in str(info.value)
+
+
 def test_bad_references_are_reported(tmp_path):
     doc = yaml.safe_load(open_builtin("us101_3_3"))
     doc["road"]["map"] = "builtin:USA_nowhere"
