@@ -136,10 +136,16 @@ def track_data_problem(track: Track) -> str | None:
         k = int(bad[0])
         return (f"{state(k + 1)}: jumps {step[k]:.6g} m in {t[k + 1] - t[k]:.6g} s "
                 f"({implied[k]:.6g} m/s; no vehicle is faster than {MAX_SPEED:g} m/s)")  # fmt: skip
-    for name, value, most in (("length", track.length, MAX_SIZE[0]),
-                              ("width", track.width, MAX_SIZE[1])):  # fmt: skip
+    sizes = (
+        ("length", track.length, MAX_SIZE[0], (1.0, 25.0)),
+        ("width", track.width, MAX_SIZE[1], (0.5, 5.0)),
+    )  # (and a vehicle's usual)
+    for name, value, most, (lo, hi) in sizes:
         if not 0 < value <= most:
-            return f"{name} {value!r} m is outside (0, {most:g}]"
+            # a vehicle's size [m] read in centimetres or millimetres: said so
+            unit = next((f" (in {u}? {value / k:g} m)" for u, k in (("cm", 100.0), ("mm", 1e3))
+                         if lo <= value / k <= hi), "")  # fmt: skip
+            return f"{name} {value!r} m is outside (0, {most:g}]{unit}"
     return None
 
 

@@ -1219,6 +1219,19 @@ def test_a_reused_id_after_a_short_pause_is_split_where_it_reappears_elsewhere()
     assert len(_pieces(track(dropped, noisy, speed))) == 1  # (single steps: 4 m/s off)
 
 
+def test_sizes_in_centimetres_or_millimetres_are_named():
+    """A length of 472.44 "m" (centimetres) was "outside (0, 50]" with no word of units."""
+    t = np.arange(0, 2, 0.1)
+    for length, width, said in ((472.44, 1.8, "length 472.44 m is outside (0, 50] (in cm? "
+                                 "4.7244 m)"), (4500.0, 1.8, "length 4500.0 m is outside (0, 50] "
+                                 "(in mm? 4.5 m)"),
+                                (4.5, 1800.0, "width 1800.0 m is outside (0, 10] (in mm? 1.8 m)"),
+                                (60.0, 1.8, "length 60.0 m is outside (0, 50]")):  # fmt: skip
+        with pytest.raises(DataError) as info:
+            Track("s", "1", t, 10 * t, 0 * t, 0 * t, 10 + 0 * t, length, width)
+        assert str(info.value).endswith(said)
+
+
 def test_an_id_handed_to_another_vehicle_without_a_pause_is_split_there(tmp_path):
     """An id that passes to a vehicle 53 m away from one sample to the next (no pause) was one
     track jumping at 536 m/s: left out as impossible, with the vehicles of both halves. It is
