@@ -20,7 +20,11 @@ from gridsim.road.polyline import Polyline
 from gridsim.scenario.checks import SceneReport, feet_hint, library_report
 from gridsim.scenario.family import is_recorded
 from gridsim.scenario.schema import MAX_WHEELBASE_SHARE, Scenario, VehicleConfig
-from gridsim.traffic.library import TrajectoryLibrary
+from gridsim.traffic.library import (
+    TrajectoryLibrary,
+    read_library_file,
+    single_states_notes,
+)
 from gridsim.traffic.sources import SpeedBounds
 from gridsim.traffic.track import Track
 from gridsim.vehicle.kinematics import BicycleParams
@@ -221,7 +225,7 @@ def _library(files: tuple) -> TrajectoryLibrary:
     """The tracks of :func:`_library_files`: a file found in a folder or glob that cannot be
     read is skipped, all of them named in one :class:`~gridsim.errors.DataWarning` (as a
     collection skips its unusable scenario files); a file named on its own is refused."""
-    tracks, skipped, notes = [], [], []
+    tracks, skipped, notes, singles = [], [], [], []
     for f, found in files:
         if f == "builtin":
             tracks += TrajectoryLibrary.builtin().tracks
@@ -229,17 +233,18 @@ def _library(files: tuple) -> TrajectoryLibrary:
         try:
             with warnings.catch_warnings(record=True) as said:
                 warnings.simplefilter("always", DataWarning)
-                tracks += TrajectoryLibrary.from_files(f[0]).tracks
+                mine: list = []  # (a file's states of a single state: said once all are read)
+                tracks += read_library_file(f[0], mine)
+                singles += mine
         except DataError as exc:
             if not found:
                 raise
             skipped.append((f[0], str(exc).removeprefix(f"{f[0]}: ")))
-        for w in said:  # a file's notes (rows given twice, single states, ...)
+        for w in said:  # a file's notes (rows given twice, ...)
             if issubclass(w.category, DataWarning):
                 notes.append(str(w.message))
             else:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    _say_notes(notes, sum(f != "builtin" for f, _ in files))
     if skipped:
         lines = "\n".join(f"  - {file}: {reason}" for file, reason in skipped)
         if not tracks:
@@ -249,7 +254,11 @@ def _library(files: tuple) -> TrajectoryLibrary:
             f"traffic.library: skipped {len(skipped)} of {len(files)} trajectory files "
             f"that cannot be read:\n{lines}"
         )
-    library = TrajectoryLibrary(tracks)
+    with warnings.catch_warnings(record=True) as said:  # (the join's note, with the files')
+        warnings.simplefilter("always", DataWarning)
+        library = TrajectoryLibrary(tracks)
+    notes += [str(w.message) for w in said] + single_states_notes(library.tracks, singles)
+    _say_notes(notes, sum(f != "builtin" for f, _ in files))
     library.skipped = tuple(skipped)
     return library
 

@@ -79,12 +79,16 @@ class TrajectoryLibrary:
     def from_files(cls, *paths: str | Path) -> TrajectoryLibrary:
         """Tracks of trajectory CSV files and CommonRoad XML files (by suffix)."""
         tracks: list[Track] = []
+        singles: list = []
         for p in paths:
-            tracks += read_tracks(p)
+            tracks += read_tracks(p, singles)
         if not tracks:
             raise DataError(f"{', '.join(map(str, paths))}: no vehicle tracks (dynamic obstacles "
                             "with at least 2 states)")  # fmt: skip
-        return cls(tracks)
+        library = cls(tracks)
+        for note in single_states_notes(library.tracks, singles):
+            warn_data(note)
+        return library
 
     def scene(self, scenario_id: str) -> list[Track]:
         """All tracks of one recorded scene, in file order (a new list; the scene is looked
@@ -176,24 +180,24 @@ def _join(key: tuple[str, str], pieces: list[Track], taken: set,
     out, single, impossible = _piece_tracks(sid, rid, cut, taken,
                                             [pieces[int(a[0, 7])].source for a in cut])  # fmt: skip
     taken.update((sid, t.track_id) for t in out)
-    left_out += [f"{sid}/{name} (a single state)" for name in single] + impossible
+    left_out += [f"{sid}/{name} (a single state)" for name, _ in single] + impossible
     return out
 
 
 def _piece_tracks(sid: str, tid: str, pieces: list[np.ndarray], taken,
-                  sources: list[str]) -> tuple[list[Track], list[str], list[str]]:  # fmt: skip
+                  sources: list[str]) -> tuple[list[Track], list[tuple], list[str]]:  # fmt: skip
     """The tracks of the ``pieces`` (rows ``t, x, y, heading, speed, length, width``, by
     time; :func:`_pieces`) of id ``tid`` of scene ``sid``: named ``tid``, ``tid#2``, ... (a
     suffixed name already in ``taken``, (scene, id) pairs: another ``#``), each sized by its
-    first row and read from ``sources[k]``; with the names of the pieces of a single state,
-    left out, and the problems of those of impossible data, left out too."""
+    first row and read from ``sources[k]``; with the pieces of a single state (their name and
+    row), left out, and the problems of those of impossible data, left out too."""
     tracks, single, impossible = [], [], []
     for k, piece in enumerate(pieces):
         name = tid if k == 0 else f"{tid}#{k + 1}"
         while k and (sid, name) in taken:  # an id the scene has already: another suffix
             name += "#"
         if len(piece) < 2:
-            single.append(name)
+            single.append((name, piece[0]))
             continue
         try:
             tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
@@ -222,20 +226,52 @@ def _builtin() -> TrajectoryLibrary:
     return _BUILTIN
 
 
-def read_tracks(path: str | Path) -> list[Track]:
-    """Tracks of a trajectory CSV, or of a CommonRoad XML file's dynamic obstacles."""
+def read_tracks(path: str | Path, singles: list | None = None) -> list[Track]:
+    """Tracks of a trajectory CSV, or of a CommonRoad XML file's dynamic obstacles;
+    ``singles``: see :func:`read_tracks_csv`."""
     if Path(path).suffix.lower() == ".xml":
         return read_tracks_commonroad(path)
-    return read_tracks_csv(path)
+    return read_tracks_csv(path, singles)
 
 
-def read_tracks_csv(path: str | Path) -> list[Track]:
-    """Parse a trajectory CSV; raise :class:`DataError` naming the file, row and column."""
+def read_library_file(path: str | Path, singles: list | None = None) -> list[Track]:
+    """:func:`read_tracks`, refused (a :class:`DataError`) when the file holds no track."""
+    tracks = read_tracks(path, singles)
+    if not tracks:
+        raise DataError(f"{path}: no vehicle tracks (dynamic obstacles with at least 2 "
+                        "states)")  # fmt: skip
+    return tracks
+
+
+def single_states_notes(tracks: list[Track], singles: list) -> list[str]:
+    """A note per file (for a :class:`DataWarning`) naming the tracks of a single state left out
+    (``singles``: ``(file, scene, name, id, row)`` from :func:`read_tracks_csv`) that are not
+    rows of ``tracks`` (the library's, joined across files): a vehicle's row at the boundary
+    of a recording split into files by time is in both files, and nothing is lost."""
+    rows: dict[tuple[str, str], list[np.ndarray]] = {}
+    for t in tracks:
+        rows.setdefault((t.scenario_id, t.recorded_id or t.track_id), []).append(
+            np.column_stack([t.t, t.x, t.y])
+        )
+    lost: dict[str, list[str]] = {}
+    for path, sid, name, tid, row in singles:
+        kept = any(np.any(np.all(a == row[:3], axis=1)) for a in rows.get((sid, tid), []))
+        if not kept:
+            lost.setdefault(path, []).append(f"({sid}, {name})")
+    return [f"{path}: {len(names)} track(s) with a single state left out (at least 2 are "
+            f"needed): {named(names)}" for path, names in lost.items()]  # fmt: skip
+
+
+def read_tracks_csv(path: str | Path, singles: list | None = None) -> list[Track]:
+    """Parse a trajectory CSV; raise :class:`DataError` naming the file, row and column.
+    Tracks of a single state are left out, said in the file's warning, or, with ``singles``,
+    put in it (``(file, scene, name, id, row)``) for :func:`single_states_notes` once every
+    file of a library is read."""
     path = Path(path)
     if not path.is_file():
         raise DataError(f"trajectory file not found: {not_there(path)}")
     try:
-        return _parse_tracks_csv(path)
+        return _parse_tracks_csv(path, singles)
     except UnicodeDecodeError as exc:
         archive = archive_problem(path)
         if archive:
@@ -245,7 +281,7 @@ def read_tracks_csv(path: str | Path) -> list[Track]:
         ) from None
 
 
-def _parse_tracks_csv(path: Path) -> list[Track]:
+def _parse_tracks_csv(path: Path, singles: list | None) -> list[Track]:
     """The tracks of a trajectory CSV, in the order of their first row; each track's rows
     sorted by time (rows may come in any order). Rows are converted a block at a time (a
     file of a million rows reads in seconds, in little more memory than its numbers); every
@@ -336,7 +372,10 @@ def _parse_tracks_csv(path: Path) -> list[Track]:
             split.append((tid, [float(p[0, 0]) for p in pieces[1:]]))
         mine, ones, bad = _piece_tracks(sid, tid, pieces, index, [str(path)] * len(pieces))
         tracks += mine
-        single += [f"({sid}, {name})" for name in ones]
+        if singles is None:
+            single += [f"({sid}, {name})" for name, _ in ones]
+        else:
+            singles += [(str(path), sid, name, tid, row) for name, row in ones]
         # impossible data: the track left out, or the file (below)
         impossible += [problem.removeprefix(f"{path}: ") for problem in bad]
     refuse_mostly_impossible(path, len(tracks), impossible)
@@ -555,16 +594,14 @@ def _handed_over(t: np.ndarray, xy: np.ndarray) -> list[int]:
     """The steps ``k`` (rows ``k`` to ``k + 1``) across which an id passes to another vehicle
     without a pause: a move faster than :data:`~gridsim.traffic.track.MAX_SPEED` that neither
     row undoes (from row ``k - 1`` and to row ``k + 2`` it is as fast: not a one-row spike,
-    which the glitch check names)."""
+    which the glitch check names), with two rows or more on each side."""
 
     def fast(i: np.ndarray, j: np.ndarray) -> np.ndarray:
         return np.hypot(*(xy[j] - xy[i]).T) > MAX_SPEED * (t[j] - t[i])
 
-    k = np.arange(len(t) - 1)
-    out = fast(k, k + 1)
-    out[1:] &= fast(k[1:] - 1, k[1:] + 1)
-    out[:-1] &= fast(k[:-1], k[:-1] + 2)
-    return np.flatnonzero(out).tolist()
+    k = np.arange(1, len(t) - 2)  # (each side keeps two rows: one alone is no vehicle)
+    out = fast(k, k + 1) & fast(k - 1, k + 1) & fast(k, k + 2)
+    return k[out].tolist()
 
 
 def _reappears_elsewhere(t: np.ndarray, xy: np.ndarray, k: int) -> bool:

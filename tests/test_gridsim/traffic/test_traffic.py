@@ -1,5 +1,6 @@
 """Traffic: the trajectory library, recorded replay, IDM hand-over, synthetic traffic."""
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -279,6 +280,31 @@ def test_a_recording_split_into_files_by_time_is_joined(tmp_path):
         for name in ("t", "x", "y", "heading", "speed"):
             np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
     assert [t.source for t in split.tracks] == [str(early)] * 4  # (their first rows' file)
+
+
+def test_a_vehicle_that_ends_at_the_boundary_of_a_split_is_not_said_lost(tmp_path):
+    """A recording split into files by time with the boundary row in both: a vehicle whose
+    last row is the boundary has a single state in the second file, which was "left out" in
+    a warning though the first file has it. Only a single state no file has otherwise is
+    said to be left out."""
+    rows = [f"s,{tid},{k * 0.1:.1f},{20 * k * 0.1:.2f},{3 * tid},0,20,4.5,1.8"
+            for tid, ks in ((1, range(100)), (2, range(61))) for k in ks]  # fmt: skip
+    early, late = tmp_path / "early.csv", tmp_path / "late.csv"
+    at = [float(r.split(",")[2]) for r in rows]
+    early.write_text(HEADER + "\n" + "\n".join(r for r, t in zip(rows, at, strict=True)
+                                                if t <= 6.0))  # fmt: skip
+    late.write_text(HEADER + "\n" + "\n".join(r for r, t in zip(rows, at, strict=True)
+                                               if t >= 6.0))  # fmt: skip
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        joined = TrajectoryLibrary.from_csv(early, late)
+    said = "\n".join(str(w.message) for w in caught)
+    assert "single state" not in said
+    assert [(t.track_id, len(t.t)) for t in joined.tracks] == [("1", 100), ("2", 61)]
+    late.write_text(late.read_text() + "\ns,7,8.0,50,9,0,20,4.5,1.8")  # one row, nowhere else
+    with pytest.warns(DataWarning, match=r"late.csv: 1 track\(s\) with a single state left "
+                      r"out \(at least 2 are needed\): \(s, 7\)"):  # fmt: skip
+        TrajectoryLibrary.from_csv(early, late)
 
 
 def test_missing_csv_file(tmp_path):
