@@ -373,6 +373,7 @@ def parse_scenario(
     given = _key_paths(overrides) if overrides else []  # (a problem may be theirs)
     scenario = Scenario(_validate(doc, source, given), source, base_dir)
     _warn_fast_traffic(scenario, family)
+    _warn_timing(scenario)
     if unused:
         ignores, by_why = FAMILIES[family].ignores, {}
         for key in unused:
@@ -397,6 +398,24 @@ def _warn_fast_traffic(scenario: Scenario, family: Any) -> None:
                   f"are in m/s (km/h / 3.6); above {FAST_TRAFFIC:g} m/s an ego following the "
                   "human reference collides more often (3-7 of 8 seamless episodes at 40-70 "
                   "m/s)")  # fmt: skip
+
+
+def _warn_timing(scenario: Scenario) -> None:
+    """A :class:`~gridsim.errors.DataWarning` when the set-points are closer than a tick, or
+    a decision lasts past the first set-point (the car then passes set-points of a plan it
+    follows blind until the next decision; ``l1`` scores the plan, not where the car is)."""
+    env, dt = scenario.config.env, scenario.config.simulation.dt
+    said = []
+    if env.setpoint_period < dt - 1e-9:
+        said.append(f"env.setpoint_period {env.setpoint_period:g} s is shorter than a tick "
+                    f"(simulation.dt {dt:g} s)")  # fmt: skip
+    if env.decision_period > env.setpoint_period + 1e-9:
+        said.append(f"a decision (env.decision_period {env.decision_period:g} s) outlasts the "
+                    f"first set-point (env.setpoint_period {env.setpoint_period:g} s): the car "
+                    "passes set-points of a plan it follows until the next decision")  # fmt: skip
+    if said:
+        warn_data(f"{scenario.source}: {'; '.join(said)}; l1 scores the plans, not where the "
+                  "car gets: a policy may score well and drive poorly")  # fmt: skip
 
 
 def _unused_keys(doc: Mapping[str, Any], family: Any) -> list[str]:

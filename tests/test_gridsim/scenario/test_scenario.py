@@ -207,6 +207,25 @@ def test_overrides_are_merged_and_validated():
         load_scenario("seamless", {"traffic": {"participant": 3}})
 
 
+def test_timings_a_car_cannot_follow_are_warned_about():
+    """Set-points closer than a tick, or decisions that outlast the first set-point, passed
+    validation: fed the human's set-points, the car fell 11 m behind while l1 (which scores
+    the plan) stayed 0."""
+    from gridsim.errors import DataWarning
+    from gridsim.scenario.loader import load_scenario
+
+    with pytest.warns(DataWarning, match=r"env.setpoint_period 0.05 s is shorter than a tick"):
+        load_scenario("seamless", {"env": {"setpoint_period": 0.05}})
+    with pytest.warns(DataWarning, match=r"a decision \(env.decision_period 1 s\) outlasts the "
+                      r"first set-point \(env.setpoint_period 0.5 s\)"):  # fmt: skip
+        load_scenario("seamless", {"env": {"decision_period": 1.0}})
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)
+        load_scenario("seamless", {"env": {"decision_period": 0.5}})  # (one set-point: fine)
+
+
 def test_track_ids_saved_as_floats_are_named_as_such():
     """A track file whose id column a spreadsheet saved as floats ("381.0"): ego.track 381
     was "not in scene" beside a list of 381.0, 383.0, ... with no word why."""
