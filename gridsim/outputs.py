@@ -11,6 +11,7 @@ import os
 import re
 import reprlib
 import shutil
+import sys
 import tempfile
 import time
 from collections.abc import Callable, Iterator
@@ -365,8 +366,14 @@ def write_text(path: str | Path, text: str) -> Path:
 
 def summary_text(data: Any, indent: int = 2) -> str:
     """A command's summary as the JSON it prints: paths and names as written (``ü``, not
-    ``\\u00fc``, which a user copying a path would get)."""
-    return json.dumps(data, indent=indent, ensure_ascii=False)
+    ``\\u00fc``, which a user copying a path would get), unless standard output cannot
+    write them (an ASCII or code-page console: then escaped, as JSON allows)."""
+    text = json.dumps(data, indent=indent, ensure_ascii=False)
+    try:
+        text.encode(getattr(sys.stdout, "encoding", None) or "utf-8")
+    except (UnicodeEncodeError, LookupError):
+        return json.dumps(data, indent=indent)
+    return text
 
 
 def write_json(path: str | Path, data: Any, indent: int = 1) -> Path:

@@ -227,9 +227,10 @@ class HumanReference(ReferenceTrajectory):
         self._known_length = 0.0  # running sum of the final path's length [m]
 
     def __getstate__(self) -> dict:
-        """Copies and pickles (a copied or pickled env's) leave the lock out; each gets its own."""
-        with self._lock:
-            return {k: v for k, v in self.__dict__.items() if k != "_lock"}
+        """Copies and pickles (a copied or pickled env's) leave the lock out; each gets its own.
+        A copy is taken of the state as it is while the copy walks it: copy an env from the
+        thread that steps it, not while another thread advances a reference it shares."""
+        return {k: v for k, v in self.__dict__.items() if k != "_lock"}
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)

@@ -112,6 +112,11 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
             hint = (" (or are its x and y swapped? with them swapped it drives "
                     f"{error_swapped:.0f} degrees off)" if error_swapped < MAX_HEADING_ERROR
                     else "")  # fmt: skip
+            if np.ptp(track.heading) == 0:  # one value throughout: a column left unfilled?
+                hint += (
+                    f" (it is {track.heading[0]:.3g} rad at every sample: is its heading "
+                    "column filled in?)"
+                )
             out.append(
                 f"{where}: it drives {error:.0f} degrees off its recorded heading (median; at "
                 f"most {MAX_HEADING_ERROR:g}); headings must be in radians, counter-clockwise "

@@ -159,7 +159,7 @@ def matching_files(folder_or_pattern: Path | str, suffixes: tuple[str, ...]) -> 
     else:
         found = map(Path, glob.glob(str(folder_or_pattern), recursive=True))
     named: dict[Path, Path] = {}  # each file's shortest name (the fewest folders, not a link)
-    repeated = 0
+    repeated = looped = 0
     for f in sorted(found, key=lambda f: (len(f.parts), f.is_symlink(), f)):
         if f.suffix.lower() not in suffixes or not (f.is_file() or f.is_symlink()):
             continue
@@ -168,17 +168,26 @@ def matching_files(folder_or_pattern: Path | str, suffixes: tuple[str, ...]) -> 
                 real = f.resolve(strict=True)
             except FileNotFoundError:  # a broken link: itself, in its real folder
                 real = f.parent.resolve(strict=True) / f.name
-        except (OSError, RuntimeError):  # a name through too many links (a glob in a loop)
-            real = None
-        if real is None or real in named:
+        except (OSError, RuntimeError):  # a name through a loop of links
+            looped += 1
+            continue
+        if real.is_dir():  # (a link to a folder)
+            continue
+        if real in named:
             repeated += 1
         else:
             named[real] = f
     files = sorted(named.values())
+    said = []
     if repeated:
-        warn_data(f"{folder_or_pattern}: {repeated} of its paths name files listed already "
-                  "(links to one file, or a '**' glob through a link to a folder above): each "
-                  "file is read once")  # fmt: skip
+        said.append(
+            f"{repeated} of its paths name files listed already (links to one file, or "
+            "a '**' glob through a link to a folder above): each file is read once"
+        )
+    if looped:
+        said.append(f"{looped} name(s) through a loop of links left out")
+    if said:
+        warn_data(f"{folder_or_pattern}: {'; '.join(said)}")
     return files
 
 

@@ -138,8 +138,10 @@ def pooled_convolution(frames, p, weight, bias, stride, pad, out) -> None:
 
     Each output sums its ``kh * kw`` products from zero in the taps' row-major order, each
     product fused with the sum (:func:`~gridsim.jit.fma32`), then adds the bias: the order in
-    which oneDNN's and im2col + BLAS's ``conv2d`` sum a one-channel convolution. The input is
-    split into ``stride x stride`` phase planes, so that each tap is one contiguous pass."""
+    which torch's ``conv2d`` (oneDNN, im2col + BLAS) sums the rollouts' one-channel
+    convolutions on the CPUs tried (AVX-512; not every shape: ``PopulationNet.convolutions``
+    checks the bits per shape before using it). The input is split into ``stride x stride``
+    phase planes, so that each tap is one contiguous pass."""
     n_k, n_e, rows, cols = frames.shape
     h, w = rows // p, cols // p
     n_c, kh, kw = weight.shape[1], weight.shape[2], weight.shape[3]

@@ -83,8 +83,7 @@ class TrajectoryLibrary:
         for p in paths:
             tracks += read_tracks(p, singles)
         if not tracks:
-            raise DataError(f"{', '.join(map(str, paths))}: no vehicle tracks (dynamic obstacles "
-                            "with at least 2 states)")  # fmt: skip
+            raise _no_tracks(", ".join(map(str, paths)))
         library = cls(tracks)
         for note in single_states_notes(library.tracks, singles):
             warn_data(note)
@@ -238,9 +237,12 @@ def read_library_file(path: str | Path, singles: list | None = None) -> list[Tra
     """:func:`read_tracks`, refused (a :class:`DataError`) when the file holds no track."""
     tracks = read_tracks(path, singles)
     if not tracks:
-        raise DataError(f"{path}: no vehicle tracks (dynamic obstacles with at least 2 "
-                        "states)")  # fmt: skip
+        raise _no_tracks(str(path))
     return tracks
+
+
+def _no_tracks(where: str) -> DataError:
+    return DataError(f"{where}: no vehicle tracks (dynamic obstacles with at least 2 states)")
 
 
 def single_states_notes(tracks: list[Track], singles: list) -> list[str]:
@@ -590,18 +592,28 @@ def _pieces(a: np.ndarray) -> list[np.ndarray]:
     return np.split(a, cuts) if len(cuts) else [a]
 
 
+#: s: rows away from where a track was, for less than this, before it comes back where its
+#: motion takes it, are a glitch of several rows, not a vehicle (:func:`_handed_over`)
+GLITCH_SPAN = 1.0
+
+
 def _handed_over(t: np.ndarray, xy: np.ndarray) -> list[int]:
     """The steps ``k`` (rows ``k`` to ``k + 1``) across which an id passes to another vehicle
     without a pause: a move faster than :data:`~gridsim.traffic.track.MAX_SPEED` that neither
     row undoes (from row ``k - 1`` and to row ``k + 2`` it is as fast: not a one-row spike,
-    which the glitch check names), with two rows or more on each side."""
+    which the glitch check names), with two rows or more on each side; a move out and one
+    back within :data:`GLITCH_SPAN`, where the track goes on as if it had not left, are a
+    glitch of several rows (left to the checks that refuse impossible data)."""
 
-    def fast(i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    def fast(i, j):
         return np.hypot(*(xy[j] - xy[i]).T) > MAX_SPEED * (t[j] - t[i])
 
     k = np.arange(1, len(t) - 2)  # (each side keeps two rows: one alone is no vehicle)
-    out = fast(k, k + 1) & fast(k - 1, k + 1) & fast(k, k + 2)
-    return k[out].tolist()
+    cuts = k[fast(k, k + 1) & fast(k - 1, k + 1) & fast(k, k + 2)].tolist()
+    glitches = {c for a, b in zip(cuts, cuts[1:], strict=False)
+                if t[b + 1] - t[a + 1] < GLITCH_SPAN and not fast(a, b + 1)
+                for c in (a, b)}  # fmt: skip
+    return [c for c in cuts if c not in glitches]
 
 
 def _reappears_elsewhere(t: np.ndarray, xy: np.ndarray, k: int) -> bool:

@@ -94,7 +94,8 @@ def execute(args: argparse.Namespace) -> int:
                 print(_kept(partial), file=sys.stderr)
             raise
     if manifest.get("ended_early"):
-        print(f"neurotrajectory: {early_note(manifest['ended_early'])}", file=sys.stderr)
+        whole = " (counted over the whole group, before the split)" if split else ""
+        print(f"neurotrajectory: {early_note(manifest['ended_early'])}{whole}", file=sys.stderr)
     print(
         summary_text(
             {

@@ -529,7 +529,7 @@ def _record_scenario_into(
                        "cell_size": cfg.sensor.cell_size, "orientation": cfg.sensor.orientation},
             "vehicle": cfg.ego.vehicle.model_dump(),
             **({"goal_seconds": goal} if goal is not None else {}),
-            **({"ended_early": dict(endings)} if endings else {})}  # fmt: skip
+            **({"ended_early": _early(endings)} if endings else {})}  # fmt: skip
 
 
 class _Collected:
@@ -749,23 +749,33 @@ def record_group_into(
     }
 
 
-def ended_early(metas: list[dict]) -> dict[str, int]:
+def _early(endings: dict[str, int]) -> dict:
+    """``endings`` (episodes by how they ended, and ``windows_not_taken``, flat: as they are
+    counted and kept across an interruption) as the manifest says them."""
+    episodes = {k: endings[k] for k in EARLY_ENDINGS if endings.get(k)}
+    return {"episodes": episodes, "windows_not_taken": endings.get("windows_not_taken", 0)}
+
+
+def ended_early(metas: list[dict]) -> dict:
     """The episodes of the scenarios ``metas`` (their provenance) that ended early, summed
-    by how they ended, and the windows not taken."""
+    by how they ended, and the windows not taken (as each scenario's ``ended_early``); empty
+    when none did."""
     total: dict[str, int] = {}
     for meta in metas:
-        for key, n in meta.get("ended_early", {}).items():
+        early = meta.get("ended_early", {})
+        for key, n in [*early.get("episodes", {}).items(),
+                       ("windows_not_taken", early.get("windows_not_taken", 0))]:  # fmt: skip
             total[key] = total.get(key, 0) + n
-    return total
+    return _early(total) if total else {}
 
 
-def early_note(early: dict[str, int]) -> str:
+def early_note(early: dict) -> str:
     """What :func:`ended_early`'s counts mean, for a user."""
-    kinds = ", ".join(f"{early[k]} {k}" for k in EARLY_ENDINGS if early.get(k))
-    episodes = sum(early.get(k, 0) for k in EARLY_ENDINGS)
+    kinds = ", ".join(f"{n} {k}" for k, n in early["episodes"].items())
+    episodes = sum(early["episodes"].values())
     return (
         f"{episodes} episode(s) ended before their reference did ({kinds}): the "
-        f"{early.get('windows_not_taken', 0)} window(s) the rest would have given were not "
+        f"{early['windows_not_taken']} window(s) the rest would have given were not "
         "taken (with the ego driving the human's own track, a collision or leaving the "
         "road is the recording's; the destination is reached where the human stands "
         "near its end; manifest.json: ended_early)"

@@ -675,15 +675,22 @@ class Run:
     def warn_changed_inputs(self) -> None:
         """A warning when the files the run's scenario is read from changed since it began:
         its members are then driven (held-out episodes, videos, evaluations) on other data
-        than they trained on. Nothing when that cannot be known (no :data:`INPUTS_FILE`, a
-        scenario that does not load: driving it says why)."""
+        than they trained on; said too when :data:`INPUTS_FILE` cannot be read. Nothing
+        without :data:`INPUTS_FILE` (runs begun before it) or for a scenario that does not
+        load (driving it says why)."""
         from gridsim.scenario.collection import input_changes, input_digest
 
         if not (self.out / INPUTS_FILE).exists():
             return
         try:
-            what = input_changes(self._inputs()["files"], input_digest(self.config.scenario))
-        except (GridSimError, RunError):  # (a scenario that does not load, unreadable inputs)
+            kept = self._inputs()["files"]
+        except RunError as exc:
+            warn_data(f"{exc}: whether the run's scenario files are those it trained on "
+                      "cannot be checked")  # fmt: skip
+            return
+        try:
+            what = input_changes(kept, input_digest(self.config.scenario))
+        except GridSimError:  # (a scenario that does not load: driving it says why)
             return
         if what:
             warn_data(f"{self.out}: the files of its scenario {self.config.scenario} are not "

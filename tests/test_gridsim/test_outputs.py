@@ -224,3 +224,17 @@ def test_an_atomic_write_is_synced_and_a_failed_sync_keeps_the_old_file(tmp_path
     fail["errno"] = errno.EINVAL
     outputs.write_text(path, "new")
     assert path.read_text() == "new"
+
+
+def test_summaries_print_paths_as_written_where_the_console_can(monkeypatch):
+    """A path with ü printed as \\u00fc (a user copying it got that); where standard output
+    cannot write it (an ASCII console) the summary is escaped instead of failing the command
+    after its work is done."""
+    import io
+    import sys
+
+    from gridsim.outputs import summary_text
+
+    assert summary_text({"out": "runs/ü"}) == '{\n  "out": "runs/ü"\n}'
+    monkeypatch.setattr(sys, "stdout", io.TextIOWrapper(io.BytesIO(), encoding="ascii"))
+    assert summary_text({"out": "runs/ü"}) == '{\n  "out": "runs/\\u00fc"\n}'

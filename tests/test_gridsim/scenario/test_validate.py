@@ -145,6 +145,7 @@ def test_a_heading_against_the_motion_is_a_flaw():
     backwards = track("back", X, np.full(41, -1.75), heading=np.pi)  # drives +x, heading -x
     (problem,) = track_problems(backwards)
     assert "it drives 180 degrees off its recorded heading (median; at most 45)" in problem
+    assert "(it is 3.14 rad at every sample: is its heading column filled in?)" in problem
     assert track_problems(track("fine", X, np.full(41, -1.75))) == []
     # a heading column left at 0 on a road at -43 degrees passed the 45-degree test
     angle = np.radians(-43.0)

@@ -1278,6 +1278,8 @@ def test_an_id_handed_to_another_vehicle_without_a_pause_is_split_there(tmp_path
     a[:, 0], a[:, 1], a[:, 5], a[:, 6] = 0.1 * np.arange(30), 2.0 * np.arange(30), 4.5, 1.8
     a[12, 2] = 40.0  # one row 40 m off, then back
     assert len(_pieces(a)) == 1
+    a[13, 2] = 40.0  # two rows (a glitch, not a vehicle for 0.2 s)
+    assert len(_pieces(a)) == 1
 
 
 def test_a_reused_id_is_split_and_single_states_are_left_out(tmp_path):

@@ -84,7 +84,9 @@ def test_frame_features_are_those_of_one_convolution_call_per_individual(preset)
         x = pnet._pooled(frames)
         one_per_individual = pnet._features_per_individual(params, x)
         assert torch.equal(pnet.frame_features(params, frames), one_per_individual)
-        if e > 1:  # (one frame: torch convolves each individual otherwise than grouped)
+        if e > 1 and "/AVX512/" in numerics_platform():  # (one frame: torch convolves each
+            # individual otherwise than grouped; elsewhere than where it was measured, the
+            # probe decides whether the compiled first convolution gives these bits)
             assert torch.equal(pnet._features_compiled(params, frames), one_per_individual)
         plan = pnet.convolutions(k, e)
         if plan in (0, 1):

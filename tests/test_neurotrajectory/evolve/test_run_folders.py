@@ -320,6 +320,12 @@ def test_a_run_resumes_only_on_the_files_it_began_with(tmp_path, capsys):
                  str(out)]) == 0  # fmt: skip
     assert f"are not those it trained on (changed: {csv}): its members are driven on the " in (
         capsys.readouterr().err)  # fmt: skip
+    inputs = (run / "inputs.json").read_text()
+    (run / "inputs.json").write_text(inputs[:20])  # cut short: nothing can be checked (said)
+    assert main(["heldout", "--run", str(run), "--episodes", "1", "--seconds", "2", "--out",
+                 str(out), "--overwrite"]) == 0  # fmt: skip
+    assert "cannot be checked" in capsys.readouterr().err
+    (run / "inputs.json").write_text(inputs)
     shutil.copy(scenario, scenes / "another.yaml")
     # inputs.json deleted: nothing can be checked (the edited file trains): said, and it is
     # written again, of the files as they are now
@@ -429,7 +435,7 @@ def test_record_counts_the_windows_of_episodes_that_end_early(tmp_path, monkeypa
     assert main([*argv, str(tmp_path / "whole")]) == 0
     out, err = capsys.readouterr()
     early = json.loads(out)["ended_early"]
-    assert early["destination reached"] >= 3 and early["windows_not_taken"] > 100
+    assert early["episodes"]["destination reached"] >= 3 and early["windows_not_taken"] > 100
     assert "episode(s) ended before their reference did (" in err
     whole = json.loads((tmp_path / "whole" / "manifest.json").read_text())
     assert whole["ended_early"] == whole["scenarios"][0]["ended_early"] == early
