@@ -69,10 +69,15 @@ def archive_problem(path: str | os.PathLike) -> str | None:
 
 
 def not_there(path: str | os.PathLike) -> str:
-    """``path``, and, when it is a link to nothing (an unmounted share, a moved file), where
-    the link points: a missing file's name in messages."""
-    if os.path.islink(path) and not os.path.exists(path):
-        return f"{path} (a link to {os.readlink(path)}, which is not there)"
+    """``path``, and, when it or a folder on its way is a link to nothing (an unmounted share,
+    a moved file), where that link points: a missing file's name in messages."""
+    here = os.path.abspath(path)
+    while here != os.path.dirname(here):
+        if os.path.islink(here) and not os.path.exists(here):
+            target = os.path.normpath(os.path.join(os.path.dirname(here), os.readlink(here)))
+            what = "a link" if here == os.path.abspath(path) else f"in {here}, a link"
+            return f"{path} ({what} to {target}, which is not there)"
+        here = os.path.dirname(here)
     return str(path)
 
 

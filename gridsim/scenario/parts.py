@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import DataError, DataWarning, ScenarioError, warn_data
+from gridsim.errors import DataError, DataWarning, ScenarioError, not_there, warn_data
 from gridsim.outputs import named
 from gridsim.road.polyline import Polyline
 from gridsim.scenario.checks import SceneReport, feet_hint, library_report
@@ -83,7 +83,7 @@ def resolve(
         meant = Path(ref).name.removesuffix(suffix)
         hint = f"; did you mean 'builtin:{meant}'?" if meant in names() else ""
         raise ScenarioError(f"{scenario.source}: {key}: file not found: {ref!r} (resolved to "
-                            f"{path}){hint}")  # fmt: skip
+                            f"{not_there(path)}){hint}")  # fmt: skip
     return path
 
 

@@ -53,6 +53,12 @@ def test_links_name_each_file_once_and_a_broken_link_is_said(folder, capsys):
     out = capsys.readouterr().out
     assert "broken.xml: does not load: scenario file not found" in out
     assert str(folder / "unmounted" / "scene.xml") in out
+    from gridsim.errors import not_there  # a folder on the way that is a broken link: named
+
+    (folder / "share").symlink_to("../nowhere")  # (relative: said from the link's folder)
+    assert not_there(folder / "share" / "t.csv") == (
+        f"{folder / 'share' / 't.csv'} (in {folder / 'share'}, a link to "
+        f"{folder.parent / 'nowhere'}, which is not there)")  # fmt: skip
 
 
 def test_a_comma_separated_list_is_a_collection_in_its_order(folder):
