@@ -277,20 +277,17 @@ class HumanReference(ReferenceTrajectory):
 
     def _advance(self, ready: int) -> None:
         with self._lock:
-            self._advance_locked(ready)
-
-    def _advance_locked(self, ready: int) -> None:
-        n = len(self.t)
-        ready = min(ready, n)
-        while self._ready < ready:  # whole blocks, each ending at a fixed tick
-            self._simulate(min((self._front - 1) // self._block * self._block + self._block + 1,
-                               n))  # fmt: skip
-            final = n if self._front == n else self._front - self._lag
-            for k in range(max(self._ready, 1), final):
-                self._known_length += float(np.hypot(*(self._xy[k] - self._xy[k - 1])))
-            self._ready = max(self._ready, final)
-        if self.complete:
-            self._world = self._driver = self._shadow = None  # free the shadow world
+            n = len(self.t)
+            ready = min(ready, n)
+            while self._ready < ready:  # whole blocks, each ending at a fixed tick
+                self._simulate(min((self._front - 1) // self._block * self._block + self._block + 1,
+                                   n))  # fmt: skip
+                final = n if self._front == n else self._front - self._lag
+                for k in range(max(self._ready, 1), final):
+                    self._known_length += float(np.hypot(*(self._xy[k] - self._xy[k - 1])))
+                self._ready = max(self._ready, final)
+            if self.complete:
+                self._world = self._driver = self._shadow = None  # free the shadow world
 
     def _could_reach(self, travelled: float, tolerance: float) -> bool:
         """False when ``travelled`` is short of the reached share of the part known so far

@@ -47,6 +47,8 @@ ZOOM_STEPS, ZOOM_MARGIN = (1.0, 0.75, 0.5, 0.375, 0.25), 24
 ZOOM_BACK = 1.15
 #: The ego's outline in the grid inset (the grid's own colours are green, red and black).
 INSET_EGO_COLOUR = (255, 255, 255)
+#: pixels: the grid inset's distance from the frame's top and right edges
+INSET_MARGIN = 8
 
 
 @dataclass(frozen=True)
@@ -183,8 +185,8 @@ class TopDownRenderer:
         if not len(off):
             return v.pixels_per_metre
         # the inset's corner (top right) and its margin, from the frame's centre [pixels]
-        corner = (v.width / 2 - v.inset_size - 8 - ZOOM_MARGIN / 2,
-                  -(v.height / 2 - v.inset_size - 8 - ZOOM_MARGIN / 2))  # fmt: skip
+        corner = (v.width / 2 - v.inset_size - INSET_MARGIN - ZOOM_MARGIN / 2,
+                  -(v.height / 2 - v.inset_size - INSET_MARGIN - ZOOM_MARGIN / 2))  # fmt: skip
 
         def fits(k: float, room: float = 1.0) -> bool:
             du, dv = off[:, 0] * room * k, -off[:, 1] * room * k  # pixels right, down
@@ -245,9 +247,9 @@ class TopDownRenderer:
             cv2.polylines(tile, [np.rint(corners * 16).astype(np.int32)], True, INSET_EGO_COLOUR,
                           1, cv2.LINE_AA, shift=4)  # fmt: skip
         th, tw = tile.shape[:2]
-        x0 = img.shape[1] - tw - 8
-        img[8 : 8 + th, x0 : x0 + tw] = tile
-        cv2.rectangle(img, (x0 - 1, 7), (x0 + tw, 8 + th), (255, 255, 255), 1)
+        x0, y0 = img.shape[1] - tw - INSET_MARGIN, INSET_MARGIN
+        img[y0 : y0 + th, x0 : x0 + tw] = tile
+        cv2.rectangle(img, (x0 - 1, y0 - 1), (x0 + tw, y0 + th), (255, 255, 255), 1)
 
 
 def _noses(x, y, psi, length, width) -> np.ndarray:

@@ -106,13 +106,14 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
         travel = np.arctan2(np.diff(track.y), np.diff(track.x))[moving]
         heading = 0.5 * (track.heading[1:] + track.heading[:-1])[moving]
         error = _degrees_off(travel, heading)
+        constant = np.ptp(track.heading) == 0  # one value throughout: a column left unfilled?
         if error > MAX_HEADING_ERROR:
             # the direction of the same motion with x and y swapped
             error_swapped = _degrees_off(np.pi / 2 - travel, heading)
             hint = (" (or are its x and y swapped? with them swapped it drives "
                     f"{error_swapped:.0f} degrees off)" if error_swapped < MAX_HEADING_ERROR
                     else "")  # fmt: skip
-            if np.ptp(track.heading) == 0:  # one value throughout: a column left unfilled?
+            if constant:
                 hint += (
                     f" (it is {track.heading[0]:.3g} rad at every sample: is its heading "
                     "column filled in?)"
@@ -122,7 +123,7 @@ def track_problems(track: Track, road: StaticRoad | None = None) -> list[str]:
                 f"most {MAX_HEADING_ERROR:g}); headings must be in radians, counter-clockwise "
                 f"from +x{hint}"
             )
-        elif error > CONSTANT_HEADING_ERROR and np.ptp(track.heading) == 0:
+        elif error > CONSTANT_HEADING_ERROR and constant:
             out.append(
                 f"{where}: its recorded heading is {track.heading[0]:.3g} rad at every sample "
                 f"while it drives {error:.0f} degrees off it (median); is its heading column "

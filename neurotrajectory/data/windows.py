@@ -743,7 +743,7 @@ def record_group_into(
         **{k: first[k] for k in same},
         **({"goal_seconds": first["goal_seconds"]} if "goal_seconds" in first else {}),
         "scenarios": metas,
-        **({"ended_early": ended_early(metas)} if ended_early(metas) else {}),
+        **({"ended_early": early} if (early := ended_early(metas)) else {}),
         **({"skipped": [{"file": str(f), "reason": r} for f, r in unused]} if unused else {}),
         "versions": package_versions(),
     }
@@ -760,13 +760,14 @@ def ended_early(metas: list[dict]) -> dict:
     """The episodes of the scenarios ``metas`` (their provenance) that ended early, summed
     by how they ended, and the windows not taken (as each scenario's ``ended_early``); empty
     when none did."""
-    total: dict[str, int] = {}
+    episodes: dict[str, int] = {}
+    windows = 0
     for meta in metas:
         early = meta.get("ended_early", {})
-        for key, n in [*early.get("episodes", {}).items(),
-                       ("windows_not_taken", early.get("windows_not_taken", 0))]:  # fmt: skip
-            total[key] = total.get(key, 0) + n
-    return _early(total) if total else {}
+        for key, n in early.get("episodes", {}).items():
+            episodes[key] = episodes.get(key, 0) + n
+        windows += early.get("windows_not_taken", 0)
+    return {"episodes": episodes, "windows_not_taken": windows} if episodes else {}
 
 
 def early_note(early: dict) -> str:
