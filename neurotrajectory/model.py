@@ -29,6 +29,7 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import asdict, astuple, dataclass
+from enum import Enum
 
 import numpy as np
 import torch
@@ -416,9 +417,20 @@ def size_mismatch(cfg: NetConfig, windows) -> str | None:
 
 _CONVS = ((2, 2), (2, 1), (2, 1))  # stride, padding of GridEncoder.cnn's convolutions
 _CONV_NAMES = ("encoder.cnn.0", "encoder.cnn.2", "encoder.cnn.4")
-#: :meth:`PopulationNet.convolutions`' choice of the first convolution compiled
-#: (:func:`~gridsim.sensors.occupancy_kernels.pooled_convolution`), the others grouped.
-COMPILED_FIRST = "compiled"
+
+
+class Convolutions(Enum):
+    """How :meth:`PopulationNet.frame_features` runs the CNN's convolutions for a batch of
+    individuals (:meth:`PopulationNet.convolutions`' choice)."""
+
+    PER_INDIVIDUAL = "one call per individual and convolution"
+    GROUPED = "every convolution one grouped call for all individuals"
+    GROUPED_AFTER_FIRST = "the first per individual, the others grouped"
+    #: the pooling and the first in one compiled call
+    #: (:func:`~gridsim.sensors.occupancy_kernels.pooled_convolution`), the others grouped
+    COMPILED_FIRST = "the first compiled, the others grouped"
+
+
 ALIGN = 16  # floats: 64 bytes
 #: Parameters of at least this many numbers are not copied per batch: products with them
 #: run on views into the population store, one ``bmm`` per run of consecutive individuals.
@@ -529,7 +541,7 @@ class PopulationNet:
         self.n_cnn = cfg.channels[2] * (cfg.grid_size // cfg.pool // 8) ** 2
         self.times = template.times.clone()
         self.act = _PW_ACTIVATIONS[cfg.activation]
-        self._convolutions: dict[tuple[int, int], int | str | None] = {}  # :meth:`convolutions`
+        self._convolutions: dict[tuple[int, int], Convolutions] = {}  # :meth:`convolutions`
 
     # -- parameters ---------------------------------------------------------------------------
     def store(self, population) -> torch.Tensor:
@@ -600,12 +612,12 @@ class PopulationNet:
         environment of each individual), computed as :meth:`convolutions` says."""
         k, e = frames.shape[:2]
         plan = self.convolutions(k, e)
-        if plan == COMPILED_FIRST:
+        if plan is Convolutions.COMPILED_FIRST:
             return self._features_compiled(params, frames)
         x = self._pooled(frames)
-        if plan is None:
+        if plan is Convolutions.PER_INDIVIDUAL:
             return self._features_per_individual(params, x)
-        return self._features_grouped(params, x, plan)
+        return self._features_grouped(params, x, int(plan is Convolutions.GROUPED_AFTER_FIRST))
 
     def _pooled(self, frames: np.ndarray) -> torch.Tensor:
         """``frames`` uint8 ``(K, E, H, W)`` pooled and scaled to 0-1: ``(K, E, 1, H/p, W/p)``."""
@@ -674,23 +686,21 @@ class PopulationNet:
         stride, pad = _CONVS[layer]
         return torch.nn.functional.conv2d(x, weight, bias, stride, pad, 1, groups).relu_()
 
-    def convolutions(self, k: int, e: int) -> int | str | None:
+    def convolutions(self, k: int, e: int) -> Convolutions:
         """How :meth:`frame_features` of ``k`` individuals on ``e`` frames each runs the
-        convolutions: from convolution 0 or 1 on as one grouped call for all individuals (those
-        before, one call per individual), :data:`COMPILED_FIRST` (the first compiled, the others
-        grouped), or None (one call per individual throughout). Of the choices that give the
-        bits of one call per individual, the fastest: a probe on random weights and frames of
+        convolutions (:class:`Convolutions`). Of the choices that give the bits of one call
+        per individual, the fastest: a probe on random weights and frames of
         these shapes decides once per ``(k, e)`` (oneDNN picks its kernels by shape and CPU,
         never by values, so every choice it allows gives the same results; only the time
-        differs). One frame per individual: None (torch then convolves each individual
-        without oneDNN)."""
+        differs). One frame per individual: one call per individual (torch then convolves
+        each individual without oneDNN)."""
         if e < 2:
-            return None
+            return Convolutions.PER_INDIVIDUAL
         if (k, e) not in self._convolutions:
             self._convolutions[(k, e)] = self._probe_convolutions(k, e)
         return self._convolutions[(k, e)]
 
-    def _probe_convolutions(self, k: int, e: int) -> int | str | None:
+    def _probe_convolutions(self, k: int, e: int) -> Convolutions:
         """:meth:`convolutions`' probe: the bits of each choice, then the times of those
         that give the bits of one call per individual (the best of 5 runs each)."""
         g = torch.Generator().manual_seed(0)
@@ -703,13 +713,15 @@ class PopulationNet:
         size = self.cfg.grid_size
         frames = torch.randint(0, 256, (k, e, size, size), generator=g, dtype=torch.uint8).numpy()
         x = self._pooled(frames)
-        choices = {1: lambda: self._features_grouped(params, x, 1),
-                   0: lambda: self._features_grouped(params, x, 0),
-                   COMPILED_FIRST: lambda: self._features_compiled(params, frames)}  # fmt: skip
+        choices = {
+            Convolutions.GROUPED_AFTER_FIRST: lambda: self._features_grouped(params, x, 1),
+            Convolutions.GROUPED: lambda: self._features_grouped(params, x, 0),
+            Convolutions.COMPILED_FIRST: lambda: self._features_compiled(params, frames),
+        }
         reference = self._features_per_individual(params, x)
         allowed = [c for c, run in choices.items() if torch.equal(run(), reference)]
         if len(allowed) < 2:
-            return allowed[0] if allowed else None
+            return allowed[0] if allowed else Convolutions.PER_INDIVIDUAL
         best = {c: math.inf for c in allowed}
         for _ in range(5):  # alternated, so that a slower moment of the machine hits both
             for c in allowed:

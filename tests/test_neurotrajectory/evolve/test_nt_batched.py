@@ -13,7 +13,7 @@ from neurotrajectory.evolve.backends import WorkerSpec, make_backend
 from neurotrajectory.evolve.fitness import Evaluator
 from neurotrajectory.evolve.genome import Recipe, initial_genome, set_genome
 from neurotrajectory.evolve.runs import Run, TrainConfig
-from neurotrajectory.model import PRESETS, NetConfig, PopulationNet, TrajectoryNet
+from neurotrajectory.model import PRESETS, Convolutions, NetConfig, PopulationNet, TrajectoryNet
 
 #: Training runs, rollouts or subprocesses: left out of the quick loop (`pytest -m "not slow"`).
 pytestmark = pytest.mark.slow
@@ -89,11 +89,15 @@ def test_frame_features_are_those_of_one_convolution_call_per_individual(preset)
             # probe decides whether the compiled first convolution gives these bits)
             assert torch.equal(pnet._features_compiled(params, frames), one_per_individual)
         plan = pnet.convolutions(k, e)
-        if plan in (0, 1):
-            assert torch.equal(pnet._features_grouped(params, x, plan), one_per_individual)
-    assert pnet.convolutions(4, 1) is None
+        grouped = {Convolutions.GROUPED: 0, Convolutions.GROUPED_AFTER_FIRST: 1}
+        if plan in grouped:
+            first = grouped[plan]
+            assert torch.equal(pnet._features_grouped(params, x, first), one_per_individual)
+    assert pnet.convolutions(4, 1) is Convolutions.PER_INDIVIDUAL
     if "/AVX512/" in numerics_platform():  # where it was measured (Intel and AMD)
-        assert pnet.convolutions(16, 2) is not None, "the grouped convolutions are no longer used"
+        assert pnet.convolutions(16, 2) is not Convolutions.PER_INDIVIDUAL, (
+            "the grouped convolutions are no longer used"
+        )
 
 
 def _results(ev, pop):
