@@ -49,6 +49,10 @@ ZOOM_BACK = 1.15
 INSET_EGO_COLOUR = (255, 255, 255)
 #: pixels: the grid inset's distance from the frame's top and right edges
 INSET_MARGIN = 8
+#: pixels: the room the arrow to a human out of view keeps from the caption (top), the
+#: legends and the scale bar (bottom), the frame's left edge, and the grid inset (right:
+#: beside the inset's width and margin), its label included
+POINTER_CLEAR_TOP, POINTER_CLEAR_BOTTOM, POINTER_CLEAR_SIDE = 80, 120, 32
 
 
 @dataclass(frozen=True)
@@ -216,7 +220,9 @@ class TopDownRenderer:
         if 0 <= u < w and 0 <= v < h:
             return
         # inside the frame's middle, clear of the caption, the legends, the inset and the bar
-        left, right, top, bottom = 40, w - 200, 80, h - 120
+        left, top = POINTER_CLEAR_SIDE + 8, POINTER_CLEAR_TOP
+        right = w - self.view.inset_size - INSET_MARGIN - POINTER_CLEAR_SIDE
+        bottom = h - POINTER_CLEAR_BOTTOM
         cx, cy = (left + right) / 2, (top + bottom) / 2
         du, dv = u - cx, v - cy
         scale = min((right - cx) / max(abs(du), 1e-9), (bottom - cy) / max(abs(dv), 1e-9))

@@ -388,6 +388,25 @@ def test_the_view_leads_the_ego_and_points_to_a_human_out_of_it():
     assert changed[:, 0].max() < 240  # in the upper half: the human is north
 
 
+def test_the_arrow_to_a_human_out_of_view_stays_clear_of_a_larger_grid_inset():
+    """The arrow keeps beside the inset whatever its size (it was placed for a 160-pixel one:
+    a larger inset hid it)."""
+    from gridsim.render.topdown import INSET_MARGIN, REFERENCE_COLOUR, TopDownRenderer, ViewSpec
+
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    env.reset(seed=0)
+    world = env.unwrapped.world
+    grid = env.unwrapped.newest_grid()
+    for size in (160, 240):
+        view = TopDownRenderer(ViewSpec(inset_size=size))
+        # a human far to the east of the view's centre: the arrow points right
+        east = view.centre(world) + np.array([500.0, 0.0])
+        img = view.render(world, grid=grid, human=east)
+        arrow = np.argwhere((img == REFERENCE_COLOUR).all(axis=-1))
+        assert len(arrow) > 15, f"inset of {size} pixels: the arrow is hidden"
+        assert arrow[:, 1].max() < view.view.width - size - INSET_MARGIN
+
+
 def test_vehicles_show_their_heading_and_the_destination_is_marked():
     """Each vehicle's front quarter is drawn darker (a plain box did not say which way it
     drives), and the destination handed to the planner is a diamond."""
