@@ -299,7 +299,8 @@ class GridSimEnv(gym.Env):
         self._look_ahead()
         tol = self.cfg.env.destination_tolerance
         reached = self.reference.reached(world.ego[:2], self._travelled, tol)
-        terminated = bool(result.collided or result.off_road or reached)
+        ends = reached and self.cfg.env.end_at_destination
+        terminated = bool(result.collided or result.off_road or ends)
         self._terminated = terminated
         truncated = (not terminated) and world.time >= self.time_limit - 1e-9
         self._truncated = truncated

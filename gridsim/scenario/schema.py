@@ -273,6 +273,12 @@ class EnvConfig(Strict):
         Field(description="[v_min, v_max] counted by l3 [m/s]; default: the traffic bounds"),
     ] = None
     destination_tolerance: Annotated[float, Field(gt=0, le=50, description="[m]")] = 2.0
+    end_at_destination: Annotated[
+        bool,
+        Field(description="reaching the destination ends the episode (terminated); false: it "
+              "runs on to its time limit, info still saying destination_reached (recording "
+              "windows: a human crawling near its end point drives on to its recording's end)"),
+    ] = True  # fmt: skip
     goal_seconds: Annotated[
         float | None,
         Field(gt=0, le=30, description="how far ahead the observed destination lies [s]: "

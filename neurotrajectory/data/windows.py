@@ -366,15 +366,24 @@ def iter_windows(
     for episode in episodes:
         with warnings.catch_warnings():  # an unfit ego track: said once (_say_unfit_egos)
             warnings.simplefilter("ignore", UnfitEgoWarning)
-            wanted = json.dumps(episode.overrides, sort_keys=True)
+            overrides = _driven_through(episode.overrides)
+            wanted = json.dumps(overrides, sort_keys=True)
             if wanted != key:
                 env = None  # (released before the next is built)
-                env, key = GridSimEnv(scenario, **episode.overrides), wanted
+                env, key = GridSimEnv(scenario, **overrides), wanted
             windows = _episode_windows(env, episode.seed, stride, episode.track, policy, labels,
                                        endings)  # fmt: skip
         if progress:
             progress(1)
         yield windows
+
+
+def _driven_through(overrides: dict) -> dict:
+    """An episode's ``overrides`` with ``env.end_at_destination`` off: a window is taken
+    wherever the reference covers the horizon, also after the ego is within the tolerance of
+    the destination (a human crawling near its end point, in slow traffic, for seconds)."""
+    env = {**overrides.get("env", {}), "end_at_destination": False}
+    return {**overrides, "env": env}
 
 
 class _WindowTaker:
@@ -410,8 +419,9 @@ class _WindowTaker:
 
 
 #: What ends an episode before its reference does (``Episode.ended_by``): the windows the
-#: rest of the reference would have given are not taken (counted in ``endings``).
-EARLY_ENDINGS = ("collision", "off road", "destination reached")
+#: rest of the reference would have given are not taken (counted in ``endings``). Reaching
+#: the destination does not end a recorded episode (:func:`_driven_through`).
+EARLY_ENDINGS = ("collision", "off road")
 
 
 def _episode_windows(
@@ -778,8 +788,7 @@ def early_note(early: dict) -> str:
         f"{episodes} episode(s) ended before their reference did ({kinds}): the "
         f"{early['windows_not_taken']} window(s) the rest would have given were not "
         "taken (with the ego driving the human's own track, a collision or leaving the "
-        "road is the recording's; the destination is reached where the human stands "
-        "near its end; manifest.json: ended_early)"
+        "road is the recording's; manifest.json: ended_early)"
     )
 
 

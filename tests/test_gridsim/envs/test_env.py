@@ -177,6 +177,31 @@ def test_reference_policy_completes_a_seamless_episode_with_zero_l1():
     assert np.hypot(*(u.world.ego[:2] - ref_now)) < 2.0
 
 
+def test_an_episode_may_drive_on_past_its_destination_to_its_time_limit():
+    """``env.end_at_destination: false`` (as ``record`` drives recorded tracks): a human who
+    crawls within the destination's tolerance of its end point for seconds (US-101 track
+    422) no longer ends the episode there; info still says the destination is reached, and
+    the steps before are the same."""
+
+    def drive(**env_options):
+        env = GridSimEnv("us101_4_1", ego={"track": "422"}, **env_options)
+        obs, info = env.reset(seed=0)
+        steps = []
+        while True:
+            obs, terms, terminated, truncated, info = env.step(info["reference_setpoints"])
+            steps.append((env.world.ego.copy(), terms, info["destination_reached"]))
+            if terminated or truncated:
+                return steps, terminated, truncated
+
+    ended, terminated, _ = drive()
+    assert terminated and ended[-1][2]
+    on, terminated, truncated = drive(env={"end_at_destination": False})
+    assert truncated and not terminated and len(on) > len(ended) + 20
+    assert all(reached for *_, reached in on[len(ended) - 1 :])
+    for (ego_a, terms_a, _), (ego_b, terms_b, _) in zip(ended, on, strict=False):
+        assert np.array_equal(ego_a, ego_b) and np.array_equal(terms_a, terms_b)
+
+
 def test_lane_following_completes_and_steering_off_is_terminated():
     env = GridSimEnv("seamless", action_type="control")
     total, term, trunc, info = run_episode(env, LaneFollow(), seed=1)
