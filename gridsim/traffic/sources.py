@@ -539,6 +539,8 @@ class CityTraffic(SyntheticTraffic):
         continue with a new one; those far from the ego or near their route's end are
         respawned near it."""
         f = self.fleet
+        if not self.count:  # the ego alone in the city
+            return False
         self._chain_profiles(ended)
         far = np.hypot(f.x - ego.x, f.y - ego.y) > self.radius * 1.5
         _, ends = f.paths.ranges(f.path)

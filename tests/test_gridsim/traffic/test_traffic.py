@@ -576,6 +576,21 @@ def test_four_cars_at_a_crossroads_do_not_wait_for_each_other_for_ever():
         assert f.s.min() > 200.0 + 10.0, trial  # every one across
 
 
+@pytest.mark.parametrize("scenario", ["inner_city", "seamless"])
+def test_no_participants_is_the_ego_alone(scenario):
+    """``traffic.participants: 0`` drives the ego alone (the city's refill indexed an empty
+    table: an IndexError at reset)."""
+    import gymnasium as gym
+
+    env = gym.make("GridSim-v0", scenario=scenario, traffic={"participants": 0},
+                   observation_type="kinematics")  # fmt: skip
+    obs, info = env.reset(seed=0)
+    for _ in range(30):
+        obs, _, terminated, truncated, info = env.step(info["reference_setpoints"])
+        assert not (terminated or truncated)
+    assert not env.unwrapped.world.traffic.fleet.active.any()
+
+
 def test_a_car_does_not_wait_for_the_one_behind_it():
     """In the city every car has a path of its own: one standing before its left turn and
     one behind it in its lane, going straight on, are not a crossing (the follower follows;
