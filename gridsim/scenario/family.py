@@ -43,8 +43,9 @@ class Family:
       reference is that track's future; ``traffic.library: [scene]`` reads the map's);
     - ``data_report``: ``scenario -> SceneReport``, the plausibility of its recorded data
       (:mod:`gridsim.scenario.checks`), or None for a family without data;
-    - ``ignores``: the keys (``section.key``) of the other sections its worlds never read,
-      each with why (a file that sets one is warned about: the key has no effect).
+    - ``ignores``: the keys (``section.key`` or deeper, ``ego.vehicle.length``) of the
+      other sections its worlds never read, each with why (a file that sets one is warned
+      about: the key has no effect).
     """
 
     config: type[Strict]

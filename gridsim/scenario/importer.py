@@ -92,8 +92,11 @@ def _write(xml: Path, tracks, scene: str, out: Path) -> Path:
         **deep_merge(commonroad_defaults(), {"traffic": {"library": [f"{stem}.csv"]}}),
     }
     for key in FAMILIES["recorded"].ignores:  # (a default a recorded scene never reads)
-        section, name = key.split(".")
-        doc.get(section, {}).pop(name, None)
+        *sections, name = key.split(".")
+        block = doc
+        for section in sections:
+            block = block.get(section, {})
+        block.pop(name, None)
     path = out / f"{stem}.yaml"
     header = (
         f"# Imported from {xml.name} by `gridsim import`; edit freely, check with "

@@ -19,7 +19,13 @@ from pydantic import ValidationError
 from gridsim.errors import ScenarioError, archive_problem, not_there, warn_data
 from gridsim.outputs import counted
 from gridsim.scenario.family import FAMILIES, family_defaults
-from gridsim.scenario.schema import ZERO_PADDED, Scenario, ScenarioConfig, Strict
+from gridsim.scenario.schema import (
+    MAX_WHEELBASE_SHARE,
+    ZERO_PADDED,
+    Scenario,
+    ScenarioConfig,
+    Strict,
+)
 
 _BUILTIN_DIR = ("data", "scenarios")
 
@@ -374,6 +380,7 @@ def parse_scenario(
     scenario = Scenario(_validate(doc, source, given), source, base_dir)
     _warn_fast_traffic(scenario, family)
     _warn_timing(scenario)
+    _warn_wheelbase(scenario, family)
     if unused:
         ignores, by_why = FAMILIES[family].ignores, {}
         for key in unused:
@@ -398,6 +405,18 @@ def _warn_fast_traffic(scenario: Scenario, family: Any) -> None:
                   f"are in m/s (km/h / 3.6); above {FAST_TRAFFIC:g} m/s an ego following the "
                   "human reference collides more often (3-7 of 8 seamless episodes at 40-70 "
                   "m/s)")  # fmt: skip
+
+
+def _warn_wheelbase(scenario: Scenario, family: Any) -> None:
+    """A :class:`~gridsim.errors.DataWarning` when ``ego.vehicle.wheelbase`` is shortened
+    (more than :data:`~gridsim.scenario.schema.MAX_WHEELBASE_SHARE` of the length; on a
+    family whose ego takes a track's size, the track's length decides, episode by episode)."""
+    vehicle = scenario.config.ego.vehicle
+    top = MAX_WHEELBASE_SHARE * vehicle.length
+    if vehicle.wheelbase > top + 1e-9 and "ego.vehicle.length" not in FAMILIES[family].ignores:
+        warn_data(f"{scenario.source}: ego.vehicle.wheelbase {vehicle.wheelbase:g} m is more than "
+                  f"{MAX_WHEELBASE_SHARE:g} x ego.vehicle.length {vehicle.length:g} m: the "
+                  f"car is driven with a wheelbase of {top:.4g} m")  # fmt: skip
 
 
 def _warn_timing(scenario: Scenario) -> None:
@@ -425,17 +444,33 @@ def _unused_keys(doc: Mapping[str, Any], family: Any) -> list[str]:
     --resolved``) states every key at its default."""
     if not isinstance(family, str) or family not in FAMILIES:
         return []
-    keys = [key.split(".") for key in FAMILIES[family].ignores]
     fields, own = ScenarioConfig.model_fields, family_defaults(family)
 
-    def default(a: str, b: str) -> Any:  # the family's, else the schema's
-        mine = own.get(a)
-        return mine[b] if isinstance(mine, Mapping) and b in mine else (
-            fields[a].default.model_dump().get(b))  # fmt: skip
+    def default(path: list[str]) -> Any:  # the family's, else the schema's
+        mine = _at(own, path)
+        if mine is not _MISSING:
+            return mine
+        return _at(fields[path[0]].default.model_dump(), path[1:])
 
-    return [f"{a}.{b}" for a, b in keys
-            if isinstance(doc.get(a), Mapping) and b in doc[a]
-            and not _same(doc[a][b], default(a, b))]  # fmt: skip
+    unused = []
+    for key in FAMILIES[family].ignores:
+        path = key.split(".")
+        value = _at(doc, path)
+        if value is not _MISSING and not _same(value, default(path)):
+            unused.append(key)
+    return unused
+
+
+_MISSING = object()
+
+
+def _at(doc: Any, path: list[str]) -> Any:
+    """The value at the key ``path`` of nested mappings ``doc`` (:data:`_MISSING` if absent)."""
+    for key in path:
+        if not isinstance(doc, Mapping) or key not in doc:
+            return _MISSING
+        doc = doc[key]
+    return doc
 
 
 def _same(value: Any, default: Any) -> bool:

@@ -137,7 +137,15 @@ def _scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
         return road, library.scene(scene_of(scenario))
     except DataError as exc:  # the library has no track of the map's scene
         if "scene" in scenario.config.traffic.library:
-            raise
+            given = scenario.config.road.scene
+            if given is None:
+                raise DataError(f"{scenario.source}: {exc}") from None
+            own = _file_scene_id(stamped(map_path(scenario)))
+            raise DataError(
+                f"{scenario.source}: road.scene {given!r} (set in this file or one it extends) "
+                f"is not the scene of road.map {scenario.config.road.map} ({own!r}): {exc}; "
+                "leave road.scene out to replay the map's own scene"
+            ) from None
         raise DataError(
             f"{scenario.source}: {exc}; to replay the vehicles of the CommonRoad file itself, "
             "set traffic.library: [scene] (or give the .xml file as the scenario)"
@@ -360,5 +368,7 @@ FAMILY = register_family(Family(
     ignores=dict.fromkeys(("traffic.participants", "traffic.window", "traffic.v_min",
                            "traffic.v_max", "traffic.a_max", "ego.lane", "ego.speed"),
                           "recorded scenes take their traffic, lanes and the ego's start from "
-                          "the recording"),
+                          "the recording")
+    | dict.fromkeys(("ego.vehicle.length", "ego.vehicle.width"),
+                    "the ego takes the size of the track it drives"),
 ))  # fmt: skip

@@ -326,6 +326,18 @@ def test_keys_that_the_road_type_does_not_use_are_named():
         load_scenario("inner_city", {"ego": {"lane": 0}})
     with pytest.warns(DataWarning, match=r"ego.track not used .* have tracks\); ego.lane not"):
         load_scenario("inner_city", {"ego": {"lane": 0, "track": "5"}})
+    # a key inside a block: the recorded ego takes its track's size (its wheelbase is read)
+    size = r"ego.vehicle.length, ego.vehicle.width not used by road type 'recorded' \(the ego "
+    with pytest.warns(DataWarning, match=size + r"takes the size of the track it drives\)"):
+        load_scenario("us101_4_1", {"ego": {"vehicle": {"length": 12, "width": 3,
+                                                          "wheelbase": 2.5}}})  # fmt: skip
+    # a wheelbase shortened to 0.7 x the length is said (on a generated road: the car's own)
+    with pytest.warns(
+        DataWarning,
+        match=r"wheelbase 4 m is more than 0.7 x ego.vehicle.length "
+        r"4.5 m: the car is driven with a wheelbase of 3.15 m",
+    ):
+        load_scenario("seamless", {"ego": {"vehicle": {"length": 4.5, "wheelbase": 4.0}}})
     import warnings
 
     with warnings.catch_warnings():

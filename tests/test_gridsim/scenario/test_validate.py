@@ -430,3 +430,25 @@ def test_trucks_in_metres_are_not_taken_for_feet():
     assert feet_hint(trucks) == ""
     feet = [dataclasses.replace(car, track_id=f"f{k}", length=14.8, width=5.9) for k in range(3)]
     assert "(not feet)?" in feet_hint(feet)
+
+
+def test_a_scene_name_that_is_not_the_maps_names_the_file_and_key(tmp_path, capsys):
+    """``road.scene`` of a name the map's tracks do not have, with ``traffic.library:
+    [scene]``: the error names the scenario file, ``road.scene`` and the map's own scene (it
+    said only "no tracks for scene"); a built-in scene extended with another map replays that
+    map's scene (the built-in files no longer pin their scene)."""
+    xml = Path("gridsim/data/ngsim/commonroad-xml")
+    (tmp_path / "three.xml").write_bytes((xml / "USA_US101-3_3_T-1.xml").read_bytes())
+    path = tmp_path / "named.yaml"
+    path.write_text("name: a\nroad: {type: recorded, map: three.xml, scene: three}\n"
+                    "traffic: {library: [scene]}\n")  # fmt: skip
+    code, said = validate(capsys, path)
+    assert code != 0 and "Traceback" not in said
+    assert (
+        f"{path}: road.scene 'three' (set in this file or one it extends) is not the scene "
+        "of road.map three.xml ('USA_US101-3_3_T-1')" in said
+    )
+    other = tmp_path / "other.yaml"
+    other.write_text(f"name: b\nextends: us101_3_3\nroad: {{map: {xml.resolve()}/"
+                     "USA_Peach-4_8_T-1.xml}\ntraffic: {library: [scene]}\n")  # fmt: skip
+    assert validate(capsys, other)[0] == 0
