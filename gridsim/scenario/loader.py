@@ -4,6 +4,7 @@ overrides."""
 from __future__ import annotations
 
 import difflib
+import math
 import os
 import re
 import typing
@@ -379,7 +380,7 @@ def parse_scenario(
     given = _key_paths(overrides) if overrides else []  # (a problem may be theirs)
     scenario = Scenario(_validate(doc, source, given), source, base_dir)
     _warn_fast_traffic(scenario, family)
-    _warn_timing(scenario)
+    _warn_timing(scenario, family)
     _warn_wheelbase(scenario, family)
     if unused:
         ignores, by_why = FAMILIES[family].ignores, {}
@@ -419,10 +420,12 @@ def _warn_wheelbase(scenario: Scenario, family: Any) -> None:
                   f"car is driven with a wheelbase of {top:.4g} m")  # fmt: skip
 
 
-def _warn_timing(scenario: Scenario) -> None:
+def _warn_timing(scenario: Scenario, family: Any) -> None:
     """A :class:`~gridsim.errors.DataWarning` when the set-points are closer than a tick, or
     a decision lasts past the first set-point (the car then passes set-points of a plan it
-    follows blind until the next decision; ``l1`` scores the plan, not where the car is)."""
+    follows blind until the next decision; ``l1`` scores the plan, not where the car is), or
+    (on a generated road; a recorded scene's episodes last as its tracks) an episode's
+    duration is not a whole number of decisions (it ends after the decision that passes it)."""
     env, dt = scenario.config.env, scenario.config.simulation.dt
     said = []
     if env.setpoint_period < dt - 1e-9:
@@ -435,6 +438,15 @@ def _warn_timing(scenario: Scenario) -> None:
     if said:
         warn_data(f"{scenario.source}: {'; '.join(said)}; l1 scores the plans, not where the "
                   "car gets: a policy may score well and drive poorly")  # fmt: skip
+    duration = scenario.config.simulation.duration
+    decisions = duration / env.decision_period
+    whole = abs(decisions - round(decisions)) <= 1e-6 * max(decisions, 1.0)
+    if not whole and not FAMILIES[family].recorded:
+        last = math.ceil(decisions - 1e-6)
+        warn_data(f"{scenario.source}: simulation.duration {duration:g} s is not a whole "
+                  f"number of decisions (env.decision_period {env.decision_period:g} s): an "
+                  f"episode ends after its decision {last}, at "
+                  f"{last * env.decision_period:g} s")  # fmt: skip
 
 
 def _unused_keys(doc: Mapping[str, Any], family: Any) -> list[str]:

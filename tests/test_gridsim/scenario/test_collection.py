@@ -338,6 +338,14 @@ def test_keys_that_the_road_type_does_not_use_are_named():
         r"4.5 m: the car is driven with a wheelbase of 3.15 m",
     ):
         load_scenario("seamless", {"ego": {"vehicle": {"length": 4.5, "wheelbase": 4.0}}})
+    # an episode that lasts past simulation.duration, to the end of its decision, is said
+    with pytest.warns(
+        DataWarning,
+        match=r"simulation.duration 10 s is not a whole number of "
+        r"decisions \(env.decision_period 0.3 s\): an episode "
+        r"ends after its decision 34, at 10.2 s",
+    ):
+        load_scenario("seamless", {"env": {"decision_period": 0.3}, "simulation": {"duration": 10}})
     import warnings
 
     with warnings.catch_warnings():
