@@ -327,6 +327,21 @@ class ScenarioConfig(Strict):
     sensor: SensorConfig = SensorConfig()
     env: EnvConfig = EnvConfig()
 
+    @model_validator(mode="before")
+    @classmethod
+    def _ego_lane_on_a_narrow_road(cls, data: Any) -> Any:
+        """The ego's default lane on a road of fewer lanes than it: the last lane (a one-lane
+        road needs no ``ego.lane: 0``)."""
+        if not isinstance(data, dict):
+            return data
+        road, ego = data.get("road"), data.get("ego", {})
+        lanes = road.get("lanes") if isinstance(road, dict) else None
+        default = EgoConfig.model_fields["lane"].default
+        narrow = isinstance(lanes, int) and not isinstance(lanes, bool) and 1 <= lanes <= default
+        if narrow and isinstance(ego, dict) and "lane" not in ego:
+            return {**data, "ego": {**ego, "lane": lanes - 1}}
+        return data
+
     @model_validator(mode="after")
     def _consistency(self) -> ScenarioConfig:
         """Checks across sections, every failing one reported (one line each)."""

@@ -3,6 +3,7 @@
 import string
 from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 import yaml
@@ -720,6 +721,20 @@ def test_validate_reports_every_problem_of_a_file_at_once(tmp_path, capsys):
                     "    v_max: fast\n")  # fmt: skip
     with pytest.raises(ScenarioError, match=r"\(1 problem\):\n  - ego.vehicle.v_max: "):
         load_scenario(path)
+
+
+def test_a_one_lane_road_needs_no_ego_lane():
+    """The ego's default lane (1) on a road of one lane is its only lane (the file was
+    refused: "ego.lane (1) must be < road.lanes (1)"); a lane given is checked as before."""
+    one = {"name": "a", "road": {"type": "seamless", "lanes": 1}}
+    assert parse_scenario(one, "a.yaml").config.ego.lane == 0
+    assert parse_scenario({**one, "road": {"type": "seamless", "lanes": 3}}, "a.yaml"
+                          ).config.ego.lane == 1  # fmt: skip
+    with pytest.raises(ScenarioError, match=r"ego.lane \(1\) must be < road.lanes \(1\)"):
+        parse_scenario({**one, "ego": {"lane": 1}}, "a.yaml")
+    env = gym.make("GridSim-v0", scenario="seamless", road={"lanes": 1})
+    obs, info = env.reset(seed=0)
+    assert not env.step(info["reference_setpoints"])[2]
 
 
 def test_generated_traffic_faster_than_40_m_s_is_warned_about():
