@@ -15,6 +15,17 @@ import numpy as np
 
 #: The largest seed a user gives (a flag, a training run's ``seed``).
 MAX_SEED = 2**32 - 1
+#: Episode seeds are drawn below this (:func:`episode_seed`).
+EPISODE_SEEDS = 2**31 - 1
+
+
+def episode_seed(seed: int) -> int:
+    """The episode seed ``GridSimEnv.reset(seed=seed)`` draws first (``info["episode_seed"]``:
+    the world, the reference and a collection's scenario are made from it), for a command
+    that builds the episode's world without an environment (``gridsim drive``)."""
+    from gymnasium.utils.seeding import np_random
+
+    return int(np_random(seed)[0].integers(EPISODE_SEEDS))
 
 
 class Salt(IntEnum):

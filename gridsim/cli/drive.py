@@ -51,6 +51,7 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     from gridsim.scenario.build import build_sensor, build_world
     from gridsim.scenario.collection import load_collection, pick
     from gridsim.scenario.schema import MAX_DURATION, MAX_TICKS
+    from gridsim.seeding import episode_seed
     from gridsim.world.scripted_drivers import LaneFollower
 
     if not 0 < seconds <= MAX_DURATION:
@@ -59,8 +60,9 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
     problem = new_folder_problem(out)
     if problem:
         raise OutputError(f"--out {out}: {problem}")
-    sc = pick(load_collection(scenario), seed)  # of a folder or glob: drawn from the seed
-    world = build_world(sc, seed)
+    episode = episode_seed(seed)  # the episode of `gridsim run --seed SEED` and reset(seed=)
+    sc = pick(load_collection(scenario), episode)  # of a folder or glob: drawn from the seed
+    world = build_world(sc, episode)
     sensor = build_sensor(sc)
     # On recorded scenes drive at the human's mean speed; elsewhere near the speed limit.
     track = world.ego_track
@@ -86,15 +88,16 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         grids[k] = sensor.observe(world)
         times[k] = round(world.time, 9)  # a sum of ticks, to the nanosecond (as info["time"])
     with new_folder(out) as partial:  # out appears whole
-        return _write(partial, out, sc, seed, world, grids, times, steps, start, distance,
-                      collisions, off_road, cut)  # fmt: skip
+        return _write(partial, out, sc, (seed, episode), world, grids, times, steps, start,
+                      distance, collisions, off_road, cut)  # fmt: skip
 
 
-def _write(partial, out, sc, seed, world, grids, times, steps, start, distance, collisions,
+def _write(partial, out, sc, seeds, world, grids, times, steps, start, distance, collisions,
            off_road, cut: bool) -> dict:  # fmt: skip
     """Write the drive's files into ``partial``, the folder that becomes ``out`` once they are
-    all there; the summary (``cut``: it stopped where its ego track's recording ends, before
-    the time asked for)."""
+    all there; the summary (``seeds``: the user's and the episode's; ``cut``: it stopped
+    where its ego track's recording ends, before the time asked for)."""
+    seed, episode = seeds
     import cv2
 
     from gridsim.render.annotations import Caption, annotate
@@ -115,6 +118,7 @@ def _write(partial, out, sc, seed, world, grids, times, steps, start, distance, 
     summary = {
         "scenario": sc.name,
         "seed": seed,
+        "episode_seed": episode,
         "simulated_s": round(world.time, 3),
         "ticks": steps,
         "distance_m": round(distance, 2),

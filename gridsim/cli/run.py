@@ -103,7 +103,8 @@ def run_policy(
                                    overlay=overlay, label=label)  # fmt: skip
     bar.close()
     s = episode.summary()
-    summary = {"scenario": env.scenario.name, "policy": policy, "seed": seed, **s,
+    summary = {"scenario": env.scenario.name, "policy": policy, "seed": seed,
+               "episode_seed": env.episode_seed, **s,
                "simulated_s": round(s["simulated_s"], 3),
                "distance_m": round(s["distance_m"], 2)}  # fmt: skip
     recorded = env.world.ego_track

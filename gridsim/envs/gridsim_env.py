@@ -42,6 +42,7 @@ from gridsim.scenario.build import build_sensor, build_world
 from gridsim.scenario.collection import load_collection, pick
 from gridsim.scenario.parts import vehicle_params
 from gridsim.scenario.schema import Scenario
+from gridsim.seeding import EPISODE_SEEDS
 from gridsim.vehicle.kinematics import DELTA, PSI, V
 
 #: Options of gymnasium's vector envs that ``gym.make_vec`` passes on to each env when they
@@ -150,7 +151,8 @@ class GridSimEnv(gym.Env):
     def _reset(self, seed: int | None, options: dict | None):
         replay = _replayed_episode(options)
         super().reset(seed=seed)
-        drawn = int(self.np_random.integers(2**31 - 1))  # (drawn always: the stream goes on alike)
+        # (drawn always: the stream goes on alike; after reset(seed=S), episode_seed(S))
+        drawn = int(self.np_random.integers(EPISODE_SEEDS))
         episode_seed = drawn if replay is None else replay
         self.episode_seed = episode_seed
         if len(self.scenarios) > 1:
