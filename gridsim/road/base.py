@@ -21,6 +21,8 @@ from gridsim.road.polyline import Polyline
 #: The most cells of a static road's drivable-area raster (1e8: 2 km x 2 km at 0.2 m; the
 #: built-in maps have about 2e6).
 MAX_RASTER_CELLS = 10**8
+#: A static road's raster: its cell [m], and its margin [m] around the drivable polygons.
+RASTER_RESOLUTION, RASTER_MARGIN = 0.2, 2.0
 
 
 @dataclass
@@ -150,7 +152,7 @@ class StaticRoad(Road):
         lanes: list[Lane],
         polygons: list[np.ndarray],
         markings: list[np.ndarray] | None = None,
-        resolution: float = 0.2,
+        resolution: float = RASTER_RESOLUTION,
         open_ends: np.ndarray | None = None,
     ) -> None:
         if not polygons:
@@ -161,7 +163,7 @@ class StaticRoad(Road):
         self._markings = markings or []
         self._marking_boxes = bbox_of(self._markings)
         self._res = resolution
-        margin = 2.0
+        margin = RASTER_MARGIN
         self._origin = self._poly_boxes[:, :2].min(axis=0) - margin
         extent = self._poly_boxes[:, 2:].max(axis=0) + margin - self._origin
         cells = float(np.prod(np.ceil(extent / resolution) + 1))

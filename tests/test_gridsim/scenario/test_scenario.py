@@ -512,6 +512,24 @@ def test_a_check_across_keys_is_not_run_on_a_default_that_replaced_a_bad_value()
                                               "jitter": 20}})  # fmt: skip
 
 
+def test_a_city_larger_than_a_road_raster_holds_is_refused_by_its_keys():
+    """The schema took 40 x 40 blocks of 500 m; the road then refused a raster of 9e8 cells
+    naming neither the file nor the keys. A city that fits (20 x 20 blocks of 95 m, about
+    2 km a side) is built."""
+    big = {"name": "x", "road": {"type": "inner_city", "blocks_x": 30, "blocks_y": 30,
+                                 "block_size": 200}}  # fmt: skip
+    with pytest.raises(
+        ScenarioError,
+        match=r"big.yaml: invalid scenario \(1 problem\):\n  - road: blocks_x \(30\) and "
+        r"blocks_y \(30\) blocks of block_size 200 m make a city of about "
+        r"6.0 km x 6.0 km, more than a road's raster",
+    ):
+        parse_scenario(big, "big.yaml")
+    fits = {**big, "road": {"type": "inner_city", "blocks_x": 20, "blocks_y": 20,
+                            "block_size": 95, "jitter": 20, "lanes_per_direction": 4}}  # fmt: skip
+    build_world(parse_scenario(fits, "fits.yaml"), 0)
+
+
 def test_more_participants_than_fit_are_refused():
     sc = load_scenario("seamless", {"traffic": {"participants": 500}})
     with pytest.raises(ScenarioError) as info:
