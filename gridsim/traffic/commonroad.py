@@ -179,5 +179,6 @@ def _track(ob: ET.Element, path: Path, sid: str, dt: float) -> Track | None:
         speed = v.astype(float)
     length, width = _size(ob, where)
     heading = np.unwrap(a[:, 3]) if np.all(np.isfinite(a[:, 3])) else a[:, 3]  # Track names it
+    kind = (ob.findtext("type") or "").strip()
     return Track(sid, str(ob.get("id")), t, a[:, 1], a[:, 2], heading, speed,
-                 length, width, str(path))  # fmt: skip
+                 length, width, str(path), kind=kind)  # fmt: skip

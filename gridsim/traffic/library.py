@@ -38,6 +38,8 @@ REQUIRED_COLUMNS = (
     "length_m",
     "width_m",
 )
+#: An optional column: what each road user is (:attr:`~gridsim.traffic.track.Track.kind`).
+KIND_COLUMN = "obstacle_type"
 _NUMERIC = REQUIRED_COLUMNS[2:]
 
 
@@ -177,19 +179,21 @@ def _join(key: tuple[str, str], pieces: list[Track], taken: set,
     rows = rows[np.concatenate(([True], np.diff(rows[:, 0]) > 0))]  # a boundary row once
     cut = _pieces(rows)
     out, single, impossible = _piece_tracks(sid, rid, cut, taken,
-                                            [pieces[int(a[0, 7])].source for a in cut])  # fmt: skip
+                                            [pieces[int(a[0, 7])].source for a in cut],
+                                            pieces[0].kind)  # fmt: skip
     taken.update((sid, t.track_id) for t in out)
     left_out += [f"{sid}/{name} (a single state)" for name, _ in single] + impossible
     return out
 
 
-def _piece_tracks(sid: str, tid: str, pieces: list[np.ndarray], taken,
-                  sources: list[str]) -> tuple[list[Track], list[tuple], list[str]]:  # fmt: skip
+def _piece_tracks(sid: str, tid: str, pieces: list[np.ndarray], taken, sources: list[str],
+                  kind: str = "") -> tuple[list[Track], list[tuple], list[str]]:  # fmt: skip
     """The tracks of the ``pieces`` (rows ``t, x, y, heading, speed, length, width``, by
     time; :func:`_pieces`) of id ``tid`` of scene ``sid``: named ``tid``, ``tid#2``, ... (a
     suffixed name already in ``taken``, (scene, id) pairs: another ``#``), each sized by its
-    first row and read from ``sources[k]``; with the pieces of a single state (their name and
-    row), left out, and the problems of those of impossible data, left out too."""
+    first row and read from ``sources[k]``, of ``kind`` (:attr:`Track.kind`); with the pieces
+    of a single state (their name and row), left out, and the problems of those of impossible
+    data, left out too."""
     tracks, single, impossible = [], [], []
     for k, piece in enumerate(pieces):
         name = tid if k == 0 else f"{tid}#{k + 1}"
@@ -201,7 +205,7 @@ def _piece_tracks(sid: str, tid: str, pieces: list[np.ndarray], taken,
         try:
             tracks.append(Track(sid, name, piece[:, 0], piece[:, 1], piece[:, 2],
                                 np.unwrap(piece[:, 3]), piece[:, 4], float(piece[0, 5]),
-                                float(piece[0, 6]), sources[k], tid))  # fmt: skip
+                                float(piece[0, 6]), sources[k], tid, kind))  # fmt: skip
         except DataError as exc:  # impossible data: this piece
             impossible.append(str(exc))
     return tracks, single, impossible
@@ -307,6 +311,8 @@ def _parse_tracks_csv(path: Path, singles: list | None) -> list[Track]:
             raise DataError(f"{path}: column {twice[0]!r} appears {header.count(twice[0])} "
                             f"times in the header (columns {cols}); name each once")  # fmt: skip
         where = [header.index(c) for c in REQUIRED_COLUMNS]
+        kind_at = header.index(KIND_COLUMN) if KIND_COLUMN in header else None
+        kinds: dict[tuple[str, str], str] = {}  # track -> its first row's obstacle_type
         index: dict[tuple[str, str], int] = {}  # track -> its number, in order of first row
         blocks, groups, at, rows, lines = [], [], [], [], []
         gaps = _MissingValues()
@@ -326,6 +332,11 @@ def _parse_tracks_csv(path: Path, singles: list | None) -> list[Track]:
             groups.append([index.setdefault((r[where[0]].strip(), r[where[1]].strip()),
                                             len(index))
                            for r, kept in zip(rows, keep, strict=True) if kept])  # fmt: skip
+            if kind_at is not None:
+                for r, kept in zip(rows, keep, strict=True):
+                    if kept and len(r) > kind_at:
+                        kinds.setdefault((r[where[0]].strip(), r[where[1]].strip()),
+                                         r[kind_at].strip())  # fmt: skip
             rows.clear()
             lines.clear()
 
@@ -372,7 +383,8 @@ def _parse_tracks_csv(path: Path, singles: list | None) -> list[Track]:
                 break
         if len(pieces) > 1:
             split.append((tid, [float(p[0, 0]) for p in pieces[1:]]))
-        mine, ones, bad = _piece_tracks(sid, tid, pieces, index, [str(path)] * len(pieces))
+        mine, ones, bad = _piece_tracks(sid, tid, pieces, index, [str(path)] * len(pieces),
+                                        kinds.get((sid, tid), ""))  # fmt: skip
         tracks += mine
         if singles is None:
             single += [f"({sid}, {name})" for name, _ in ones]
@@ -711,16 +723,19 @@ def _header_hint(header: list[str], missing: list[str]) -> str:
 
 
 def write_tracks_csv(tracks: list[Track], path: str | Path) -> Path:
-    """Write ``tracks`` as a trajectory CSV (:data:`REQUIRED_COLUMNS`) that
-    :func:`read_tracks_csv` reads back exactly (floats in full precision)."""
+    """Write ``tracks`` as a trajectory CSV (:data:`REQUIRED_COLUMNS`, and
+    :data:`KIND_COLUMN` when a track has a kind) that :func:`read_tracks_csv` reads back
+    exactly (floats in full precision)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
+    kinds = any(tr.kind for tr in tracks)
     with atomic_text(path) as fh:
         out = csv.writer(fh)
-        out.writerow(REQUIRED_COLUMNS)
+        out.writerow(REQUIRED_COLUMNS + ((KIND_COLUMN,) if kinds else ()))
         for tr in tracks:
+            kind = [tr.kind] if kinds else []
             for k in range(len(tr.t)):
                 values = (tr.t[k], tr.x[k], tr.y[k], tr.heading[k], tr.speed[k])
                 out.writerow([tr.scenario_id, tr.track_id, *(repr(float(v)) for v in values),
-                              repr(tr.length), repr(tr.width)])  # fmt: skip
+                              repr(tr.length), repr(tr.width), *kind])  # fmt: skip
     return path

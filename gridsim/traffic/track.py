@@ -21,6 +21,8 @@ MAX_TIME = 1e10
 MAX_GAP = 60.0
 #: The largest vehicle accepted, length and width [m].
 MAX_SIZE = (50.0, 10.0)
+#: Kinds of road users (:attr:`Track.kind`) that stay traffic, never the ego's track.
+NOT_CARS = frozenset({"pedestrian", "bicycle"})
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,6 +45,14 @@ class Track:
     #: The id as its file gives it, when ``track_id`` is a piece of it (``ID#2``: the id
     #: reused after a pause); "" when the same
     recorded_id: str = ""
+    #: What the file says it is (CommonRoad's obstacle ``<type>``, a CSV's
+    #: ``obstacle_type``: ``car``, ``truck``, ``pedestrian``, ...); "" when it says nothing
+    kind: str = ""
+
+    @property
+    def drivable_as_ego(self) -> bool:
+        """Whether the ego (a car) may drive this track: not one of :data:`NOT_CARS`."""
+        return self.kind.lower() not in NOT_CARS
 
     def __post_init__(self) -> None:
         problem = track_data_problem(self)

@@ -227,7 +227,7 @@ def scenario_episodes(
             warn_data(f"{base.source}: {len(left)} of the tracks ego.track names are not "
                       f"recorded: {', '.join(left[:10])} (shorter than the {need:g} s horizon, "
                       "or flawed: `gridsim validate` says which)")  # fmt: skip
-        chosen = _followable(base, chosen)  # (and those too fast, said on their own)
+        chosen = _followable(base, _cars(base, chosen))  # (those left out said on their own)
         _say_unfit_egos(base, chosen, scene_tracks, road)
         out = [PlannedEpisode(track_name(scene, t.track_id), 0,
                        {"ego": {"track": t.track_id},
@@ -242,6 +242,18 @@ def scenario_episodes(
     overrides = ({"simulation": {"duration": duration}} if duration else {}) | goal
     out = [PlannedEpisode(f"{scenario}/seed{s}", int(s), overrides) for s in seeds]
     return out, {"episodes": len(out), "episode_seeds": [int(s) for s in seeds]}
+
+
+def _cars(scenario, chosen: list) -> list:
+    """The ``chosen`` ego tracks a car may drive: pedestrians and bicycles
+    (:attr:`~gridsim.traffic.track.Track.drivable_as_ego`) stay traffic, named in a
+    :class:`~gridsim.errors.DataWarning`."""
+    others = [t for t in chosen if not t.drivable_as_ego]
+    if others:
+        shown = named([f"{t.track_id} ({t.kind})" for t in others], 8)
+        warn_data(f"{scenario.source}: {len(others)} of the {len(chosen)} tracks are not cars "
+                  f"and are not driven as the ego ({shown}); they stay in the traffic")  # fmt: skip
+    return [t for t in chosen if t.drivable_as_ego]
 
 
 def _followable(scenario, chosen: list) -> list:

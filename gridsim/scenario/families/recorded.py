@@ -198,6 +198,7 @@ def _unfit_tests(scenario: Scenario, tracks, road: StaticRoad) -> dict:
     longest = scenario.config.traffic.max_vehicle_length
     fastest = scenario.config.ego.vehicle.v_max
     return {
+        "of a pedestrian or bicycle": lambda t: not t.drivable_as_ego,
         f"shorter than {MIN_TRACK_SECONDS:g} s": lambda t: t.duration < MIN_TRACK_SECONDS,
         f"of a vehicle longer than {longest:g} m": lambda t: t.length > longest,
         "implausible (see the warning)": lambda t: t.track_id in flawed,

@@ -249,3 +249,43 @@ def test_one_impossible_obstacle_is_left_out_with_a_warning(tmp_path):
     with pytest.raises(DataError, match=r"both.xml: 2 of its 3 tracks are impossible:\n    "
                        r"track 10 .*jumps 3e\+06 m.*\n    track 12 .*jumps"):  # fmt: skip
         read_tracks_commonroad(both)
+
+
+def test_pedestrians_and_bicycles_stay_traffic_and_are_never_the_ego(tmp_path, capsys):
+    """CommonRoad's obstacle ``<type>`` is read (it was not: a pedestrian was replayed as a
+    car and drawn as the random ego): pedestrians and bicycles are never drawn as the ego,
+    a named one is warned about, ``record`` drives them not, and a CSV keeps the kind."""
+    import warnings
+
+    from gridsim.cli import main
+    from gridsim.errors import DataWarning
+    from gridsim.traffic.library import read_tracks_csv, write_tracks_csv
+    from neurotrajectory.data.windows import scenario_episodes
+
+    shipped = ROOT / "gridsim" / "data" / "ngsim" / "commonroad-xml" / "USA_US101-3_3_T-1.xml"
+    xml = shipped.read_text()
+    first = read_tracks_commonroad(shipped)[0].track_id
+    at = xml.index(f'id="{first}"')
+    cut = xml.index("<type>car</type>", at)
+    path = tmp_path / "walker.xml"
+    path.write_text(xml[:cut] + "<type>pedestrian</type>" + xml[cut + len("<type>car</type>") :])
+    tracks = read_tracks_commonroad(path)
+    assert [t.kind for t in tracks].count("pedestrian") == 1 and tracks[0].kind == "pedestrian"
+    assert not tracks[0].drivable_as_ego and tracks[1].drivable_as_ego
+    assert main(["validate", str(path)]) == 0
+    assert "1 of a pedestrian or bicycle" in capsys.readouterr().out
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        env = gym.make(ENV_ID, scenario=str(path))
+        egos = set()
+        for seed in range(40):
+            env.reset(seed=seed)
+            egos.add(env.unwrapped.world.ego_track.track_id)
+    assert first not in egos and len(egos) > 3
+    with pytest.warns(DataWarning, match=rf"ego.track {first} is of a pedestrian or bicycle"):
+        gym.make(ENV_ID, scenario=str(path), ego={"track": first}).reset(seed=0)
+    with pytest.warns(DataWarning, match=rf"1 of the .* tracks are not cars .*{first} "):
+        plan, _ = scenario_episodes(str(path))
+    assert all(not episode.track.endswith(f"/{first}") for episode in plan)
+    written = write_tracks_csv(tracks, tmp_path / "tracks.csv")
+    assert [t.kind for t in read_tracks_csv(written)] == [t.kind for t in tracks]
