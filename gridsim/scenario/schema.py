@@ -156,7 +156,15 @@ class VehicleConfig(Strict):
         _not_radians("max_steer_rate_deg", self.max_steer_rate_deg, 5.0)
         if self.wheelbase > self.length:
             raise ValueError(f"wheelbase ({self.wheelbase}) must not exceed length ({self.length})")
+        if self.length < MIN_CAR[0] or self.width < MIN_CAR[1]:
+            raise ValueError(f"length {self.length:g} m x width {self.width:g} m is smaller than "
+                             f"any car ({MIN_CAR[0]:g} m x {MIN_CAR[1]:g} m at least): sizes "
+                             "are in metres")  # fmt: skip
         return self
+
+
+#: The smallest ego [m], length and width: a smaller one is a unit slip (cm, km).
+MIN_CAR = (1.0, 0.5)
 
 
 def _not_radians(name: str, value: float, least: float) -> None:
@@ -176,6 +184,11 @@ class MountConfig(Strict):
     @model_validator(mode="after")
     def _degrees(self) -> MountConfig:
         _not_radians("fov_deg", self.fov_deg, 10.0)  # (a grid seen through a 6 deg slit)
+        quarters = abs(self.yaw_deg) / (0.5 * np.pi)  # pi / 2, pi, ... written as radians
+        if 0.5 < quarters < 4.5 and abs(quarters - round(quarters)) < 1e-3:
+            raise ValueError(f"yaw_deg {self.yaw_deg:g} looks like radians ({self.yaw_deg:g} "
+                             f"rad = {np.degrees(self.yaw_deg):.4g} deg); it is in "
+                             "degrees")  # fmt: skip
         return self
 
 
@@ -193,6 +206,14 @@ class SensorConfig(Strict):
         GridSpec.ray_step
     )
     mounts: Annotated[list[MountConfig], Field(min_length=1, max_length=8)] = [MountConfig()]
+
+    @model_validator(mode="after")
+    def _range(self) -> SensorConfig:
+        if self.max_range < self.cell_size:
+            raise ValueError(f"max_range ({self.max_range:g} m) is shorter than a cell "
+                             f"(cell_size {self.cell_size:g} m): every cell would be "
+                             "unknown")  # fmt: skip
+        return self
 
 
 #: m/s: the fastest generated traffic (as fast as recorded tracks may imply:

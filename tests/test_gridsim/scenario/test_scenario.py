@@ -741,6 +741,26 @@ def test_validate_reports_every_problem_of_a_file_at_once(tmp_path, capsys):
         load_scenario(path)
 
 
+@pytest.mark.parametrize(
+    ("section", "message"),
+    [
+        ({"sensor": {"max_range": 0.2, "cell_size": 0.5}},
+         r"sensor: max_range \(0.2 m\) is shorter than a cell \(cell_size 0.5 m\)"),
+        ({"ego": {"vehicle": {"length": 0.01, "width": 0.01, "wheelbase": 0.005}}},
+         r"length 0.01 m x width 0.01 m is smaller than any car .*: sizes are in metres"),
+        ({"sensor": {"mounts": [{"yaw_deg": 3.14159, "fov_deg": 90}]}},
+         r"yaw_deg 3.14159 looks like radians \(3.14159 rad = 180 deg\)"),
+    ],
+)  # fmt: skip
+def test_values_that_make_no_sense_are_refused(section, message):
+    """Accepted before without a word: a sensor that sees no cell (every grid unknown), a
+    1 cm ego, a rear-facing mount's yaw in radians."""
+    with pytest.raises(ScenarioError, match=message):
+        parse_scenario({"name": "x", "road": {"type": "seamless"}, **section}, "x.yaml")
+    parse_scenario({"name": "x", "road": {"type": "seamless"},
+                    "sensor": {"mounts": [{"yaw_deg": 3, "fov_deg": 90}]}}, "x.yaml")  # fmt: skip
+
+
 def test_a_one_lane_road_needs_no_ego_lane():
     """The ego's default lane (1) on a road of one lane is its only lane (the file was
     refused: "ego.lane (1) must be < road.lanes (1)"); a lane given is checked as before."""
