@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from gridsim.errors import DataError, not_there
+from gridsim.errors import DataError, archive_problem, not_there
 from gridsim.frames import MAX_COORDINATE
 from gridsim.road.base import Lane, StaticRoad
 from gridsim.road.polyline import Polyline
@@ -72,10 +72,26 @@ def commonroad_root(path: str | Path) -> dict[str, str]:
         with open(path, "rb") as fh:  # (iterparse closes a file it opened only at its end)
             _, root = next(ET.iterparse(fh, events=("start",)))
     except (ET.ParseError, StopIteration) as exc:
-        raise DataError(f"{path}: not well-formed XML ({exc})") from None
+        archive = archive_problem(path)
+        if archive:
+            raise DataError(f"{path}: {archive}") from None
+        raise DataError(f"{path}: not well-formed XML ({exc}){_text_hint(path)}") from None
     if root.tag != "commonRoad":
         raise DataError(f"{path}: not a CommonRoad file (root element <{root.tag}>)")
     return dict(root.attrib)
+
+
+def _text_hint(path: Path) -> str:
+    """A hint when a file that is not XML looks like a trajectory CSV (a ``road.map`` that
+    names the tracks instead of the map)."""
+    try:
+        with open(path, encoding="utf-8", errors="replace") as fh:
+            first = fh.readline()
+    except OSError:
+        return ""
+    if "," in first and "track_id" in first:
+        return ": a trajectory CSV? a map is a CommonRoad .xml file (tracks go in traffic.library)"
+    return ""
 
 
 def iter_commonroad(path: str | Path, tags: tuple[str, ...]) -> Iterator[ET.Element]:

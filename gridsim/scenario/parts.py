@@ -79,6 +79,9 @@ def resolve(
     path = Path(ref)
     if not path.is_absolute() and scenario.base_dir is not None:
         path = scenario.base_dir / path
+    if path.is_dir():
+        raise ScenarioError(f"{scenario.source}: {key}: {ref!r} is a folder (resolved to "
+                            f"{path}); it names one {suffix} file")  # fmt: skip
     if not path.is_file():
         meant = Path(ref).name.removesuffix(suffix)
         hint = f"; did you mean 'builtin:{meant}'?" if meant in names() else ""
@@ -116,7 +119,15 @@ def map_path(scenario: Scenario) -> Path:
 def library_for(scenario: Scenario) -> TrajectoryLibrary:
     """The tracks of ``traffic.library``: ``builtin``, ``scene`` (the recorded map file's
     dynamic obstacles) and trajectory files (CSV or CommonRoad XML)."""
-    return _library(_library_files(scenario))
+    try:
+        library = _library(_library_files(scenario))
+    except DataError as exc:  # (none of its files can be read)
+        raise DataError(f"{scenario.source}: {exc}") from None
+    if library.notices:  # said once, by the first scenario that reads the library
+        notices, library.notices = library.notices, ()
+        for notice in notices:
+            warn_data(f"{scenario.source}: {notice}" if notice.startswith("traffic.") else notice)
+    return library
 
 
 def _library_files(scenario: Scenario) -> tuple:
@@ -232,8 +243,10 @@ def input_stamps(scenario: Scenario) -> tuple:
 @lru_cache(maxsize=8)
 def _library(files: tuple) -> TrajectoryLibrary:
     """The tracks of :func:`_library_files`: a file found in a folder or glob that cannot be
-    read is skipped, all of them named in one :class:`~gridsim.errors.DataWarning` (as a
-    collection skips its unusable scenario files); a file named on its own is refused."""
+    read is skipped, all of them named in one notice (as a collection skips its unusable
+    scenario files); a file named on its own is refused. The library's ``notices``: what
+    :func:`library_for` says as :class:`~gridsim.errors.DataWarning` (the files' own notes,
+    the files skipped), with the scenario's name."""
     tracks, skipped, notes, singles = [], [], [], []
     for f, found in files:
         if f == "builtin":
@@ -254,20 +267,19 @@ def _library(files: tuple) -> TrajectoryLibrary:
                 notes.append(str(w.message))
             else:
                 warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    left_out = []
     if skipped:
         lines = "\n".join(f"  - {file}: {reason}" for file, reason in skipped)
         if not tracks:
             raise DataError(f"traffic.library: none of its {len(files)} files can be read:\n"
                             f"{lines}")  # fmt: skip
-        warn_data(
-            f"traffic.library: skipped {len(skipped)} of {len(files)} trajectory files "
-            f"that cannot be read:\n{lines}"
-        )
+        left_out.append(f"traffic.library: skipped {len(skipped)} of {len(files)} trajectory "
+                        f"files that cannot be read:\n{lines}")  # fmt: skip
     with warnings.catch_warnings(record=True) as said:  # (the join's note, with the files')
         warnings.simplefilter("always", DataWarning)
         library = TrajectoryLibrary(tracks)
     notes += [str(w.message) for w in said] + single_states_notes(library.tracks, singles)
-    _say_notes(notes, sum(f != "builtin" for f, _ in files))
+    library.notices = (*left_out, *_shown_notes(notes, sum(f != "builtin" for f, _ in files)))
     library.skipped = tuple(skipped)
     return library
 
@@ -276,20 +288,18 @@ def _library(files: tuple) -> TrajectoryLibrary:
 NOTES_SHOWN = 5
 
 
-def _say_notes(notes: list[str], files: int) -> None:
-    """The trajectory files' own warnings, as they were for a few files; for many (a library
-    of one CSV per vehicle), one warning with the first :data:`NOTES_SHOWN` in full and the
-    other files named (a warning per file filled a screen per hundred files)."""
+def _shown_notes(notes: list[str], files: int) -> list[str]:
+    """The trajectory files' own notes, as they were for a few files; for many (a library
+    of one CSV per vehicle), one with the first :data:`NOTES_SHOWN` in full and the other
+    files named (a warning per file filled a screen per hundred files)."""
     if len(notes) <= NOTES_SHOWN:
-        for note in notes:
-            warn_data(note)
-        return
+        return notes
     noted = [note.split(": ", 1)[0] for note in notes]  # each note's file
     said = len(set(noted))
     rest = list(dict.fromkeys(noted[NOTES_SHOWN:]))
     shown = "\n".join(f"  - {note}" for note in notes[:NOTES_SHOWN])
-    warn_data(f"traffic.library: {said} of its {files} trajectory files have notes; the "
-              f"first {NOTES_SHOWN}:\n{shown}\n  and likewise: {named(rest, 10)}")  # fmt: skip
+    return [f"traffic.library: {said} of its {files} trajectory files have notes; the "
+            f"first {NOTES_SHOWN}:\n{shown}\n  and likewise: {named(rest, 10)}"]  # fmt: skip
 
 
 def seed_streams(seed: int) -> tuple[int, np.random.Generator, np.random.Generator]:

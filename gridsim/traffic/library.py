@@ -53,6 +53,8 @@ class TrajectoryLibrary:
         self.tracks = tracks
         #: ``(file, reason)`` of the files of a folder or glob left out (they cannot be read)
         self.skipped: tuple[tuple[str, str], ...] = ()
+        #: what the first scenario that reads the library says about it (its files' notes)
+        self.notices: tuple[str, ...] = ()
         self._by_key: dict[tuple[str, str], Track] = {}
         self._scenes: dict[str, list[Track]] = {}  # scene id -> its tracks (found once)
         for t in tracks:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 from functools import lru_cache, partial
+from pathlib import Path
 from typing import Annotated, Literal
 
 import numpy as np
@@ -131,7 +132,13 @@ def _unfit_ego_note(scenario: Scenario, road: StaticRoad, tracks: list[Track]) -
 
 
 def _scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
-    road = _lanelet_road(stamped(map_path(scenario)))
+    path = map_path(scenario)
+    try:
+        road = _lanelet_road(stamped(path))
+    except DataError as exc:  # (a YAML's road.map: named; a CommonRoad file is its own map)
+        if Path(scenario.source).resolve() == path.resolve():
+            raise
+        raise DataError(f"{scenario.source}: road.map: {exc}") from None
     library = library_for(scenario)
     try:
         return road, library.scene(scene_of(scenario))

@@ -316,7 +316,9 @@ def test_a_library_of_many_files_with_notes_warns_once(tmp_path):
         warnings.simplefilter("always")
         assert len(parts.library_for(load_scenario(path)).tracks) == 8
     (said,) = [str(w.message) for w in caught if issubclass(w.category, DataWarning)]
-    assert said.startswith("traffic.library: 8 of its 8 trajectory files have notes; the first 5")
+    # (named with the scenario that reads the library: it did not say whose library)
+    assert said.startswith(f"{path}: traffic.library: 8 of its 8 trajectory files have notes; "
+                           "the first 5")  # fmt: skip
     assert said.count("repeat an earlier one exactly") == parts.NOTES_SHOWN
     assert "and likewise: " in said and f"{tmp_path / 'lib' / 'veh_7.csv'}" in said
 
@@ -452,3 +454,26 @@ def test_a_scene_name_that_is_not_the_maps_names_the_file_and_key(tmp_path, caps
     other.write_text(f"name: b\nextends: us101_3_3\nroad: {{map: {xml.resolve()}/"
                      "USA_Peach-4_8_T-1.xml}\ntraffic: {library: [scene]}\n")  # fmt: skip
     assert validate(capsys, other)[0] == 0
+
+
+def test_a_road_map_that_is_no_map_names_the_scenario_the_key_and_what_it_is(tmp_path, capsys):
+    """``road.map`` naming a trajectory CSV, a folder or a gzipped file: the error names the
+    YAML and ``road.map`` and says what the file is (it said "not well-formed XML" of the
+    CSV alone, "file not found" of a folder that is there)."""
+    import gzip
+
+    shipped = Path("gridsim/data/ngsim")
+    (tmp_path / "tracks.csv").write_bytes((shipped / "ngsim_trajectories.csv").read_bytes())
+    (tmp_path / "maps").mkdir()
+    xml = (shipped / "commonroad-xml" / "USA_US101-3_3_T-1.xml").read_bytes()
+    (tmp_path / "packed.xml").write_bytes(gzip.compress(xml))
+    for target, said in (
+        ("tracks.csv", "road.map: {0}/tracks.csv: not well-formed XML (syntax error: line 1, "
+                       "column 0): a trajectory CSV? a map is a CommonRoad .xml file"),
+        ("maps", "road.map: 'maps' is a folder (resolved to {0}/maps); it names one .xml file"),
+        ("packed.xml", "road.map: {0}/packed.xml: gzip-compressed: decompress it first"),
+    ):  # fmt: skip
+        path = tmp_path / "s.yaml"
+        path.write_text(f"name: s\nroad: {{type: recorded, map: {target}}}\n")
+        code, out = validate(capsys, path)
+        assert code != 0 and f"{path}: " + said.format(tmp_path) in out, out
