@@ -278,9 +278,13 @@ def _description(parts: list, family: str | None) -> str | None:
     return None
 
 
-def _validate(doc: dict[str, Any], source: str, given: Sequence[str] = ()) -> ScenarioConfig:
+def _validate(
+    doc: dict[str, Any], source: str, given: Sequence[str] = (), inherited: tuple = (None, ())
+) -> ScenarioConfig:
     """``doc`` validated; else a :class:`ScenarioError` listing every problem at once (those
-    about a key path of ``given``, the keyword overrides, said to be theirs). The
+    about a key path of ``given``, the keyword overrides, said to be theirs; those about a
+    key path ``inherited`` ``(parent, paths)`` from the file it extends, said to be from
+    there). The
     checks across keys run only on keys that are valid each on its own, so a failed document
     is checked again with its failing keys left to their defaults (up to 3 times), and the
     problems that this finds about keys that did not fail are added."""
@@ -306,6 +310,10 @@ def _validate(doc: dict[str, Any], source: str, given: Sequence[str] = ()) -> Sc
             removed.append(".".join(map(str, parts)))
     problems = [f"(keyword override) {line}" if any(_about(line, p) for p in given) else line
                 for line in problems]  # fmt: skip
+    parent, paths = inherited
+    problems = [f"{line} (from {parent}, which this file extends)"
+                if any(_about(line, p) for p in paths) and not line.startswith("(keyword")
+                else line for line in problems]  # fmt: skip
     raise ScenarioError(_format_validation(source, problems))
 
 
@@ -370,7 +378,10 @@ def parse_scenario(
     if overrides is not None and not isinstance(overrides, Mapping):
         raise ScenarioError(f"{source}: overrides must be a mapping of keys (like the YAML), "
                             f"got {type(overrides).__name__}")  # fmt: skip
+    parent = doc.get("extends")
+    mine = set(_key_paths(doc))
     doc = own = _extended(doc, source, base_dir)
+    inherited = [p for p in _key_paths(own) if p not in mine] if parent else []
     if overrides:
         doc = deep_merge(doc, overrides)
     road = doc.get("road")
@@ -378,7 +389,7 @@ def parse_scenario(
     unused = _unused_keys(own if shared else doc, family)
     doc = deep_merge(family_defaults(family), doc)
     given = _key_paths(overrides) if overrides else []  # (a problem may be theirs)
-    scenario = Scenario(_validate(doc, source, given), source, base_dir)
+    scenario = Scenario(_validate(doc, source, given, (parent, inherited)), source, base_dir)
     _warn_fast_traffic(scenario, family)
     _warn_timing(scenario, family)
     _warn_wheelbase(scenario, family)

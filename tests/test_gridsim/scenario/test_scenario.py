@@ -697,6 +697,22 @@ def test_an_extending_scenario_does_not_pass_for_its_parent(tmp_path):
     assert load_scenario(tmp_path / "more.yaml").config.description == f"extends busy: {parent}"
 
 
+def test_a_problem_with_a_key_of_the_extended_file_names_that_file(tmp_path):
+    """A key the file does not set but inherits (``road.lanes`` of a seamless parent, wrong on
+    the city road the file asks for) is said to come from the file it extends."""
+    (tmp_path / "highway.yaml").write_text("name: hw\nroad: {type: seamless, lanes: 4}\n")
+    path = tmp_path / "city.yaml"
+    path.write_text("name: c\nextends: highway.yaml\nroad: {type: inner_city}\n")
+    with pytest.raises(ScenarioError, match=r"road.lanes: unknown key for road type 'inner_city'"
+                                            r".*\(got 4\) \(from highway.yaml, which this "
+                                            r"file extends\)"):  # fmt: skip
+        load_scenario(path)
+    path.write_text("name: c\nextends: highway.yaml\nroad: {type: inner_city, lanes: 2}\n")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    assert "road.lanes" in str(info.value) and "which this file extends" not in str(info.value)
+
+
 def test_an_extends_chain_is_bounded(tmp_path):
     for k in range(12):
         (tmp_path / f"s{k}.yaml").write_text(f"extends: s{k + 1}.yaml\nname: s{k}\n")
