@@ -256,6 +256,15 @@ class TrafficConfig(Strict):
         return self
 
 
+def _track_id(value: Any) -> Any:
+    """A track id as text (an integer as written); a float or a truth value refused."""
+    if isinstance(value, bool | float):
+        whole = isinstance(value, float) and value.is_integer()
+        hint = f' (quote it as written in the file, e.g. "{int(value)}")' if whole else ""
+        raise ValueError(f"track id {value!r} is neither text nor a whole number{hint}")
+    return str(value) if isinstance(value, int) else value
+
+
 class EgoConfig(Strict):
     lane: Annotated[int, Field(ge=0, le=7)] = 1
     speed: Annotated[NonNegFloat, Field(description="initial speed [m/s]")] = 8.0
@@ -271,13 +280,15 @@ class EgoConfig(Strict):
     @field_validator("track", mode="before")
     @classmethod
     def _ids_as_text(cls, value: Any) -> Any:
-        """Track ids are text; an integer id (``track: 42``, as a user types it) is one."""
+        """Track ids are text; an integer id (``track: 42``, as a user types it) is one. A
+        number with a fraction, a truth value or an empty list is refused in plain words."""
         if isinstance(value, int) and not isinstance(value, bool):
             return str(value)
         if isinstance(value, list):
-            return [str(v) if isinstance(v, int) and not isinstance(v, bool) else v
-                    for v in value]  # fmt: skip
-        return value
+            if not value:
+                raise ValueError("an empty list names no track: give track ids, or 'random'")
+            return [_track_id(v) for v in value]
+        return _track_id(value)
 
 
 class EnvConfig(Strict):

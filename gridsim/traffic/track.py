@@ -155,7 +155,7 @@ def track_data_problem(track: Track) -> str | None:
             # a vehicle's size [m] read in centimetres or millimetres: said so
             unit = next((f" (in {u}? {value / k:g} m)" for u, k in (("cm", 100.0), ("mm", 1e3))
                          if lo <= value / k <= hi), "")  # fmt: skip
-            return f"{name} {value!r} m is outside (0, {most:g}]{unit}"
+            return f"{name} {value:.10g} m is outside (0, {most:g}]{unit}"
     return None
 
 

@@ -777,6 +777,27 @@ def test_values_that_make_no_sense_are_refused(section, message):
                     "sensor": {"mounts": [{"yaw_deg": 3, "fov_deg": 90}]}}, "x.yaml")  # fmt: skip
 
 
+@pytest.mark.parametrize(
+    ("track", "message"),
+    [
+        ([], r"ego.track: an empty list names no track: give track ids, or 'random'"),
+        (363.0, r"ego.track: track id 363.0 is neither text nor a whole number \(quote it as "
+                r"written in the file, e.g. \"363\"\)"),
+        ([363.0, 364], r"track id 363.0 is neither"),
+        (True, r"track id True is neither"),
+    ],
+)  # fmt: skip
+def test_ego_tracks_that_name_no_track_are_refused_in_plain_words(track, message):
+    """An empty list ("the listed tracks have no track to use as the ego (of 0: none
+    listed)"), an id saved as a float (pydantic's union: "ego.track.list[constrained-str]")."""
+    doc = {"name": "x", "extends": "us101_3_3", "ego": {"track": track}}
+    with pytest.raises(ScenarioError, match=message) as info:
+        parse_scenario(doc, "x.yaml")
+    assert "constrained-str" not in str(info.value) and "(1 problem)" in str(info.value)
+    ids = parse_scenario({**doc, "ego": {"track": [363, "364"]}}, "x.yaml").config.ego.track
+    assert ids == ["363", "364"]
+
+
 def test_a_one_lane_road_needs_no_ego_lane():
     """The ego's default lane (1) on a road of one lane is its only lane (the file was
     refused: "ego.lane (1) must be < road.lanes (1)"); a lane given is checked as before."""
