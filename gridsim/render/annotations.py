@@ -20,6 +20,7 @@ from gridsim.render.topdown import (
     EGO_COLOUR,
     IDM_COLOUR,
     INSET_EGO_COLOUR,
+    INSET_MARGIN,
     PLAN_COLOUR,
     REFERENCE_COLOUR,
     TRAFFIC_COLOUR,
@@ -105,7 +106,9 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
     if caption.ended:
         text.append((f"episode over: {caption.ended} at {caption.time:.1f} s", ENDED_COLOUR,
                      "alert"))  # fmt: skip
-    _band(img, 0, 0, text)
+    # (beside the inset: a long scenario name ran on under it)
+    room = img.shape[1] - (inset_size + INSET_MARGIN if inset_size else 0) - 8
+    _band(img, 0, 0, _wrapped(text, room))
     legend = LEGEND if setpoints else tuple(e for e in LEGEND if e[2] not in _SETPOINT_SHAPES)
     _band(img, 0, img.shape[0] - _STEP * len(legend) - 8, legend)
     if inset_size:  # at the bottom beside the colours' legend: beside the inset (top middle)
@@ -121,6 +124,30 @@ def inset_legend(orientation: str) -> list[tuple]:
     up": the inset then turns with the ego) and its colours."""
     up = orientation.replace("_", " ")
     return [(f"sensor grid ({up}):", None, ""), *((n, c, "box") for n, c in GRID_LEGEND)]
+
+
+def _wrapped(lines, width: int) -> list[tuple]:
+    """``lines`` (as :func:`_band` takes them) broken at spaces where a band of their text
+    would be wider than ``width`` pixels (a word longer than that: where it reaches it)."""
+    out = []
+    for text, colour, shape in lines:
+        words, line = [], ""
+        for word in text.split(" "):  # (a word wider than a line: cut into pieces)
+            while len(word) > 8 and _width([("  " + word, colour, shape)]) > width:
+                cut = max(k for k in range(1, len(word))
+                          if _width([("  " + word[:k], colour, shape)]) <= width)  # fmt: skip
+                words.append(word[:cut])
+                word = word[cut:]
+            words.append(word)
+        for word in words:
+            longer = f"{line} {word}" if line else word
+            if line and _width([(longer, colour, shape)]) > width:
+                out.append((line, colour, shape))
+                line = "  " + word  # (a continued line, indented)
+            else:
+                line = longer
+        out.append((line, colour, shape))
+    return out
 
 
 def _width(lines) -> int:

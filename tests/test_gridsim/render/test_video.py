@@ -407,6 +407,21 @@ def test_the_arrow_to_a_human_out_of_view_stays_clear_of_a_larger_grid_inset():
         assert arrow[:, 1].max() < view.view.width - size - INSET_MARGIN
 
 
+def test_a_long_caption_is_wrapped_beside_the_grid_inset():
+    """A scenario name of 80 characters (the most) ran on under the grid inset: the caption's
+    lines are broken at spaces (a longer word where it reaches the inset), and say it all."""
+    from gridsim.render.annotations import _width, _wrapped
+
+    name = "a_very_long_scenario_name_of_a_user_" * 2 + "ending_here"
+    lines = [(f"reference policy, {name} (seed 1234567890)", None, "")]
+    room = 640 - 160 - 8 - 8
+    wrapped = _wrapped(lines, room)
+    assert len(wrapped) >= 3 and all(_width([line]) <= room for line in wrapped)
+    said = "".join(text.replace(" ", "") for text, _, _ in wrapped)
+    assert said == lines[0][0].replace(" ", "")
+    assert _wrapped([("t 1.0 s", None, "")], room) == [("t 1.0 s", None, "")]
+
+
 def test_vehicles_show_their_heading_and_the_destination_is_marked():
     """Each vehicle's front quarter is drawn darker (a plain box did not say which way it
     drives), and the destination handed to the planner is a diamond."""
