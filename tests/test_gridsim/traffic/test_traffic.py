@@ -92,7 +92,7 @@ def test_user_csv_loads(tmp_path):
         (["s,1,0,0,0,0,1,4.5,1.8", "s,1,0.1,0,0,0,500,4.5,1.8"], HEADER,
          r"state 1 \(t = 0.1 s\): speed 500 m/s is outside \[0, 100\]"),
         (["s,1,0,0,0,0,1,4.5,40", "s,1,0.1,0,0,0,1,4.5,40"], HEADER,
-         r"track 1 of scene s: width 40.0 m is outside \(0, 10\]"),
+         r"track 1 of scene s: width 40 m is outside \(0, 10\]"),
     ],
 )  # fmt: skip
 def test_bad_csv_names_the_problem(tmp_path, rows, header, message):
