@@ -49,6 +49,8 @@ ZOOM_BACK = 1.15
 INSET_EGO_COLOUR = (255, 255, 255)
 #: pixels: the grid inset's distance from the frame's top and right edges
 INSET_MARGIN = 8
+#: pixels: a collision's mark around a footprint keeps this far outside it
+OUTLINE_GAP = 3
 #: pixels: the room the arrow to a human out of view keeps from the caption (top), the
 #: legends and the scale bar (bottom), the frame's left edge, and the grid inset (right:
 #: beside the inset's width and margin), its label included
@@ -171,8 +173,15 @@ class TopDownRenderer:
         cv2.fillConvexPoly(img, self._px(a, nose), dark, cv2.LINE_AA, shift=4)
 
     def _outline(self, img, a, box: np.ndarray) -> None:
-        """A collision's mark around a footprint ``box`` (4, 2) [m, world]: white on dark."""
-        px = self._px(a, box)
+        """A collision's mark around a footprint ``box`` (4, 2) [m, world]: white on dark, 3
+        pixels outside it (at a small scale a mark on its edges covered a car: the ego and
+        the car it hit could not be told apart)."""
+        centre = box.mean(axis=0)
+        axes = [box[1] - box[0], box[3] - box[0]]
+        axes = [e / max(np.hypot(*e), 1e-9) for e in axes]
+        margin = OUTLINE_GAP / abs(a[0, 0])  # [m]
+        grown = box + margin * sum(np.sign((box - centre) @ e)[:, None] * e for e in axes)
+        px = self._px(a, grown)
         for colour, thickness in ((POINTER_OUTLINE, 5), (COLLISION_COLOUR, 2)):
             cv2.polylines(img, [px], True, colour, thickness, cv2.LINE_AA, shift=4)
 

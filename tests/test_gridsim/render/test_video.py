@@ -545,7 +545,7 @@ def test_a_frame_zooms_out_to_show_every_set_point_and_the_destination():
 def test_a_collision_frame_rings_the_ego_and_the_car_it_hit_above_the_set_points():
     """On a collision's frame the set-points drawn over the ego and the car it hit hid them:
     both are drawn again above them, outlined."""
-    from gridsim.render.topdown import COLLISION_COLOUR, TopDownRenderer
+    from gridsim.render.topdown import COLLISION_COLOUR, EGO_COLOUR, TopDownRenderer, ViewSpec
     from gridsim.world.collision import Contact
 
     env = gym.make(ENV_ID, render_mode="rgb_array")
@@ -567,6 +567,9 @@ def test_a_collision_frame_rings_the_ego_and_the_car_it_hit_above_the_set_points
     assert all(tuple(hit[v[k], u[k]]) != plan for k in range(2))  # now drawn above
     white = np.all(hit == COLLISION_COLOUR, axis=-1) & ~np.all(before == COLLISION_COLOUR, axis=-1)
     assert white.sum() > 40  # the outlines
+    # zoomed out (2 pixels a metre) the mark is around the ego, not over it (it covered it)
+    small = TopDownRenderer(ViewSpec(pixels_per_metre=2.0)).render(world)
+    assert np.all(small == EGO_COLOUR, axis=-1).sum() >= 4
 
 
 def test_a_video_the_encoder_did_not_finish_is_refused_and_the_old_one_kept(tmp_path):
