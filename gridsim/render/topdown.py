@@ -145,6 +145,8 @@ class TopDownRenderer:
                     cv2.circle(img, tuple(q), RING_RADIUS * 16, colour, 2, cv2.LINE_AA, shift=4)
                 else:
                     cv2.circle(img, tuple(q), DOT_RADIUS * 16, colour, -1, cv2.LINE_AA, shift=4)
+        if overlay:  # the ego's edges above its set-points (a standing ego's cover it)
+            cv2.polylines(img, [self._px(a, ego_box)], True, EGO_COLOUR, 2, cv2.LINE_AA, shift=4)
         if destination is not None:
             u, v = (np.asarray(destination, float) @ a[:, :2].T + a[:, 2]).round().astype(int)
             for colour, thickness in ((POINTER_OUTLINE, 4), (DESTINATION_COLOUR, 2)):

@@ -407,6 +407,29 @@ def test_the_arrow_to_a_human_out_of_view_stays_clear_of_a_larger_grid_inset():
         assert arrow[:, 1].max() < view.view.width - size - INSET_MARGIN
 
 
+def test_a_standing_ego_shows_above_its_set_points():
+    """A standing ego's set-points all lie on it: its dots and rings covered it (zoomed out
+    to 2 pixels a metre, all of it). Its edges are drawn above them."""
+    from gridsim.render.topdown import (
+        EGO_COLOUR,
+        PLAN_COLOUR,
+        REFERENCE_COLOUR,
+        TopDownRenderer,
+        ViewSpec,
+    )
+
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    env.reset(seed=0)
+    world = env.unwrapped.world
+    view = TopDownRenderer(ViewSpec(pixels_per_metre=2.0))
+    centre = np.tile(world.ego_center(), (5, 1))
+    bare = view.render(world)
+    covered = view.render(world, overlay=[(centre, REFERENCE_COLOUR, "ring"),
+                                          (centre, PLAN_COLOUR, "dot")])  # fmt: skip
+    ego = np.all(bare == EGO_COLOUR, axis=-1)
+    assert np.all(covered[ego] == EGO_COLOUR, axis=-1).mean() > 0.5  # (none of it before)
+
+
 def test_a_long_caption_is_wrapped_beside_the_grid_inset():
     """A scenario name of 80 characters (the most) ran on under the grid inset: the caption's
     lines are broken at spaces (a longer word where it reaches the inset), and say it all."""
