@@ -31,7 +31,7 @@ import numpy as np
 from gridsim.envs.episode import run_episode
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import GridSimError, ScenarioError, UnfitEgoWarning, warn_data
-from gridsim.frames import EGO_SPEED, ego_heading, setpoint_times
+from gridsim.frames import EGO_COS, EGO_SIN, EGO_SPEED, ego_heading, setpoint_times
 from gridsim.outputs import counted, named
 from gridsim.policies import Reference
 from gridsim.scenario.checks import flawed_tracks
@@ -398,14 +398,25 @@ def _driven_through(overrides: dict) -> dict:
     return {**overrides, "env": env}
 
 
+#: m: a window whose first set-point lies farther than this behind the ego (along its
+#: heading) is not taken while the ego drives the human's own track: the ego overshot a stop
+#: the human made harder than it can brake (a recording's 20 m/s^2), and the label asks a
+#: car that cannot reverse to go back.
+BEHIND = 0.1
+
+
 class _WindowTaker:
     """Drives ``policy`` and, every ``stride`` decisions while the reference covers the whole
     horizon, takes a window: the observation, the label (with ``rejoin``, the
-    :func:`rejoin_labels` of the reference's set-points) and the time."""
+    :func:`rejoin_labels` of the reference's set-points) and the time. Driving the reference
+    itself (``policy`` None), a window whose label starts :data:`BEHIND` the ego is not
+    taken (counted in ``behind``)."""
 
     def __init__(self, stride: int, policy, rejoin: bool) -> None:
-        self.stride, self.policy, self.rejoin = stride, policy, rejoin
+        self.own_track = policy is None
+        self.stride, self.policy, self.rejoin = stride, policy or Reference(), rejoin
         self.rows: list[tuple] = []
+        self.behind = 0
 
     def reset(self, env: GridSimEnv, info: dict) -> None:
         self.decisions, self.end = 0, env.reference.end_time
@@ -416,7 +427,12 @@ class _WindowTaker:
             label = info["reference_setpoints"]
             if self.rejoin:
                 label = rejoin_labels(label[None], env.reference_in_grid([t]), times)[0]
-            self.rows.append((obs, label, t))
+            ego = obs["ego"]
+            ahead = label[0, 0] * ego[EGO_COS] + label[0, 1] * ego[EGO_SIN]
+            if self.own_track and ahead < -BEHIND:
+                self.behind += 1
+            else:
+                self.rows.append((obs, label, t))
         self.decisions += 1
         return self.policy(env, obs, info)
 
@@ -443,12 +459,14 @@ def _episode_windows(
     """One episode of :func:`drive_windows`; an episode that ends early (:data:`EARLY_ENDINGS`)
     before windows it would have given is counted in ``endings`` (by how it ended, and the
     windows not taken)."""
-    taker = _WindowTaker(stride, policy or Reference(), policy is not None and labels == "rejoin")
+    taker = _WindowTaker(stride, policy, policy is not None and labels == "rejoin")
     episode = run_episode(env, taker, seed=seed, on_reset=taker.reset)
     missed = taker.missed(env) if episode.ended_by in EARLY_ENDINGS else 0
     if endings is not None and missed:
         endings[episode.ended_by] = endings.get(episode.ended_by, 0) + 1
         endings["windows_not_taken"] = endings.get("windows_not_taken", 0) + missed
+    if endings is not None and taker.behind:
+        endings["windows_behind"] = endings.get("windows_behind", 0) + taker.behind
     rows, times, p = taker.rows, env.cfg.env.setpoint_times, env.world.ego_params
     if not rows:
         return None
@@ -772,36 +790,47 @@ def record_group_into(
 
 
 def _early(endings: dict[str, int]) -> dict:
-    """``endings`` (episodes by how they ended, and ``windows_not_taken``, flat: as they are
-    counted and kept across an interruption) as the manifest says them."""
+    """``endings`` (episodes by how they ended, ``windows_not_taken`` and ``windows_behind``,
+    flat: as they are counted and kept across an interruption) as the manifest says them."""
     episodes = {k: endings[k] for k in EARLY_ENDINGS if endings.get(k)}
-    return {"episodes": episodes, "windows_not_taken": endings.get("windows_not_taken", 0)}
+    behind = endings.get("windows_behind", 0)
+    return {"episodes": episodes, "windows_not_taken": endings.get("windows_not_taken", 0),
+            **({"windows_behind": behind} if behind else {})}  # fmt: skip
 
 
 def ended_early(metas: list[dict]) -> dict:
     """The episodes of the scenarios ``metas`` (their provenance) that ended early, summed
-    by how they ended, and the windows not taken (as each scenario's ``ended_early``); empty
-    when none did."""
+    by how they ended, the windows not taken and those whose label lay behind the ego (as
+    each scenario's ``ended_early``); empty when there are none."""
     episodes: dict[str, int] = {}
-    windows = 0
+    windows = behind = 0
     for meta in metas:
         early = meta.get("ended_early", {})
         for key, n in early.get("episodes", {}).items():
             episodes[key] = episodes.get(key, 0) + n
         windows += early.get("windows_not_taken", 0)
-    return {"episodes": episodes, "windows_not_taken": windows} if episodes else {}
+        behind += early.get("windows_behind", 0)
+    if not (episodes or behind):
+        return {}
+    return {"episodes": episodes, "windows_not_taken": windows,
+            **({"windows_behind": behind} if behind else {})}  # fmt: skip
 
 
 def early_note(early: dict) -> str:
     """What :func:`ended_early`'s counts mean, for a user."""
-    kinds = ", ".join(f"{n} {k}" for k, n in early["episodes"].items())
-    episodes = sum(early["episodes"].values())
-    return (
-        f"{episodes} episode(s) ended before their reference did ({kinds}): the "
-        f"{early['windows_not_taken']} window(s) the rest would have given were not "
-        "taken (with the ego driving the human's own track, a collision or leaving the "
-        "road is the recording's; manifest.json: ended_early)"
-    )
+    said = []
+    if early["episodes"]:
+        kinds = ", ".join(f"{n} {k}" for k, n in early["episodes"].items())
+        episodes = sum(early["episodes"].values())
+        said.append(f"{episodes} episode(s) ended before their reference did ({kinds}): the "
+                    f"{early['windows_not_taken']} window(s) the rest would have given were "
+                    "not taken (with the ego driving the human's own track, a collision or "
+                    "leaving the road is the recording's)")  # fmt: skip
+    if early.get("windows_behind"):
+        said.append(f"{early['windows_behind']} window(s) whose human set-points start behind "
+                    "the ego were not taken (the ego overshot a stop the human made harder "
+                    "than it can brake; a car cannot follow them back)")  # fmt: skip
+    return "; ".join(said) + " (manifest.json: ended_early)"
 
 
 def _library_files_skipped(scenarios: list[str]) -> list[tuple[Path, str]]:
