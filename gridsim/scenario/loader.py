@@ -672,9 +672,13 @@ def check_reference(ref: Any) -> None:
     """A :class:`ScenarioError` unless ``ref`` can name scenarios: a non-empty string or path
     (an empty one named the current folder)."""
     if not isinstance(ref, str | os.PathLike):
+        several = ""
+        if isinstance(ref, list | tuple) and all(isinstance(r, str | os.PathLike) for r in ref):
+            joined = ",".join(map(str, ref))
+            several = f"; several as one text, separated by commas: scenario={joined!r}"
         raise ScenarioError(f"scenario must be a built-in name, a YAML or XML path, a folder or "
                             f"glob of them, or a Scenario, got "
-                            f"{ref!r} ({type(ref).__name__})")  # fmt: skip
+                            f"{ref!r} ({type(ref).__name__}){several}")  # fmt: skip
     if not str(ref).strip():
         raise ScenarioError(f"scenario is empty: give a built-in name "
                             f"({', '.join(builtin_scenarios())}), a YAML or XML file, or a "

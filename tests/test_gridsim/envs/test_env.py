@@ -420,6 +420,12 @@ def test_a_scenario_that_is_not_a_name_or_path(scenario):
     )
 
 
+def test_a_list_of_scenarios_is_shown_as_the_text_that_names_them():
+    said = r"\(list\); several as one text, separated by commas: scenario='us101_4_1,us101_3_3'$"
+    with pytest.raises(ScenarioError, match=said):
+        gym.make(ENV_ID, scenario=["us101_4_1", "us101_3_3"])
+
+
 @pytest.mark.parametrize("scenario", ["", "  "])
 def test_an_empty_scenario_is_said_to_be_empty(scenario):
     """An empty name was the current folder: ": no scenario files (.yaml, .yml, .xml) in it"."""
