@@ -51,7 +51,7 @@ from gridsim.scenario.families.recorded import (
     why_unfit,
 )
 from gridsim.scenario.family import family_of
-from gridsim.scenario.loader import load_scenario
+from gridsim.scenario.loader import deep_merge, load_scenario
 from gridsim.scenario.parts import library_for
 from gridsim.seeding import Salt, stream
 from gridsim.traffic.track import scene_ids, track_name
@@ -186,6 +186,14 @@ class PlannedEpisode:
     overrides: dict
 
 
+#: What a recorded track's episode overrides besides its track: reaching the destination
+#: does not end it, so that a window is taken wherever the reference covers the horizon (a
+#: human crawling in slow traffic is within the destination's tolerance of its end point
+#: for seconds). A generated human reaches its end point only at its end: its episodes keep
+#: the scenario's ending.
+DRIVEN_THROUGH = {"env": {"end_at_destination": False}}
+
+
 def goal_overrides(goal_seconds: float | None) -> dict:
     """The scenario overrides that put the observed destination ``goal_seconds`` [s] ahead
     (``env.goal_seconds``); none for None (the scenario's own destination)."""
@@ -229,9 +237,10 @@ def scenario_episodes(
                       "or flawed: `gridsim validate` says which)")  # fmt: skip
         chosen = _followable(base, _cars(base, chosen))  # (those left out said on their own)
         _say_unfit_egos(base, chosen, scene_tracks, road)
+        overrides = deep_merge(goal, DRIVEN_THROUGH)
         out = [PlannedEpisode(track_name(scene, t.track_id), 0,
                        {"ego": {"track": t.track_id},
-                        "simulation": {"duration": max(float(t.duration), 0.1)}, **goal})
+                        "simulation": {"duration": max(float(t.duration), 0.1)}, **overrides})
                for t in chosen]  # fmt: skip
         return out, {"scene": scene, "tracks": len(out)}
     if seeds is None:
@@ -378,24 +387,15 @@ def iter_windows(
     for episode in episodes:
         with warnings.catch_warnings():  # an unfit ego track: said once (_say_unfit_egos)
             warnings.simplefilter("ignore", UnfitEgoWarning)
-            overrides = _driven_through(episode.overrides)
-            wanted = json.dumps(overrides, sort_keys=True)
+            wanted = json.dumps(episode.overrides, sort_keys=True)
             if wanted != key:
                 env = None  # (released before the next is built)
-                env, key = GridSimEnv(scenario, **overrides), wanted
+                env, key = GridSimEnv(scenario, **episode.overrides), wanted
             windows = _episode_windows(env, episode.seed, stride, episode.track, policy, labels,
                                        endings)  # fmt: skip
         if progress:
             progress(1)
         yield windows
-
-
-def _driven_through(overrides: dict) -> dict:
-    """An episode's ``overrides`` with ``env.end_at_destination`` off: a window is taken
-    wherever the reference covers the horizon, also after the ego is within the tolerance of
-    the destination (a human crawling near its end point, in slow traffic, for seconds)."""
-    env = {**overrides.get("env", {}), "end_at_destination": False}
-    return {**overrides, "env": env}
 
 
 #: m: a window whose first set-point lies farther than this behind the ego (along its
@@ -408,18 +408,19 @@ BEHIND = 0.1
 class _WindowTaker:
     """Drives ``policy`` and, every ``stride`` decisions while the reference covers the whole
     horizon, takes a window: the observation, the label (with ``rejoin``, the
-    :func:`rejoin_labels` of the reference's set-points) and the time. Driving the reference
-    itself (``policy`` None), a window whose label starts :data:`BEHIND` the ego is not
-    taken (counted in ``behind``)."""
+    :func:`rejoin_labels` of the reference's set-points) and the time. Driving a recorded
+    human's own track (``policy`` None on a recorded scene), a window whose label starts
+    :data:`BEHIND` the ego is not taken (counted in ``behind``)."""
 
     def __init__(self, stride: int, policy, rejoin: bool) -> None:
-        self.own_track = policy is None
         self.stride, self.policy, self.rejoin = stride, policy or Reference(), rejoin
+        self.driven_by_reference = policy is None
         self.rows: list[tuple] = []
         self.behind = 0
 
     def reset(self, env: GridSimEnv, info: dict) -> None:
         self.decisions, self.end = 0, env.reference.end_time
+        self.own_track = self.driven_by_reference and env.world.ego_track is not None
 
     def __call__(self, env: GridSimEnv, obs: dict, info: dict):
         t, times = env.world.time, env.cfg.env.setpoint_times
@@ -448,7 +449,7 @@ class _WindowTaker:
 
 #: What ends an episode before its reference does (``Episode.ended_by``): the windows the
 #: rest of the reference would have given are not taken (counted in ``endings``). Reaching
-#: the destination does not end a recorded episode (:func:`_driven_through`).
+#: the destination does not end a recorded track's episode (:data:`DRIVEN_THROUGH`).
 EARLY_ENDINGS = ("collision", "off road")
 
 

@@ -578,3 +578,41 @@ def test_a_group_named_like_a_built_in_one_takes_its_source_from_its_files(tmp_p
     assert json.loads((out / "manifest.json").read_text())["source"] == "simulator"
     with pytest.raises(DatasetError, match="'highway' is a built-in group"):
         EvalConfig(groups=("highway",), sources={"highway": str(tmp_path / "scenes")})
+
+
+def test_only_a_recorded_tracks_episodes_drive_on_past_the_destination():
+    """A recorded human crawls within the destination's tolerance of its end point for
+    seconds: its episodes drive on (``env.end_at_destination`` off). A generated human
+    reaches its end point only at its end: its episodes, and every dataset and warm start
+    recorded from them, keep the scenario's ending (they changed with the first version)."""
+    recorded, _ = scenario_episodes("us101_4_1")
+    generated, _ = scenario_episodes("inner_city", 2, goal_seconds=5.0)
+    assert all(e.overrides["env"]["end_at_destination"] is False for e in recorded)
+    assert all(e.overrides["env"] == {"goal_seconds": 5.0} for e in generated)
+    goal, _ = scenario_episodes("us101_4_1", goal_seconds=5.0)
+    assert goal[0].overrides["env"] == {"goal_seconds": 5.0, "end_at_destination": False}
+
+
+@pytest.mark.parametrize("orientation", ["north_up", "heading_up"])
+def test_a_window_whose_label_starts_behind_the_ego_is_not_taken_on_its_own_track(orientation):
+    """Driving a recorded human's own track, a window whose first set-point lies more than
+    ``BEHIND`` behind the ego (it overshot a hard stop) is left out and counted; one just
+    ahead, or a generated scene's, is taken; in either grid orientation."""
+    from gridsim.frames import EGO_COS, EGO_SIN
+
+    def take(scenario, overrides, shift):
+        env = gym.make("GridSim-v0", scenario=scenario, sensor={"orientation": orientation},
+                       **overrides).unwrapped  # fmt: skip
+        obs, info = env.reset(seed=0)
+        taker = windows._WindowTaker(1, None, False)
+        taker.reset(env, info)
+        ego = obs["ego"]
+        heading = np.array([ego[EGO_COS], ego[EGO_SIN]])
+        label = np.repeat((shift * heading)[None], 5, axis=0)  # every set-point there
+        taker(env, obs, {**info, "reference_setpoints": label})
+        return len(taker.rows), taker.behind
+
+    track = {"ego": {"track": "422"}}
+    assert take("us101_4_1", track, -windows.BEHIND - 0.05) == (0, 1)
+    assert take("us101_4_1", track, -windows.BEHIND + 0.05) == (1, 0)
+    assert take("seamless", {}, -1.0) == (1, 0)  # (a generated scene: taken as before)
