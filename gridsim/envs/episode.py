@@ -97,6 +97,7 @@ def run_episode(
     episode = Episode(start=info, infos=[])
     if on_reset is not None:
         on_reset(env, info)
+    terminated = truncated = False
     while steps is None or episode.steps < steps:
         obs, reward, terminated, truncated, info = env.step(policy(env, obs, info))
         info = {**info, "reward": np.asarray(reward)}
@@ -106,9 +107,10 @@ def run_episode(
         if terminated or truncated:
             break
     last = episode.last
-    episode.ended_by = (
+    episode.ended_by = (  # (destination reached ends an episode only if it terminated it:
+        # with env.end_at_destination off, the time limit does)
         "collision" if last.get("collision") else "off road" if last.get("off_road")
-        else "destination reached" if last.get("destination_reached")
+        else "destination reached" if last.get("destination_reached") and terminated
         else "time limit" if episode.infos and truncated else "steps limit"
     )  # fmt: skip
     return episode

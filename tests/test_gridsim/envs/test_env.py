@@ -200,6 +200,14 @@ def test_an_episode_may_drive_on_past_its_destination_to_its_time_limit():
     assert all(reached for *_, reached in on[len(ended) - 1 :])
     for (ego_a, terms_a, _), (ego_b, terms_b, _) in zip(ended, on, strict=False):
         assert np.array_equal(ego_a, ego_b) and np.array_equal(terms_a, terms_b)
+    # the episode loop says it ended at its time limit (it said "destination reached")
+    from gridsim.envs.episode import run_episode as loop
+    from gridsim.policies import Reference
+
+    env = GridSimEnv("us101_4_1", ego={"track": "422"}, env={"end_at_destination": False})
+    assert loop(env, Reference(), seed=0).ended_by == "time limit"
+    assert loop(GridSimEnv("us101_4_1", ego={"track": "422"}), Reference(),
+                seed=0).ended_by == "destination reached"  # fmt: skip
 
 
 def test_lane_following_completes_and_steering_off_is_terminated():
