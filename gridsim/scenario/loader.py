@@ -279,12 +279,15 @@ def _description(parts: list, family: str | None) -> str | None:
 
 
 def _validate(
-    doc: dict[str, Any], source: str, given: Sequence[str] = (), inherited: tuple = (None, ())
+    doc: dict[str, Any],
+    source: str,
+    given: Sequence[str] = (),
+    inherited: tuple = (None, (), set()),
 ) -> ScenarioConfig:
     """``doc`` validated; else a :class:`ScenarioError` listing every problem at once (those
     about a key path of ``given``, the keyword overrides, said to be theirs; those about a
-    key path ``inherited`` ``(parent, paths)`` from the file it extends, said to be from
-    there). The
+    key ``inherited`` ``(parent, paths, the file's own paths)`` through ``extends``, said to
+    come with it). The
     checks across keys run only on keys that are valid each on its own, so a failed document
     is checked again with its failing keys left to their defaults (up to 3 times), and the
     problems that this finds about keys that did not fail are added."""
@@ -310,11 +313,18 @@ def _validate(
             removed.append(".".join(map(str, parts)))
     problems = [f"(keyword override) {line}" if any(_about(line, p) for p in given) else line
                 for line in problems]  # fmt: skip
-    parent, paths = inherited
-    problems = [f"{line} (from {parent}, which this file extends)"
-                if any(_about(line, p) for p in paths) and not line.startswith("(keyword")
-                else line for line in problems]  # fmt: skip
+    parent, paths, own = inherited
+    problems = [f"{line} (not set in this file: it comes with extends: {parent})"
+                if _inherited_problem(line, paths, own) else line for line in problems]  # fmt: skip
     raise ScenarioError(_format_validation(source, problems))
+
+
+def _inherited_problem(line: str, inherited: Sequence[str], own: set[str]) -> bool:
+    """Whether the problem ``line`` is about a key the file inherits (``inherited``: through
+    ``extends``): it starts with that key, and names none of the file's ``own`` keys."""
+    if not any(re.match(rf"{re.escape(p)}(:| \()", line) for p in inherited):
+        return False
+    return not any(re.search(rf"(?<![\w.']){re.escape(k)}(?![\w'])", line) for k in own)
 
 
 def _about(line: str, path: str) -> bool:
@@ -389,7 +399,7 @@ def parse_scenario(
     unused = _unused_keys(own if shared else doc, family)
     doc = deep_merge(family_defaults(family), doc)
     given = _key_paths(overrides) if overrides else []  # (a problem may be theirs)
-    scenario = Scenario(_validate(doc, source, given, (parent, inherited)), source, base_dir)
+    scenario = Scenario(_validate(doc, source, given, (parent, inherited, mine)), source, base_dir)
     _warn_fast_traffic(scenario, family)
     _warn_timing(scenario, family)
     _warn_wheelbase(scenario, family)

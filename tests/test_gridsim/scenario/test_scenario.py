@@ -699,18 +699,33 @@ def test_an_extending_scenario_does_not_pass_for_its_parent(tmp_path):
 
 def test_a_problem_with_a_key_of_the_extended_file_names_that_file(tmp_path):
     """A key the file does not set but inherits (``road.lanes`` of a seamless parent, wrong on
-    the city road the file asks for) is said to come from the file it extends."""
-    (tmp_path / "highway.yaml").write_text("name: hw\nroad: {type: seamless, lanes: 4}\n")
+    the city road the file asks for) is said to come with its ``extends`` (also through a
+    chain); a problem of the file's own key, or of a check that names one, is not (a key
+    that contains an inherited one, a misspelt key hinted at an inherited one)."""
+    (tmp_path / "highway.yaml").write_text(
+        "name: hw\nroad: {type: seamless, lanes: 4}\nego: {speed: 5, lane: 2}\n"
+    )
     path = tmp_path / "city.yaml"
+
+    def problems(text: str) -> str:
+        path.write_text("name: c\nextends: highway.yaml\n" + text)
+        with pytest.raises(ScenarioError) as info:
+            load_scenario(path)
+        return str(info.value)
+
+    came = "(not set in this file: it comes with extends: highway.yaml)"
+    said = problems("road: {type: inner_city, lanes_per_direction: 99}\n")
+    assert f"(got 4) {came}" in said and said.count(came) == 1  # (not lanes_per_direction's)
+    assert came not in problems("ego: {speedx: 3}\n")  # (hinted at ego.speed)
+    assert came not in problems("road: {lanes: 2}\n")  # ego.lane < road.lanes: this file's
+    (tmp_path / "grand.yaml").write_text("name: g\nextends: city.yaml\n")
     path.write_text("name: c\nextends: highway.yaml\nroad: {type: inner_city}\n")
-    with pytest.raises(ScenarioError, match=r"road.lanes: unknown key for road type 'inner_city'"
-                                            r".*\(got 4\) \(from highway.yaml, which this "
-                                            r"file extends\)"):  # fmt: skip
-        load_scenario(path)
-    path.write_text("name: c\nextends: highway.yaml\nroad: {type: inner_city, lanes: 2}\n")
-    with pytest.raises(ScenarioError) as info:
-        load_scenario(path)
-    assert "road.lanes" in str(info.value) and "which this file extends" not in str(info.value)
+    with pytest.raises(
+        ScenarioError,
+        match=r"road.lanes: unknown key .*\(got 4\) \(not set in "
+        r"this file: it comes with extends: city.yaml\)",
+    ):
+        load_scenario(tmp_path / "grand.yaml")
 
 
 def test_an_extends_chain_is_bounded(tmp_path):
