@@ -123,10 +123,10 @@ def library_for(scenario: Scenario) -> TrajectoryLibrary:
         library = _library(_library_files(scenario))
     except DataError as exc:  # (none of its files can be read)
         raise DataError(f"{scenario.source}: {exc}") from None
-    if library.notices:  # said once, by the first scenario that reads the library
+    if library.notices:  # said once, with the first scenario that reads the library
         notices, library.notices = library.notices, ()
         for notice in notices:
-            warn_data(f"{scenario.source}: {notice}" if notice.startswith("traffic.") else notice)
+            warn_data(f"{scenario.source}: {notice}")
     return library
 
 
