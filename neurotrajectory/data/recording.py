@@ -28,6 +28,7 @@ from neurotrajectory.data.storage import (
 from neurotrajectory.data.windows import (
     FORMAT_VERSION,
     GROUPS,
+    WINDOW_RULES,
     DatasetError,
     GroupProgress,
     check_test_fraction,
@@ -88,6 +89,7 @@ def record_dataset(
                      "duration": None if duration is None else float(duration),
                      "goal_seconds": None if goal_seconds is None else float(goal_seconds),
                      "split": list(split) if split else None, "format": FORMAT_VERSION,
+                     "window_rules": WINDOW_RULES,
                      "shard_size": storage.SHARD_SIZE, "versions": package_versions(),
                      "files": stamps}  # fmt: skip
         checkpoints = _Checkpoints(spool, arguments)
@@ -273,6 +275,9 @@ def _differences(then: dict, now: dict) -> str:
             said.append(f"other input files ({input_changes(old, new) or 'their contents'})")
         elif key == "versions":
             said.append(f"other versions ({old}, now {new})")
+        elif key == "window_rules":  # (a recording of a version before them: 1)
+            said.append(f"other rules for taking windows ({old or 1}, now {new}: a recorded "
+                        "track's episode drives on past its destination)")  # fmt: skip
         else:
             flag = _FLAGS.get(key, key)
             said.append(f"{flag} {as_given(old, 'not given')} (now {as_given(new, 'not given')})")

@@ -58,6 +58,10 @@ from gridsim.traffic.track import scene_ids, track_name
 from neurotrajectory.data.commands import implied_commands
 
 FORMAT_VERSION = 1
+#: How windows are taken, for an interrupted recording to go on only under the same rules
+#: (2: a recorded track's episode drives on past its destination, and its windows whose
+#: label starts behind the ego are left out; 1: before 2026-12-07).
+WINDOW_RULES = 2
 
 #: Scenario groups of the evaluation and the built-in scenarios they consist of.
 GROUPS: dict[str, tuple[str, ...]] = {

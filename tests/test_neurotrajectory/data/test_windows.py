@@ -302,6 +302,20 @@ def test_a_recording_of_other_arguments_is_refused_and_kept(tmp_path, monkeypatc
         recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0,
                                  resume=True, split=("train", 0.3))  # fmt: skip
     assert sorted(p.name for p in (tmp_path / "d").iterdir()) == kept
+    # one interrupted by a version that took windows by other rules (no window_rules)
+    progress = tmp_path / "d" / recording.PROGRESS_FILE
+    doc = json.loads(progress.read_text())
+    older = {**doc, "arguments": {k: v for k, v in doc["arguments"].items()
+                                  if k != "window_rules"}}  # fmt: skip
+    progress.write_text(json.dumps(older))
+    with pytest.raises(
+        WorkKept,
+        match=r"was made with other rules for taking windows \(1, now "
+        r"2: a recorded track's episode drives on past",
+    ):
+        recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0,
+                                 resume=True)  # fmt: skip
+    progress.write_text(json.dumps(doc))
     said = []
     recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0, resume=True,
                            log=said.append)  # fmt: skip
