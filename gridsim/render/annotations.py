@@ -134,8 +134,9 @@ def _wrapped(lines, width: int) -> list[tuple]:
         words, line = [], ""
         for word in text.split(" "):  # (a word wider than a line: cut into pieces)
             while len(word) > 8 and _width([("  " + word, colour, shape)]) > width:
-                cut = max(k for k in range(1, len(word))
-                          if _width([("  " + word[:k], colour, shape)]) <= width)  # fmt: skip
+                cut = max((k for k in range(8, len(word))
+                           if _width([("  " + word[:k], colour, shape)]) <= width),
+                          default=8)  # (no room: pieces of 8 characters)  # fmt: skip
                 words.append(word[:cut])
                 word = word[cut:]
             words.append(word)

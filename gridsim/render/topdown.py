@@ -232,7 +232,7 @@ class TopDownRenderer:
             return
         # inside the frame's middle, clear of the caption, the legends, the inset and the bar
         left, top = POINTER_CLEAR_SIDE + 8, POINTER_CLEAR_TOP
-        right = w - self.view.inset_size - INSET_MARGIN - POINTER_CLEAR_SIDE
+        right = max(w - self.view.inset_size - INSET_MARGIN - POINTER_CLEAR_SIDE, left + 40)
         bottom = h - POINTER_CLEAR_BOTTOM
         cx, cy = (left + right) / 2, (top + bottom) / 2
         du, dv = u - cx, v - cy

@@ -405,6 +405,8 @@ def test_the_arrow_to_a_human_out_of_view_stays_clear_of_a_larger_grid_inset():
         arrow = np.argwhere((img == REFERENCE_COLOUR).all(axis=-1))
         assert len(arrow) > 15, f"inset of {size} pixels: the arrow is hidden"
         assert arrow[:, 1].max() < view.view.width - size - INSET_MARGIN
+    narrow = TopDownRenderer(ViewSpec(width=200, height=150, inset_size=160))  # (no room)
+    narrow.render(world, grid=grid, human=narrow.centre(world) + np.array([500.0, 0.0]))
 
 
 def test_a_standing_ego_shows_above_its_set_points():
@@ -443,6 +445,13 @@ def test_a_long_caption_is_wrapped_beside_the_grid_inset():
     said = "".join(text.replace(" ", "") for text, _, _ in wrapped)
     assert said == lines[0][0].replace(" ", "")
     assert _wrapped([("t 1.0 s", None, "")], room) == [("t 1.0 s", None, "")]
+    # no room (a 200-pixel frame beside a 160-pixel inset): short pieces, no error
+    narrow = _wrapped([("scenario: " + "x" * 40, None, ""), ("", None, "")], 24)
+    assert "".join(t.strip() for t, _, _ in narrow) == "scenario:" + "x" * 40
+    frame = np.zeros((200, 200, 3), np.uint8)
+    from gridsim.render.annotations import Caption, annotate
+
+    annotate(frame, Caption("x" * 80, 1.0, 2.0), 8.0, inset_size=160)
 
 
 def test_vehicles_show_their_heading_and_the_destination_is_marked():
