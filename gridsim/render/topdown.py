@@ -263,6 +263,8 @@ class TopDownRenderer:
             corners = (box @ to_px[:, :2].T + to_px[:, 2] + 0.5) * scale
             cv2.polylines(tile, [np.rint(corners * 16).astype(np.int32)], True, INSET_EGO_COLOUR,
                           1, cv2.LINE_AA, shift=4)  # fmt: skip
+        # (a frame smaller than the inset shows its top left part)
+        tile = tile[: img.shape[0] - 2 * INSET_MARGIN, : img.shape[1] - 2 * INSET_MARGIN]
         th, tw = tile.shape[:2]
         x0, y0 = img.shape[1] - tw - INSET_MARGIN, INSET_MARGIN
         img[y0 : y0 + th, x0 : x0 + tw] = tile
