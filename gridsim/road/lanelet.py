@@ -86,7 +86,7 @@ def _text_hint(path: Path) -> str:
     names the tracks instead of the map)."""
     try:
         with open(path, encoding="utf-8", errors="replace") as fh:
-            first = fh.readline()
+            first = fh.readline(4096)  # (a binary file has no line to end)
     except OSError:
         return ""
     if "," in first and "track_id" in first:

@@ -683,7 +683,8 @@ def check_reference(ref: Any) -> None:
     (an empty one named the current folder)."""
     if not isinstance(ref, str | os.PathLike):
         several = ""
-        if isinstance(ref, list | tuple) and all(isinstance(r, str | os.PathLike) for r in ref):
+        if (isinstance(ref, list | tuple) and ref
+                and all(isinstance(r, str | os.PathLike) for r in ref)):  # fmt: skip
             joined = ",".join(map(str, ref))
             several = f"; several as one text, separated by commas: scenario={joined!r}"
         raise ScenarioError(f"scenario must be a built-in name, a YAML or XML path, a folder or "

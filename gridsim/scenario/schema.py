@@ -6,6 +6,7 @@ given to users (``fov``, ``yaw``, ``max_steer``...), radians nowhere in YAML.
 
 from __future__ import annotations
 
+import numbers
 import re
 from dataclasses import dataclass
 from pathlib import Path
@@ -257,12 +258,18 @@ class TrafficConfig(Strict):
 
 
 def _track_id(value: Any) -> Any:
-    """A track id as text (an integer as written); a float or a truth value refused."""
-    if isinstance(value, bool | float):
-        whole = isinstance(value, float) and value.is_integer()
-        hint = f' (quote it as written in the file, e.g. "{int(value)}")' if whole else ""
-        raise ValueError(f"track id {value!r} is neither text nor a whole number{hint}")
-    return str(value) if isinstance(value, int) else value
+    """A track id as text (an integer, numpy's too, as written); anything else but text is
+    refused in plain words (pydantic's union named its types)."""
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        return str(int(value))
+    if isinstance(value, str):
+        return value
+    number = isinstance(value, numbers.Real) and not isinstance(value, bool)
+    hint = (f' (quote it as written in the file, e.g. "{int(value)}")'
+            if number and float(value).is_integer() else "")  # fmt: skip
+    if value is None:
+        raise ValueError("no track id given (an empty ego.track: give an id, or 'random')")
+    raise ValueError(f"track id {value!r} is neither text nor a whole number{hint}")
 
 
 class EgoConfig(Strict):
@@ -282,9 +289,7 @@ class EgoConfig(Strict):
     def _ids_as_text(cls, value: Any) -> Any:
         """Track ids are text; an integer id (``track: 42``, as a user types it) is one. A
         number with a fraction, a truth value or an empty list is refused in plain words."""
-        if isinstance(value, int) and not isinstance(value, bool):
-            return str(value)
-        if isinstance(value, list):
+        if isinstance(value, list | tuple):
             if not value:
                 raise ValueError("an empty list names no track: give track ids, or 'random'")
             return [_track_id(v) for v in value]
@@ -369,9 +374,10 @@ class ScenarioConfig(Strict):
         road, ego = data.get("road"), data.get("ego", {})
         lanes = road.get("lanes") if isinstance(road, dict) else None
         default = EgoConfig.model_fields["lane"].default
-        narrow = isinstance(lanes, int) and not isinstance(lanes, bool) and 1 <= lanes <= default
-        if narrow and isinstance(ego, dict) and "lane" not in ego:
-            return {**data, "ego": {**ego, "lane": lanes - 1}}
+        whole = (isinstance(lanes, numbers.Real) and not isinstance(lanes, bool)
+                 and float(lanes).is_integer())  # (1, 1.0, numpy's 1)  # fmt: skip
+        if whole and 1 <= lanes <= default and isinstance(ego, dict) and "lane" not in ego:
+            return {**data, "ego": {**ego, "lane": int(lanes) - 1}}
         return data
 
     @model_validator(mode="after")

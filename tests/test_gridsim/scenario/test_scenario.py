@@ -800,6 +800,8 @@ def test_values_that_make_no_sense_are_refused(section, message):
                 r"written in the file, e.g. \"363\"\)"),
         ([363.0, 364], r"track id 363.0 is neither"),
         (True, r"track id True is neither"),
+        (None, r"no track id given \(an empty ego.track: give an id, or 'random'\)"),
+        ([[1]], r"track id \[1\] is neither"),
     ],
 )  # fmt: skip
 def test_ego_tracks_that_name_no_track_are_refused_in_plain_words(track, message):
@@ -809,8 +811,8 @@ def test_ego_tracks_that_name_no_track_are_refused_in_plain_words(track, message
     with pytest.raises(ScenarioError, match=message) as info:
         parse_scenario(doc, "x.yaml")
     assert "constrained-str" not in str(info.value) and "(1 problem)" in str(info.value)
-    ids = parse_scenario({**doc, "ego": {"track": [363, "364"]}}, "x.yaml").config.ego.track
-    assert ids == ["363", "364"]
+    ids = parse_scenario({**doc, "ego": {"track": [363, "364", np.int64(365)]}}, "x.yaml")
+    assert ids.config.ego.track == ["363", "364", "365"]
 
 
 def test_a_one_lane_road_needs_no_ego_lane():
@@ -818,6 +820,9 @@ def test_a_one_lane_road_needs_no_ego_lane():
     refused: "ego.lane (1) must be < road.lanes (1)"); a lane given is checked as before."""
     one = {"name": "a", "road": {"type": "seamless", "lanes": 1}}
     assert parse_scenario(one, "a.yaml").config.ego.lane == 0
+    for lanes in (1.0, np.int64(1)):  # (as YAML or numpy may give it)
+        lone = {**one, "road": {"type": "seamless", "lanes": lanes}}
+        assert parse_scenario(lone, "a.yaml").config.ego.lane == 0
     assert parse_scenario({**one, "road": {"type": "seamless", "lanes": 3}}, "a.yaml"
                           ).config.ego.lane == 1  # fmt: skip
     with pytest.raises(ScenarioError, match=r"ego.lane \(1\) must be < road.lanes \(1\)"):
