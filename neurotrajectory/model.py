@@ -430,6 +430,12 @@ class Convolutions(Enum):
     #: (:func:`~gridsim.sensors.occupancy_kernels.pooled_convolution`), the others grouped
     COMPILED_FIRST = "the first compiled, the others grouped"
 
+    @property
+    def first_grouped(self) -> int:
+        """The first convolution in the grouped call of :attr:`GROUPED` (0) and
+        :attr:`GROUPED_AFTER_FIRST` (1)."""
+        return {"GROUPED": 0, "GROUPED_AFTER_FIRST": 1}[self.name]
+
 
 ALIGN = 16  # floats: 64 bytes
 #: Parameters of at least this many numbers are not copied per batch: products with them
@@ -617,7 +623,7 @@ class PopulationNet:
         x = self._pooled(frames)
         if plan is Convolutions.PER_INDIVIDUAL:
             return self._features_per_individual(params, x)
-        return self._features_grouped(params, x, int(plan is Convolutions.GROUPED_AFTER_FIRST))
+        return self._features_grouped(params, x, plan.first_grouped)
 
     def _pooled(self, frames: np.ndarray) -> torch.Tensor:
         """``frames`` uint8 ``(K, E, H, W)`` pooled and scaled to 0-1: ``(K, E, 1, H/p, W/p)``."""
@@ -714,8 +720,10 @@ class PopulationNet:
         frames = torch.randint(0, 256, (k, e, size, size), generator=g, dtype=torch.uint8).numpy()
         x = self._pooled(frames)
         choices = {
-            Convolutions.GROUPED_AFTER_FIRST: lambda: self._features_grouped(params, x, 1),
-            Convolutions.GROUPED: lambda: self._features_grouped(params, x, 0),
+            **{
+                plan: lambda plan=plan: self._features_grouped(params, x, plan.first_grouped)
+                for plan in (Convolutions.GROUPED_AFTER_FIRST, Convolutions.GROUPED)
+            },
             Convolutions.COMPILED_FIRST: lambda: self._features_compiled(params, frames),
         }
         reference = self._features_per_individual(params, x)

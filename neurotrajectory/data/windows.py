@@ -807,18 +807,14 @@ def ended_early(metas: list[dict]) -> dict:
     """The episodes of the scenarios ``metas`` (their provenance) that ended early, summed
     by how they ended, the windows not taken and those whose label lay behind the ego (as
     each scenario's ``ended_early``); empty when there are none."""
-    episodes: dict[str, int] = {}
-    windows = behind = 0
+    flat: dict[str, int] = {}  # (as _episode_windows counts them)
     for meta in metas:
         early = meta.get("ended_early", {})
-        for key, n in early.get("episodes", {}).items():
-            episodes[key] = episodes.get(key, 0) + n
-        windows += early.get("windows_not_taken", 0)
-        behind += early.get("windows_behind", 0)
-    if not (episodes or behind):
-        return {}
-    return {"episodes": episodes, "windows_not_taken": windows,
-            **({"windows_behind": behind} if behind else {})}  # fmt: skip
+        counts = {**early.get("episodes", {}),
+                  **{k: v for k, v in early.items() if k != "episodes"}}  # fmt: skip
+        for key, n in counts.items():
+            flat[key] = flat.get(key, 0) + n
+    return _early(flat) if flat else {}
 
 
 def early_note(early: dict) -> str:

@@ -99,19 +99,32 @@ def test_drive_command_writes_outputs(tmp_path, capsys):
     assert summary["out"] == str(out.absolute())  # (it named the temporary folder, renamed)
 
 
-def test_drive_and_run_with_a_seed_drive_the_same_episode(tmp_path, capsys):
+def test_drive_and_run_with_a_seed_drive_the_same_episode(tmp_path, capsys, monkeypatch):
     """``drive --seed S`` builds the world of ``reset(seed=S)`` (and of ``run --seed S``):
     it built the world of S itself, another episode than the one watched with ``run``."""
     import gymnasium as gym
 
+    from gridsim.scenario import build
+
+    built = []
+
+    def build_world(scenario, seed):
+        world = make(scenario, seed)
+        built.append(world.ego.copy())
+        return world
+
+    make = build.build_world
+    monkeypatch.setattr(build, "build_world", build_world)
     assert main(["drive", "--scenario", "inner_city", "--seconds", "0.1", "--seed", "3",
                  "--out", str(tmp_path / "d"), "--quiet"]) == 0  # fmt: skip
+    monkeypatch.undo()
     drove = json.loads(capsys.readouterr().out)
     assert main(["run", "--scenario", "inner_city", "--steps", "1", "--seed", "3", "--quiet"]) == 0
     ran = json.loads(capsys.readouterr().out)
     env = gym.make("GridSim-v0", scenario="inner_city")
     _, info = env.reset(seed=3)
     assert drove["episode_seed"] == ran["episode_seed"] == info["episode_seed"] != 3
+    assert np.array_equal(built[0], env.unwrapped.world.ego)  # the same start
 
 
 def test_drive_stops_where_a_recorded_ego_track_ends(tmp_path, capsys):

@@ -89,10 +89,9 @@ def test_frame_features_are_those_of_one_convolution_call_per_individual(preset)
             # probe decides whether the compiled first convolution gives these bits)
             assert torch.equal(pnet._features_compiled(params, frames), one_per_individual)
         plan = pnet.convolutions(k, e)
-        grouped = {Convolutions.GROUPED: 0, Convolutions.GROUPED_AFTER_FIRST: 1}
-        if plan in grouped:
-            first = grouped[plan]
-            assert torch.equal(pnet._features_grouped(params, x, first), one_per_individual)
+        if plan in (Convolutions.GROUPED, Convolutions.GROUPED_AFTER_FIRST):
+            grouped = pnet._features_grouped(params, x, plan.first_grouped)
+            assert torch.equal(grouped, one_per_individual)
     assert pnet.convolutions(4, 1) is Convolutions.PER_INDIVIDUAL
     if "/AVX512/" in numerics_platform():  # where it was measured (Intel and AMD)
         assert pnet.convolutions(16, 2) is not Convolutions.PER_INDIVIDUAL, (
