@@ -508,6 +508,9 @@ class Run:
         self._progress = False  # say what it does between the progress bars (train)
         #: The checkpoint's copy of a missing or damaged history.json, once read in its place
         self._history_repaired: dict | None = None
+        #: Settings a resume changed, written to config.json once it trains (a resume refused
+        #: before, by its inputs or its backend, leaves the run as it was)
+        self._unsaved = False
 
     # -- run directory ------------------------------------------------------------------------
     @classmethod
@@ -612,8 +615,8 @@ class Run:
             raise RunError(f"{out}: --generations {config.generations} is fewer than the "
                            f"{done} generations the run has done; give >= {done} (or "
                            "leave it out to finish the run as configured)")  # fmt: skip
-        if allowed or given:
-            run._write_config()
+        _check_workers(config)
+        run._unsaved = bool(allowed or given)
         return run
 
     def _write_inputs(self, files: dict[str, str]) -> None:
@@ -811,6 +814,9 @@ class Run:
                           validation_overrides=cfg.validation_overrides)  # fmt: skip
         backend = make_backend(cfg.backend, spec, cfg.workers, cfg.ray_address)
         try:
+            if self._unsaved:  # (the resume's settings: the backend started with them)
+                self._write_config()
+                self._unsaved = False
             return self._loop(backend, progress, stop_after)
         finally:
             backend.close()
@@ -1312,6 +1318,12 @@ def _check_size(config: TrainConfig, weights: int) -> None:
         raise RunError(f"--population {config.population} of networks of {weights:,} weights "
                        f"needs {need / 1e9:.3g} GB for its genomes; this machine has "
                        f"{have / 1e9:.3g} GB: choose a smaller population or preset")  # fmt: skip
+    _check_workers(config)
+
+
+def _check_workers(config: TrainConfig) -> None:
+    """A :class:`RunError` when ``processes`` asks for far more workers than this machine
+    has cores (a new run's and a resume's: each worker holds an environment and a network)."""
     cores = os.cpu_count() or 1
     if config.backend == "processes" and config.workers > 4 * cores:
         raise RunError(f"--workers {config.workers}: this machine has {cores} cores; give at "

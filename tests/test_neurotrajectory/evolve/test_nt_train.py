@@ -594,9 +594,14 @@ def test_resume_applies_or_refuses_every_training_flag(tmp_path, capsys):
     changes = {"generations": 5, "backend": "processes", "workers": 3, "ray_address": "auto",
                "batch": 4}  # fmt: skip
     assert set(changes) == set(resumable)
-    Run.open(run.out, **changes)  # applied, and kept for the next resume
-    stored = Run.open(run.out).config
-    assert {k: getattr(stored, k) for k in changes} == changes
+    opened = Run.open(run.out, **changes)  # applied; kept once it trains (not before:
+    assert {k: getattr(opened.config, k) for k in changes} == changes  # a resume refused
+    assert (run.out / "config.json").read_text() == before  # later changes nothing)
+    # a resume's workers are checked as a new run's (99 processes ran out of memory)
+    assert main(["train", "--resume", str(run.out), "--backend", "processes", "--workers",
+                 "99", "--quiet"]) == 2  # fmt: skip
+    assert "--workers 99: this machine has" in capsys.readouterr().err
+    assert (run.out / "config.json").read_text() == before
 
 
 def test_broken_run_files_give_clear_errors(finished_run, tmp_path, capsys):

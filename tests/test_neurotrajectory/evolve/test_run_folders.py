@@ -308,11 +308,13 @@ def test_a_run_resumes_only_on_the_files_it_began_with(tmp_path, capsys):
     resume = ["train", "--resume", str(run), "--generations", "2", "--quiet"]
     csv.write_text(csv.read_text().replace(",4.5,", ",4.6,", 1))  # one row's length
     shutil.copy(scenario, scenes / "another.yaml")
+    config = (run / "config.json").read_text()
     assert main(resume) == 2
     err = capsys.readouterr().err
     assert (f"are not those the run began with (changed: {csv}; added: "
             f"{scenes / 'another.yaml'})" in err)  # fmt: skip
     assert "would train on other data" in err
+    assert (run / "config.json").read_text() == config  # (it kept --generations 2: refused)
     # its members driven on the files of now (heldout, rollout, evaluate --run) say so
     out = tmp_path / "heldout.json"
     (scenes / "another.yaml").unlink()
