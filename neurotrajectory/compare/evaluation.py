@@ -61,6 +61,7 @@ from neurotrajectory.data.windows import (
     Windows,
     bar_callbacks,
     group_scenarios,
+    recording_mismatch,
 )
 from neurotrajectory.evolve.pareto import PICKS, pick_member
 from neurotrajectory.settings import Bool, Integer, OneOf, Real, Seed, Settings
@@ -261,6 +262,14 @@ class Front:
     nets: list
     picked: int
 
+    @property
+    def scenario_config(self):
+        """The run's scenario configuration (of a collection, its first member's): the
+        settings its network was trained in."""
+        from gridsim.scenario.collection import load_collection
+
+        return load_collection(self.run.config.scenario)[0].config
+
     def info(self, pick: str) -> dict:
         c = self.run.config
         return {"run": str(self.run.out), "scenario": c.scenario, "preset": c.preset,
@@ -293,6 +302,11 @@ def _evaluate_group(
 ) -> GroupResult:
     """One group's scores: ``data`` is its manifest and ``(train, test)`` windows."""
     manifest, train, test = data
+    problem = recording_mismatch(manifest, front.scenario_config)
+    if problem:
+        said = problem.replace("record them from", "evaluate it on")
+        raise DatasetError(f"{group}: the run {front.run.out} does not fit the group's "
+                           f"scenarios: {said}")  # fmt: skip
     test_tracks = set(test.track.tolist())
     seen = sorted(test_tracks & trained_tracks(front.run.config))
     if seen:  # the run drove these as the ego in training: its scores on them are not held out

@@ -817,6 +817,39 @@ def ended_early(metas: list[dict]) -> dict:
     return _early(flat) if flat else {}
 
 
+#: What a network's windows depend on besides their array sizes (``manifest key``, ``scenario
+#: key``): the set-points' spacing in time, the grids' (a decision each), the cells' size and
+#: the grid's orientation.
+TIMING_KEYS = (("setpoint_period", "env.setpoint_period"),
+               ("decision_period", "env.decision_period"),
+               ("sensor.cell_size", "sensor.cell_size"),
+               ("sensor.orientation", "sensor.orientation"))  # fmt: skip
+
+
+def recording_mismatch(manifest: dict, cfg) -> str | None:
+    """Why windows recorded as ``manifest`` says do not fit a network of the scenario config
+    ``cfg`` (:data:`TIMING_KEYS` that differ), or None (a key the manifest lacks is not
+    compared). Their sizes: :func:`~neurotrajectory.model.size_mismatch`."""
+
+    def value(doc, key: str):
+        for part in key.split("."):
+            doc = getattr(doc, part) if not isinstance(doc, dict) else doc.get(part)
+            if doc is None:
+                return None
+        return doc
+
+    differ = [
+        f"{mine} {value(manifest, key)!r} (the run's {value(cfg, mine)!r})"
+        for key, mine in TIMING_KEYS
+        if value(manifest, key) is not None and value(manifest, key) != value(cfg, mine)
+    ]
+    if not differ:
+        return None
+    return (f"its windows were recorded with {', '.join(differ)}: the network's set-points and "
+            "grids would mean other times and places; record them from a scenario of the "
+            "run's settings")  # fmt: skip
+
+
 def early_note(early: dict) -> str:
     """What :func:`ended_early`'s counts mean, for a user."""
     said = []

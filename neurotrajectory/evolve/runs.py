@@ -56,6 +56,7 @@ from neurotrajectory.data.windows import (
     goal_overrides,
     has_recorded,
     is_recorded,
+    recording_mismatch,
     scenario_episodes,
 )
 from neurotrajectory.evolve.backends import BACKENDS, WorkerSpec, make_backend
@@ -1284,7 +1285,8 @@ def _checked(config: TrainConfig):
     windows = None
     if config.pretrain:
         windows = _pretrain_data(config.pretrain)
-        problem = size_mismatch(probe.cfg, windows) or _goal_mismatch(config, env.cfg.env)
+        problem = (size_mismatch(probe.cfg, windows) or _goal_mismatch(config, env.cfg.env)
+                   or recording_mismatch(dataset_manifest(config.pretrain), env.cfg))  # fmt: skip
         if problem:
             raise RunError(f"--pretrain {config.pretrain}: {problem}")
         _dagger_episodes(config, windows)

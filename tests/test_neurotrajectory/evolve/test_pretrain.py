@@ -707,3 +707,34 @@ def test_a_full_disk_while_the_fit_is_saved_is_an_os_error_not_a_bug(tmp_path, m
         warm_start._save_fit(tmp_path / "fit.pt", {"k": 1}, state)
     assert err.value.errno == errno.ENOSPC and interrupted(err.value)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_windows_of_other_timings_or_grids_are_refused_as_a_warm_start(windows_dir, tmp_path):
+    """A dataset recorded with set-points 0.3 s apart (or a grid heading up, or of 1 m
+    cells) fed a network of 0.5 s set-points without a word: its warm start's l1 was 4036
+    against 88. The run names what differs; ``evaluate`` refuses a run on such scenes too."""
+    import shutil
+
+    from gridsim.scenario.loader import load_scenario
+    from neurotrajectory.data.windows import recording_mismatch
+
+    other = tmp_path / "other"
+    shutil.copytree(windows_dir, other)
+    manifest = json.loads((other / "manifest.json").read_text())
+    manifest["setpoint_period"] = 0.3
+    manifest["sensor"] = {**manifest["sensor"], "orientation": "heading_up"}
+    (other / "manifest.json").write_text(json.dumps(manifest))
+    config = TrainConfig(preset="tiny", population=4, generations=1, episodes=1,
+                         episode_seconds=3.0, pretrain=str(other))  # fmt: skip
+    with pytest.raises(
+        RunError,
+        match=r"--pretrain .*: its windows were recorded with "
+        r"env.setpoint_period 0.3 \(the run's 0.5\), "
+        r"sensor.orientation 'heading_up' \(the run's 'north_up'\)",
+    ):
+        Run.create(tmp_path / "run", config)
+    assert not (tmp_path / "run").exists()
+    seamless = load_scenario("seamless").config
+    assert recording_mismatch(json.loads((windows_dir / "manifest.json").read_text()),
+                              seamless) is None  # fmt: skip
+    assert "sensor.cell_size 1.0" in recording_mismatch({"sensor": {"cell_size": 1.0}}, seamless)
