@@ -280,6 +280,8 @@ def _differences(then: dict, now: dict) -> str:
                         "track's episode drives on past its destination)")  # fmt: skip
         else:
             flag = _FLAGS.get(key, key)
+            if key == "name" and then.get("source") is None and now.get("source") is None:
+                flag = "--scenario"  # (a group named by its --scenario, without --name)
             said.append(f"{flag} {as_given(old, 'not given')} (now {as_given(new, 'not given')})")
     return "; ".join(said)
 

@@ -316,6 +316,10 @@ def test_a_recording_of_other_arguments_is_refused_and_kept(tmp_path, monkeypatc
         recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0,
                                  resume=True)  # fmt: skip
     progress.write_text(json.dumps(doc))
+    # another --scenario (no --name): named as the flag given (it said --name)
+    with pytest.raises(WorkKept, match=r"was made with --scenario seamless \(now inner_city\)"):
+        recording.record_dataset(tmp_path / "d", "inner_city", 3, seed=1, duration=3.0,
+                                 resume=True)  # fmt: skip
     said = []
     recording.record_dataset(tmp_path / "d", "seamless", 3, seed=1, duration=3.0, resume=True,
                            log=said.append)  # fmt: skip
