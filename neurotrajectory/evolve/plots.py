@@ -119,7 +119,7 @@ def plot_run(
 
     paths.append(_hypervolume(folder / "hypervolume.png", history, anchored))
     validated = "the centre of the generation" if centre else "knee of the generation"
-    curve = learning_curve(folder / "learning_curve.png", history, validated)
+    curve = learning_curve(folder / "learning_curve.png", history, validated, anchored)
     return paths + ([curve] if curve else [])
 
 
@@ -241,7 +241,10 @@ def _hypervolume(path: Path, history: list[dict], anchored: bool) -> Path:
 
 
 def learning_curve(
-    path: Path, history: list[dict], validated: str = "knee of the generation"
+    path: Path,
+    history: list[dict],
+    validated: str = "knee of the generation",
+    best_kept: bool = True,
 ) -> Path | None:
     """Each generation's knee (or what ``validated`` says it is) on the validation episodes
     (``knee_validation``), one panel per objective, with the warm start on the same episodes
@@ -249,7 +252,8 @@ def learning_curve(
     that completed every episode (and the warm start); a knee that lost episode time (a
     collision or leaving the road, its remaining steps counted at the worst values) is a
     cross at the worse edge (the top, the bottom for l3), a warm start that lost some a dotted
-    line there, neither drawn to scale. None without validation scores."""
+    line there, neither drawn to scale. None without validation scores. ``best_kept``: the
+    run keeps its best point for the final front (anchored selection); the title says so."""
     points = [(h["generation"], h["knee_validation"]) for h in history if "knee_validation" in h]
     if not points:
         return None
@@ -277,9 +281,10 @@ def learning_curve(
         ax.set_xlabel("generation")
         ax.xaxis.set_major_locator(MaxNLocator(integer=True))
         ax.set_title(name, fontsize=9, pad=10)
+    best = " and the best of these points" if best_kept else ""
     fig.suptitle("learning curve: on the validation episodes (none trained on); the final "
-                 "front is sorted again on them, of the last generation's members and the best "
-                 "of these points (train's table, front.json)", fontsize=9)  # fmt: skip
+                 f"front is sorted again on them, of the last generation's members{best} "
+                 "(train's table, front.json)", fontsize=9)  # fmt: skip
     _legend_below(fig, axes[0], 3, 0.08)
     return _save(fig, path)
 

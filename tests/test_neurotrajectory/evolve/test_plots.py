@@ -34,6 +34,11 @@ def test_the_learning_curve_is_scaled_to_what_completed(tmp_path, monkeypatch, w
     else:
         assert "warm start" in labels and high > 110.0  # the warm start's line is on the axes
     assert "the knee lost an episode (not drawn to scale)" in labels
+    title = fig._suptitle.get_text()
+    assert "the last generation's members and the best of these points" in title
+    # a run that keeps no best point (pareto selection) is not said to
+    plots.learning_curve(tmp_path / "lc.png", history, best_kept=False)
+    assert "best of these points" not in figures[-1]._suptitle.get_text()
 
 
 def test_the_objectives_plot_is_scaled_to_the_members_that_completed(tmp_path, monkeypatch):
