@@ -216,6 +216,25 @@ def empty_folder(folder: str | Path, keep: tuple[str, ...] = ()) -> None:
             p.unlink()
 
 
+def folder_holder(folder: str | Path) -> str | None:
+    """Who holds ``folder`` for writing (:func:`folder_lock`: ``"pid N, since ..."``), or None
+    when no process does."""
+    path = Path(folder) / LOCK_NAME
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return os.pread(fd, 200, 0).decode(errors="replace").strip() or "unknown"
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)
+
+
 @contextmanager
 def folder_lock(folder: str | Path, flag: str = "--out") -> Iterator[Path]:
     """Hold the folder ``folder`` (created if needed) for writing: one process at a time. A

@@ -12,7 +12,7 @@ import torch
 
 from gridsim.envs.gridsim_env import GridSimEnv
 from gridsim.errors import warn_data
-from gridsim.outputs import progress_bar
+from gridsim.outputs import folder_holder, progress_bar
 from gridsim.scenario.schema import Scenario
 from gridsim.traffic.track import track_name
 from neurotrajectory.data.windows import goal_overrides, has_recorded
@@ -57,6 +57,10 @@ def load_front(run_dir: str | Path) -> tuple[Run, np.ndarray, np.ndarray, list[T
     run.warn_changed_inputs()
     path = run.out / "front.npz"
     if not path.exists():
+        holder = folder_holder(run.out)
+        if holder:
+            raise RunError(f"{run.out}: no front.npz yet: the run is being trained ({holder}); "
+                           "its front is chosen when it ends")  # fmt: skip
         raise RunError(f"{run.out}: no front.npz (the run has not finished, or the file was "
                        f"removed): `neurotrajectory train --resume {run.out}` chooses it from "
                        "the last generation")  # fmt: skip

@@ -24,3 +24,21 @@ def test_a_removed_warm_start_is_said_not_dropped_silently(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert load_warm_start(run(0)) is None
+
+
+def test_a_run_still_training_is_said_to_be_so_not_to_be_resumed(tmp_path):
+    """``heldout`` / ``rollout`` of a run another process is training said "train --resume
+    RUN chooses it", which the lock refuses: now that the run is being trained, and by whom."""
+    from gridsim.outputs import folder_holder, folder_lock
+    from neurotrajectory.compare.front import load_front
+    from neurotrajectory.evolve.runs import Run, RunError, TrainConfig
+
+    run = Run.create(tmp_path / "run", TrainConfig(preset="tiny"))
+    assert folder_holder(run.out) is None
+    with pytest.raises(RunError, match="train --resume"):
+        load_front(run.out)
+    with folder_lock(run.out):
+        assert folder_holder(run.out).startswith("pid ")
+        with pytest.raises(RunError, match=r"no front.npz yet: the run is being trained \(pid "):
+            load_front(run.out)
+    assert folder_holder(run.out) is None
