@@ -1,12 +1,13 @@
 """Train NeuroTrajectory from Python and drive the result: fit the network to recorded human
 driving (the warm start), evolve it in closed loop, then drive the knee of its Pareto front on
-held-out episodes beside its warm start and the destination curve. The same as
+held-out episodes beside its warm start and the destination curve. The same training as
 
     neurotrajectory train --scenario seamless --pretrain-episodes 12 --selection es \
         --population 24 --generations 25 --episodes 2 --episode-seconds 15 \
         --backend processes --workers 2 --out runs/example
 
-(the README's main job); ``--quick`` trains a tiny network for a few seconds.
+(the README's main job, whose command also writes ``heldout.json`` and a video: here the
+held-out drive is printed); ``--quick`` trains a tiny network for a few seconds.
 
     pip install ".[train]"
     python examples/06_train_and_evaluate.py [--quick] [--out runs/example]
