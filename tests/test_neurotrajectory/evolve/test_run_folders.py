@@ -84,7 +84,7 @@ def test_a_video_inside_the_run_moves_with_it(tmp_path):
     with run_folder(run, resume=True):
         assert not stale.exists() and (run / "config.json").exists()
     elsewhere = str(tmp_path / "videos" / "knee.mp4")  # outside the run: as given
-    Run.open(run, video=elsewhere)
+    Run.open(run, video=elsewhere)._write_config()  # (as a resume does once it trains)
     assert Run.open(run).after["video"] == elsewhere
 
 
