@@ -88,16 +88,16 @@ def drive(scenario: str, seconds: float, seed: int, out: Path, progress: bool = 
         grids[k] = sensor.observe(world)
         times[k] = round(world.time, 9)  # a sum of ticks, to the nanosecond (as info["time"])
     with new_folder(out) as partial:  # out appears whole
-        return _write(partial, out, sc, (seed, episode), world, grids, times, steps, start,
+        return _write(partial, out, sc, seed, episode, world, grids, times, steps, start,
                       distance, collisions, off_road, cut)  # fmt: skip
 
 
-def _write(partial, out, sc, seeds, world, grids, times, steps, start, distance, collisions,
-           off_road, cut: bool) -> dict:  # fmt: skip
+def _write(partial, out, sc, seed, episode, world, grids, times, steps, start, distance,
+           collisions, off_road, cut: bool) -> dict:  # fmt: skip
     """Write the drive's files into ``partial``, the folder that becomes ``out`` once they are
-    all there; the summary (``seeds``: the user's and the episode's; ``cut``: it stopped
-    where its ego track's recording ends, before the time asked for)."""
-    seed, episode = seeds
+    all there; the summary (``seed``: the user's, ``episode``: the episode seed drawn from
+    it; ``cut``: it stopped where its ego track's recording ends, before the time asked
+    for)."""
     import cv2
 
     from gridsim.render.annotations import Caption, annotate

@@ -25,6 +25,13 @@ MAX_RASTER_CELLS = 10**8
 RASTER_RESOLUTION, RASTER_MARGIN = 0.2, 2.0
 
 
+def raster_cells(extent, resolution: float = RASTER_RESOLUTION) -> float:
+    """The cells of a static road's raster of ``extent`` ``(width, height)`` [m], its margins
+    (:data:`RASTER_MARGIN`) included; a road of more than :data:`MAX_RASTER_CELLS` is
+    refused."""
+    return float(np.prod(np.ceil(np.asarray(extent, dtype=np.float64) / resolution) + 1))
+
+
 @dataclass
 class Lane:
     """One lane: its centre line (direction of travel along increasing s) and width [m]."""
@@ -163,10 +170,9 @@ class StaticRoad(Road):
         self._markings = markings or []
         self._marking_boxes = bbox_of(self._markings)
         self._res = resolution
-        margin = RASTER_MARGIN
-        self._origin = self._poly_boxes[:, :2].min(axis=0) - margin
-        extent = self._poly_boxes[:, 2:].max(axis=0) + margin - self._origin
-        cells = float(np.prod(np.ceil(extent / resolution) + 1))
+        self._origin = self._poly_boxes[:, :2].min(axis=0) - RASTER_MARGIN
+        extent = self._poly_boxes[:, 2:].max(axis=0) + RASTER_MARGIN - self._origin
+        cells = raster_cells(extent, resolution)
         if not cells <= MAX_RASTER_CELLS:
             raise DataError(f"the road spans {extent[0]:.3g} m x {extent[1]:.3g} m: at "
                             f"{resolution} m a raster of {cells:.3g} cells, more than "

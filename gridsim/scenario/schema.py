@@ -20,6 +20,7 @@ from pydantic_core import InitErrorDetails, PydanticCustomError
 from gridsim.frames import setpoint_times
 from gridsim.sensors.occupancy import GridSpec
 from gridsim.traffic.library import is_number
+from gridsim.traffic.track import USUAL_SIZE
 from gridsim.vehicle.kinematics import BicycleParams
 
 #: The most road [m] kept populated behind and ahead of the ego (``traffic.window``).
@@ -157,15 +158,12 @@ class VehicleConfig(Strict):
         _not_radians("max_steer_rate_deg", self.max_steer_rate_deg, 5.0)
         if self.wheelbase > self.length:
             raise ValueError(f"wheelbase ({self.wheelbase}) must not exceed length ({self.length})")
-        if self.length < MIN_CAR[0] or self.width < MIN_CAR[1]:
+        (length, _), (width, _) = USUAL_SIZE  # the smallest car: a smaller one is a unit slip
+        if self.length < length or self.width < width:
             raise ValueError(f"length {self.length:g} m x width {self.width:g} m is smaller than "
-                             f"any car ({MIN_CAR[0]:g} m x {MIN_CAR[1]:g} m at least): sizes "
+                             f"any car ({length:g} m x {width:g} m at least): sizes "
                              "are in metres")  # fmt: skip
         return self
-
-
-#: The smallest ego [m], length and width: a smaller one is a unit slip (cm, km).
-MIN_CAR = (1.0, 0.5)
 
 
 def _not_radians(name: str, value: float, least: float) -> None:

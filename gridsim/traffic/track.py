@@ -21,6 +21,9 @@ MAX_TIME = 1e10
 MAX_GAP = 60.0
 #: The largest vehicle accepted, length and width [m].
 MAX_SIZE = (50.0, 10.0)
+#: A vehicle's usual length and width [m], ``(least, most)`` each: a size read in other
+#: units lands here once converted (a hint), and no ego is smaller.
+USUAL_SIZE = ((1.0, 25.0), (0.5, 5.0))
 #: Kinds of road users (:attr:`Track.kind`) that stay traffic, never the ego's track.
 NOT_CARS = frozenset({"pedestrian", "bicycle"})
 
@@ -146,10 +149,8 @@ def track_data_problem(track: Track) -> str | None:
         k = int(bad[0])
         return (f"{state(k + 1)}: jumps {step[k]:.6g} m in {t[k + 1] - t[k]:.6g} s "
                 f"({implied[k]:.6g} m/s; no vehicle is faster than {MAX_SPEED:g} m/s)")  # fmt: skip
-    sizes = (
-        ("length", track.length, MAX_SIZE[0], (1.0, 25.0)),
-        ("width", track.width, MAX_SIZE[1], (0.5, 5.0)),
-    )  # (and a vehicle's usual)
+    sizes = zip(("length", "width"), (track.length, track.width), MAX_SIZE, USUAL_SIZE,
+                strict=True)  # fmt: skip
     for name, value, most, (lo, hi) in sizes:
         if not 0 < value <= most:
             # a vehicle's size [m] read in centimetres or millimetres: said so

@@ -12,7 +12,12 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from gridsim.errors import ScenarioError
-from gridsim.road.base import MAX_RASTER_CELLS, RASTER_MARGIN, RASTER_RESOLUTION
+from gridsim.road.base import (
+    MAX_RASTER_CELLS,
+    RASTER_MARGIN,
+    RASTER_RESOLUTION,
+    raster_cells,
+)
 from gridsim.road.city import CityParams, CityRoad
 from gridsim.scenario.family import Family, register_family
 from gridsim.scenario.parts import (
@@ -55,16 +60,14 @@ class CityRoadConfig(Strict):
         street = 2 * self.lanes_per_direction * self.lane_width
         sides = [n * self.block_size + 2 * self.jitter + street + 2 * RASTER_MARGIN
                  for n in (self.blocks_x, self.blocks_y)]  # fmt: skip
-        cells = math.prod(math.ceil(side / RASTER_RESOLUTION) + 1 for side in sides)
-        if cells > MAX_RASTER_CELLS:
+        if raster_cells(sides) > MAX_RASTER_CELLS:
+            most = math.sqrt(MAX_RASTER_CELLS) * RASTER_RESOLUTION / 1000  # [km] a side
             raise ValueError(
                 f"blocks_x ({self.blocks_x}) and blocks_y ({self.blocks_y}) blocks of "
                 f"block_size {self.block_size:g} m make a city of about {sides[0] / 1000:.1f} "
                 f"km x {sides[1] / 1000:.1f} km, more than a road's raster holds "
-                f"({MAX_RASTER_CELLS:.0e} cells of {RASTER_RESOLUTION:g} m: about "
-                f"{math.sqrt(MAX_RASTER_CELLS) * RASTER_RESOLUTION / 1000:.0f} km x "
-                f"{math.sqrt(MAX_RASTER_CELLS) * RASTER_RESOLUTION / 1000:.0f} km); use fewer "
-                "or smaller blocks"
+                f"({MAX_RASTER_CELLS:.0e} cells of {RASTER_RESOLUTION:g} m: about {most:.0f} km "
+                f"x {most:.0f} km); use fewer or smaller blocks"
             )
         return self
 

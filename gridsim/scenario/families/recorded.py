@@ -147,7 +147,7 @@ def _scene(scenario: Scenario) -> tuple[StaticRoad, list[Track]]:
             given = scenario.config.road.scene
             if given is None:
                 raise DataError(f"{scenario.source}: {exc}") from None
-            own = _file_scene_id(stamped(map_path(scenario)))
+            own = _file_scene_id(stamped(path))
             raise DataError(
                 f"{scenario.source}: road.scene {given!r} (set in this file or one it extends) "
                 f"is not the scene of road.map {scenario.config.road.map} ({own!r}): {exc}; "
