@@ -17,7 +17,7 @@ from gridsim.errors import GridSimError, OutputError, ScenarioError
 from gridsim.outputs import output_problem, write_text
 from gridsim.scenario.collection import report_skipped
 from gridsim.scenario.family import FAMILIES
-from gridsim.scenario.loader import commonroad_defaults, deep_merge
+from gridsim.scenario.loader import commonroad_defaults, deep_merge, value_at
 from gridsim.traffic.commonroad import read_tracks_commonroad, scene_id
 from gridsim.traffic.library import write_tracks_csv
 
@@ -93,10 +93,9 @@ def _write(xml: Path, tracks, scene: str, out: Path) -> Path:
     }
     for key in FAMILIES["recorded"].ignores:  # (a default a recorded scene never reads)
         *sections, name = key.split(".")
-        block = doc
-        for section in sections:
-            block = block.get(section, {})
-        block.pop(name, None)
+        block = value_at(doc, sections)
+        if isinstance(block, dict):
+            block.pop(name, None)
     path = out / f"{stem}.yaml"
     header = (
         f"# Imported from {xml.name} by `gridsim import`; edit freely, check with "

@@ -480,28 +480,30 @@ def _unused_keys(doc: Mapping[str, Any], family: Any) -> list[str]:
     fields, own = ScenarioConfig.model_fields, family_defaults(family)
 
     def default(path: list[str]) -> Any:  # the family's, else the schema's
-        mine = _at(own, path)
-        if mine is not _MISSING:
+        mine = value_at(own, path)
+        if mine is not MISSING:
             return mine
-        return _at(fields[path[0]].default.model_dump(), path[1:])
+        return value_at(fields[path[0]].default.model_dump(), path[1:])
 
     unused = []
     for key in FAMILIES[family].ignores:
         path = key.split(".")
-        value = _at(doc, path)
-        if value is not _MISSING and not _same(value, default(path)):
+        value = value_at(doc, path)
+        if value is not MISSING and not _same(value, default(path)):
             unused.append(key)
     return unused
 
 
-_MISSING = object()
+#: What :func:`value_at` gives for a key that is not there.
+MISSING = object()
 
 
-def _at(doc: Any, path: list[str]) -> Any:
-    """The value at the key ``path`` of nested mappings ``doc`` (:data:`_MISSING` if absent)."""
-    for key in path:
+def value_at(doc: Any, path: str | Sequence[str]) -> Any:
+    """The value at the key ``path`` (dotted, ``ego.vehicle.length``, or its parts) of nested
+    mappings ``doc`` (:data:`MISSING` if absent)."""
+    for key in path.split(".") if isinstance(path, str) else path:
         if not isinstance(doc, Mapping) or key not in doc:
-            return _MISSING
+            return MISSING
         doc = doc[key]
     return doc
 

@@ -51,7 +51,7 @@ from gridsim.scenario.families.recorded import (
     why_unfit,
 )
 from gridsim.scenario.family import family_of
-from gridsim.scenario.loader import deep_merge, load_scenario
+from gridsim.scenario.loader import MISSING, deep_merge, load_scenario, value_at
 from gridsim.scenario.parts import library_for
 from gridsim.seeding import Salt, stream
 from gridsim.traffic.track import scene_ids, track_name
@@ -830,19 +830,10 @@ def recording_mismatch(manifest: dict, cfg) -> str | None:
     """Why windows recorded as ``manifest`` says do not fit a network of the scenario config
     ``cfg`` (:data:`TIMING_KEYS` that differ), or None (a key the manifest lacks is not
     compared). Their sizes: :func:`~neurotrajectory.model.size_mismatch`."""
-
-    def value(doc, key: str):
-        for part in key.split("."):
-            doc = getattr(doc, part) if not isinstance(doc, dict) else doc.get(part)
-            if doc is None:
-                return None
-        return doc
-
-    differ = [
-        f"{mine} {value(manifest, key)!r} (the run's {value(cfg, mine)!r})"
-        for key, mine in TIMING_KEYS
-        if value(manifest, key) is not None and value(manifest, key) != value(cfg, mine)
-    ]
+    run = cfg.model_dump()
+    pairs = [(mine, value_at(manifest, key), value_at(run, mine)) for key, mine in TIMING_KEYS]
+    differ = [f"{mine} {got!r} (the run's {want!r})" for mine, got, want in pairs
+              if got is not MISSING and got != want]  # fmt: skip
     if not differ:
         return None
     return (f"its windows were recorded with {', '.join(differ)}: the network's set-points and "

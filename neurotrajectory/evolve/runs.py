@@ -1285,8 +1285,9 @@ def _checked(config: TrainConfig):
     windows = None
     if config.pretrain:
         windows = _pretrain_data(config.pretrain)
-        problem = (size_mismatch(probe.cfg, windows) or _goal_mismatch(config, env.cfg.env)
-                   or recording_mismatch(dataset_manifest(config.pretrain), env.cfg))  # fmt: skip
+        manifest = dataset_manifest(config.pretrain)  # (the windows: read before)
+        problem = (size_mismatch(probe.cfg, windows) or _goal_mismatch(manifest, env.cfg.env)
+                   or recording_mismatch(manifest, env.cfg))  # fmt: skip
         if problem:
             raise RunError(f"--pretrain {config.pretrain}: {problem}")
         _dagger_episodes(config, windows)
@@ -1332,10 +1333,10 @@ def _check_workers(config: TrainConfig) -> None:
                        f"most {4 * cores} (one per core is best)")  # fmt: skip
 
 
-def _goal_mismatch(config: TrainConfig, env) -> str | None:
-    """Why the dataset ``config.pretrain`` was recorded with another destination than the run
-    gives its network (``env``: the run's :class:`~gridsim.scenario.schema.EnvConfig`)."""
-    data = dataset_manifest(config.pretrain).get("goal_seconds")  # (the windows: read before)
+def _goal_mismatch(manifest: dict, env) -> str | None:
+    """Why the pre-training dataset of ``manifest`` was recorded with another destination than
+    the run gives its network (``env``: the run's :class:`~gridsim.scenario.schema.EnvConfig`)."""
+    data = manifest.get("goal_seconds")
     run = env.goal_seconds
     if data == run:
         return None
