@@ -44,6 +44,7 @@ from gridsim.outputs import (
 )
 from gridsim.policies import Reference
 from gridsim.scenario.collection import input_changes, same_inputs, scenario_files
+from gridsim.scenario.loader import load_scenario
 from gridsim.scenario.schema import MAX_DURATION
 from gridsim.seeding import Salt, stream
 from neurotrajectory.compare import methods
@@ -62,6 +63,7 @@ from neurotrajectory.data.windows import (
     bar_callbacks,
     group_scenarios,
     recording_mismatch,
+    recording_settings,
 )
 from neurotrajectory.evolve.pareto import PICKS, pick_member
 from neurotrajectory.settings import Bool, Integer, OneOf, Real, Seed, Settings
@@ -145,39 +147,65 @@ class GroupResult:
     trained_test_tracks: tuple[str, ...] = ()
 
 
+def _given_dataset(group: str, cfg: EvalConfig, data_dir: Path) -> dict:
+    """The manifest of the group's dataset in ``data_dir/<group>`` (``--data``), checked: a
+    :class:`DatasetError` naming the folder and what to do if there is none, or it holds one
+    side of a split, other files' windows or another goal's."""
+    folder = data_dir / group
+    if not (folder / "manifest.json").is_file():
+        source = cfg.sources.get(group, group)
+        named = "" if source == group else f" --name {group}"
+        goal = "" if cfg.goal_seconds is None else f" --goal-seconds {cfg.goal_seconds:g}"
+        raise DatasetError(f"--data {data_dir}: no dataset of the group {group} ({folder} "
+                           f"has no manifest.json): record it there (neurotrajectory record "
+                           f"--scenario {source}{named} --episodes {cfg.episodes} "
+                           f"--episode-seconds {cfg.episode_seconds:g} --seed {cfg.seed}"
+                           f"{goal} --out {folder}), evaluate only the groups recorded "
+                           "(--groups ...), or leave out --data")  # fmt: skip
+    manifest = dataset_manifest(folder)
+    if "split" in manifest:
+        raise DatasetError(
+            f"{folder}: holds only the {manifest['split']['side']} side of a split "
+            "(record --split); evaluation needs the whole group's windows"
+        )
+    problem = _other_files(manifest, group, cfg.sources.get(group))
+    if problem:
+        raise DatasetError(f"{folder}: {problem}: record it from the group's files (or leave "
+                           "out --data: evaluate records what it needs)")  # fmt: skip
+    if manifest.get("goal_seconds") != cfg.goal_seconds:
+        raise DatasetError(f"{folder}: recorded with goal_seconds "
+                           f"{manifest.get('goal_seconds')}, the evaluation asks "
+                           f"{cfg.goal_seconds}: record it with the same "
+                           "--goal-seconds")  # fmt: skip
+    return manifest
+
+
+def _check_groups(fronts: dict[str, Front], cfg: EvalConfig, data_dir: Path | None) -> None:
+    """Every group's dataset (``--data``) or scenarios checked against its run before
+    anything is recorded, trained or written: a :class:`DatasetError` naming the group, the
+    run and the settings its windows would have other than the run's
+    (:func:`~neurotrajectory.data.windows.recording_mismatch`)."""
+    for group, front in fronts.items():
+        if data_dir is not None:
+            settings = _given_dataset(group, cfg, data_dir)
+        else:
+            first = group_scenarios(group, cfg.sources.get(group))[0]
+            settings = recording_settings(load_scenario(first).config)
+        problem = recording_mismatch(settings, front.scenario_config)
+        if problem:
+            said = problem.replace("record them from", "evaluate it on")
+            raise DatasetError(f"{group}: the run {front.run.out} does not fit the group's "
+                               f"scenarios: {said}")  # fmt: skip
+
+
 def _split_dataset(
     group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log, progress: bool = True
 ) -> tuple[dict, Windows, Windows]:
     """The group's manifest and its windows split by track (``train``, ``test``): from
-    ``data_dir/<group>`` if given, else recorded into ``out`` first. Each window is read once
-    (:func:`~neurotrajectory.data.storage.load_split`)."""
+    ``data_dir/<group>`` if given (checked by :func:`_given_dataset`), else recorded into
+    ``out`` first. Each window is read once (:func:`~neurotrajectory.data.storage.load_split`)."""
     if data_dir is not None:
         folder = data_dir / group
-        if not (folder / "manifest.json").is_file():
-            source = cfg.sources.get(group, group)
-            named = "" if source == group else f" --name {group}"
-            goal = "" if cfg.goal_seconds is None else f" --goal-seconds {cfg.goal_seconds:g}"
-            raise DatasetError(f"--data {data_dir}: no dataset of the group {group} ({folder} "
-                               f"has no manifest.json): record it there (neurotrajectory record "
-                               f"--scenario {source}{named} --episodes {cfg.episodes} "
-                               f"--episode-seconds {cfg.episode_seconds:g} --seed {cfg.seed}"
-                               f"{goal} --out {folder}), evaluate only the groups recorded "
-                               "(--groups ...), or leave out --data")  # fmt: skip
-        manifest = dataset_manifest(folder)
-        if "split" in manifest:
-            raise DatasetError(
-                f"{folder}: holds only the {manifest['split']['side']} side of a split "
-                "(record --split); evaluation needs the whole group's windows"
-            )
-        problem = _other_files(manifest, group, cfg.sources.get(group))
-        if problem:
-            raise DatasetError(f"{folder}: {problem}: record it from the group's files (or leave "
-                               "out --data: evaluate records what it needs)")  # fmt: skip
-        if manifest.get("goal_seconds") != cfg.goal_seconds:
-            raise DatasetError(f"{folder}: recorded with goal_seconds "
-                               f"{manifest.get('goal_seconds')}, the evaluation asks "
-                               f"{cfg.goal_seconds}: record it with the same "
-                               "--goal-seconds")  # fmt: skip
     else:
         folder = out / "data" / group
         if (folder / "manifest.json").is_file():  # recorded before a break: if still the same
@@ -302,11 +330,6 @@ def _evaluate_group(
 ) -> GroupResult:
     """One group's scores: ``data`` is its manifest and ``(train, test)`` windows."""
     manifest, train, test = data
-    problem = recording_mismatch(manifest, front.scenario_config)
-    if problem:
-        said = problem.replace("record them from", "evaluate it on")
-        raise DatasetError(f"{group}: the run {front.run.out} does not fit the group's "
-                           f"scenarios: {said}")  # fmt: skip
     test_tracks = set(test.track.tolist())
     seen = sorted(test_tracks & trained_tracks(front.run.config))
     if seen:  # the run drove these as the ego in training: its scores on them are not held out
@@ -391,7 +414,6 @@ def _closed_loop_tracks(scenarios: tuple[str, ...], test_tracks: set[str], episo
     A recorded scene none of whose tracks is on the test side is left out, and said."""
     from gridsim.scenario.families.recorded import recorded_scene, scene_of
     from gridsim.scenario.family import is_recorded
-    from gridsim.scenario.loader import load_scenario
     from gridsim.traffic.track import track_name
 
     out: dict[str, list[str] | None] = {}
@@ -442,6 +464,7 @@ def evaluate(
                                f"destination {said}; {how} to evaluate it in its setting (or "
                                "train a run for this one)")  # fmt: skip
     data_dir = Path(data_dir).absolute() if data_dir is not None else None
+    _check_groups(fronts, cfg, data_dir)  # each group before any is recorded or scored
     settings = {"neurotrajectory": {g: f.info(cfg.pick) for g, f in fronts.items()},
                 **cfg.as_dict(), "data": None if data_dir is None else str(data_dir)}  # fmt: skip
     if data_dir is not None:  # the windows are the datasets' (their manifests say how made)

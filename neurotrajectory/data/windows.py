@@ -567,14 +567,21 @@ def _record_scenario_into(
         raise DatasetError("no windows were recorded")
     cfg = load_scenario(scenario).config
     goal = cfg.env.goal_seconds if goal_seconds is None else float(goal_seconds)
-    return {"scenario": scenario, **source, "horizon": cfg.env.horizon,
-            "history": cfg.env.history, "setpoint_period": cfg.env.setpoint_period,
-            "decision_period": cfg.env.decision_period, "stride": stride,
-            "sensor": {"rows": cfg.sensor.rows, "cols": cfg.sensor.cols,
-                       "cell_size": cfg.sensor.cell_size, "orientation": cfg.sensor.orientation},
-            "vehicle": cfg.ego.vehicle.model_dump(),
+    return {"scenario": scenario, **source, **recording_settings(cfg), "stride": stride,
             **({"goal_seconds": goal} if goal is not None else {}),
             **({"ended_early": _early(endings)} if endings else {})}  # fmt: skip
+
+
+def recording_settings(cfg) -> dict:
+    """The settings of the scenario config ``cfg`` that windows recorded in it carry (a
+    manifest's ``horizon``, ``history``, periods [s], ``sensor`` and ``vehicle``): what
+    :func:`recording_mismatch` compares with a run's before anything is recorded."""
+    return {"horizon": cfg.env.horizon, "history": cfg.env.history,
+            "setpoint_period": cfg.env.setpoint_period,
+            "decision_period": cfg.env.decision_period,
+            "sensor": {"rows": cfg.sensor.rows, "cols": cfg.sensor.cols,
+                       "cell_size": cfg.sensor.cell_size, "orientation": cfg.sensor.orientation},
+            "vehicle": cfg.ego.vehicle.model_dump()}  # fmt: skip
 
 
 class _Collected:

@@ -503,3 +503,38 @@ def test_fig9_shows_each_methods_worst_window():
     assert marks[1][:2] == ("^", 2.0) and marks[1][2] <= ax.get_ylim()[1]
     assert [t.get_text() for t in ax.texts] == ["9.5"]
     plt.close(fig)
+
+
+def test_a_group_of_other_timings_is_refused_before_any_group_is_recorded(
+    tiny_run, data, tmp_path, capsys, monkeypatch
+):
+    """A run of 0.5 s set-points evaluated on a group of 0.3 s ones was refused only once
+    that group's windows were recorded, after the groups before it had been recorded and
+    scored (minutes each): every group is checked first, its scenarios or its ``--data``
+    dataset, and nothing is recorded, trained or written."""
+    from neurotrajectory.compare import evaluation
+
+    def never(*args, **kwargs):
+        raise AssertionError("recorded before the groups were checked")
+
+    monkeypatch.setattr(evaluation, "record_dataset", never)
+    other = tmp_path / "other.yaml"
+    other.write_text("name: other\nroad: {type: seamless}\nenv: {setpoint_period: 0.3}\n")
+    args = ["evaluate", "--run", str(tiny_run), "--quiet", "--groups", "seamless",
+            "--group", f"other={other}"]  # fmt: skip
+    assert main([*args, "--out", str(tmp_path / "e1")]) == 2
+    err = capsys.readouterr().err
+    assert f"other: the run {tiny_run} does not fit the group's scenarios: its windows " \
+        "were recorded with env.setpoint_period 0.3 (the run's 0.5)" in err  # fmt: skip
+    assert "evaluate it on a scenario of the run's settings" in err
+    # with --data: the dataset's manifest says it, before the first group is scored
+    given = tmp_path / "given"
+    shutil.copytree(data / "seamless", given / "seamless")
+    manifest = json.loads((given / "seamless" / "manifest.json").read_text())
+    manifest["sensor"]["cell_size"] = 1.0
+    (given / "seamless" / "manifest.json").write_text(json.dumps(manifest))
+    monkeypatch.setattr(evaluation, "_evaluate_group", never)
+    assert main(["evaluate", "--run", str(tiny_run), "--quiet", "--groups", "seamless",
+                 "--data", str(given), "--out", str(tmp_path / "e2")]) == 2  # fmt: skip
+    assert "sensor.cell_size 1.0 (the run's 0.5)" in capsys.readouterr().err
+    assert not (tmp_path / "e1").exists() and not (tmp_path / "e2").exists()
