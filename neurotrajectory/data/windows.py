@@ -442,10 +442,12 @@ class _WindowTaker:
         return self.policy(env, obs, info)
 
     def missed(self, env: GridSimEnv) -> int:
-        """The windows the episode would still have given from now on, had it not ended."""
+        """The windows the episode would still have given from now on, had it not ended: at
+        the decisions before its time limit (none is taken at the last observation) whose
+        horizon the reference covers."""
         period, horizon = env.cfg.env.decision_period, env.cfg.env.setpoint_times[-1]
         t, k, count = env.world.time, self.decisions, 0
-        while t + horizon <= self.end + 1e-6:
+        while t + horizon <= self.end + 1e-6 and t < env.time_limit - 1e-9:
             count += k % self.stride == 0
             t, k = t + period, k + 1
         return count

@@ -634,3 +634,28 @@ def test_a_window_whose_label_starts_behind_the_ego_is_not_taken_on_its_own_trac
     assert take("us101_4_1", track, -windows.BEHIND - 0.05) == (0, 1)
     assert take("us101_4_1", track, -windows.BEHIND + 0.05) == (1, 0)
     assert take("seamless", {}, -1.0) == (1, 0)  # (a generated scene: taken as before)
+
+
+@pytest.mark.parametrize(
+    "scenario, overrides",
+    [
+        ("seamless", {}),
+        ("us101_4_1", {"ego": {"track": "422"}, "env": {"end_at_destination": False}}),
+    ],
+)
+def test_the_windows_not_taken_are_those_a_whole_episode_takes(scenario, overrides):
+    """``missed`` at the start of an episode counts the windows the whole episode takes or
+    leaves out behind the ego (driven by the reference to its time limit); on a generated
+    scene the reference runs a horizon past the time limit and the count was one too many
+    (the last observation, at the time limit, takes none)."""
+    from gridsim.envs.episode import run_episode
+
+    env = gym.make("GridSim-v0", scenario=scenario, simulation={"duration": 4.0},
+                   **overrides).unwrapped  # fmt: skip
+    taker = windows._WindowTaker(2, None, False)
+    said = []
+    episode = run_episode(env, taker, seed=3,
+                          on_reset=lambda e, info: (taker.reset(e, info),
+                                                    said.append(taker.missed(e))))  # fmt: skip
+    assert episode.ended_by == "time limit"
+    assert said == [len(taker.rows) + taker.behind] and len(taker.rows) > 0
