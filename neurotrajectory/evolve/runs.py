@@ -679,12 +679,16 @@ class Run:
     def warn_changed_inputs(self) -> None:
         """A warning when the files the run's scenario is read from changed since it began:
         its members are then driven (held-out episodes, videos, evaluations) on other data
-        than they trained on; said too when :data:`INPUTS_FILE` cannot be read. Nothing
-        without :data:`INPUTS_FILE` (runs begun before it) or for a scenario that does not
-        load (driving it says why)."""
+        than they trained on; said too when :data:`INPUTS_FILE` cannot be read or is missing
+        (deleted, or a run begun with gridsim 0.2.0 or earlier). Nothing for a scenario that
+        does not load (driving it says why)."""
         from gridsim.scenario.collection import input_changes, input_digest
 
-        if not (self.out / INPUTS_FILE).exists():
+        path = self.out / INPUTS_FILE
+        if not path.exists():
+            warn_data(f"{path} is missing (deleted, or the run began with gridsim 0.2.0 or "
+                      "earlier): whether the run's scenario files are those it trained on "
+                      "cannot be checked")  # fmt: skip
             return
         try:
             kept = self._inputs()["files"]

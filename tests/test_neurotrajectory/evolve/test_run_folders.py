@@ -333,6 +333,11 @@ def test_a_run_resumes_only_on_the_files_it_began_with(tmp_path, capsys):
     # written again, of the files as they are now
     (run / "inputs.json").unlink()
     (scenes / "another.yaml").unlink()
+    assert main(["heldout", "--run", str(run), "--episodes", "1", "--seconds", "2", "--out",
+                 str(out), "--overwrite"]) == 0  # fmt: skip
+    assert f"{run / 'inputs.json'} is missing (deleted, or the run began with gridsim 0.2.0 " \
+        "or earlier): whether the run's scenario files are those it trained on cannot be " \
+        "checked" in capsys.readouterr().err  # fmt: skip
     assert main(resume) == 0
     err = capsys.readouterr().err
     assert f"{run / 'inputs.json'} is missing: whether the run's scenario files and code" in err
