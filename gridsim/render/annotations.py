@@ -119,6 +119,19 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
     return img
 
 
+def legend_boxes(height: int, inset: bool, orientation: str = "north_up") -> list[tuple]:
+    """The rectangles ``(left, top, right, bottom)`` [pixels] the legends :func:`annotate`
+    writes (with the set-points' colours) take at the bottom left of a frame of ``height``
+    pixels, ``inset``: with the grid inset's legend beside them; a renderer keeps the
+    set-points and the destination clear of them (they would be dimmed under the bands)."""
+    boxes, x = [], 0
+    for lines in (LEGEND, *([inset_legend(orientation)] if inset else [])):
+        width = _width(lines)
+        boxes.append((x, height - _STEP * len(lines) - 8, x + width, height))
+        x += width + 8
+    return boxes
+
+
 def inset_legend(orientation: str) -> list[tuple]:
     """The grid inset's legend lines: its orientation ("north up", as the frame, or "heading
     up": the inset then turns with the ego) and its colours."""

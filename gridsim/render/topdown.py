@@ -111,7 +111,8 @@ class TopDownRenderer:
         shown = [np.asarray(p, float).reshape(-1, 2) for p, _, _ in overlay or []]
         if destination is not None:
             shown.append(np.asarray(destination, float).reshape(1, 2))
-        self.scale = k = self._zoom(centre, shown, inset=grid is not None)
+        orientation = grid_frame[1] if grid_frame is not None else "north_up"
+        self.scale = k = self._zoom(centre, shown, inset=grid is not None, orientation=orientation)
         a = self._affine(centre, k)
         img = np.empty((v.height, v.width, 3), np.uint8)
         img[:] = _BG
@@ -187,11 +188,16 @@ class TopDownRenderer:
         for colour, thickness in ((POINTER_OUTLINE, 5), (COLLISION_COLOUR, 2)):
             cv2.polylines(img, [px], True, colour, thickness, cv2.LINE_AA, shift=4)
 
-    def _zoom(self, centre: np.ndarray, points: list[np.ndarray], inset: bool = False) -> float:
+    def _zoom(self, centre: np.ndarray, points: list[np.ndarray], inset: bool = False,
+              orientation: str = "north_up") -> float:  # fmt: skip
         """The largest scale of :data:`ZOOM_STEPS` [pixels per metre] at which ``points``
         ``(N, 2)`` [m, world] lie :data:`ZOOM_MARGIN` pixels inside a frame centred on
-        ``centre``, and (``inset``: the frame has the grid inset) clear of the inset (the
-        smallest when none does)."""
+        ``centre``, clear of the legends a video writes at the bottom left
+        (:func:`~gridsim.render.annotations.legend_boxes`) and (``inset``: the frame has the
+        grid inset, of a grid in ``orientation``) of the inset (the smallest when none
+        does)."""
+        from gridsim.render.annotations import legend_boxes  # (it draws with our colours)
+
         v = self.view
         if not points:
             return v.pixels_per_metre
@@ -203,11 +209,18 @@ class TopDownRenderer:
         corner = (v.width / 2 - v.inset_size - INSET_MARGIN - ZOOM_MARGIN / 2,
                   -(v.height / 2 - v.inset_size - INSET_MARGIN - ZOOM_MARGIN / 2))  # fmt: skip
 
+        # the legends' bands, grown by half the margin, from the frame's centre [pixels]
+        half = ZOOM_MARGIN / 2
+        bands = [(x0 - half - v.width / 2, y0 - half - v.height / 2, x1 + half - v.width / 2)
+                 for x0, y0, x1, _ in legend_boxes(v.height, inset, orientation)]  # fmt: skip
+
         def fits(k: float, room: float = 1.0) -> bool:
             du, dv = off[:, 0] * room * k, -off[:, 1] * room * k  # pixels right, down
             inside = ((np.abs(du) <= v.width / 2 - ZOOM_MARGIN).all()
                       and (np.abs(dv) <= v.height / 2 - ZOOM_MARGIN).all())  # fmt: skip
-            return inside and not (inset and ((du >= corner[0]) & (dv <= corner[1])).any())
+            under = any(((du >= x0) & (du <= x1) & (dv >= y0)).any() for x0, y0, x1 in bands)
+            return inside and not under and not (
+                inset and ((du >= corner[0]) & (dv <= corner[1])).any())  # fmt: skip
 
         chosen = next((share * v.pixels_per_metre for share in ZOOM_STEPS
                        if fits(share * v.pixels_per_metre)),

@@ -129,7 +129,7 @@ def test_the_inset_legend_says_a_heading_up_grid_turns_with_the_ego(monkeypatch)
     env = gym.make(ENV_ID, render_mode="rgb_array", sensor={"orientation": "heading_up"})
     _, info = env.reset(seed=0)
     annotations.annotate_env_frame(env, env.render(), info, None, np.zeros(3))
-    assert said == ["heading_up"]
+    assert said == ["heading_up", "heading_up"]  # (the frame keeps clear of it; it writes it)
 
 
 def test_render_returns_frames_with_grid_inset_and_setpoints():
@@ -565,6 +565,21 @@ def test_a_frame_zooms_out_to_show_every_set_point_and_the_destination():
     a = view._affine(centre, view.scale)
     u, v = under @ a[:, :2].T + a[:, 2]
     assert u < frame.shape[1] - view.view.inset_size - 8 or v > view.view.inset_size + 8
+    # nor under the legends (bottom left): an urban human's last set-point and destination
+    # were dimmed under the grid's legend
+    from gridsim.render.annotations import legend_boxes
+
+    for inset in (None, grid):
+        for x0, y0, x1, y1 in legend_boxes(view.view.height, inset is not None):
+            spot = np.array([(x0 + x1) / 2 - 320, 240 - (y0 + y1) / 2]) / 8.0  # [m] at 8 px/m
+            frame = view.render(world, grid=inset, destination=centre + spot)
+            assert view.scale < view.view.pixels_per_metre
+            a = view._affine(centre, view.scale)
+            u, v = (centre + spot) @ a[:, :2].T + a[:, 2]
+            assert not any(
+                b[0] <= u <= b[2] and b[1] <= v <= b[3]
+                for b in legend_boxes(view.view.height, inset is not None)
+            )
     # the scale bar follows: a frame drawn at a quarter of the scale shows 50 m, not 10
     _, info = env.reset(seed=0)
     frame = env.unwrapped.renderer.render(world, overlay=[(far, (255, 0, 0), "dot")])
