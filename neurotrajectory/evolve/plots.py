@@ -13,9 +13,12 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.ticker import FuncFormatter, MaxNLocator, SymmetricalLogLocator  # noqa: E402
 
+from neurotrajectory.evolve.evolution import ANCHOR  # noqa: E402
 from neurotrajectory.evolve.pareto import (  # noqa: E402
     HV_MARGIN,
+    dominates_matrix,
     generation_hypervolume,
+    minimised,
     pick_member,
 )
 
@@ -78,9 +81,16 @@ def plot_run(
     who = f"member {at} of the front" if final is not None else f"member {knee}"
     fig, axes = plt.subplots(1, 3, figsize=(13, 4.2))
     kept = ~lost
+    # anchored: below the front by the constraint alone (l1 above individual 0's), not dominated
+    excluded = _excluded(last, rank, kept) if anchored else np.zeros(len(last), bool)
+    anchor = "centre" if centre else "warm start"
     for ax, (i, j) in zip(axes, [(0, 1), (0, 2), (1, 2)], strict=True):
-        shown = kept & (rank > 0)
+        shown = kept & (rank > 0) & ~excluded
         ax.scatter(last[shown, i], last[shown, j], s=10, color="0.6", label="dominated")
+        if excluded.any():
+            ax.scatter(last[excluded, i], last[excluded, j], s=18, facecolors="none",
+                       edgecolors="tab:purple", label=f"l1 above the {anchor}'s: excluded, not "
+                       "dominated")  # fmt: skip
         shown = kept & (rank == 0)
         # (above the warm start's star: a front that is the warm start itself shows)
         ax.scatter(last[shown, i], last[shown, j], s=18, color="tab:red", label="Pareto front",
@@ -92,6 +102,9 @@ def plot_run(
                 [last[kept], [[warm["l1"], warm["l2"], warm["l3"]]]])  # fmt: skip
             _span(ax, shown[:, i], "x")
             _span(ax, shown[:, j], "y")
+        if excluded.any() and i == 0:  # the constraint's bound, where l1 is the x axis
+            ax.axvline(last[ANCHOR, 0], color="tab:purple", ls=":", lw=1,
+                       label=f"the {anchor}'s l1 (individual 0): the bound")  # fmt: skip
         if lost.any():
             (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
             ax.scatter(np.clip(last[lost, i], x0, x1), np.clip(last[lost, j], y0, y1), s=40,
@@ -121,6 +134,15 @@ def plot_run(
     validated = "the centre of the generation" if centre else "knee of the generation"
     curve = learning_curve(folder / "learning_curve.png", history, validated, anchored)
     return paths + ([curve] if curve else [])
+
+
+def _excluded(fitness: np.ndarray, rank: np.ndarray, kept: np.ndarray) -> np.ndarray:
+    """The members of an anchored run's ``fitness`` ``(K, 3)`` below the front (``rank`` > 0)
+    by the anchored constraint alone: they completed every episode (``kept``), their l1 is
+    above individual 0's (:func:`~neurotrajectory.evolve.evolution.anchored_violation`) and
+    no member that completed every episode dominates them."""
+    dominated = dominates_matrix(minimised(fitness))[kept].any(axis=0)
+    return kept & (rank > 0) & (fitness[:, 0] > fitness[ANCHOR, 0]) & ~dominated
 
 
 def _objectives(path: Path, gens: np.ndarray, fit: list[np.ndarray], lost: list[np.ndarray],

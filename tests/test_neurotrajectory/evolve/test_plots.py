@@ -140,3 +140,64 @@ def test_the_objectives_plot_draws_individual_0_beside_the_members(tmp_path, mon
     figures.clear()
     plots.plot_run(tmp_path, history)  # no warm start: no such line
     assert not [ln for ln in figures[0].axes[0].lines if ln.get_label().startswith("individual")]
+
+
+def _labelled(ax, label: str) -> list[list[float]]:
+    """The points of ``ax``'s scatters labelled ``label`` (sorted)."""
+    points = [p for c in ax.collections if c.get_label() == label
+              for p in c.get_offsets().tolist()]  # fmt: skip
+    return sorted(points)
+
+
+@pytest.mark.parametrize(("centre", "anchor"), [(True, "centre"), (False, "warm start")])
+def test_the_front_plot_tells_the_anchored_constraint_from_domination(tmp_path, monkeypatch,
+                                                                      centre, anchor):  # fmt: skip
+    """In an anchored or evolution-strategies run a member whose l1 is above individual 0's
+    (the warm start, or the centre) is ranked below the front by a constraint: one no other
+    member dominates is drawn as excluded, not as dominated; a dominated one stays
+    dominated, whatever its l1."""
+    from neurotrajectory.evolve.evolution import anchored_violation
+    from neurotrajectory.evolve.pareto import minimised, non_dominated_sort
+
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig) or path)
+    monkeypatch.setattr(plots, "generation_hypervolume", lambda *args: 1.0)
+    fitness = np.array([
+        [100.0, 1.0, 500.0],  # individual 0: the centre or the warm start
+        [90.0, 1.1, 505.0],  # on the front
+        [110.0, 0.5, 500.0],  # l1 above individual 0's, the lowest l2: dominated by none
+        [120.0, 1.2, 400.0],  # l1 above individual 0's, and dominated by it
+        [95.0, 1.2, 490.0],  # dominated by member 1
+    ])  # fmt: skip
+    lost = np.zeros(len(fitness))
+    rank = non_dominated_sort(minimised(fitness), anchored_violation(fitness, lost))
+    assert np.flatnonzero(rank == 0).tolist() == [0, 1]  # (2: below it by the constraint)
+    history = [{"generation": 0, "fitness": fitness.tolist(), "violation": lost.tolist(),
+                "rank": rank.tolist(), "hypervolume": 1.0}]  # fmt: skip
+    plots.plot_run(tmp_path, history, (fitness, rank, lost), "2 validation episodes",
+                   anchored=True, centre=centre)  # fmt: skip
+    front = figures[1]
+    excluded = f"l1 above the {anchor}'s: excluded, not dominated"
+    labels = [t.get_text() for t in front.legends[0].get_texts()]
+    assert "dominated" in labels and excluded in labels
+    l1_l2 = front.axes[0]
+    assert _labelled(l1_l2, "dominated") == [[95.0, 1.2], [120.0, 1.2]]
+    assert _labelled(l1_l2, excluded) == [[110.0, 0.5]]
+    assert _labelled(l1_l2, "Pareto front") == [[90.0, 1.1], [100.0, 1.0]]
+    # the bound itself: individual 0's l1, on the panels whose x is l1
+    (bound,) = [ln for ln in l1_l2.lines if ln.get_label().endswith("l1 (individual 0): the bound")]
+    assert list(bound.get_xdata()) == [100.0, 100.0] and anchor in bound.get_label()
+    # the plot of the last generation (no final front) says it alike
+    figures.clear()
+    plots.plt.close("all")  # (the figures are not saved, so not closed)
+    plots.plot_run(tmp_path, history, anchored=True, centre=centre)
+    assert _labelled(figures[1].axes[0], excluded) == [[110.0, 0.5]]
+    # a run without the constraint (pareto selection) has no such member
+    figures.clear()
+    plots.plt.close("all")
+    plain = non_dominated_sort(minimised(fitness))
+    plots.plot_run(tmp_path, history, (fitness, plain, lost), "2 validation episodes")
+    labels = [t.get_text() for t in figures[1].legends[0].get_texts()]
+    assert not [t for t in labels if "excluded" in t or t.endswith("the bound")]
+    assert _labelled(figures[1].axes[0], "dominated") == [[95.0, 1.2], [120.0, 1.2]]
+    plots.plt.close("all")
