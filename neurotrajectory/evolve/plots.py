@@ -153,15 +153,17 @@ def _objectives(path: Path, gens: np.ndarray, fit: list[np.ndarray], lost: list[
     as the others), each member as its change from individual 0 [%]: the episodes, drawn
     anew each generation, move every member's scores together far more than members differ
     (an l3 spread of 1 % hid under a line that swung 40 % from one draw to the next);
-    without one, the scores themselves."""
+    without one, the scores themselves. The median line is of the members that completed
+    every episode (a padded score is no member's real one; none where none did)."""
     left_out = 0  # generations whose individual 0 lost an episode: no reference to draw
     whole = np.array([not gone[0] for gone in lost])
     if reference is not None and not whole.any():  # (no generation to draw against it)
         return _objectives(path, gens, fit, lost, None)
     if reference is not None:
         left_out = int((~whole).sum())
+        fit = [100.0 * (f - f[0]) / _scale(f, gone)
+               for f, gone, ok in zip(fit, lost, whole, strict=True) if ok]  # fmt: skip
         gens, lost = gens[whole], [gone for gone, ok in zip(lost, whole, strict=True) if ok]
-        fit = [100.0 * (f - f[0]) / _scale(f) for f, ok in zip(fit, whole, strict=True) if ok]
     l1 = np.concatenate([f[:, 0] for f in fit])
     # l1 may span decades (a member that lost an episode): a log scale, where it does
     logged = reference is None and not (l1.min() > 0 and l1.max() < 10 * l1.min())
@@ -171,7 +173,11 @@ def _objectives(path: Path, gens: np.ndarray, fit: list[np.ndarray], lost: list[
         for g, f, gone in zip(gens, fit, lost, strict=True):
             ax.scatter(np.full((~gone).sum(), g), f[~gone, k], s=8, alpha=0.4, color="tab:blue",
                        label="a member" if g == gens[0] else None)  # fmt: skip
-        ax.plot(gens, [np.median(f[:, k]) for f in fit], color="tab:red", label="median")
+        # of the members drawn to scale: a padded score is no member's real one
+        medians = [np.median(f[~gone, k]) if (~gone).any() else np.nan
+                   for f, gone in zip(fit, lost, strict=True)]  # fmt: skip
+        ax.plot(gens, medians, color="tab:red",
+                label="median of the members that completed every episode")  # fmt: skip
         if reference is not None:  # the members' reference, on the same episodes
             ax.axhline(
                 0.0,
@@ -226,12 +232,13 @@ def _objectives(path: Path, gens: np.ndarray, fit: list[np.ndarray], lost: list[
     return _save(fig, path)
 
 
-def _scale(f: np.ndarray) -> np.ndarray:
+def _scale(f: np.ndarray, lost: np.ndarray) -> np.ndarray:
     """What a generation's fitness ``f`` ``(K, 3)`` is a share of, per objective: individual
-    0's magnitude, or the members' median one where individual 0's is under a tenth of it
-    (an individual 0 that barely steers, l2 near 0, would make every other member's change
-    thousands of %); 1 where both are 0."""
-    own, median = np.abs(f[0]), np.median(np.abs(f), axis=0)
+    0's magnitude, or the median one of the members that completed every episode (not
+    ``lost``; a padded score is no member's real one) where individual 0's is under a tenth
+    of it (an individual 0 that barely steers, l2 near 0, would make every other member's
+    change thousands of %); 1 where both are 0."""
+    own, median = np.abs(f[0]), np.median(np.abs(f[~lost]), axis=0)
     scale = np.where(own >= 0.1 * median, own, median)
     return np.where(scale > 0, scale, 1.0)
 

@@ -201,3 +201,43 @@ def test_the_front_plot_tells_the_anchored_constraint_from_domination(tmp_path, 
     assert not [t for t in labels if "excluded" in t or t.endswith("the bound")]
     assert _labelled(figures[1].axes[0], "dominated") == [[95.0, 1.2], [120.0, 1.2]]
     plots.plt.close("all")
+
+
+@pytest.mark.parametrize("anchored", [False, True])
+def test_the_objectives_medians_are_of_the_members_that_completed(tmp_path, monkeypatch,
+                                                                  anchored):  # fmt: skip
+    """A member that lost an episode has a padded score (the episode's remaining steps at
+    the worst values, l1 ~ 1e6): the median drawn per generation is of the members that
+    completed every episode (the points drawn to scale), and says so; so is the scale of an
+    anchored run's changes from individual 0."""
+    figures = []
+    monkeypatch.setattr(plots, "_save", lambda fig, path: figures.append(fig) or path)
+    monkeypatch.setattr(plots, "generation_hypervolume", lambda *args: 1.0)
+    history = []
+    for g in range(3):
+        fitness = [[100.0 + i, 1.0 + 0.1 * i, 1700.0 - i] for i in range(5)]
+        violation = [0.0] * 5
+        if g == 1:  # three of five lost an episode: padded, the median of all would be theirs
+            for i in (2, 3, 4):
+                fitness[i], violation[i] = [5e6, 30.0, 800.0], 0.4
+        history.append({"generation": g, "fitness": fitness, "violation": violation,
+                        "rank": [0] * 5, "hypervolume": 1.0})  # fmt: skip
+    plots.plot_run(tmp_path, history, anchored=anchored)
+    if anchored:  # changes from individual 0 [%]: of the members 0..4, and of 0 and 1
+        want = [[2.0, 0.5, 2.0], [20.0, 5.0, 20.0], [-200 / 1700, -50 / 1700, -200 / 1700]]
+    else:
+        want = [[102.0, 100.5, 102.0], [1.2, 1.05, 1.2], [1698.0, 1699.5, 1698.0]]
+    for ax, values in zip(figures[0].axes, want, strict=True):
+        (line,) = [ln for ln in ax.lines if ln.get_label().startswith("median")]
+        assert line.get_label() == "median of the members that completed every episode"
+        np.testing.assert_allclose(line.get_ydata(), values)
+        low, high = ax.get_ylim()
+        assert low < min(values) and max(values) < high  # on the axes, with the members
+    if not anchored:  # a generation none of whose members completed: no median there
+        history[1]["violation"] = [0.4] * 5
+        figures.clear()
+        plots.plt.close("all")  # (the figures are not saved, so not closed)
+        plots.plot_run(tmp_path, history)
+        (line,) = [ln for ln in figures[0].axes[1].lines if ln.get_label().startswith("median")]
+        assert np.isnan(line.get_ydata()[1]) and not np.isnan(line.get_ydata()[[0, 2]]).any()
+    plots.plt.close("all")
