@@ -1170,7 +1170,13 @@ class Run:
         }
         history = self.load_history()
         if seeds and history and "warm_start_validation" in history[0]:
-            summary["warm_start"] = history[0]["warm_start_validation"]  # on the same episodes
+            # on the same episodes; "index": the candidate that is the warm start (anchored:
+            # individual 0), none where none is (evolution strategies: the centre moved on)
+            warm = {k: v for k, v in history[0]["warm_start_validation"].items() if k != "index"}
+            genome = self.warm_start_genome()
+            held = [i for i, g in enumerate(population)
+                    if genome is not None and np.array_equal(g, genome)]  # fmt: skip
+            summary["warm_start"] = ({"index": held[0]} if held else {}) | warm
         if best is not None:  # the last candidate: the best validated knee of any generation
             summary["best_knee"] = {"generation": best[0], "index": len(population) - 1}
         write_json(self.out / "front.json", summary)

@@ -1,6 +1,8 @@
 """Evolution strategies (``--selection es``): a centre and antithetic pairs around it, the
 centre moved by the pairs' rank-weighted noise; reproducible, resumable, process-identical."""
 
+import json
+
 import numpy as np
 import pytest
 from golden import run_history, untimed_history
@@ -79,6 +81,21 @@ def test_an_es_run_keeps_its_centre_first_and_validates_it(es_run):
     # the last generation is its centre and pairs around it
     pairs = population[1:5].reshape(2, 2, -1)
     np.testing.assert_allclose(pairs.mean(axis=1), population[[ANCHOR, ANCHOR]], atol=1e-6)
+
+
+def test_an_es_runs_front_json_names_no_candidate_as_its_warm_start(es_run):
+    """front.json's warm start is the warm start's scores on the validation episodes; an
+    ``index`` would name a candidate (as the front's entries do), but candidate 0 of an ES
+    run is its last centre, moved from the warm start, and no candidate is the warm start."""
+    run = Run.open(es_run)
+    summary = json.loads((es_run / "front.json").read_text())
+    _, population, _, _ = run.load_checkpoint()
+    assert not any(np.array_equal(g, run.warm_start_genome()) for g in population)
+    warm = summary["warm_start"]
+    assert "index" not in warm
+    scores = run_history(es_run)[0]["warm_start_validation"]  # on the same episodes
+    assert warm == {k: v for k, v in scores.items() if k != "index"}
+    assert summary["candidates"][ANCHOR]["l1"] != warm["l1"]  # (candidate 0: the centre)
 
 
 def test_an_es_run_resumes_and_runs_on_processes_to_the_same_bits(es_run, tmp_path):

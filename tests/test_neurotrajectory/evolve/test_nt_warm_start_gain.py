@@ -79,10 +79,10 @@ def test_the_learning_curve_is_the_knee_and_the_warm_start_on_the_validation_epi
     f, _ = ev.evaluate(population[knee])
     assert [last["knee_validation"][k] for k in ("l1", "l2", "l3")] == f.tolist()
     assert (anchored_run / "plots" / "learning_curve.png").stat().st_size > 5000
-    assert (
-        json.loads((anchored_run / "front.json").read_text())["warm_start"]
-        == (hist[0]["warm_start_validation"])
-    )
+    warm = json.loads((anchored_run / "front.json").read_text())["warm_start"]
+    assert warm == hist[0]["warm_start_validation"]
+    # its index names the candidate that is the warm start: individual 0, kept every generation
+    assert np.array_equal(population[warm["index"]], run.warm_start_genome())
 
 
 def test_the_anchored_front_is_no_worse_than_the_warm_start_on_validation_l1(anchored_run):
