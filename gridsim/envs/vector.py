@@ -49,6 +49,7 @@ class MOSyncVectorEnv(gym.vector.SyncVectorEnv):
         )
 
     def step(self, actions: Any) -> tuple:
+        check_batch(self, actions)
         if not self._phased:
             return super().step(actions)
         skipped = self._autoreset_envs if self.autoreset_mode == AutoresetMode.NEXT_STEP else None
@@ -88,6 +89,27 @@ class MOAsyncVectorEnv(gym.vector.AsyncVectorEnv):
     def __init__(self, env_fns: EnvFns, **kwargs: Any) -> None:
         super().__init__(env_fns, **{"worker": mo_async_worker, **kwargs})
         self.reward_space = self.get_attr("reward_space")[0]
+
+    def step_async(self, actions: Any) -> None:
+        """gymnasium's, after :func:`check_batch` (gymnasium's sends each environment its
+        action before it finds the batch too long or short: the workers stepped a batch
+        said to be refused, and every later step answered the one before)."""
+        check_batch(self, actions)
+        super().step_async(actions)
+
+
+def check_batch(vector: gym.vector.VectorEnv, actions: Any) -> None:
+    """A :class:`ValueError` naming the batch's shape when ``actions`` are not one action per
+    environment of ``vector`` (its batched ``action_space``'s shape), before any is sent."""
+    want = getattr(vector.action_space, "shape", None)
+    if want is None or isinstance(actions, dict | tuple):
+        return
+    got = np.shape(actions)
+    if got != want:
+        raise ValueError(
+            f"a vector of {vector.num_envs} environments steps a batch of actions "
+            f"of shape {want} (one per environment: action_space), got {got}"
+        )
 
 
 class _ZeroRewardOnAutoresetPipe:

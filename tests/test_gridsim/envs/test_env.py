@@ -748,6 +748,27 @@ def test_the_start_method_of_asynchronous_vector_envs_is_chosen_with_context():
         gym.make_vec(ENV_ID, num_envs=1, asynchronous=True, context="teleport")
 
 
+@pytest.mark.parametrize("asynchronous", [False, True])
+def test_a_batch_of_the_wrong_length_is_refused_before_any_environment_steps(asynchronous):
+    """gymnasium's asynchronous step sent each worker its action before it found a batch of
+    3 for 2 environments too long: the batch said to be refused was stepped, and every later
+    step answered the one before. The in-process one said ``zip() argument 2 is shorter``.
+    Both name the batch's shape now, and nothing moves."""
+    venv = gym.make_vec(ENV_ID, num_envs=2, asynchronous=asynchronous, action_type="control",
+                        simulation={"duration": 2.0})  # fmt: skip
+    try:
+        venv.reset(seed=0)
+        for wrong in (np.tile([[1.5, 0.5]], (3, 1)), np.zeros((1, 2)), np.zeros(2), 1.0):
+            with pytest.raises(ValueError, match=r"a vector of 2 environments steps a batch of "
+                               r"actions of shape \(2, 2\) \(one per environment"):  # fmt: skip
+                venv.step(np.asarray(wrong, np.float32))
+        obs, _, _, _, info = venv.step(np.zeros((2, 2), np.float32))
+        np.testing.assert_array_equal(info["time"], [0.1, 0.1])  # the first step taken
+        np.testing.assert_array_equal(obs["ego"][:, 2:4], 0.0)  # its (zero) controls
+    finally:
+        venv.close()
+
+
 def test_the_distribution_has_one_version_and_ships_its_type_marks():
     import importlib.metadata
 
