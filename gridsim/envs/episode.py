@@ -91,7 +91,9 @@ def run_episode(
 ) -> Episode:
     """Reset ``env`` with ``seed`` and step ``policy`` until the episode ends (terminated or
     truncated) or after ``steps`` decisions (None: no limit). ``on_reset(env, info)`` is
-    called after the reset, ``on_step(env, info)`` after every step."""
+    called after the reset, ``on_step(env, info)`` after every step, its ``info`` with the
+    step's ``"reward"`` and whether it ``"truncated"`` the episode (the scenario's duration,
+    or a wrapper's limit such as gymnasium's ``TimeLimit``)."""
     check_steps(steps)
     obs, info = env.reset(seed=seed)
     episode = Episode(start=info, infos=[])
@@ -100,7 +102,7 @@ def run_episode(
     terminated = truncated = False
     while steps is None or episode.steps < steps:
         obs, reward, terminated, truncated, info = env.step(policy(env, obs, info))
-        info = {**info, "reward": np.asarray(reward)}
+        info = {**info, "reward": np.asarray(reward), "truncated": bool(truncated)}
         episode.infos.append(info)
         if on_step is not None:
             on_step(env, info)

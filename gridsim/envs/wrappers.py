@@ -126,7 +126,7 @@ class CaptionedRender(gym.Wrapper, gym.utils.RecordConstructorArgs):
 
     def step(self, action):
         obs, reward, terminated, truncated, info = self.env.step(action)
-        self._info = info
+        self._info = {**info, "truncated": bool(truncated)}  # (a wrapper's time limit too)
         self._fitness = self._fitness + (info["l1"], info["l2"], info["l3"])
         return obs, reward, terminated, truncated, info
 

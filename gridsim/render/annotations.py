@@ -219,11 +219,14 @@ def _scale_bar(img: np.ndarray, pixels_per_metre: float) -> None:
 def annotate_env_frame(env, frame: np.ndarray, info: dict, label: str | None,
                        fitness: np.ndarray, stopped: bool = False) -> np.ndarray:  # fmt: skip
     """:func:`annotate` a GridSim-v0 ``frame`` (of ``env``, wrapped or not) with the caption of
-    its step's ``info`` and the ``fitness`` summed so far, at the env renderer's scale
-    (``stopped``: the last step the caller takes, its steps limit)."""
+    its step's ``info`` (with ``"truncated"``, a wrapper's time limit is said too) and the
+    ``fitness`` summed so far, at the env renderer's scale (``stopped``: the last step the
+    caller takes, its steps limit)."""
     u = env.unwrapped
     renderer = u.renderer
-    timed_out = u.world is not None and u.world.time >= u.time_limit - 1e-9  # (as step says)
+    # the env's own time limit (as step says), or a wrapper's (run_episode says it)
+    timed_out = info.get("truncated", False) or (
+        u.world is not None and u.world.time >= u.time_limit - 1e-9)  # fmt: skip
     caption = Caption.from_info(info, label, fitness, timed_out, stopped)
     return annotate(
         frame,

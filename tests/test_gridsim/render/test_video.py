@@ -658,3 +658,32 @@ def test_a_video_the_encoder_did_not_finish_is_refused_and_the_old_one_kept(tmp_
         w.close()
     assert good.read_bytes() == data  # the earlier video, as it was
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
+
+
+@pytest.mark.parametrize("wrapped", [False, True])
+def test_a_video_cut_by_a_wrappers_time_limit_says_so_on_its_last_frame(tmp_path, monkeypatch,
+                                                                        wrapped):  # fmt: skip
+    """gymnasium's ``TimeLimit`` (``max_episode_steps``) truncated the episode and its summary
+    said "time limit", but the last frame had no end-of-episode line (only the scenario's own
+    duration counted): both say it now, in videos and in ``CaptionedRender`` frames."""
+    from gridsim.envs.wrappers import CaptionedRender
+    from gridsim.render import annotations
+    from gridsim.video import record_episode
+
+    said = []
+    caption = annotations.Caption.from_info
+    monkeypatch.setattr(annotations.Caption, "from_info", staticmethod(
+        lambda *a, **k: said.append(caption(*a, **k)) or said[-1]))  # fmt: skip
+    if not wrapped:
+        env = gym.make(ENV_ID, render_mode="rgb_array", max_episode_steps=4)
+        episode, _ = record_episode(env, Reference(), tmp_path / "o.gif", seed=0)
+        assert episode.ended_by == "time limit" and episode.steps == 4
+    else:
+        env = CaptionedRender(gym.wrappers.TimeLimit(
+            gym.make(ENV_ID, render_mode="rgb_array"), 3))  # fmt: skip
+        _, info = env.reset(seed=0)
+        for _ in range(3):
+            *_, truncated, info = env.step(info["reference_setpoints"])
+            env.render()
+        assert truncated
+    assert [c.ended for c in said[-2:]] == [None, "time limit"]
