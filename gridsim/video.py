@@ -74,9 +74,20 @@ class VideoWriter:
         return path.with_name(f".{path.stem}.partial{path.suffix}")
 
     def write(self, frame: np.ndarray) -> None:
+        """Append ``frame`` uint8 ``(H, W, 3)``, of the size of the first. H.264 (``.mp4``)
+        takes even sizes only: an odd height or width gets its last row or column again."""
         frame = np.asarray(frame)
         if frame.ndim != 3 or frame.shape[2] != 3 or frame.dtype != np.uint8:
             raise GridSimError(f"frames must be uint8 (H, W, 3), got {frame.dtype} {frame.shape}")
+        if self.frames == 0:
+            self._size = frame.shape[:2]
+        elif frame.shape[:2] != self._size:
+            raise GridSimError(f"video {self.path}: frame {self.frames} is {frame.shape[0]} x "
+                               f"{frame.shape[1]} pixels, the video's are {self._size[0]} x "
+                               f"{self._size[1]} (a video's frames have one size)")  # fmt: skip
+        if self.path.suffix.lower() == ".mp4" and (frame.shape[0] % 2 or frame.shape[1] % 2):
+            frame = np.pad(frame, ((0, frame.shape[0] % 2), (0, frame.shape[1] % 2), (0, 0)),
+                           mode="edge")  # fmt: skip
         self._writer.append_data(frame)
         self.frames += 1
 
