@@ -39,7 +39,9 @@ class LinearScalarization(_FitnessReward, gym.utils.RecordConstructorArgs):
     """Scalar reward ``w . [l1, l2, l3]`` for single-objective RL libraries.
 
     Use negative weights for the minimised objectives (l1, l2) and a positive one for l3.
-    The vector is still in ``info["fitness"]``.
+    The vector is still in ``info["fitness"]``; ``reward_space`` is the scalar's (shape
+    ``()``: one objective, for libraries that count them; ``env.unwrapped.reward_space`` is
+    still GridSim-v0's vector).
     """
 
     def __init__(self, env: gym.Env, weights: Sequence[float] = DEFAULT_WEIGHTS) -> None:
@@ -49,6 +51,9 @@ class LinearScalarization(_FitnessReward, gym.utils.RecordConstructorArgs):
         if w.shape != (3,) or not np.all(np.isfinite(w)):
             raise ValueError(f"weights must be 3 finite numbers for [l1, l2, l3], got {weights!r}")
         self.weights = w
+        # l1, l2, l3 >= 0: each weighted term runs from 0 to its weight's sign of infinity
+        low, high = (-np.inf if (w < 0).any() else 0.0), (np.inf if (w > 0).any() else 0.0)
+        self.reward_space = gym.spaces.Box(low, high, shape=(), dtype=np.float64)
 
     def reward(self, reward) -> float:
         return float(np.dot(self.weights, reward))

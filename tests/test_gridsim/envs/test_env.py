@@ -271,6 +271,14 @@ def test_scalarised_wrapper():
     assert r == pytest.approx(float(np.dot([-1.0, -2.0, 0.5], info["fitness"])), rel=1e-5)
     with pytest.raises(ValueError, match="3 finite numbers"):
         LinearScalarization(make(), weights=(1.0, 2.0))
+    # its reward space is the scalar's (libraries count objectives by it: it said 3)
+    assert env.get_wrapper_attr("reward_space").shape == ()
+    assert env.get_wrapper_attr("reward_space").contains(np.float64(r))
+    scalar = gym.make("GridSimScalar-v0")
+    assert scalar.get_wrapper_attr("reward_space").shape == ()
+    assert scalar.unwrapped.reward_space.shape == (3,)  # (GridSim-v0's own, under it)
+    only_l3 = LinearScalarization(make(), weights=(0.0, 0.0, 1.0)).reward_space
+    assert only_l3.low == 0 and only_l3.high == np.inf
 
 
 def test_maximised_objectives_flip_the_minimised_ones():
