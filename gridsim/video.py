@@ -148,12 +148,21 @@ def record_episode(
     made with ``render_mode="rgb_array"``; one frame per step (plus the first) is written at
     the environment's real rate, with ``overlay`` (the default) annotated
     (:mod:`gridsim.render.annotations`: ``label`` for the driver, by default the policy's
-    name (:func:`policy_name`), or ``label(env)`` (e.g. to
-    name the scene a collection drew), time, speed, the fitness so far, how the episode
-    ended, a colour legend, a scale bar); ``on_step(env, info)`` after every step. Returns
-    the episode and the video's path (``None`` without one)."""
+    name (:func:`policy_name`) and the episode's (:func:`episode_name`; its episode seed
+    when ``seed`` is None), or ``label(env)`` (e.g. to name the scene a collection drew),
+    time, speed, the fitness so far, how the episode ended, a colour legend, a scale bar);
+    ``on_step(env, info)`` after every step. Returns the episode and the video's path
+    (``None`` without one)."""
     check_steps(steps)
-    label = policy_name(policy) if label is None else label
+    if label is None:  # the driver and the episode, so that it can be driven again
+        name = policy_name(policy)
+
+        def label(env) -> str:
+            said = episode_name(env, seed)
+            if seed is None:  # (reset(options={"episode_seed": ...}) drives it again)
+                said += f", episode seed {env.unwrapped.episode_seed}"
+            return f"{name}, {said}"
+
     if path is not None and getattr(env, "render_mode", None) != "rgb_array":
         raise GridSimError("a video needs an environment made with render_mode='rgb_array'")
     fitness = np.zeros(3)

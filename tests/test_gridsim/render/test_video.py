@@ -704,3 +704,31 @@ def test_a_video_cut_by_a_wrappers_time_limit_says_so_on_its_last_frame(tmp_path
             env.render()
         assert truncated
     assert [c.ended for c in said[-2:]] == [None, "time limit"]
+
+
+def test_a_video_made_from_python_names_its_episode(tmp_path, monkeypatch):
+    """``record_rollout`` captioned only "a lambda policy" (the command line names the scene
+    and the seed): its default label names the driver and the episode, with its episode seed
+    when it was reset without a seed, so that the video can be driven again."""
+    from gridsim.render import annotations
+
+    labels = []
+    caption = annotations.Caption.from_info
+
+    def seen(info, label, *args, **kwargs):
+        labels.append(label)
+        return caption(info, label, *args, **kwargs)
+
+    monkeypatch.setattr(annotations.Caption, "from_info", staticmethod(seen))
+    env = gym.make(ENV_ID, render_mode="rgb_array")
+    record_rollout(env, lambda env, obs, info: info["reference_setpoints"], tmp_path / "a.gif",
+                   2, seed=4)  # fmt: skip
+    assert set(labels) == {"a lambda policy, seamless, seed 4"}
+    labels.clear()
+    record_rollout(env, Reference(), tmp_path / "b.gif", 2)
+    said = labels[-1]
+    assert said.startswith("Reference, seamless, episode seed ")
+    episode = int(said.rsplit(" ", 1)[1])
+    assert episode == env.unwrapped.episode_seed
+    _, info = env.reset(options={"episode_seed": episode})  # drives it again
+    assert info["episode_seed"] == episode
