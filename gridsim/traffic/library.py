@@ -10,7 +10,9 @@ counter-clockwise from +x. Tracks are keyed by ``(scenario_id, track_id)``.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import difflib
+import math
 from importlib import resources
 from pathlib import Path
 
@@ -49,7 +51,7 @@ class TrajectoryLibrary:
     def __init__(self, tracks: list[Track]) -> None:
         if not tracks:
             raise DataError("the trajectory library is empty")
-        tracks = _joined_across_files(tracks)
+        tracks = _joined_across_files(_counted_from_scene_start(tracks))
         self.tracks = tracks
         #: ``(file, reason)`` of the files of a folder or glob left out (they cannot be read)
         self.skipped: tuple[tuple[str, str], ...] = ()
@@ -114,6 +116,33 @@ class TrajectoryLibrary:
     def select(self, min_duration: float = 0.0, max_length: float = np.inf) -> list[Track]:
         """Tracks at least ``min_duration`` seconds long and at most ``max_length`` metres."""
         return [t for t in self.tracks if t.duration >= min_duration and t.length <= max_length]
+
+
+#: s: the time stamps of a scene that begins this far from 0 are counted from its first whole
+#: second (rounded to the microsecond): float64 resolves 1e-10 s at 1e6 s, below the traffic
+#: clock's tolerance (1e-9 s), but 2.4e-7 s at a Unix-epoch time (1.7e9 s), where vehicles
+#: appeared a tick early or late (grids differed from the same scene counted from 0).
+RECOUNTED_FROM = 1e6
+
+
+def _counted_from_scene_start(tracks: list[Track]) -> list[Track]:
+    """``tracks``, those of a scene whose first time stamp lies beyond
+    :data:`RECOUNTED_FROM` counted from that stamp's whole second instead (said in a
+    warning: a track's ``t`` then reads that much less; a scene is a scene id in every file
+    of the library, so that files split by time keep one clock)."""
+    first: dict[str, float] = {}
+    for t in tracks:
+        first[t.scenario_id] = min(first.get(t.scenario_id, math.inf), float(t.t[0]))
+    origin = {sid: math.floor(f) for sid, f in first.items() if abs(f) >= RECOUNTED_FROM}
+    if not origin:
+        return tracks
+    said = ", ".join(f"{sid} from {o:d} s" for sid, o in origin.items())
+    warn_data(f"time stamps from {min(first[s] for s in origin):.10g} s on (a Unix-epoch "
+              f"clock?) are counted from the scene's first whole second ({said}; float64 "
+              "resolves only 2e-7 s at 1.7e9 s: vehicles would appear a tick early or "
+              "late); the tracks' times read that much less")  # fmt: skip
+    return [dataclasses.replace(t, t=np.round(t.t - origin[t.scenario_id], 6))
+            if t.scenario_id in origin else t for t in tracks]  # fmt: skip
 
 
 def _joined_across_files(tracks: list[Track]) -> list[Track]:

@@ -1,6 +1,7 @@
 """Recorded episodes as the human drove them: an ego track that waits is not "reached" at
 once, but runs for its recorded duration."""
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -282,3 +283,49 @@ def test_a_world_keeps_the_tracks_of_its_span_and_replays_them_as_the_whole_scen
         for name in ("x", "y", "psi", "v", "s", "tau"):
             np.testing.assert_array_equal(getattr(f, name)[mine], getattr(g, name)[theirs])
     assert span.until is None and len(span.tracks) == len(whole.tracks)  # past its span
+
+
+def test_a_scene_on_a_unix_epoch_clock_replays_as_the_same_scene_counted_from_0(tmp_path):
+    """Time stamps of 1.7e9 s (a Unix-epoch clock, within the documented 1e10 s) resolve
+    only 2.4e-7 s in float64: the traffic clock's tolerance is 1e-9 s, and vehicles were
+    placed a tick early or late (the grids of US-101 differed in 81-363 cells from the same
+    scene counted from 0, silently). Such a scene is counted from its first whole second,
+    said in a warning, and replays as the same scene counted from 0, bit for bit."""
+    from dataclasses import replace
+
+    import gymnasium as gym
+
+    from gridsim.traffic.library import RECOUNTED_FROM
+
+    x = np.linspace(20.0, 80.0, 41)
+    tracks = [track("ego", x, np.full(41, 1.75))]
+    for k, start in enumerate((0.3, 0.7, 1.3, 2.1)):  # cars that come in at later ticks
+        later = track(f"c{k}", x[: 41 - round(start * 10)] + 12.0 + 6 * k, np.full(41 - round(
+            start * 10), -1.75))  # fmt: skip
+        tracks.append(replace(later, t=later.t + start))
+    runs = []
+    for offset in (0.0, 1.7e9):
+        folder = tmp_path / f"at{offset:g}"
+        folder.mkdir()
+        shifted = [replace(t, t=t.t + offset) for t in tracks]
+        scenario = write_scene(folder, shifted)
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            env = gym.make("GridSim-v0", scenario=str(scenario)).unwrapped
+            obs, info = env.reset(seed=0)
+        epoch = [str(w.message) for w in said if "a Unix-epoch clock?" in str(w.message)]
+        assert len(epoch) == (offset >= RECOUNTED_FROM)
+        if epoch:
+            assert "counted from the scene's first whole second (crafted from 1700000000 s" \
+                in epoch[0]  # fmt: skip
+        grids, active = [obs["grids"][-1].copy()], []
+        for _ in range(30):
+            obs, _, terminated, truncated, info = env.step(info["reference_setpoints"])
+            grids.append(obs["grids"][-1].copy())
+            active.append(int(env.world.traffic.fleet.active.sum()))
+            if terminated or truncated:
+                break
+        runs.append((np.array(grids), active))
+    (at_0, active_0), (at_epoch, active_epoch) = runs
+    assert active_0 == active_epoch and max(active_0) == 4
+    np.testing.assert_array_equal(at_0, at_epoch)
