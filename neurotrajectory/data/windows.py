@@ -459,6 +459,24 @@ class _WindowTaker:
 EARLY_ENDINGS = ("collision", "off road")
 
 
+#: How many of the episodes that ended early a recording names (the first ones).
+NAMED_ENDINGS = 5
+
+
+def _ending(env: GridSimEnv, episode, track: str) -> str:
+    """How the episode of ``track`` (its windows' label) ended early, for a user to look up:
+    ``"us101_4_1/427: collision at 0.1 s with track 900002"`` (on a recorded scene the
+    tracks hit by their ids)."""
+    said = f"{track}: {episode.ended_by} at {float(episode.last['time']):.1f} s"
+    hit = episode.last.get("collided_with") or []
+    if hit:
+        replayed = getattr(env.world.traffic, "tracks", None)
+        names = [f"track {replayed[i].track_id}" if replayed is not None and i < len(replayed)
+                 else f"vehicle {i}" for i in hit]  # fmt: skip
+        said += f" with {', '.join(names)}"
+    return said
+
+
 def _episode_windows(
     env: GridSimEnv, seed: int, stride: int, track: str, policy=None, labels: str = "rejoin",
     endings: dict | None = None,
@@ -472,6 +490,9 @@ def _episode_windows(
     if endings is not None and missed:
         endings[episode.ended_by] = endings.get(episode.ended_by, 0) + 1
         endings["windows_not_taken"] = endings.get("windows_not_taken", 0) + missed
+        named = endings.setdefault("first", [])
+        if len(named) < NAMED_ENDINGS:
+            named.append(_ending(env, episode, track))
     if endings is not None and taker.behind:
         endings["windows_behind"] = endings.get("windows_behind", 0) + taker.behind
     rows, times, p = taker.rows, env.cfg.env.setpoint_times, env.world.ego_params
@@ -807,22 +828,23 @@ def _early(endings: dict[str, int]) -> dict:
     """``endings`` (episodes by how they ended, ``windows_not_taken`` and ``windows_behind``,
     flat: as they are counted and kept across an interruption) as the manifest says them."""
     episodes = {k: endings[k] for k in EARLY_ENDINGS if endings.get(k)}
-    behind = endings.get("windows_behind", 0)
+    behind, first = endings.get("windows_behind", 0), endings.get("first", [])
     return {"episodes": episodes, "windows_not_taken": endings.get("windows_not_taken", 0),
-            **({"windows_behind": behind} if behind else {})}  # fmt: skip
+            **({"windows_behind": behind} if behind else {}),
+            **({"first": first[:NAMED_ENDINGS]} if first else {})}  # fmt: skip
 
 
 def ended_early(metas: list[dict]) -> dict:
     """The episodes of the scenarios ``metas`` (their provenance) that ended early, summed
     by how they ended, the windows not taken and those whose label lay behind the ego (as
     each scenario's ``ended_early``); empty when there are none."""
-    flat: dict[str, int] = {}  # (as _episode_windows counts them)
+    flat: dict = {}  # (as _episode_windows counts them; "first": the episodes named)
     for meta in metas:
         early = meta.get("ended_early", {})
         counts = {**early.get("episodes", {}),
                   **{k: v for k, v in early.items() if k != "episodes"}}  # fmt: skip
         for key, n in counts.items():
-            flat[key] = flat.get(key, 0) + n
+            flat[key] = flat.get(key, [] if key == "first" else 0) + n
     return _early(flat) if flat else {}
 
 
@@ -856,10 +878,13 @@ def early_note(early: dict) -> str:
     if early["episodes"]:
         kinds = ", ".join(f"{n} {k}" for k, n in early["episodes"].items())
         episodes = sum(early["episodes"].values())
+        first = early.get("first", [])
+        they = "they" if len(first) == episodes else "the first"
+        which = f"; {they}: {'; '.join(first)}" if first else ""
         said.append(f"{episodes} episode(s) ended before their reference did ({kinds}): the "
                     f"{early['windows_not_taken']} window(s) the rest would have given were "
                     "not taken (with the ego driving the human's own track, a collision or "
-                    "leaving the road is the recording's)")  # fmt: skip
+                    f"leaving the road is the recording's{which})")  # fmt: skip
     if early.get("windows_behind"):
         said.append(f"{early['windows_behind']} window(s) whose human set-points start behind "
                     "the ego were not taken (the ego overshot a stop the human made harder "

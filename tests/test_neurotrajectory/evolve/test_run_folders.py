@@ -2,6 +2,7 @@
 was, a resumed run keeps every setting and refuses another run's checkpoint."""
 
 import json
+import re
 import shutil
 import warnings
 
@@ -446,6 +447,11 @@ def test_record_counts_the_windows_of_episodes_that_end_early(tmp_path, monkeypa
     early = json.loads(out)["ended_early"]
     assert "destination reached" not in early["episodes"] and early["episodes"]["off road"] >= 1
     assert "episode(s) ended before their reference did (" in err
+    # the episodes are named, to look them up: the track, how and when it ended
+    assert len(early["first"]) == sum(early["episodes"].values())
+    assert all(re.fullmatch(r"USA_US101-4_1_T-1/\d+: (off road|collision) at \d+\.\d s.*", e)
+               for e in early["first"])  # fmt: skip
+    assert f"they: {early['first'][0]}" in err
     whole = json.loads((tmp_path / "whole" / "manifest.json").read_text())
     assert whole["ended_early"] == whole["scenarios"][0]["ended_early"] == early
     # every window of every track's reference, recorded or counted as not taken
