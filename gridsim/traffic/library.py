@@ -52,6 +52,7 @@ class TrajectoryLibrary:
         if not tracks:
             raise DataError("the trajectory library is empty")
         tracks = _joined_across_files(_counted_from_scene_start(tracks))
+        _warn_numbers_written_twice(tracks)
         self.tracks = tracks
         #: ``(file, reason)`` of the files of a folder or glob left out (they cannot be read)
         self.skipped: tuple[tuple[str, str], ...] = ()
@@ -116,6 +117,27 @@ class TrajectoryLibrary:
     def select(self, min_duration: float = 0.0, max_length: float = np.inf) -> list[Track]:
         """Tracks at least ``min_duration`` seconds long and at most ``max_length`` metres."""
         return [t for t in self.tracks if t.duration >= min_duration and t.length <= max_length]
+
+
+def _warn_numbers_written_twice(tracks: list[Track]) -> None:
+    """A warning naming the ids of a scene that are one number written two ways (``427``,
+    ``0427``, ``427.0``: a spreadsheet's or pandas' export): they are read as two vehicles."""
+    forms: dict[tuple[str, str], set[str]] = {}
+    for t in tracks:
+        tid = t.recorded_id or t.track_id
+        try:
+            number = float(tid)
+        except ValueError:
+            continue
+        if math.isfinite(number) and number.is_integer():
+            forms.setdefault((t.scenario_id, str(int(number))), set()).add(tid)
+    twice = [f"{sid}: {' and '.join(sorted(ids))}" for (sid, _), ids in forms.items()
+             if len(ids) > 1]  # fmt: skip
+    if twice:
+        listed = named(twice, sep="; ")
+        warn_data(f"{len(twice)} track id(s) are one number written two ways, read as "
+                  f"different vehicles ({listed}): write each id one way (a spreadsheet or "
+                  "pandas export may add leading zeros or '.0')")  # fmt: skip
 
 
 #: s: the time stamps of a scene that begins this far from 0 are counted from its first whole

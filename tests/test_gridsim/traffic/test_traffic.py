@@ -1442,3 +1442,24 @@ def test_a_track_of_impossible_data_is_left_out_unless_most_are(tmp_path):
     with pytest.raises(DataError, match=r"2 of its 3 tracks are impossible:\n    track 1 of "
                        r"scene s: .*jumps 81.*\n    track 2 of scene s: .*jumps 91"):  # fmt: skip
         read_tracks_csv(path)
+
+
+def test_ids_that_are_one_number_written_two_ways_are_said(tmp_path):
+    """A spreadsheet or pandas export writes 427 as 0427 or 427.0 in some rows: read as two
+    vehicles that meet end to start, silently. A warning names them; other ids (428, 427#2,
+    non-numbers) are not named."""
+    from gridsim.errors import DataWarning
+
+    rows = [f"s,427,{t:.1f},{10 * t:.1f},0,0,10,4.5,1.8" for t in np.arange(0, 1.05, 0.1)]
+    rows += [f"s,0427,{t:.1f},{10 * t:.1f},0,0,10,4.5,1.8" for t in np.arange(1.1, 2.05, 0.1)]
+    rows += [f"s,428.0,{t:.1f},{10 * t:.1f},3.5,0,10,4.5,1.8" for t in np.arange(0, 2.05, 0.1)]
+    rows += [f"s,car7,{t:.1f},{10 * t:.1f},-3.5,0,10,4.5,1.8" for t in np.arange(0, 2.05, 0.1)]
+    with pytest.warns(DataWarning) as caught:
+        TrajectoryLibrary(read_tracks_csv(write_csv(tmp_path, rows)))
+    said = [str(w.message) for w in caught if "written two ways" in str(w.message)]
+    assert len(said) == 1
+    assert "1 track id(s) are one number written two ways, read as different vehicles (s: " \
+        "0427 and 427)" in said[0]  # fmt: skip
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # nothing said of ids written one way
+        TrajectoryLibrary(read_tracks_csv(write_csv(tmp_path, rows[11:])))
