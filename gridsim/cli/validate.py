@@ -47,7 +47,7 @@ def execute(args: argparse.Namespace) -> int:
         check_track_scenes,
         repeated_recordings,
         scenario_files,
-        shared_names_message,
+        shared_names_messages,
         shared_track_names,
     )
 
@@ -100,8 +100,8 @@ def execute(args: argparse.Namespace) -> int:
     for first, again, scene in repeated_recordings(usable):
         print(f"warning: {again} replays the same recording as {first} (scene {scene}): its "
               "episodes and windows would count twice")  # fmt: skip
-    for shared in shared_track_names(usable):
-        print(f"warning: {shared_names_message(*shared)}")
+    for said in shared_names_messages(shared_track_names(usable)):
+        print(f"warning: {said}")
     try:  # and they run together as one collection
         if usable:
             check_agreement(args.path, [sc for _, sc in usable])

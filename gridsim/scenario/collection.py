@@ -194,20 +194,32 @@ def usable_files(
             f"{ref}: {again} replays the same recording as {first} (scene {scene}, the "
             "same tracks and ego tracks): its episodes and windows count twice"
         )
-    for shared in shared_track_names(pairs):
-        warn_data(f"{ref}: {shared_names_message(*shared)}")
+    for said in shared_names_messages(shared_track_names(pairs)):
+        warn_data(f"{ref}: {said}")
     return scenarios, skipped
 
 
-def shared_names_message(first: Path, other: Path, scene: str, ids: list[str]) -> str:
-    """What :func:`shared_track_names` found, and what to do."""
-    shown = named(ids)
-    return (
-        f"{other} and {first} are other recordings of scene {scene} with {len(ids)} track "
-        f"id(s) in common ({shown}): windows, the train/test split by track and --track "
-        "name a track SCENE/ID, so they would be taken for the same vehicles; give each "
-        "recording its own scene (its CSV's scenario_id and the scenario's road.scene)"
-    )
+def shared_names_messages(found: list[tuple[Path, Path, str, list]]) -> list[str]:
+    """What :func:`shared_track_names` found, and what to do: one message per first file and
+    scene (a folder of 32 recordings of one site said it 31 times)."""
+    grouped: dict[tuple[Path, str], list[tuple[Path, list]]] = {}
+    for first, other, scene, ids in found:
+        grouped.setdefault((first, scene), []).append((other, ids))
+    out = []
+    for (first, scene), others in grouped.items():
+        ids = max((ids for _, ids in others), key=len)
+        if len(others) == 1:
+            said = (f"{others[0][0]} and {first} are other recordings of scene {scene} with "
+                    f"{len(ids)} track id(s) in common ({named(ids)})")  # fmt: skip
+        else:
+            said = (f"{len(others)} files ({named([o for o, _ in others])}) are other "
+                    f"recordings of scene {scene} than {first}, each with track ids in common "
+                    f"with it (up to {len(ids)}: {named(ids)})")  # fmt: skip
+        out.append(f"{said}: windows, the train/test split by track and --track name a track "
+                   "SCENE/ID, so they would be taken for the same vehicles; give each "
+                   "recording its own scene (its CSV's scenario_id and the scenario's "
+                   "road.scene)")  # fmt: skip
+    return out
 
 
 def shared_track_names(pairs: list[tuple[Path, Scenario]]) -> list[tuple[Path, Path, str, list]]:

@@ -1,5 +1,6 @@
 """Folders and globs of scenario files are scenario collections."""
 
+import re
 import shutil
 import warnings
 from pathlib import Path
@@ -466,6 +467,20 @@ def test_other_recordings_of_a_scene_with_the_same_track_ids_are_named(tmp_path,
     with pytest.warns(DataWarning, match=r"with 1 track id\(s\) in common") as seen:
         load_collection(tmp_path)
     assert not any("replays the same recording" in str(w.message) for w in seen)
+    # a folder of many days of one site: said once (it was said for every file)
+    for day in ("day3", "day4"):
+        (tmp_path / f"{day}.csv").write_text((tmp_path / "day2.csv").read_text())
+        (tmp_path / f"{day}.yaml").write_text(
+            (tmp_path / "day2.yaml").read_text().replace("day2", day))  # fmt: skip
+    with pytest.warns(DataWarning) as seen:
+        load_collection(tmp_path)
+    shared = [str(w.message) for w in seen if "other recordings of scene" in str(w.message)]
+    assert len(shared) == 1
+    assert re.search(r"3 files \(.*day2.yaml, .*day3.yaml, .*day4.yaml\) are other recordings "
+                     r"of scene USA_US101-3_3_T-1 than .*day1.yaml, each with track ids in "
+                     r"common with it \(up to 1: ", shared[0])  # fmt: skip
+    assert gridsim_main(["validate", str(tmp_path)]) == 0
+    assert capsys.readouterr().out.count("other recordings of scene") == 1
 
 
 def test_a_data_warning_points_at_the_users_line(tmp_path):
