@@ -202,9 +202,10 @@ def _split_dataset(
     group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log, progress: bool = True
 ) -> tuple[dict, Windows, Windows]:
     """The group's manifest and its windows split by track (``train``, ``test``): from
-    ``data_dir/<group>`` if given (checked by :func:`_given_dataset`), else recorded into
+    ``data_dir/<group>`` if given (checked: :func:`_given_dataset`), else recorded into
     ``out`` first. Each window is read once (:func:`~neurotrajectory.data.storage.load_split`)."""
     if data_dir is not None:
+        _given_dataset(group, cfg, data_dir)  # (evaluate checked it first: cheap, said alike)
         folder = data_dir / group
     else:
         folder = out / "data" / group
