@@ -278,7 +278,8 @@ def _library(files: tuple) -> TrajectoryLibrary:
     with warnings.catch_warnings(record=True) as said:  # (the join's note, with the files')
         warnings.simplefilter("always", DataWarning)
         library = TrajectoryLibrary(tracks)
-    notes += [str(w.message) for w in said] + single_states_notes(library.tracks, singles)
+    notes += [str(w.message) for w in said]
+    notes += single_states_notes(library.tracks, singles, library.time_origins)
     library.notices = (*left_out, *_shown_notes(notes, sum(f != "builtin" for f, _ in files)))
     library.skipped = tuple(skipped)
     return library

@@ -13,6 +13,7 @@ import csv
 import dataclasses
 import difflib
 import math
+import re
 from importlib import resources
 from pathlib import Path
 
@@ -51,7 +52,10 @@ class TrajectoryLibrary:
     def __init__(self, tracks: list[Track]) -> None:
         if not tracks:
             raise DataError("the trajectory library is empty")
-        tracks = _joined_across_files(_counted_from_scene_start(tracks))
+        #: per scene recounted from its first whole second, that second [s] (a Unix-epoch
+        #: clock's: :func:`_counted_from_scene_start`)
+        self.time_origins = _time_origins(tracks)
+        tracks = _joined_across_files(_counted_from_scene_start(tracks, self.time_origins))
         _warn_numbers_written_twice(tracks)
         self.tracks = tracks
         #: ``(file, reason)`` of the files of a folder or glob left out (they cannot be read)
@@ -92,7 +96,7 @@ class TrajectoryLibrary:
         if not tracks:
             raise _no_tracks(", ".join(map(str, paths)))
         library = cls(tracks)
-        for note in single_states_notes(library.tracks, singles):
+        for note in single_states_notes(library.tracks, singles, library.time_origins):
             warn_data(note)
         return library
 
@@ -119,18 +123,19 @@ class TrajectoryLibrary:
         return [t for t in self.tracks if t.duration >= min_duration and t.length <= max_length]
 
 
+#: A whole number as a spreadsheet or pandas may write it: ``427``, ``0427``, ``427.0``.
+_WHOLE_NUMBER = re.compile(r"(\d+)(?:\.0*)?")
+
+
 def _warn_numbers_written_twice(tracks: list[Track]) -> None:
     """A warning naming the ids of a scene that are one number written two ways (``427``,
     ``0427``, ``427.0``: a spreadsheet's or pandas' export): they are read as two vehicles."""
     forms: dict[tuple[str, str], set[str]] = {}
     for t in tracks:
         tid = t.recorded_id or t.track_id
-        try:
-            number = float(tid)
-        except ValueError:
-            continue
-        if math.isfinite(number) and number.is_integer():
-            forms.setdefault((t.scenario_id, str(int(number))), set()).add(tid)
+        number = _WHOLE_NUMBER.fullmatch(tid.strip())  # (as text: 64-bit ids stay exact)
+        if number:
+            forms.setdefault((t.scenario_id, number[1].lstrip("0") or "0"), set()).add(tid)
     twice = [f"{sid}: {' and '.join(sorted(ids))}" for (sid, _), ids in forms.items()
              if len(ids) > 1]  # fmt: skip
     if twice:
@@ -147,24 +152,34 @@ def _warn_numbers_written_twice(tracks: list[Track]) -> None:
 RECOUNTED_FROM = 1e6
 
 
-def _counted_from_scene_start(tracks: list[Track]) -> list[Track]:
-    """``tracks``, those of a scene whose first time stamp lies beyond
-    :data:`RECOUNTED_FROM` counted from that stamp's whole second instead (said in a
-    warning: a track's ``t`` then reads that much less; a scene is a scene id in every file
-    of the library, so that files split by time keep one clock)."""
+def _time_origins(tracks: list[Track]) -> dict[str, int]:
+    """The whole second [s] each scene of ``tracks`` whose first time stamp lies
+    :data:`RECOUNTED_FROM` or more from 0 is counted from (its first stamp's)."""
     first: dict[str, float] = {}
     for t in tracks:
         first[t.scenario_id] = min(first.get(t.scenario_id, math.inf), float(t.t[0]))
-    origin = {sid: math.floor(f) for sid, f in first.items() if abs(f) >= RECOUNTED_FROM}
-    if not origin:
+    return {sid: math.floor(f) for sid, f in first.items() if abs(f) >= RECOUNTED_FROM}
+
+
+def recounted(times: np.ndarray, origin: int) -> np.ndarray:
+    """Time stamps [s] counted from ``origin`` [s] (rounded to the microsecond)."""
+    return np.round(np.asarray(times, np.float64) - origin, 6)
+
+
+def _counted_from_scene_start(tracks: list[Track], origins: dict[str, int]) -> list[Track]:
+    """``tracks``, those of the scenes of ``origins`` (:func:`_time_origins`) counted from
+    that second instead, said in a warning (a track's ``t`` then reads that much less; a
+    scene is a scene id in every file of the library, so that files split by time keep one
+    clock)."""
+    if not origins:
         return tracks
-    said = ", ".join(f"{sid} from {o:d} s" for sid, o in origin.items())
-    warn_data(f"time stamps from {min(first[s] for s in origin):.10g} s on (a Unix-epoch "
-              f"clock?) are counted from the scene's first whole second ({said}; float64 "
-              "resolves only 2e-7 s at 1.7e9 s: vehicles would appear a tick early or "
-              "late); the tracks' times read that much less")  # fmt: skip
-    return [dataclasses.replace(t, t=np.round(t.t - origin[t.scenario_id], 6))
-            if t.scenario_id in origin else t for t in tracks]  # fmt: skip
+    said = ", ".join(f"{sid} from {o:d} s" for sid, o in origins.items())
+    warn_data(f"time stamps from {min(origins.values())} s on (a Unix-epoch clock?) are "
+              f"counted from the scene's first whole second ({said}; float64 resolves only "
+              "2e-7 s at 1.7e9 s: vehicles would appear a tick early or late); the tracks' "
+              "times read that much less")  # fmt: skip
+    return [dataclasses.replace(t, t=recounted(t.t, origins[t.scenario_id]))
+            if t.scenario_id in origins else t for t in tracks]  # fmt: skip
 
 
 def _joined_across_files(tracks: list[Track]) -> list[Track]:
@@ -302,11 +317,15 @@ def _no_tracks(where: str) -> DataError:
     return DataError(f"{where}: no vehicle tracks (dynamic obstacles with at least 2 states)")
 
 
-def single_states_notes(tracks: list[Track], singles: list) -> list[str]:
+def single_states_notes(tracks: list[Track], singles: list,
+                        origins: dict[str, int] | None = None) -> list[str]:  # fmt: skip
     """A note per file (for a :class:`DataWarning`) naming the tracks of a single state left out
     (``singles``: ``(file, scene, name, id, row)`` from :func:`read_tracks_csv`) that are not
-    rows of ``tracks`` (the library's, joined across files): a vehicle's row at the boundary
-    of a recording split into files by time is in both files, and nothing is lost."""
+    rows of ``tracks`` (the library's, joined across files, their scenes' clocks recounted
+    from ``origins``: :attr:`TrajectoryLibrary.time_origins`): a vehicle's row at the
+    boundary of a recording split into files by time is in both files, and nothing is
+    lost."""
+    origins = origins or {}
     rows: dict[tuple[str, str], list[np.ndarray]] = {}
     for t in tracks:
         rows.setdefault((t.scenario_id, t.recorded_id or t.track_id), []).append(
@@ -314,6 +333,8 @@ def single_states_notes(tracks: list[Track], singles: list) -> list[str]:
         )
     lost: dict[str, list[str]] = {}
     for path, sid, name, tid, row in singles:
+        if sid in origins:  # (on the file's clock)
+            row = np.array([recounted(row[0], origins[sid]), *row[1:3]])
         kept = any(np.any(np.all(a == row[:3], axis=1)) for a in rows.get((sid, tid), []))
         if not kept:
             lost.setdefault(path, []).append(f"({sid}, {name})")

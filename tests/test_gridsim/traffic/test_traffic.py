@@ -1463,3 +1463,27 @@ def test_ids_that_are_one_number_written_two_ways_are_said(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # nothing said of ids written one way
         TrajectoryLibrary(read_tracks_csv(write_csv(tmp_path, rows[11:])))
+        big = [r.replace("s,0427,", "s,9007199254740993,")  # 2^53 + 1 and 2^53
+               .replace("s,428.0,", "s,9007199254740992,") for r in rows[11:]]  # fmt: skip
+        TrajectoryLibrary(read_tracks_csv(write_csv(tmp_path, big)))  # two numbers, as text
+
+
+@pytest.mark.parametrize("start", [0.0, 1.7e9])
+def test_a_boundary_row_of_a_split_recording_is_not_said_lost_on_any_clock(tmp_path, start):
+    """A vehicle's last row repeated alone in the next file of a recording split by time is
+    kept (nothing lost, nothing said); on a Unix-epoch clock the library's times are
+    recounted, and the row, on its file's clock, was said left out."""
+    head = ",".join(REQUIRED_COLUMNS) + "\n"
+
+    def row(tid, t, y=0.0):
+        return f"s,{tid},{start + t:.1f},{10 * t:.4f},{y},0,10,4.5,1.8\n"
+
+    times = np.round(np.arange(0, 1.01, 0.1), 1)
+    (tmp_path / "a.csv").write_text(head + "".join(row(1, t) for t in times))
+    (tmp_path / "b.csv").write_text(head + row(1, 1.0) + "".join(row(2, t, 3.5)
+                                                              for t in times + 1.0))  # fmt: skip
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        library = TrajectoryLibrary.from_files(tmp_path / "a.csv", tmp_path / "b.csv")
+    assert not [w for w in said if "single state" in str(w.message)]
+    assert [len(t.t) for t in library.tracks] == [11, 11]
