@@ -40,7 +40,10 @@ class MOSyncVectorEnv(gym.vector.SyncVectorEnv):
 
     def __init__(self, env_fns: EnvFns, **kwargs: Any) -> None:
         super().__init__(env_fns, **kwargs)
-        space = getattr(self.envs[0].unwrapped, "reward_space", None)
+        try:  # (a wrapper's own, as the asynchronous one reads it: a scalarisation's is ())
+            space = self.envs[0].get_wrapper_attr("reward_space")
+        except AttributeError:
+            space = None
         shape = space.shape if space is not None else ()
         self._rewards = np.zeros((self.num_envs, *shape), dtype=np.float64)
         self.reward_space = space

@@ -279,6 +279,22 @@ def test_scalarised_wrapper():
     assert scalar.unwrapped.reward_space.shape == (3,)  # (GridSim-v0's own, under it)
     only_l3 = LinearScalarization(make(), weights=(0.0, 0.0, 1.0)).reward_space
     assert only_l3.low == 0 and only_l3.high == np.inf
+    # vector envs of it stack the scalars, in-process and in subprocesses alike (the
+    # in-process one copied each scalar into three columns of GridSim-v0's shape)
+    from gridsim.envs.vector import MOAsyncVectorEnv, MOSyncVectorEnv
+
+    fns = [lambda: LinearScalarization(make(action_type="control")) for _ in range(2)]
+    stacked = []
+    for cls in (MOSyncVectorEnv, MOAsyncVectorEnv):
+        venv = cls(fns)
+        try:
+            venv.reset(seed=0)
+            rewards = venv.step(np.zeros((2, 2), np.float32))[1]
+            assert venv.reward_space.shape == () and rewards.shape == (2,)
+            stacked.append(rewards)
+        finally:
+            venv.close()
+    np.testing.assert_array_equal(*stacked)
 
 
 def test_maximised_objectives_flip_the_minimised_ones():
