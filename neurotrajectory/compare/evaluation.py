@@ -199,13 +199,16 @@ def _check_groups(fronts: dict[str, Front], cfg: EvalConfig, data_dir: Path | No
 
 
 def _split_dataset(
-    group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log, progress: bool = True
-) -> tuple[dict, Windows, Windows]:
+    group: str, cfg: EvalConfig, data_dir: Path | None, out: Path, log, progress: bool = True,
+    *, checked: bool = False,
+) -> tuple[dict, Windows, Windows]:  # fmt: skip
     """The group's manifest and its windows split by track (``train``, ``test``): from
-    ``data_dir/<group>`` if given (checked: :func:`_given_dataset`), else recorded into
-    ``out`` first. Each window is read once (:func:`~neurotrajectory.data.storage.load_split`)."""
+    ``data_dir/<group>`` if given (checked by :func:`_given_dataset` unless ``checked``
+    already: it hashes every input file), else recorded into ``out`` first. Each window is
+    read once (:func:`~neurotrajectory.data.storage.load_split`)."""
     if data_dir is not None:
-        _given_dataset(group, cfg, data_dir)  # (evaluate checked it first: cheap, said alike)
+        if not checked:
+            _given_dataset(group, cfg, data_dir)
         folder = data_dir / group
     else:
         folder = out / "data" / group
@@ -479,7 +482,9 @@ def evaluate(
         try:
             for group in cfg.groups:
                 t0 = time.perf_counter()
-                data = _split_dataset(group, cfg, data_dir, partial, log, progress)
+                data = _split_dataset(
+                    group, cfg, data_dir, partial, log, progress, checked=True
+                )  # (by _check_groups)
                 result = _evaluate_group(group, data, fronts[group], cfg, partial, log, progress)
                 del data  # (the next group's windows are read without these)
                 results.append(result)
