@@ -109,14 +109,26 @@ def annotate(img: np.ndarray, caption: Caption, pixels_per_metre: float,
     # (beside the inset: a long scenario name ran on under it)
     room = img.shape[1] - (inset_size + INSET_MARGIN if inset_size else 0) - 8
     _band(img, 0, 0, _wrapped(text, room))
-    legend = LEGEND if setpoints else tuple(e for e in LEGEND if e[2] not in _SETPOINT_SHAPES)
-    _band(img, 0, img.shape[0] - _STEP * len(legend) - 8, legend)
-    if inset_size:  # at the bottom beside the colours' legend: beside the inset (top middle)
-        # it hid the road ahead of an ego driving up the picture, under it one driving right
-        grid = inset_legend(orientation)
-        _band(img, _width(legend) + 8, img.shape[0] - _STEP * len(grid) - 8, grid)
+    for lines, x, y, _ in _legend_bands(img.shape[0], bool(inset_size), orientation, setpoints):
+        _band(img, x, y, lines)
     _scale_bar(img, pixels_per_metre)
     return img
+
+
+def _legend_bands(height: int, inset: bool, orientation: str,
+                  setpoints: bool = True) -> list[tuple]:  # fmt: skip
+    """Where :func:`annotate` writes its legends in a frame of ``height`` pixels: ``(lines,
+    left, top, width)`` [pixels] of the colour legend (without the set-points' colours unless
+    ``setpoints``) at the bottom left and, with an ``inset``, the grid's beside it (beside
+    the inset, top middle, it hid the road ahead of an ego driving up the picture; under it,
+    of one driving right)."""
+    legend = LEGEND if setpoints else tuple(e for e in LEGEND if e[2] not in _SETPOINT_SHAPES)
+    bands, x = [], 0
+    for lines in (legend, *([inset_legend(orientation)] if inset else [])):
+        width = _width(lines)
+        bands.append((lines, x, height - _STEP * len(lines) - 8, width))
+        x += width + 8
+    return bands
 
 
 def legend_boxes(height: int, inset: bool, orientation: str = "north_up") -> list[tuple]:
@@ -124,12 +136,8 @@ def legend_boxes(height: int, inset: bool, orientation: str = "north_up") -> lis
     writes (with the set-points' colours) take at the bottom left of a frame of ``height``
     pixels, ``inset``: with the grid inset's legend beside them; a renderer keeps the
     set-points and the destination clear of them (they would be dimmed under the bands)."""
-    boxes, x = [], 0
-    for lines in (LEGEND, *([inset_legend(orientation)] if inset else [])):
-        width = _width(lines)
-        boxes.append((x, height - _STEP * len(lines) - 8, x + width, height))
-        x += width + 8
-    return boxes
+    return [(x, y, x + width, height)
+            for _, x, y, width in _legend_bands(height, inset, orientation)]  # fmt: skip
 
 
 def inset_legend(orientation: str) -> list[tuple]:
